@@ -1,0 +1,40 @@
+# The README's two commands: `make demo` (replay the bundled bag through the shadow) and
+# `make test` (lint + the whole test suite). Both create and use the project venv on their own.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := $(CURDIR)/.venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+# Network hygiene (DESIGN 7): DDS stays on loopback, in a domain of our own.
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export ROS_DOMAIN_ID ?= $(shell echo $$(( $$PPID % 200 + 20 )))
+export AMENT_PREFIX_PATH := $(VENV)
+export MPLBACKEND := Agg
+
+DEMO_BAG ?= bags/demo_3d
+
+.PHONY: demo test venv lint bench clean
+
+venv: $(STAMP)
+
+$(STAMP): setup.py setup.cfg pyproject.toml package.xml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e ".[ros,test]"
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/bridge-shadow replay $(DEMO_BAG)
+
+test: $(STAMP)
+	$(PY) -m pytest
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check bridge_shadow test benchmarks
+
+bench: $(STAMP)
+	for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

@@ -1,0 +1,1 @@
+"""One module per ``bridge-shadow`` subcommand: argument parsing and printing only."""

@@ -1,0 +1,44 @@
+"""Printing helpers shared by the subcommands: one JSON object on stdout, progress on stderr."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from typing import Any
+
+import numpy as np
+
+__all__ = ["emit_json", "jsonable", "progress"]
+
+
+def jsonable(obj: Any) -> Any:
+    """Convert numpy scalars/arrays, tuples and non-finite floats into plain JSON values."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        return jsonable(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def emit_json(obj: dict[str, Any]) -> None:
+    """Print exactly one JSON object on stdout."""
+    sys.stdout.write(json.dumps(jsonable(obj), indent=2, sort_keys=False) + "\n")
+    sys.stdout.flush()
+
+
+def progress(fraction: float, label: str = "", width: int = 30) -> None:
+    """Draw a one-line progress bar on stderr when it is a terminal (silent otherwise)."""
+    if not sys.stderr.isatty():
+        return
+    fraction = min(max(fraction, 0.0), 1.0)
+    filled = round(width * fraction)
+    end = "\n" if fraction >= 1.0 else ""
+    sys.stderr.write(f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {100 * fraction:5.1f}%{end}")
+    sys.stderr.flush()

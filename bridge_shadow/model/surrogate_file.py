@@ -1,0 +1,138 @@
+"""The surrogate ``u = A x + u0`` (+ thermal sensitivities) at rest: load, save, placeholder.
+
+``config/surrogate.yaml`` is written by ``bridge-shadow surrogate`` from the FE model. Until it
+exists, ``load_surrogate`` falls back to a documented closed-form placeholder (two equal spans of a
+composite beam per girder), flagged in ``provenance.solver == "closed-form placeholder"``.
+
+Keys (DESIGN section 4): ``A`` 2x2 N/m, rows/cols [south, north]; ``u0`` [south, north] N;
+``thermal`` map ``uniform``/``vertical_gradient``/``transverse_gradient`` -> [south, north] N/K;
+``provenance`` dict.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from bridge_shadow.errors import ConfigError
+from bridge_shadow.paths import config_file
+
+__all__ = [
+    "THERMAL_CASES",
+    "Surrogate",
+    "load_surrogate",
+    "placeholder_surrogate",
+    "save_surrogate",
+]
+
+THERMAL_CASES: tuple[str, str, str] = ("uniform", "vertical_gradient", "transverse_gradient")
+
+
+@dataclass
+class Surrogate:
+    """Linear map from central-support settlements to central reactions.
+
+    Attributes:
+        A: (2, 2) N/m, generalized stiffness, symmetric positive definite; x positive upward,
+            reactions positive in compression, so the diagonal is positive.
+        u0: (2,) N, reactions at zero settlement (self-weight + superimposed load).
+        thermal: case -> (2,) N/K, reaction change per kelvin of the thermal load case.
+        provenance: where the numbers come from (model hash, mesh, solver, seconds, ...).
+
+    """
+
+    A: np.ndarray
+    u0: np.ndarray
+    thermal: dict[str, np.ndarray] = field(default_factory=dict)
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.A = np.asarray(self.A, dtype=float).reshape(2, 2)
+        self.u0 = np.asarray(self.u0, dtype=float).reshape(2)
+        self.thermal = {k: np.asarray(v, dtype=float).reshape(2) for k, v in self.thermal.items()}
+
+    def reactions(self, x_m: np.ndarray) -> np.ndarray:
+        """Return ``A x + u0`` for settlements ``x_m`` of shape (..., 2) in m; N."""
+        return np.asarray(x_m, float) @ self.A.T + self.u0
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form with the contract keys (lists, SI units)."""
+        return {
+            "A": self.A.tolist(),
+            "u0": self.u0.tolist(),
+            "thermal": {k: v.tolist() for k, v in self.thermal.items()},
+            "provenance": dict(self.provenance),
+        }
+
+
+def placeholder_surrogate() -> Surrogate:
+    """Closed-form stand-in used only while no FE surrogate file exists.
+
+    Each girder is two equal spans ``L = 15 m`` with a composite bending stiffness
+    ``EI = 3.0e9 N m^2`` (HEB1000, I = 6.447e-3 m^4, E = 210 GPa, times about 2.2 for the
+    composite deck; an assumption). Raising one central bearing by ``x`` adds ``6 EI x / L^3`` to
+    its reaction; the deck couples the girders so that the differential mode is 1.5 times stiffer
+    than the common mode (assumption), which makes ``A_12`` negative. ``u0 = 5/4 w L`` with
+    ``w = 12.5 kN/m`` per girder (DESIGN section 3). A top-warmer gradient of 1 K over the depth
+    ``h = 1.2 m`` changes each central reaction by ``-3 EI alpha / (h L)``; the transverse case
+    (south girder 1 K warmer than north) is modelled as half that effect with opposite signs.
+    """
+    ei, span, depth, alpha = 3.0e9, 15.0, 1.2, 1.2e-5
+    k_common = 6.0 * ei / span**3
+    k_diff = 1.5 * k_common
+    a_matrix = 0.5 * np.array(
+        [[k_common + k_diff, k_common - k_diff], [k_common - k_diff, k_common + k_diff]]
+    )
+    w = 12.5e3
+    u0 = np.full(2, 1.25 * w * span)
+    grad = -3.0 * ei * alpha / (depth * span)
+    thermal = {
+        "uniform": np.zeros(2),
+        "vertical_gradient": np.full(2, grad),
+        "transverse_gradient": np.array([-0.5 * grad, 0.5 * grad]),
+    }
+    provenance = {
+        "solver": "closed-form placeholder",
+        "note": "two-span beam formulas; run `bridge-shadow surrogate` for the FE surrogate",
+    }
+    return Surrogate(a_matrix, u0, thermal, provenance)
+
+
+def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = True) -> Surrogate:
+    """Load a surrogate YAML file (default ``config/surrogate.yaml``).
+
+    Falls back to ``placeholder_surrogate()`` when the default file does not exist and
+    ``allow_placeholder`` is set; an explicit path that does not exist is an error.
+    """
+    explicit = path is not None
+    file = Path(path) if explicit else config_file("surrogate.yaml")
+    if not file.is_file():
+        if explicit or not allow_placeholder:
+            raise ConfigError(f"{file}: surrogate file not found")
+        return placeholder_surrogate()
+    try:
+        data = yaml.safe_load(file.read_text())
+        return Surrogate(
+            A=data["A"],
+            u0=data["u0"],
+            thermal=data.get("thermal", {}),
+            provenance=data.get("provenance", {}),
+        )
+    except (yaml.YAMLError, KeyError, TypeError, ValueError) as err:
+        raise ConfigError(f"{file}: not a valid surrogate file ({err})") from err
+
+
+def save_surrogate(surrogate: Surrogate, path: str | Path, header: str = "") -> Path:
+    """Write the surrogate as YAML (atomic: temp file + rename); return the path."""
+    file = Path(path)
+    file.parent.mkdir(parents=True, exist_ok=True)
+    text = "".join(f"# {line}\n" for line in header.splitlines())
+    text += yaml.safe_dump(surrogate.to_dict(), sort_keys=False, default_flow_style=None)
+    tmp = file.with_name(file.name + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(file)
+    return file

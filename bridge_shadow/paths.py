@@ -1,0 +1,49 @@
+"""Where the package finds its configuration files, in a source checkout or an install."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+__all__ = ["config_dir", "config_file", "repo_root", "shared_data_dir"]
+
+_PACKAGE = "bridge_shadow"
+
+
+def repo_root() -> Path | None:
+    """Return the source checkout that holds this package, or None for an installed package."""
+    root = Path(__file__).resolve().parent.parent
+    return root if (root / "package.xml").is_file() and (root / "config").is_dir() else None
+
+
+def config_dir() -> Path:
+    """Return the directory with ``bridge.yaml``, ``surrogate.yaml`` and ``shadow.yaml``.
+
+    A source checkout wins (so an editable install uses the tree); otherwise the ament share
+    directory ``<prefix>/share/bridge_shadow/config`` of an installed package.
+    """
+    root = repo_root()
+    if root is not None:
+        return root / "config"
+    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    prefixes.append(sys.prefix)
+    for prefix in prefixes:
+        candidate = Path(prefix) / "share" / _PACKAGE / "config"
+        if candidate.is_dir():
+            return candidate
+    return Path(sys.prefix) / "share" / _PACKAGE / "config"
+
+
+def config_file(name: str) -> Path:
+    """Return the path of a shipped configuration file (it may not exist yet)."""
+    return config_dir() / name
+
+
+def shared_data_dir() -> Path:
+    """Return ``../shared/data/munich-bridge-data`` beside the checkout (or $BRIDGE_SHADOW_DATA)."""
+    env = os.environ.get("BRIDGE_SHADOW_DATA")
+    if env:
+        return Path(env)
+    root = repo_root() or Path.cwd()
+    return root.parent / "shared" / "data" / "munich-bridge-data"

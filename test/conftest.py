@@ -1,0 +1,32 @@
+"""Shared test set-up: DDS confined to loopback in a domain of this run, paths to real data."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from bridge_shadow.paths import repo_root, shared_data_dir
+from bridge_shadow.ros.netenv import confine_to_loopback
+
+# Network hygiene: set before any test can import rclpy (DESIGN 7).
+confine_to_loopback(new_domain=True)
+os.environ.setdefault("MPLBACKEND", "Agg")
+os.environ.setdefault("AMENT_PREFIX_PATH", os.sys.prefix)
+
+
+@pytest.fixture(scope="session")
+def munich_data() -> Path:
+    """The real munich-bridge-data records in ../shared (read in place, never copied)."""
+    path = shared_data_dir()
+    assert path.is_dir(), f"real data not found at {path}: clone beside ../shared"
+    return path
+
+
+@pytest.fixture(scope="session")
+def root() -> Path:
+    """The source checkout."""
+    path = repo_root()
+    assert path is not None
+    return path
