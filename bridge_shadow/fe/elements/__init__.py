@@ -1,0 +1,1 @@
+"""Element formulations, each vectorized over all elements of a set."""

@@ -1,0 +1,322 @@
+"""Flat 4-node shell, 6 DOF per node, vectorized over all elements of a set.
+
+* Bending: MITC4 (Bathe-Dvorkin) Reissner-Mindlin plate, transverse shear tied at the edge
+  midpoints, so it does not lock when thin.
+* Membrane: QM6 (Wilson incompatible modes with Taylor's Jacobian correction, so it passes the
+  patch test on any quad), which is exact for in-plane bending of rectangles; plus Hughes-Brezzi
+  drilling ``0.5 gamma t integral (theta_z - omega)^2`` with ``gamma = DRILL_FACTOR * G``.
+* Warped quads: the element is built on the mean plane (normal from the diagonals, through the
+  centroid) and tied to the real nodes by rigid offsets along the normal (the usual warping
+  correction), so rigid-body motions stay force-free.
+
+Local DOF order per node ``(u, v, w, rx, ry, rz)``; the plate kinematics are
+``u(z) = z ry``, ``v(z) = -z rx``, curvatures ``kx = ry,x``, ``ky = -rx,y``, ``kxy = ry,y - rx,x``,
+shear ``gxz = w,x + ry``, ``gyz = w,y - rx``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bridge_shadow.fe.errors import ModelError
+
+__all__ = [
+    "DRILL_FACTOR",
+    "ShellKinematics",
+    "shell_kinematics",
+    "shell_mass_vector",
+    "shell_pressure_vector",
+    "shell_stiffness",
+    "shell_thermal_vector",
+]
+
+#: Drilling penalty ``gamma / G`` (Hughes-Brezzi); small so that it never stiffens the membrane.
+DRILL_FACTOR = 1.0e-3
+
+_XI = np.array([-1.0, 1.0, 1.0, -1.0])
+_ETA = np.array([-1.0, -1.0, 1.0, 1.0])
+_G = 1.0 / np.sqrt(3.0)
+_GP = np.array([[-_G, -_G], [_G, -_G], [_G, _G], [-_G, _G]])  # 2x2 Gauss points, weights 1
+_MEMB = np.array([0, 1])  # u, v within a node's 6 DOFs
+_BEND = np.array([2, 3, 4])  # w, rx, ry
+
+
+def _shape(xi: float, eta: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bilinear shape functions and their natural derivatives at one point, each (4,)."""
+    n = 0.25 * (1 + _XI * xi) * (1 + _ETA * eta)
+    dxi = 0.25 * _XI * (1 + _ETA * eta)
+    deta = 0.25 * _ETA * (1 + _XI * xi)
+    return n, dxi, deta
+
+
+@dataclass
+class ShellKinematics:
+    """Geometry of a shell set on its mean planes.
+
+    Attributes:
+        frame: (n_el, 3, 3) rows e1, e2, e3 (e3 the normal) of each element's local axes.
+        xy: (n_el, 4, 2) m, nodal coordinates in the mean plane.
+        warp: (n_el, 4) m, offset of each node from the mean plane along e3.
+        tt: (n_el, 24, 24), maps global nodal DOFs to flat local DOFs (rotation + warping offset).
+        n: (4, 4) shape functions at the 4 Gauss points; dndx: (n_el, 4, 2, 4) Cartesian derivatives.
+        dA: (n_el, 4) m^2, Gauss weight times det J.
+
+    """
+
+    frame: np.ndarray
+    xy: np.ndarray
+    warp: np.ndarray
+    tt: np.ndarray
+    n: np.ndarray
+    dndx: np.ndarray
+    dA: np.ndarray
+    jac: np.ndarray
+
+
+def shell_kinematics(xyz: np.ndarray) -> ShellKinematics:
+    """Local frames, mean-plane coordinates, Jacobians and the DOF transformation for quads.
+
+    Args:
+        xyz: (n_el, 4, 3) m, nodal coordinates.
+
+    """
+    xyz = np.asarray(xyz, float)
+    n_el = len(xyz)
+    c = xyz.mean(axis=1)
+    normal = np.cross(xyz[:, 2] - xyz[:, 0], xyz[:, 3] - xyz[:, 1])
+    norm = np.linalg.norm(normal, axis=1)
+    if np.any(norm <= 0):
+        raise ModelError("degenerate shell element (zero area)")
+    e3 = normal / norm[:, None]
+    a1 = 0.5 * (xyz[:, 1] + xyz[:, 2] - xyz[:, 0] - xyz[:, 3])
+    a1 = a1 - np.einsum("ei,ei->e", a1, e3)[:, None] * e3
+    e1 = a1 / np.linalg.norm(a1, axis=1)[:, None]
+    e2 = np.cross(e3, e1)
+    frame = np.stack([e1, e2, e3], axis=1)
+    rel = xyz - c[:, None, :]
+    local = np.einsum("eij,ekj->eki", frame, rel)
+    xy, warp = local[:, :, :2], local[:, :, 2]
+
+    # Rotation of each node's 6 DOFs to local axes, then the rigid offset to the mean plane:
+    # u_flat = u - z ry, v_flat = v + z rx.
+    rot = np.zeros((n_el, 24, 24))
+    for a in range(8):
+        rot[:, 3 * a : 3 * a + 3, 3 * a : 3 * a + 3] = frame
+    w = np.broadcast_to(np.eye(24), (n_el, 24, 24)).copy()
+    for a in range(4):
+        w[:, 6 * a, 6 * a + 4] = -warp[:, a]
+        w[:, 6 * a + 1, 6 * a + 3] = warp[:, a]
+    tt = w @ rot
+
+    ns, dndx, dA, jacs = [], [], [], []
+    for xi, eta in _GP:
+        n, dxi, deta = _shape(xi, eta)
+        jac = np.einsum("k,ekj->ej", dxi, xy), np.einsum("k,ekj->ej", deta, xy)
+        jac = np.stack(jac, axis=1)  # (n_el, 2, 2): [[x,xi y,xi], [x,eta y,eta]]
+        det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
+        if np.any(det <= 0):
+            raise ModelError("shell element with non-positive Jacobian (node order or a concave quad)")
+        inv = np.linalg.inv(jac)
+        ns.append(n)
+        dndx.append(inv @ np.stack([dxi, deta])[None])
+        dA.append(det)
+        jacs.append(jac)
+    return ShellKinematics(
+        frame=frame,
+        xy=xy,
+        warp=warp,
+        tt=tt,
+        n=np.array(ns),
+        dndx=np.stack(dndx, axis=1),
+        dA=np.stack(dA, axis=1),
+        jac=np.stack(jacs, axis=1),
+    )
+
+
+def _membrane_b(kin: ShellKinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Membrane B (n_el, 4, 3, 8), incompatible-mode G (n_el, 4, 3, 4), drilling b (n_el, 4, 12)."""
+    n_el = len(kin.xy)
+    dx, dy = kin.dndx[:, :, 0, :], kin.dndx[:, :, 1, :]
+    b = np.zeros((n_el, 4, 3, 8))
+    b[:, :, 0, 0::2] = dx
+    b[:, :, 1, 1::2] = dy
+    b[:, :, 2, 0::2] = dy
+    b[:, :, 2, 1::2] = dx
+    # QM6 modes P1 = 1 - xi^2, P2 = 1 - eta^2, derivatives through the centre Jacobian J0 scaled by
+    # det J0 / det J (Taylor): integral of G over the element vanishes, so the patch test holds.
+    _, dxi0, deta0 = _shape(0.0, 0.0)
+    j0 = np.stack([np.einsum("k,ekj->ej", dxi0, kin.xy), np.einsum("k,ekj->ej", deta0, kin.xy)], axis=1)
+    det0 = j0[:, 0, 0] * j0[:, 1, 1] - j0[:, 0, 1] * j0[:, 1, 0]
+    inv0 = np.linalg.inv(j0)
+    g = np.zeros((n_el, 4, 3, 4))
+    for q, (xi, eta) in enumerate(_GP):
+        nat = np.array([[-2 * xi, 0.0], [0.0, -2 * eta]])  # columns P1, P2; rows d/dxi, d/deta
+        cart = inv0 @ nat[None] * (det0 / (kin.dA[:, q]))[:, None, None]  # (n_el, 2, 2): rows d/dx, d/dy
+        g[:, q, 0, 0:2] = cart[:, 0, :]
+        g[:, q, 1, 2:4] = cart[:, 1, :]
+        g[:, q, 2, 0:2] = cart[:, 1, :]
+        g[:, q, 2, 2:4] = cart[:, 0, :]
+    # drilling: theta_z - omega, omega = (v,x - u,y) / 2; DOFs (u1, v1, rz1, u2, ...)
+    bd = np.zeros((n_el, 4, 12))
+    bd[:, :, 0::3] = 0.5 * dy
+    bd[:, :, 1::3] = -0.5 * dx
+    bd[:, :, 2::3] = kin.n[None]
+    return b, g, bd
+
+
+def _bending_b(kin: ShellKinematics) -> tuple[np.ndarray, np.ndarray]:
+    """Bending B (n_el, 4, 3, 12) and MITC4 shear B (n_el, 4, 2, 12); DOFs (w, rx, ry) per node."""
+    n_el = len(kin.xy)
+    dx, dy = kin.dndx[:, :, 0, :], kin.dndx[:, :, 1, :]
+    bb = np.zeros((n_el, 4, 3, 12))
+    bb[:, :, 0, 2::3] = dx
+    bb[:, :, 1, 1::3] = -dy
+    bb[:, :, 2, 2::3] = dy
+    bb[:, :, 2, 1::3] = -dx
+
+    def covariant(xi: float, eta: float, along_xi: bool) -> np.ndarray:
+        """Row (n_el, 12) of the covariant shear e_xi (or e_eta) at a tying point."""
+        n, dxi, deta = _shape(xi, eta)
+        dn = dxi if along_xi else deta
+        xt = np.einsum("k,ekj->ej", dn, kin.xy)  # (n_el, 2): x,t and y,t
+        row = np.zeros((n_el, 12))
+        row[:, 0::3] = dn
+        row[:, 2::3] = n[None] * xt[:, 0:1]
+        row[:, 1::3] = -n[None] * xt[:, 1:2]
+        return row
+
+    exi_m, exi_p = covariant(0.0, -1.0, True), covariant(0.0, 1.0, True)
+    eeta_m, eeta_p = covariant(-1.0, 0.0, False), covariant(1.0, 0.0, False)
+    bs = np.zeros((n_el, 4, 2, 12))
+    for q, (xi, eta) in enumerate(_GP):
+        nat = np.stack(
+            [
+                0.5 * (1 - eta) * exi_m + 0.5 * (1 + eta) * exi_p,
+                0.5 * (1 - xi) * eeta_m + 0.5 * (1 + xi) * eeta_p,
+            ],
+            axis=1,
+        )
+        bs[:, q] = np.linalg.solve(kin.jac[:, q], nat)
+    return bb, bs
+
+
+def _material(E: np.ndarray, nu: np.ndarray) -> np.ndarray:
+    """Plane-stress matrix (n_el, 3, 3) per unit thickness, Pa."""
+    c = np.zeros((len(E), 3, 3))
+    f = E / (1 - nu**2)
+    c[:, 0, 0] = c[:, 1, 1] = f
+    c[:, 0, 1] = c[:, 1, 0] = f * nu
+    c[:, 2, 2] = f * (1 - nu) / 2
+    return c
+
+
+def _flat_to_dofs() -> tuple[np.ndarray, np.ndarray]:
+    """Positions of the 12 membrane (u, v, rz) and 12 bending (w, rx, ry) DOFs among 24."""
+    memb = np.array([6 * a + d for a in range(4) for d in (0, 1, 5)])
+    bend = np.array([6 * a + d for a in range(4) for d in (2, 3, 4)])
+    return memb, bend
+
+
+def shell_stiffness(
+    xyz: np.ndarray,
+    thickness: np.ndarray,
+    E: np.ndarray,
+    nu: np.ndarray,
+    kin: ShellKinematics | None = None,
+    drill_factor: float = DRILL_FACTOR,
+) -> np.ndarray:
+    """Element stiffness matrices in global axes.
+
+    Args:
+        xyz: (n_el, 4, 3) m. thickness, E, nu: (n_el,).
+        kin: precomputed kinematics (optional).
+        drill_factor: Hughes-Brezzi penalty over the shear modulus.
+
+    Returns:
+        ke: (n_el, 24, 24) float, N/m, N and N m, global DOF order ``(ux, uy, uz, rx, ry, rz)`` per node.
+
+    """
+    kin = shell_kinematics(xyz) if kin is None else kin
+    t = np.asarray(thickness, float)
+    c = _material(np.asarray(E, float), np.asarray(nu, float))
+    shear_mod = np.asarray(E, float) / (2 * (1 + np.asarray(nu, float)))
+    b, g, bd = _membrane_b(kin)
+    wt = kin.dA * t[:, None]  # (n_el, 4)
+    kuu = np.einsum("eq,eqai,eab,eqbj->eij", wt, b, c, b)
+    kua = np.einsum("eq,eqai,eab,eqbj->eij", wt, b, c, g)
+    kaa = np.einsum("eq,eqai,eab,eqbj->eij", wt, g, c, g)
+    km8 = kuu - kua @ np.linalg.solve(kaa, np.swapaxes(kua, 1, 2))
+    # membrane on (u, v, rz) x 4 = 12 DOFs, plus drilling
+    km = np.zeros((len(t), 12, 12))
+    uv = np.array([3 * a + d for a in range(4) for d in (0, 1)])
+    km[:, uv[:, None], uv[None, :]] = km8
+    km += np.einsum("e,eq,eqi,eqj->eij", drill_factor * shear_mod * t, kin.dA, bd, bd)
+
+    bb, bs = _bending_b(kin)
+    db = c * (t**3 / 12.0)[:, None, None]
+    ds = (5.0 / 6.0) * shear_mod * t
+    kb = np.einsum("eq,eqai,eab,eqbj->eij", kin.dA, bb, db, bb)
+    kb += np.einsum("eq,e,eqai,eqaj->eij", kin.dA, ds, bs, bs)
+
+    memb, bend = _flat_to_dofs()
+    kf = np.zeros((len(t), 24, 24))
+    kf[:, memb[:, None], memb[None, :]] = km
+    kf[:, bend[:, None], bend[None, :]] = kb
+    return np.einsum("eai,eab,ebj->eij", kin.tt, kf, kin.tt)
+
+
+def shell_thermal_vector(
+    kin: ShellKinematics,
+    thickness: np.ndarray,
+    E: np.ndarray,
+    nu: np.ndarray,
+    alpha: np.ndarray,
+    d_uniform: np.ndarray,
+    d_gradient: np.ndarray,
+) -> np.ndarray:
+    """Equivalent nodal loads (n_el, 24), global axes, of a uniform change and a through-thickness gradient.
+
+    ``d_gradient`` is the temperature of the +normal face minus the -normal face (K); free thermal
+    strain ``alpha (d_uniform + d_gradient z / t)``.
+    """
+    t = np.asarray(thickness, float)
+    c = _material(np.asarray(E, float), np.asarray(nu, float))
+    ones = np.array([1.0, 1.0, 0.0])
+    n_t = np.einsum("eab,b->ea", c, ones) * (t * alpha * d_uniform)[:, None]
+    m_t = np.einsum("eab,b->ea", c, ones) * (t**2 / 12.0 * alpha * d_gradient)[:, None]
+    b, _, _ = _membrane_b(kin)
+    bb, _ = _bending_b(kin)
+    fm = np.einsum("eq,eqai,ea->ei", kin.dA, b, n_t)
+    fb = np.einsum("eq,eqai,ea->ei", kin.dA, bb, m_t)
+    memb, bend = _flat_to_dofs()
+    ff = np.zeros((len(t), 24))
+    uv = np.array([6 * a + d for a in range(4) for d in (0, 1)])
+    ff[:, uv] = fm
+    ff[:, bend] = fb
+    del memb
+    return np.einsum("eai,ea->ei", kin.tt, ff)
+
+
+def shell_nodal_areas(kin: ShellKinematics) -> np.ndarray:
+    """Consistent nodal areas ``integral N_i dA`` (n_el, 4), m^2."""
+    return np.einsum("eq,qa->ea", kin.dA, kin.n)
+
+
+def shell_pressure_vector(kin: ShellKinematics, pressure_pa: np.ndarray) -> np.ndarray:
+    """Nodal forces (n_el, 24), global axes, of a traction ``p n`` (positive along the element normal)."""
+    areas = shell_nodal_areas(kin) * np.asarray(pressure_pa, float)[:, None]
+    f = np.zeros((len(areas), 4, 6))
+    f[:, :, 0:3] = areas[:, :, None] * kin.frame[:, None, 2, :]
+    return f.reshape(len(areas), 24)
+
+
+def shell_mass_vector(
+    kin: ShellKinematics, thickness: np.ndarray, rho: np.ndarray, g: np.ndarray
+) -> np.ndarray:
+    """Self-weight nodal forces (n_el, 24), global axes, for acceleration ``g`` (3,) m/s^2."""
+    mass = shell_nodal_areas(kin) * (np.asarray(thickness) * np.asarray(rho))[:, None]
+    f = np.zeros((len(mass), 4, 6))
+    f[:, :, 0:3] = mass[:, :, None] * np.asarray(g, float)[None, None, :]
+    return f.reshape(len(mass), 24)
