@@ -1,0 +1,147 @@
+"""Temporal drivers of the candidate effects, computed on the window grid from the data alone.
+
+Nothing here reads the truth twin's ``truth.yaml``: the drivers are time, air temperature (raw and
+first-order lagged), the clear-sky sun covariate at Neubiberg times a daily clearness estimated
+from the daily air-temperature range, and traffic events detected from the within-window spread.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import lfilter
+
+from bridge_shadow.gap.windows import NS, Windows
+
+__all__ = ["Drivers", "clear_sky_fallback", "compute_drivers", "lowpass"]
+
+DAY_S = 86400.0
+#: Neubiberg (UniBw Munich), DESIGN section 6.
+LAT_DEG, LON_DEG = 48.08, 11.64
+
+
+def clear_sky_fallback(t_ns: np.ndarray) -> np.ndarray:
+    """Clear-sky sun covariate 0..1: sine of the solar elevation at Neubiberg, clipped at 0.
+
+    A standard low-precision solar position (declination and equation of time, about 0.5 degree);
+    used only when ``bridge_shadow.twin.sun`` is not available. Normalized by the sine of the noon
+    elevation at the June solstice so that 1 is the yearly peak.
+    """
+    t = np.asarray(t_ns, dtype=np.int64)
+    days = (t - 946_728_000 * NS) / (DAY_S * NS)  # since J2000.0 (2000-01-01 12:00 UTC)
+    g = np.radians((357.529 + 0.98560028 * days) % 360.0)
+    q = (280.459 + 0.98564736 * days) % 360.0
+    lam = np.radians(q + 1.915 * np.sin(g) + 0.020 * np.sin(2 * g))
+    eps = np.radians(23.439 - 3.6e-7 * days)
+    dec = np.arcsin(np.sin(eps) * np.sin(lam))
+    ra = np.arctan2(np.cos(eps) * np.sin(lam), np.cos(lam))
+    gmst_h = (18.697374558 + 24.06570982441908 * days) % 24.0
+    hour_angle = np.radians(gmst_h * 15.0 + LON_DEG) - ra
+    lat = np.radians(LAT_DEG)
+    sin_el = np.sin(lat) * np.sin(dec) + np.cos(lat) * np.cos(dec) * np.cos(hour_angle)
+    peak = np.sin(np.radians(90.0 - LAT_DEG + 23.439))
+    return np.clip(sin_el / peak, 0.0, 1.0)
+
+
+def _clear_sky(t_ns: np.ndarray) -> np.ndarray:
+    try:
+        from bridge_shadow.twin.sun import clear_sky
+    except ImportError:
+        return clear_sky_fallback(t_ns)
+    return np.asarray(clear_sky(np.asarray(t_ns, dtype=np.int64)), dtype=float)
+
+
+def lowpass(x: np.ndarray, tau_s: float, dt_s: float) -> np.ndarray:
+    """First-order lag ``tau dy/dt = x - y`` on a regular grid (exact for piecewise-constant x).
+
+    ``y`` starts at the mean of ``x`` over the first ``tau`` (steady state for a slow start).
+    """
+    x = np.asarray(x, float)
+    if tau_s <= 0.0:
+        return x.copy()
+    a = np.exp(-dt_s / tau_s)
+    y0 = x[: max(1, round(tau_s / dt_s))].mean()
+    y, _ = lfilter([1.0 - a], [1.0, -a], x, zi=[a * y0])
+    return y
+
+
+@dataclass
+class Drivers:
+    """Covariates on the window grid (``n`` windows).
+
+    Attributes:
+        t_day: (n,) days since the first window.
+        day: (n,) int, whole-day block index (24 h blocks from the first window).
+        temp_c: (n,) air temperature in C.
+        dtemp_k: (n,) air temperature minus its mean over the record, K.
+        dt_s: window length in s.
+        sun: (n,) clear-sky sun covariate, 0..1.
+        clearness: (n,) daily clearness estimate 0..1 (daily air-temperature range over the largest).
+        warming: (n,) bool, smoothed air temperature rising.
+        traffic: (n,) N, excess of the window mean over its median on the summed channels in windows
+            flagged as events (within-window maximum far above the noise), 0 elsewhere.
+        _lag_cache: memo of lowpassed temperature per time constant.
+
+    """
+
+    t_day: np.ndarray
+    day: np.ndarray
+    temp_c: np.ndarray
+    dtemp_k: np.ndarray
+    dt_s: float
+    sun: np.ndarray
+    clearness: np.ndarray
+    warming: np.ndarray
+    traffic: np.ndarray
+    _lag_cache: dict[float, np.ndarray] = field(default_factory=dict, repr=False)
+
+    def __len__(self) -> int:
+        return len(self.t_day)
+
+    def lagged_temp(self, tau_h: float) -> np.ndarray:
+        """Air temperature through a first-order lag with time constant ``tau_h`` hours, C."""
+        if tau_h not in self._lag_cache:
+            self._lag_cache[tau_h] = lowpass(self.temp_c, tau_h * 3600.0, self.dt_s)
+        return self._lag_cache[tau_h]
+
+
+def _traffic_driver(w: Windows, z: float = 6.0) -> np.ndarray:
+    """Mean-minus-median excess of the summed channels in windows with an outlying maximum, N."""
+    spike = np.nansum(w.max_n - w.median_n, axis=1)
+    excess = np.nansum(w.mean_n - w.median_n, axis=1)
+    ok = np.isfinite(spike) & (w.count.min(axis=1) > 0)
+    if ok.sum() < 3:
+        return np.zeros(len(w))
+    centre = np.median(spike[ok])
+    scale = 1.4826 * np.median(np.abs(spike[ok] - centre)) + 1e-9
+    event = ok & (spike > centre + z * scale)
+    return np.where(event, excess, 0.0)
+
+
+def compute_drivers(w: Windows) -> Drivers:
+    """Compute every temporal driver from the windows (no truth, no model)."""
+    t_s = (w.t_ns - w.t_ns[0]) / NS
+    t_day = t_s / DAY_S
+    day = np.floor(t_day + 1e-9).astype(int)
+    temp = np.asarray(w.temp_c, float)
+    sun = _clear_sky(w.t_ns)
+    ranges = np.array([np.ptp(temp[day == d]) for d in np.unique(day)])
+    span = np.array([np.ptp(t_day[day == d]) for d in np.unique(day)])
+    full = span > 0.75
+    ref = ranges[full].max() if full.any() and ranges[full].max() > 0 else max(ranges.max(), 1e-9)
+    clear_by_day = np.clip(ranges / ref, 0.0, 1.0)
+    clearness = clear_by_day[np.searchsorted(np.unique(day), day)]
+    smooth = lowpass(temp, 1800.0, w.width_s)
+    warming = np.gradient(smooth) > 0
+    return Drivers(
+        t_day=t_day,
+        day=day,
+        temp_c=temp,
+        dtemp_k=temp - temp.mean(),
+        dt_s=float(w.width_s),
+        sun=sun,
+        clearness=clearness,
+        warming=warming,
+        traffic=_traffic_driver(w),
+    )
