@@ -1,0 +1,175 @@
+"""Vectorized CDR codec for the fixed-layout contract messages (no ROS import).
+
+``geometry_msgs/msg/WrenchStamped`` and ``sensor_msgs/msg/Temperature`` share one layout in
+ROS 2 CDR (XCDR1, as rosbag2 stores it)::
+
+    offset  0  encapsulation  4 bytes: 0x00, 0x01 (little endian) or 0x00 (big), options 0x0000
+    offset  4  header.stamp.sec       int32
+    offset  8  header.stamp.nanosec   uint32
+    offset 12  frame_id length        uint32, counts the bytes plus the terminating NUL
+    offset 16  frame_id bytes + NUL
+    offset f   k float64              f = 4 + align8(12 + length): alignment counts from offset 4
+
+with k = 6 for WrenchStamped (force x y z, torque x y z) and k = 2 for Temperature (temperature,
+variance). Messages of one total length share one offset table, so a bag decodes as a few numpy
+blocks, one per (length, frame_id length): no Python work per message beyond ``len``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = [
+    "N_FLOATS",
+    "CdrFormatError",
+    "decode_stamped_floats",
+    "encode_stamped_floats",
+]
+
+#: Float64 payload fields after the header, by message type.
+N_FLOATS: dict[str, int] = {
+    "geometry_msgs/msg/WrenchStamped": 6,
+    "sensor_msgs/msg/Temperature": 2,
+}
+
+_HEADER_BYTES = 16  # encapsulation + sec + nanosec + string length
+_NS = 1_000_000_000
+
+
+class CdrFormatError(ValueError):
+    """A raw message does not have the fixed layout it claims (reported per topic by the reader)."""
+
+
+def _align8(n: np.ndarray) -> np.ndarray:
+    return (n + 7) // 8 * 8
+
+
+def _field(block: np.ndarray, start: int, dtype: str) -> np.ndarray:
+    """Read one fixed-offset scalar column from a ``(n, L) uint8`` block."""
+    width = np.dtype(dtype).itemsize
+    return np.ascontiguousarray(block[:, start : start + width]).view(dtype).ravel()
+
+
+def _decode_frames(chars: np.ndarray) -> np.ndarray:
+    """Decode ``(n, w) uint8`` NUL-padded strings into an object array, one decode per distinct value."""
+    n, width = chars.shape
+    if width == 0:
+        return np.full(n, "", dtype=object)
+    fixed = np.ascontiguousarray(chars).view(f"S{width}").ravel()  # numpy strips trailing NULs
+    uniq, inverse = np.unique(fixed, return_inverse=True)
+    text = np.array([u.decode("utf-8", errors="replace") for u in uniq], dtype=object)
+    return text[inverse.ravel()]
+
+
+def decode_stamped_floats(raws: Sequence[bytes], n_floats: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Decode header stamp, frame_id and trailing float64s of many CDR messages at once.
+
+    Args:
+        raws: n raw CDR messages (with the 4-byte encapsulation header), any mix of lengths.
+        n_floats: number of float64 fields after the header (see ``N_FLOATS``).
+
+    Returns:
+        ``stamp_ns`` (n,) int64, ``frame_id`` (n,) object array of str, ``values`` (n, n_floats)
+        float64.
+
+    Raises:
+        CdrFormatError: a message is too short, has an unknown encapsulation or an
+            inconsistent string length.
+
+    """
+    n = len(raws)
+    stamp_ns = np.empty(n, dtype=np.int64)
+    frames = np.empty(n, dtype=object)
+    values = np.empty((n, n_floats), dtype=np.float64)
+    if n == 0:
+        return stamp_ns, frames, values
+    lengths = np.fromiter(map(len, raws), dtype=np.int64, count=n)
+    for length in np.unique(lengths).tolist():
+        rows = np.flatnonzero(lengths == length)
+        if length < _HEADER_BYTES + 8 * n_floats:
+            raise CdrFormatError(f"message {int(rows[0])} is {length} bytes, too short for the layout")
+        joined = b"".join(raws) if len(rows) == n else b"".join([raws[i] for i in rows.tolist()])
+        block = np.frombuffer(joined, dtype=np.uint8).reshape(len(rows), length)
+        if np.any(block[:, 0] != 0) or np.any(block[:, 1] > 1):
+            bad = int(rows[np.flatnonzero((block[:, 0] != 0) | (block[:, 1] > 1))[0]])
+            raise CdrFormatError(f"message {bad} has an unknown CDR encapsulation")
+        for little in (True, False):
+            sel = np.flatnonzero(block[:, 1] == (1 if little else 0))
+            if len(sel):
+                _decode_block(
+                    block[sel], rows[sel], n_floats, "<" if little else ">", stamp_ns, frames, values
+                )
+    return stamp_ns, frames, values
+
+
+def _decode_block(
+    block: np.ndarray,
+    rows: np.ndarray,
+    n_floats: int,
+    order: str,
+    stamp_ns: np.ndarray,
+    frames: np.ndarray,
+    values: np.ndarray,
+) -> None:
+    """Decode a ``(m, L)`` block of one length and byte order into the output rows."""
+    length = block.shape[1]
+    slen = _field(block, 12, order + "u4").astype(np.int64)
+    offset = 4 + _align8(12 + slen)  # first float64; trailing padding up to L is tolerated
+    bad = (slen < 1) | (offset + 8 * n_floats > length)
+    if np.any(bad):
+        raise CdrFormatError(f"message {int(rows[np.flatnonzero(bad)[0]])} has an inconsistent string length")
+    sec = _field(block, 4, order + "i4").astype(np.int64)
+    nsec = _field(block, 8, order + "u4").astype(np.int64)
+    stamp_ns[rows] = sec * _NS + nsec
+    for off in np.unique(offset).tolist():
+        sub = np.flatnonzero(offset == off)
+        part = block[sub]
+        floats = np.ascontiguousarray(part[:, off : off + 8 * n_floats]).view(order + "f8")
+        values[rows[sub]] = floats.reshape(len(sub), n_floats)
+        frames[rows[sub]] = _decode_frames(part[:, _HEADER_BYTES:off])
+
+
+def encode_stamped_floats(
+    stamp_ns: np.ndarray, frame_id: np.ndarray | Sequence[str] | str, values: np.ndarray
+) -> list[bytes]:
+    """Serialize messages of the fixed layout to little-endian CDR, one numpy block per frame_id.
+
+    Args:
+        stamp_ns: (n,) int64 header stamps, ns since epoch.
+        frame_id: a str for all messages or (n,) str per message.
+        values: (n, k) float64 fields after the header.
+
+    Returns:
+        n raw CDR messages, byte-identical to rosbags' ``serialize_cdr``.
+
+    """
+    stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
+    values = np.asarray(values, dtype="<f8")
+    n, n_floats = values.shape
+    if len(stamp_ns) != n:
+        raise ValueError("stamp_ns and values must have the same number of rows")
+    frames = np.full(n, frame_id, dtype=object) if isinstance(frame_id, str) else np.asarray(frame_id, object)
+    sec = stamp_ns // _NS
+    if n and (sec.min() < np.iinfo(np.int32).min or sec.max() > np.iinfo(np.int32).max):
+        raise ValueError("stamp out of the int32 seconds range of builtin_interfaces/Time")
+    nsec = stamp_ns - sec * _NS
+    out: list[bytes] = [b""] * n
+    uniq, inverse = np.unique(frames.astype(str), return_inverse=True) if n else ([], np.empty(0, int))
+    for k, frame in enumerate(uniq):
+        rows = np.flatnonzero(inverse.ravel() == k)
+        text = str(frame).encode("utf-8") + b"\0"
+        offset = 4 + int(_align8(np.int64(12 + len(text))))
+        length = offset + 8 * n_floats
+        block = np.zeros((len(rows), length), dtype=np.uint8)
+        block[:, 1] = 1
+        block[:, 4:8] = sec[rows].astype("<i4").view(np.uint8).reshape(-1, 4)
+        block[:, 8:12] = nsec[rows].astype("<u4").view(np.uint8).reshape(-1, 4)
+        block[:, 12:16] = np.frombuffer(np.uint32(len(text)).astype("<u4").tobytes(), np.uint8)
+        block[:, 16 : 16 + len(text)] = np.frombuffer(text, np.uint8)
+        block[:, offset:] = values[rows].view(np.uint8).reshape(len(rows), 8 * n_floats)
+        blob = block.tobytes()
+        for j, row in enumerate(rows.tolist()):
+            out[row] = blob[j * length : (j + 1) * length]
+    return out

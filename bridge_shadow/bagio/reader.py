@@ -1,0 +1,255 @@
+"""Read rosbag2 bags (sqlite3 or MCAP) into ``MonitoringData``; raw iteration and summaries."""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Collection, Iterator
+from contextlib import contextmanager
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.bagio.cdr import N_FLOATS, CdrFormatError, decode_stamped_floats
+from bridge_shadow.bagio.errors import (
+    BagError,
+    BagNotFoundError,
+    CorruptBagError,
+    MissingTopicError,
+    NotABagError,
+    UnexpectedTypeError,
+)
+from bridge_shadow.contract import (
+    CHANNELS,
+    FORCE_TOPICS,
+    FORCE_TYPE,
+    INPUT_TOPICS,
+    TEMPERATURE_TOPIC,
+    TEMPERATURE_TYPE,
+)
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+__all__ = ["bag_summary", "iter_raw", "open_bag", "read_monitoring", "read_raw_topics"]
+
+#: Storage failures that mean a damaged file (apsw errors are added at import time below).
+_STORAGE_ERRORS: tuple[type[BaseException], ...] = (
+    OSError,
+    EOFError,
+    ValueError,
+    KeyError,
+    IndexError,
+    TypeError,
+    AttributeError,
+    AssertionError,
+    struct.error,
+)
+try:  # the sqlite3 back end of rosbags
+    import apsw
+
+    _STORAGE_ERRORS = (*_STORAGE_ERRORS, apsw.Error)
+except ImportError:  # pragma: no cover
+    pass
+
+
+def _reader_error() -> type[BaseException]:
+    from rosbags.rosbag2 import ReaderError
+
+    return ReaderError
+
+
+@contextmanager
+def _translated(path: Path, doing: str) -> Iterator[None]:
+    """Turn any storage failure inside the block into a one-line ``BagError`` naming the bag."""
+    reader_error = _reader_error()
+    try:
+        yield
+    except BagError:
+        raise
+    except FileNotFoundError as err:
+        if not path.exists():
+            raise BagNotFoundError(f"{path}: no such bag") from err
+        raise NotABagError(f"{path}: not a rosbag2 bag (no metadata.yaml, .db3 or .mcap)") from err
+    except reader_error as err:
+        text = str(err).splitlines()[0] if str(err) else type(err).__name__
+        if "Unrecognized storage format" in text:
+            raise NotABagError(f"{path}: not a rosbag2 bag ({text})") from err
+        raise CorruptBagError(f"{path}: corrupt or truncated bag while {doing}: {text}") from err
+    except _STORAGE_ERRORS as err:
+        text = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise CorruptBagError(f"{path}: corrupt or truncated bag while {doing}: {text}") from err
+
+
+@contextmanager
+def open_bag(path: str | Path) -> Iterator[Any]:
+    """Open a bag directory (or a bare ``.db3``/``.mcap`` file) with rosbags, errors typed.
+
+    Yields:
+        an open ``rosbags.rosbag2.Reader``.
+
+    Raises:
+        BagNotFoundError, NotABagError, CorruptBagError.
+
+    """
+    from rosbags.rosbag2 import Reader
+
+    path = Path(path)
+    if not path.exists():
+        raise BagNotFoundError(f"{path}: no such bag")
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise NotABagError(f"{path}: not a rosbag2 bag (directory without metadata.yaml)")
+    if path.is_file() and path.suffix not in (".db3", ".mcap"):
+        raise NotABagError(f"{path}: not a rosbag2 bag (expected a directory, .db3 or .mcap)")
+    with _translated(path, "opening"):
+        reader = Reader(path)
+        reader.open()
+    try:
+        yield reader
+    finally:
+        with _translated(path, "closing"):
+            reader.close()
+
+
+def _storage_name(reader: Any) -> str:
+    storage = reader.storage
+    inner = getattr(storage, "storages", None) or [storage]
+    name = type(inner[0]).__name__.lower()
+    return "mcap" if "mcap" in name else "sqlite3" if "sqlite" in name else name
+
+
+def _iso(ns: int) -> str:
+    stamp = datetime.fromtimestamp(ns // 1_000_000_000, tz=timezone.utc)
+    return stamp.strftime("%Y-%m-%dT%H:%M:%S") + f".{ns % 1_000_000_000:09d}Z"
+
+
+def bag_summary(path: str | Path) -> dict[str, Any]:
+    """Describe a bag: storage, topics with type and count, time span.
+
+    Returns:
+        ``{"path", "storage", "message_count", "topics": {topic: {"type", "count"}},
+        "start_ns", "end_ns", "duration_s", "start_iso", "end_iso"}`` (times from the log
+        time, ``None`` for an empty bag).
+
+    """
+    path = Path(path)
+    with open_bag(path) as reader, _translated(path, "reading metadata"):
+        topics = {
+            name: {"type": info.msgtype, "count": int(info.msgcount)} for name, info in reader.topics.items()
+        }
+        count = int(reader.message_count)
+        start = int(reader.start_time) if count else None
+        end = int(reader.end_time) - 1 if count else None
+        storage = _storage_name(reader)
+    return {
+        "path": str(path),
+        "storage": storage,
+        "message_count": count,
+        "topics": topics,
+        "start_ns": start,
+        "end_ns": end,
+        "duration_s": (end - start) / 1e9 if count else 0.0,
+        "start_iso": _iso(start) if start is not None else None,
+        "end_iso": _iso(end) if end is not None else None,
+    }
+
+
+def iter_raw(
+    path: str | Path, topics: Collection[str] | None = None
+) -> Iterator[tuple[str, str, int, bytes]]:
+    """Yield ``(topic, msgtype, log_ns, raw_cdr)`` in log-time order (all topics when None).
+
+    Topics in ``topics`` that the bag lacks are ignored here; check with ``bag_summary``.
+    """
+    path = Path(path)
+    with open_bag(path) as reader:
+        conns = [c for c in reader.connections if topics is None or c.topic in topics]
+        if not conns:
+            return
+        messages = reader.messages(connections=conns)
+        while True:
+            with _translated(path, "reading messages"):
+                item = next(messages, None)
+            if item is None:
+                return
+            conn, log_ns, raw = item
+            yield conn.topic, conn.msgtype, log_ns, raw
+
+
+def read_raw_topics(path: str | Path, topics: dict[str, str]) -> dict[str, tuple[np.ndarray, list[bytes]]]:
+    """Read every message of the given ``{topic: expected_type}`` present in the bag.
+
+    Returns:
+        ``{topic: (log_ns (n,) int64, raws)}`` for each topic the bag holds, in log-time order.
+
+    Raises:
+        UnexpectedTypeError: a topic is present with another message type.
+
+    """
+    path = Path(path)
+    out: dict[str, tuple[list[int], list[bytes]]] = {}
+    with open_bag(path) as reader:
+        conns = [c for c in reader.connections if c.topic in topics]
+        for conn in conns:
+            if conn.msgtype != topics[conn.topic]:
+                raise UnexpectedTypeError(
+                    f"{path}: topic {conn.topic} has type {conn.msgtype}, expected {topics[conn.topic]}"
+                )
+            out.setdefault(conn.topic, ([], []))
+        if conns:
+            with _translated(path, "reading messages"):
+                for conn, log_ns, raw in reader.messages(connections=conns):
+                    stamps, raws = out[conn.topic]
+                    stamps.append(log_ns)
+                    raws.append(raw)
+    return {t: (np.asarray(s, dtype=np.int64), r) for t, (s, r) in out.items()}
+
+
+def _required_topics(required: bool | Collection[str]) -> set[str]:
+    if required is True:
+        return set(INPUT_TOPICS)
+    if required is False:
+        return set()
+    unknown = set(required) - set(INPUT_TOPICS)
+    if unknown:
+        raise ValueError(f"not contract input topics: {sorted(unknown)}")
+    return set(required)
+
+
+def read_monitoring(path: str | Path, *, required: bool | Collection[str] = True) -> MonitoringData:
+    """Read the three contract input topics, decoding their CDR vectorized.
+
+    Args:
+        path: bag directory (sqlite3 or MCAP) or a bare ``.db3``/``.mcap`` file.
+        required: True (all three topics must be present), False (none), or the topic names
+            that must be present. An absent optional topic gives an empty series.
+
+    Returns:
+        ``MonitoringData`` with stamps from ``header.stamp``, ``log_ns`` from the bag's log time
+        and ``frame_id`` per message; messages in log-time order per topic.
+
+    Raises:
+        BagNotFoundError, NotABagError, MissingTopicError, UnexpectedTypeError, CorruptBagError.
+
+    """
+    path = Path(path)
+    must = _required_topics(required)
+    raw = read_raw_topics(path, INPUT_TOPICS)
+    missing = sorted(must - set(raw))
+    if missing:
+        raise MissingTopicError(f"{path}: missing topic(s) {', '.join(missing)}")
+
+    def decode(topic: str, msgtype: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        log_ns, raws = raw.get(topic, (np.empty(0, np.int64), []))
+        try:
+            stamp_ns, frames, values = decode_stamped_floats(raws, N_FLOATS[msgtype])
+        except CdrFormatError as err:
+            raise CorruptBagError(f"{path}: topic {topic} does not decode as {msgtype}: {err}") from err
+        return stamp_ns, frames, values, log_ns
+
+    forces = {}
+    for ch in CHANNELS:
+        stamp_ns, frames, values, log_ns = decode(FORCE_TOPICS[ch], FORCE_TYPE)
+        forces[ch] = ForceSeries(stamp_ns, values[:, 2], frames, log_ns)
+    stamp_ns, frames, values, log_ns = decode(TEMPERATURE_TOPIC, TEMPERATURE_TYPE)
+    temperature = TemperatureSeries(stamp_ns, values[:, 0], values[:, 1], frames, log_ns)
+    return MonitoringData(forces, temperature)

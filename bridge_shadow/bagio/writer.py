@@ -1,0 +1,287 @@
+"""Write rosbag2 bags (sqlite3 or MCAP): the monitoring topics fast, output messages by type."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Iterable, Mapping, Sequence
+from functools import lru_cache
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.bagio.cdr import encode_stamped_floats
+from bridge_shadow.bagio.errors import BagError, BagExistsError, UnexpectedTypeError
+from bridge_shadow.contract import (
+    CHANNELS,
+    DIAGNOSTICS_TYPE,
+    FLOAT_ARRAY_TYPE,
+    FORCE_TOPICS,
+    FORCE_TYPE,
+    INPUT_TOPICS,
+    OUTPUT_TOPICS,
+    TEMPERATURE_TOPIC,
+    TEMPERATURE_TYPE,
+)
+from bridge_shadow.series import MonitoringData
+
+__all__ = ["STORAGES", "BagOutputWriter", "get_typestore", "write_monitoring"]
+
+#: Storage plugins a bag can be written with.
+STORAGES: tuple[str, ...] = ("sqlite3", "mcap")
+#: Files a bag directory may hold; only such a directory is replaced by ``overwrite=True``.
+_BAG_FILE_SUFFIXES = (".db3", ".mcap", ".yaml", ".db3-shm", ".db3-wal", ".zstd", ".md")
+
+_CONTRACT_TYPES: dict[str, str] = {**INPUT_TOPICS, **OUTPUT_TOPICS}
+
+
+@lru_cache(maxsize=1)
+def get_typestore() -> Any:
+    """Return the rosbags typestore of ROS 2 Jazzy (built once)."""
+    from rosbags.typesys import Stores
+    from rosbags.typesys import get_typestore as _get
+
+    return _get(Stores.ROS2_JAZZY)
+
+
+def _prepare_path(path: Path, overwrite: bool) -> None:
+    """Remove an existing bag when asked; refuse anything that does not look like a bag."""
+    if not path.exists() and not path.is_symlink():
+        return
+    if not overwrite:
+        raise BagExistsError(f"{path}: exists already (use --overwrite to replace it)")
+    if path.is_dir() and not path.is_symlink():
+        entries = list(path.iterdir())
+        looks_like_bag = all(e.is_file() and e.name.endswith(_BAG_FILE_SUFFIXES) for e in entries) and (
+            not entries
+            or (path / "metadata.yaml").exists()
+            or any(e.suffix in (".db3", ".mcap") for e in entries)
+        )
+        if not looks_like_bag:
+            raise BagExistsError(f"{path}: exists and is not a bag; refusing to overwrite it")
+        shutil.rmtree(path)
+    else:
+        raise BagExistsError(f"{path}: exists and is not a bag directory; refusing to overwrite it")
+
+
+def _storage_plugin(storage: str) -> Any:
+    from rosbags.rosbag2 import StoragePlugin
+
+    if storage not in STORAGES:
+        raise BagError(f"unknown bag storage {storage!r}; choose one of {', '.join(STORAGES)}")
+    return StoragePlugin.SQLITE3 if storage == "sqlite3" else StoragePlugin.MCAP
+
+
+class BagOutputWriter:
+    """Context manager writing messages to a new rosbag2 bag by topic and log time.
+
+    Connections are created on first use of a topic; contract topics must carry their contract
+    type. The typed helpers take plain numbers and strings (SI units), so callers need not
+    build rosbags message objects::
+
+        with BagOutputWriter(out, "mcap") as bag:
+            bag.write_wrench("/bridge_shadow/compensated/frc_01", t_ns, t_ns, "frc_01", 2.6e5)
+            bag.write_float64_array("/bridge_shadow/settlement/mean", t_ns, [1e-4, -2e-4], ["support"])
+
+    The bag is closed (metadata written, readable) on leaving the block, also after an error.
+    """
+
+    def __init__(self, path: str | Path, storage: str = "sqlite3", *, overwrite: bool = False) -> None:
+        self.path = Path(path)
+        self.storage = storage
+        self._plugin = _storage_plugin(storage)
+        self._overwrite = overwrite
+        self._writer: Any = None
+        self._connections: dict[tuple[str, str], Any] = {}
+        self.counts: dict[str, int] = {}
+
+    def __enter__(self) -> BagOutputWriter:
+        from rosbags.rosbag2 import Writer, WriterError
+
+        _prepare_path(self.path, self._overwrite)
+        try:
+            self._writer = Writer(self.path, version=9, storage_plugin=self._plugin)
+            self._writer.open()
+        except (WriterError, OSError) as err:
+            raise BagError(f"{self.path}: cannot create bag: {err}") from err
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Write the metadata and close the storage (idempotent)."""
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            writer.close()
+
+    def _connection(self, topic: str, msgtype: str) -> Any:
+        key = (topic, msgtype)
+        conn = self._connections.get(key)
+        if conn is None:
+            if self._writer is None:
+                raise BagError(f"{self.path}: bag is not open (use BagOutputWriter as a context manager)")
+            expected = _CONTRACT_TYPES.get(topic)
+            if expected is not None and expected != msgtype:
+                raise UnexpectedTypeError(f"{self.path}: topic {topic} takes {expected}, not {msgtype}")
+            conn = self._writer.add_connection(topic, msgtype, typestore=get_typestore())
+            self._connections[key] = conn
+            self.counts.setdefault(topic, 0)
+        return conn
+
+    def write_raw(self, topic: str, msgtype: str, log_ns: int, raw: bytes) -> None:
+        """Write one already serialized CDR message."""
+        self._writer_write(self._connection(topic, msgtype), int(log_ns), raw)
+        self.counts[topic] += 1
+
+    def _writer_write(self, conn: Any, log_ns: int, raw: bytes) -> None:
+        self._writer.write(conn, log_ns, raw)
+
+    def write_many_raw(self, topic: str, msgtype: str, log_ns: Iterable[int], raws: Iterable[bytes]) -> None:
+        """Write many serialized messages of one topic."""
+        conn = self._connection(topic, msgtype)
+        write = self._writer.write
+        n = 0
+        for t, raw in zip(log_ns, raws, strict=True):
+            write(conn, int(t), raw)
+            n += 1
+        self.counts[topic] += n
+
+    def write_message(self, topic: str, msg: Any, log_ns: int) -> None:
+        """Serialize a rosbags message object (its ``__msgtype__`` is the type) and write it."""
+        msgtype = msg.__msgtype__
+        self.write_raw(topic, msgtype, log_ns, bytes(get_typestore().serialize_cdr(msg, msgtype)))
+
+    # typed helpers ---------------------------------------------------------------------------
+
+    def write_wrench(
+        self,
+        topic: str,
+        log_ns: int,
+        stamp_ns: int,
+        frame_id: str,
+        force_z_n: float,
+        force_xy_n: tuple[float, float] = (0.0, 0.0),
+        torque_nm: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> None:
+        """Write a ``geometry_msgs/msg/WrenchStamped`` (force in N, torque in N m)."""
+        values = np.array([[*force_xy_n, force_z_n, *torque_nm]], dtype=np.float64)
+        (raw,) = encode_stamped_floats(np.array([stamp_ns]), frame_id, values)
+        self.write_raw(topic, FORCE_TYPE, log_ns, raw)
+
+    def write_temperature(
+        self, topic: str, log_ns: int, stamp_ns: int, frame_id: str, temp_c: float, variance: float = 0.0
+    ) -> None:
+        """Write a ``sensor_msgs/msg/Temperature`` (C, C^2)."""
+        (raw,) = encode_stamped_floats(np.array([stamp_ns]), frame_id, np.array([[temp_c, variance]]))
+        self.write_raw(topic, TEMPERATURE_TYPE, log_ns, raw)
+
+    def write_float64_array(
+        self,
+        topic: str,
+        log_ns: int,
+        values: np.ndarray | Sequence[float],
+        labels: Sequence[str] = (),
+    ) -> None:
+        """Write a ``std_msgs/msg/Float64MultiArray``; one layout dim per label, row-major strides.
+
+        ``values`` of shape (2,) with ``["support"]`` or (2, 2) with ``["row", "col"]``; no labels
+        gives an empty layout.
+        """
+        ts = get_typestore()
+        arr = np.asarray(values, dtype=np.float64)
+        shape = arr.shape if labels else ()
+        if labels and len(labels) != arr.ndim:
+            raise ValueError(f"{len(labels)} layout labels for an array of {arr.ndim} dimensions")
+        strides = [int(np.prod(shape[i:])) for i in range(len(shape))]
+        dims = [
+            ts.types["std_msgs/msg/MultiArrayDimension"](label=str(lab), size=int(size), stride=stride)
+            for lab, size, stride in zip(labels, shape, strides, strict=False)
+        ]
+        layout = ts.types["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
+        msg = ts.types[FLOAT_ARRAY_TYPE](layout=layout, data=np.ascontiguousarray(arr.ravel()))
+        self.write_message(topic, msg, log_ns)
+
+    def write_diagnostics(
+        self,
+        topic: str,
+        log_ns: int,
+        stamp_ns: int,
+        statuses: Sequence[Mapping[str, Any]],
+        frame_id: str = "",
+    ) -> None:
+        """Write a ``diagnostic_msgs/msg/DiagnosticArray``.
+
+        Each status is ``{"name", "level" (0 OK, 1 WARN, 2 ERROR, 3 STALE), "message",
+        "hardware_id" (optional), "values" (optional mapping, values turned into str)}``.
+        """
+        ts = get_typestore()
+        status_t = ts.types["diagnostic_msgs/msg/DiagnosticStatus"]
+        kv_t = ts.types["diagnostic_msgs/msg/KeyValue"]
+        items = [
+            status_t(
+                level=int(s.get("level", 0)),
+                name=str(s["name"]),
+                message=str(s.get("message", "")),
+                hardware_id=str(s.get("hardware_id", "")),
+                values=[kv_t(key=str(k), value=str(v)) for k, v in dict(s.get("values", {})).items()],
+            )
+            for s in statuses
+        ]
+        msg = ts.types[DIAGNOSTICS_TYPE](header=_header(stamp_ns, frame_id), status=items)
+        self.write_message(topic, msg, log_ns)
+
+
+def _header(stamp_ns: int, frame_id: str) -> Any:
+    ts = get_typestore()
+    sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
+    stamp = ts.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
+    return ts.types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
+
+
+def write_monitoring(
+    path: str | Path, data: MonitoringData, storage: str = "sqlite3", *, overwrite: bool = False
+) -> Path:
+    """Write the three contract input topics, merged in log-time order, CDR built with numpy.
+
+    Ties in log time keep the order frc_01, frc_02, temperature. Every topic gets a connection,
+    even when its series is empty.
+
+    Returns:
+        the bag path.
+
+    Raises:
+        BagExistsError: the path exists and ``overwrite`` is False (or it is not a bag).
+
+    """
+    path = Path(path)
+    topics = [FORCE_TOPICS[ch] for ch in CHANNELS] + [TEMPERATURE_TOPIC]
+    types = [FORCE_TYPE] * len(CHANNELS) + [TEMPERATURE_TYPE]
+    raws: list[bytes] = []
+    logs = []
+    which = []
+    for k, ch in enumerate(CHANNELS):
+        s = data.forces[ch]
+        values = np.zeros((len(s), 6))
+        values[:, 2] = s.force_n
+        raws += encode_stamped_floats(s.stamp_ns, s.frame_id, values)
+        logs.append(s.log_ns)
+        which.append(np.full(len(s), k, dtype=np.int64))
+    t = data.temperature
+    raws += encode_stamped_floats(t.stamp_ns, t.frame_id, np.column_stack([t.temp_c, t.variance]))
+    logs.append(t.log_ns)
+    which.append(np.full(len(t), len(CHANNELS), dtype=np.int64))
+    log_ns = np.concatenate(logs)
+    topic_idx = np.concatenate(which)
+    order = np.argsort(log_ns, kind="stable")
+    with BagOutputWriter(path, storage, overwrite=overwrite) as bag:
+        conns = [bag._connection(topic, msgtype) for topic, msgtype in zip(topics, types, strict=True)]
+        write = bag._writer.write
+        for i, ti, tk in zip(order.tolist(), log_ns[order].tolist(), topic_idx[order].tolist(), strict=True):
+            write(conns[tk], ti, raws[i])
+        for topic, idx in zip(topics, range(len(topics)), strict=True):
+            bag.counts[topic] = int(np.count_nonzero(topic_idx == idx))
+    return path

@@ -1,0 +1,265 @@
+"""Bag I/O: round trips in both storages, CDR codec against rosbags, typed errors on bad bags."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.rosbag2 import Reader, Writer
+
+from bridge_shadow.bagio import (
+    BagError,
+    BagExistsError,
+    BagNotFoundError,
+    BagOutputWriter,
+    CorruptBagError,
+    MissingTopicError,
+    NotABagError,
+    UnexpectedTypeError,
+    bag_summary,
+    decode_stamped_floats,
+    encode_stamped_floats,
+    get_typestore,
+    iter_raw,
+    read_monitoring,
+    write_monitoring,
+)
+from bridge_shadow.contract import (
+    COVARIANCE_TOPIC,
+    DIAGNOSTICS_TOPIC,
+    FORCE_TOPICS,
+    FORCE_TYPE,
+    MEAN_TOPIC,
+    TEMPERATURE_TOPIC,
+    TEMPERATURE_TYPE,
+)
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+T0 = 1_646_667_315_601_000_000  # 2022-03-07T15:35:15.601Z
+STORAGES = ("sqlite3", "mcap")
+
+
+def _data(n: int = 500, seed: int = 1) -> MonitoringData:
+    """Forces with irregular stamps and frame_ids of several lengths, log time != stamp."""
+    rng = np.random.default_rng(seed)
+    stamp = T0 + np.cumsum(rng.integers(1, 20_000_000, n))
+    frames = np.array(["frc_01", "frc_01_spare", "", "a" * 13, "ü"], dtype=object)[rng.integers(0, 5, n)]
+    f1 = ForceSeries(stamp, 2.6e5 + rng.normal(0, 50, n), frames, log_ns=stamp + 1_000)
+    f2 = ForceSeries(stamp[::2] - 7, rng.normal(2.2e5, 50, len(stamp[::2])), "frc_02")
+    f2.force_n[3] = np.nan
+    temp = TemperatureSeries(stamp[::10], rng.normal(5, 3, len(stamp[::10])), np.full(len(stamp[::10]), 0.01))
+    return MonitoringData({"frc_01": f1, "frc_02": f2}, temp)
+
+
+def _assert_same(a: MonitoringData, b: MonitoringData) -> None:
+    for ch in ("frc_01", "frc_02"):
+        x, y = a.forces[ch], b.forces[ch]
+        np.testing.assert_array_equal(x.stamp_ns, y.stamp_ns)
+        np.testing.assert_array_equal(x.log_ns, y.log_ns)
+        np.testing.assert_array_equal(x.force_n, y.force_n)  # bit-exact, NaN included
+        assert list(x.frame_id) == list(y.frame_id)
+    x, y = a.temperature, b.temperature
+    for name in ("stamp_ns", "log_ns", "temp_c", "variance"):
+        np.testing.assert_array_equal(getattr(x, name), getattr(y, name))
+    assert list(x.frame_id) == list(y.frame_id)
+
+
+@pytest.mark.parametrize("storage", STORAGES)
+def test_round_trip_is_exact(tmp_path: Path, storage: str) -> None:
+    data = _data()
+    write_monitoring(tmp_path / "bag", data, storage)
+    _assert_same(data, read_monitoring(tmp_path / "bag"))
+    summary = bag_summary(tmp_path / "bag")
+    assert summary["storage"] == storage
+    assert summary["topics"][FORCE_TOPICS["frc_02"]] == {"type": FORCE_TYPE, "count": 250}
+    assert summary["start_ns"] == min(s.log_ns.min() for s in data.forces.values())
+
+
+@pytest.mark.parametrize("storage", STORAGES)
+def test_messages_in_log_time_order_and_vectorized_decode_equals_rosbags(
+    tmp_path: Path, storage: str
+) -> None:
+    data = _data()
+    write_monitoring(tmp_path / "bag", data, storage)
+    items = list(iter_raw(tmp_path / "bag"))
+    logs = [t for _, _, t, _ in items]
+    assert logs == sorted(logs) and len(items) == data.n_messages
+    ts = get_typestore()
+    got = read_monitoring(tmp_path / "bag")
+    for ch, topic in FORCE_TOPICS.items():
+        msgs = [ts.deserialize_cdr(raw, FORCE_TYPE) for t, _, _, raw in items if t == topic]
+        ref_stamp = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in msgs]
+        np.testing.assert_array_equal(got.forces[ch].stamp_ns, ref_stamp)
+        np.testing.assert_array_equal(got.forces[ch].force_n, [m.wrench.force.z for m in msgs])
+        assert list(got.forces[ch].frame_id) == [m.header.frame_id for m in msgs]
+    temps = [ts.deserialize_cdr(raw, TEMPERATURE_TYPE) for t, _, _, raw in items if t == TEMPERATURE_TOPIC]
+    np.testing.assert_array_equal(got.temperature.temp_c, [m.temperature for m in temps])
+    np.testing.assert_array_equal(got.temperature.variance, [m.variance for m in temps])
+
+
+def test_numpy_encoder_is_byte_identical_to_rosbags_serializer() -> None:
+    ts = get_typestore()
+    Time, Header = ts.types["builtin_interfaces/msg/Time"], ts.types["std_msgs/msg/Header"]
+    Vec, Wrench = ts.types["geometry_msgs/msg/Vector3"], ts.types["geometry_msgs/msg/Wrench"]
+    stamps = np.array([T0, 0, 2**31 * 10**9 - 1, T0 + 999_999_999])
+    frames = ["frc_01", "", "abc", "frame_of_seven!"]
+    values = np.arange(24, dtype=float).reshape(4, 6) * 1.1 - 3
+    raws = encode_stamped_floats(stamps, frames, values)
+    for raw, stamp, frame, v in zip(raws, stamps.tolist(), frames, values, strict=True):
+        header = Header(stamp=Time(sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id=frame)
+        wrench = Wrench(force=Vec(x=v[0], y=v[1], z=v[2]), torque=Vec(x=v[3], y=v[4], z=v[5]))
+        msg = ts.types[FORCE_TYPE](header=header, wrench=wrench)
+        assert raw == bytes(ts.serialize_cdr(msg, FORCE_TYPE))
+        temp = ts.types[TEMPERATURE_TYPE](header=header, temperature=v[0], variance=v[1])
+        (traw,) = encode_stamped_floats(np.array([stamp]), frame, v[None, :2])
+        assert traw == bytes(ts.serialize_cdr(temp, TEMPERATURE_TYPE))
+
+
+def test_decoder_reads_big_endian_cdr_and_rejects_garbage() -> None:
+    ts = get_typestore()
+    Time, Header = ts.types["builtin_interfaces/msg/Time"], ts.types["std_msgs/msg/Header"]
+    msg = ts.types[TEMPERATURE_TYPE](
+        header=Header(stamp=Time(sec=12, nanosec=34), frame_id="air"), temperature=-6.5, variance=0.25
+    )
+    big = bytes(ts.serialize_cdr(msg, TEMPERATURE_TYPE, little_endian=False))
+    little = bytes(ts.serialize_cdr(msg, TEMPERATURE_TYPE))
+    stamp, frames, values = decode_stamped_floats([big, little], 2)
+    np.testing.assert_array_equal(stamp, [12 * 10**9 + 34] * 2)
+    assert list(frames) == ["air", "air"]
+    np.testing.assert_array_equal(values, [[-6.5, 0.25], [-6.5, 0.25]])
+    with pytest.raises(ValueError, match="too short"):
+        decode_stamped_floats([little[:20]], 2)
+    bad = bytearray(little)
+    bad[12] = 200  # string length runs past the floats
+    with pytest.raises(ValueError, match="string length"):
+        decode_stamped_floats([bytes(bad)], 2)
+
+
+def test_optional_topics_and_missing_topic(tmp_path: Path) -> None:
+    data = _data(50)
+    with BagOutputWriter(tmp_path / "forces_only") as bag:
+        for ch in ("frc_01", "frc_02"):
+            s = data.forces[ch]
+            raws = encode_stamped_floats(
+                s.stamp_ns, ch, np.column_stack([np.zeros((len(s), 2)), s.force_n, np.zeros((len(s), 3))])
+            )
+            bag.write_many_raw(FORCE_TOPICS[ch], FORCE_TYPE, s.stamp_ns, raws)
+    with pytest.raises(MissingTopicError, match="/bridge/air_temperature"):
+        read_monitoring(tmp_path / "forces_only")
+    got = read_monitoring(tmp_path / "forces_only", required=list(FORCE_TOPICS.values()))
+    assert len(got.temperature) == 0
+    np.testing.assert_array_equal(got.forces["frc_02"].force_n, data.forces["frc_02"].force_n)
+
+
+def test_unexpected_type(tmp_path: Path) -> None:
+    ts = get_typestore()
+    with Writer(tmp_path / "wrong", version=9) as w:
+        conn = w.add_connection(TEMPERATURE_TOPIC, "std_msgs/msg/Float64", typestore=ts)
+        w.write(
+            conn,
+            T0,
+            bytes(ts.serialize_cdr(ts.types["std_msgs/msg/Float64"](data=1.0), "std_msgs/msg/Float64")),
+        )
+    with pytest.raises(UnexpectedTypeError, match="std_msgs/msg/Float64"):
+        read_monitoring(tmp_path / "wrong", required=False)
+
+
+def test_missing_path_and_not_a_bag(tmp_path: Path) -> None:
+    with pytest.raises(BagNotFoundError, match="no such bag"):
+        read_monitoring(tmp_path / "nope")
+    (tmp_path / "dir").mkdir()
+    with pytest.raises(NotABagError, match=r"metadata\.yaml"):
+        read_monitoring(tmp_path / "dir")
+    (tmp_path / "x.csv").write_text("a,b\n")
+    with pytest.raises(NotABagError):
+        bag_summary(tmp_path / "x.csv")
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "junk" / "metadata.yaml").write_text("{: not yaml")
+    with pytest.raises(CorruptBagError, match="junk"):
+        read_monitoring(tmp_path / "junk")
+
+
+@pytest.mark.parametrize("storage", STORAGES)
+@pytest.mark.parametrize("keep", [0.02, 0.5, 0.95])
+def test_truncated_storage_gives_one_line_error(tmp_path: Path, storage: str, keep: float) -> None:
+    write_monitoring(tmp_path / "bag", _data(), storage)
+    (db,) = [p for p in (tmp_path / "bag").iterdir() if p.suffix in (".db3", ".mcap")]
+    content = db.read_bytes()
+    db.write_bytes(content[: int(len(content) * keep)])
+    for action in (read_monitoring, bag_summary, lambda p: list(iter_raw(p))):
+        with pytest.raises(CorruptBagError) as info:
+            action(tmp_path / "bag")
+        assert str(tmp_path / "bag") in str(info.value) and "\n" not in str(info.value)
+
+
+def test_missing_storage_file(tmp_path: Path) -> None:
+    write_monitoring(tmp_path / "bag", _data(20), "mcap")
+    next((tmp_path / "bag").glob("*.mcap")).unlink()
+    with pytest.raises(CorruptBagError, match="missing"):
+        read_monitoring(tmp_path / "bag")
+
+
+def test_overwrite_only_replaces_bags(tmp_path: Path) -> None:
+    write_monitoring(tmp_path / "bag", _data(20))
+    with pytest.raises(BagExistsError, match="--overwrite"):
+        write_monitoring(tmp_path / "bag", _data(20))
+    write_monitoring(tmp_path / "bag", _data(30, seed=2), "mcap", overwrite=True)
+    assert bag_summary(tmp_path / "bag")["storage"] == "mcap"
+    (tmp_path / "src").mkdir()
+    (tmp_path / "src" / "keep.py").write_text("x = 1\n")
+    with pytest.raises(BagExistsError, match="not a bag"):
+        write_monitoring(tmp_path / "src", _data(20), overwrite=True)
+    assert (tmp_path / "src" / "keep.py").exists()
+    with pytest.raises(BagError, match="storage"):
+        write_monitoring(tmp_path / "other", _data(20), "rosbag1")
+
+
+@pytest.mark.parametrize("storage", STORAGES)
+def test_output_writer_messages_deserialize(tmp_path: Path, storage: str) -> None:
+    cov = np.array([[4e-8, 1e-8], [1e-8, 9e-8]])
+    with BagOutputWriter(tmp_path / "out", storage) as bag:
+        bag.write_wrench("/bridge_shadow/compensated/frc_01", T0, T0 - 5, "frc_01", 2.6e5)
+        bag.write_float64_array(MEAN_TOPIC, T0 + 1, [7e-4, -7e-4], ["support"])
+        bag.write_float64_array(COVARIANCE_TOPIC, T0 + 1, cov, ["row", "col"])
+        bag.write_diagnostics(
+            DIAGNOSTICS_TOPIC,
+            T0 + 2,
+            T0 + 2,
+            [
+                {
+                    "name": "bridge_shadow: inputs",
+                    "level": 1,
+                    "message": "stale",
+                    "values": {"rejected_nan": 3},
+                }
+            ],
+        )
+        with pytest.raises(UnexpectedTypeError):
+            bag.write_temperature(MEAN_TOPIC, T0, T0, "x", 1.0)
+    ts = get_typestore()
+    with Reader(tmp_path / "out") as reader:
+        msgs = {c.topic: ts.deserialize_cdr(raw, c.msgtype) for c, _, raw in reader.messages()}
+    w = msgs["/bridge_shadow/compensated/frc_01"]
+    assert (w.wrench.force.z, w.header.frame_id, w.header.stamp.nanosec) == (2.6e5, "frc_01", 601_000_000 - 5)
+    np.testing.assert_array_equal(msgs[MEAN_TOPIC].data, [7e-4, -7e-4])
+    assert [d.label for d in msgs[MEAN_TOPIC].layout.dim] == ["support"]
+    c = msgs[COVARIANCE_TOPIC]
+    assert [(d.label, d.size, d.stride) for d in c.layout.dim] == [("row", 2, 4), ("col", 2, 2)]
+    np.testing.assert_array_equal(np.asarray(c.data).reshape(2, 2), cov)
+    (status,) = msgs[DIAGNOSTICS_TOPIC].status
+    assert (status.level, status.message, status.values[0].key, status.values[0].value) == (
+        1,
+        "stale",
+        "rejected_nan",
+        "3",
+    )
+
+
+def test_bare_storage_file_is_readable(tmp_path: Path) -> None:
+    data = _data(40)
+    write_monitoring(tmp_path / "bag", data, "mcap")
+    mcap = next((tmp_path / "bag").glob("*.mcap"))
+    shutil.copy(mcap, tmp_path / "bare.mcap")
+    _assert_same(data, read_monitoring(tmp_path / "bare.mcap"))
