@@ -1,0 +1,171 @@
+"""Markdown report with PNG plots of a gap diagnosis (matplotlib, Agg backend)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.contract import SUPPORTS
+from bridge_shadow.gap.diagnose import Diagnosis
+from bridge_shadow.gap.windows import NS
+
+__all__ = ["write_report"]
+
+
+def _hours(dg: Diagnosis) -> np.ndarray:
+    return (dg.windows.t_ns - dg.windows.t_ns[0]) / NS / 3600.0
+
+
+def _plot_residual(dg: Diagnosis, plt: Any, path: Path) -> None:
+    h = _hours(dg)
+    fig, axes = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
+    best = dg.cv.get(dg.best)
+    for c, ax in enumerate(axes):
+        ax.plot(h, dg.resid[:, c] / 1e3, lw=0.6, color="0.3", label="residual (60 s means)")
+        if best is not None:
+            ax.plot(h, best.pred_full[:, c] / 1e3, lw=1.2, color="C3", label=f"fitted {dg.best}")
+        ax.set_ylabel(f"{SUPPORTS[c]} [kN]")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel("hours since start")
+    fig.suptitle("Measured minus baseline model")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _plot_breakdown(summary: dict[str, Any], plt: Any, path: Path) -> None:
+    where = summary["where"]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
+    hours = where["time_of_day"]["hour_utc"]
+    for sup in SUPPORTS:
+        vals = np.array(where["time_of_day"]["mean_n"][sup], dtype=float) / 1e3
+        ax1.plot(hours, vals, marker="o", ms=3, label=sup)
+    ax1.set_xlabel("hour of day (UTC)")
+    ax1.set_ylabel("mean residual [kN]")
+    ax1.set_title("Time-of-day profile")
+    ax1.grid(alpha=0.3)
+    ax1.legend(fontsize=8)
+    bands = list(where["bands"])
+    x = np.arange(len(bands))
+    for k, sup in enumerate(SUPPORTS):
+        ax2.bar(x + 0.4 * k - 0.2, [where["bands"][b][sup] for b in bands], width=0.4, label=sup)
+    ax2.set_xticks(x, bands, fontsize=8)
+    ax2.set_ylabel("share of residual power")
+    ax2.set_title("Frequency bands")
+    ax2.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _plot_heldout(dg: Diagnosis, plt: Any, path: Path) -> None:
+    h = _hours(dg)
+    name = dg.best if dg.best != "none" else dg.summary["candidates"][0]["effect"]
+    pred = dg.cv[name].pred_cv
+    fig, axes = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
+    for c, ax in enumerate(axes):
+        ax.plot(h, dg.resid[:, c] / 1e3, lw=0.6, color="0.5", label="before (baseline)")
+        ax.plot(h, (dg.resid[:, c] - pred[:, c]) / 1e3, lw=0.6, color="C0", label=f"after adding {name}")
+        ax.set_ylabel(f"{SUPPORTS[c]} [kN]")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel("hours since start (each day predicted by a fit on the other days)")
+    fig.suptitle("Held-out residual before and after")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _pct(x: float | None) -> str:
+    return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.0f}%"
+
+
+def _markdown(summary: dict[str, Any], source: str) -> str:
+    w = summary["where"]
+    post = summary["posterior"]
+    lines = [
+        "# Sim-to-real gap diagnosis",
+        "",
+        f"Record: `{source}`; {summary['windows']['count']} windows of {summary['windows']['width_s']:g} s; "
+        f"validation: {summary['validation']['kind']} ({summary['validation']['folds']} folds); "
+        f"AR(1) phi of the noise = {summary['noise']['ar1_phi']:.2f} "
+        f"(effective sample size {summary['noise']['n_eff']:.0f}).",
+        "",
+        f"**Best: `{summary['best']}`.** {summary['statement']}",
+        "",
+        "## Where",
+        "",
+        "| | south | north |",
+        "|---|---|---|",
+        f"| residual RMS [kN] | {w['rms_n']['south'] / 1e3:.3f} | {w['rms_n']['north'] / 1e3:.3f} |",
+        f"| mean residual [kN] | {w['mean_n']['south'] / 1e3:.3f} | {w['mean_n']['north'] / 1e3:.3f} |",
+        f"| share of the gap | {_pct(w['channel_share']['south'])} | {_pct(w['channel_share']['north'])} |",
+        f"| share in the time-of-day profile | {_pct(w['time_of_day']['share']['south'])} | "
+        f"{_pct(w['time_of_day']['share']['north'])} |",
+    ]
+    for key, label in (("warming_rms_n", "warming"), ("cooling_rms_n", "cooling")):
+        v = w["warming_cooling"][key]
+        lines.append(f"| RMS while {label} [kN] | {v['south'] / 1e3:.3f} | {v['north'] / 1e3:.3f} |")
+    for cls in ("sunny", "overcast", "night"):
+        v = w["sun"][f"{cls}_rms_n"]
+        lines.append(f"| RMS {cls} [kN] | {v['south'] / 1e3:.3f} | {v['north'] / 1e3:.3f} |")
+    for band, v in w["bands"].items():
+        lines.append(f"| power share, {band} band | {_pct(v['south'])} | {_pct(v['north'])} |")
+    parts = w["model_part"]["heldout_gain_by_part"]
+    lines += [
+        "",
+        "Held-out gain by model part: " + ", ".join(f"{k} {_pct(v)}" for k, v in parts.items()) + ".",
+        "",
+        "![residual](residual.png)",
+        "",
+        "![breakdown](breakdown.png)",
+        "",
+        "## Which effect",
+        "",
+        "| rank | effect | part | held-out RMS reduction S / N / total | partial gain (given) | BIC (AR1) "
+        "| fitted |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for c in summary["candidates"]:
+        red = c["heldout_reduction"]
+        par = c["partial_effect"]
+        fitted = ", ".join(
+            f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in c["params"].items()
+        )
+        lines.append(
+            f"| {c['rank']} | {c['effect']} | {c['part']} | {_pct(red['south'])} / {_pct(red['north'])} / "
+            f"{_pct(red['total'])} | {_pct(par['heldout_gain'])} ({par['given']}) | "
+            f"{c['information_criterion']['bic_ar1']:.1f} | {fitted} |"
+        )
+    mb, ma = (np.array(post[k]["mean_m"]) * 1e3 for k in ("before", "after"))
+    lines += [
+        "",
+        "## How far it shrinks",
+        "",
+        "![held-out](heldout.png)",
+        "",
+        f"Posterior settlements [mm] (south, north): before {mb[0]:+.3f}, {mb[1]:+.3f}; "
+        f"after adding `{summary['best']}`: {ma[0]:+.3f}, {ma[1]:+.3f} ({post['method']}).",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_report(dg: Diagnosis, out_dir: str | Path, source: str = "") -> Path:
+    """Write ``report.md`` and its PNG plots into ``out_dir``; return the Markdown path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    _plot_residual(dg, plt, out / "residual.png")
+    _plot_breakdown(dg.summary, plt, out / "breakdown.png")
+    _plot_heldout(dg, plt, out / "heldout.png")
+    md = out / "report.md"
+    md.write_text(_markdown(dg.summary, source))
+    return md
