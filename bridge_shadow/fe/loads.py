@@ -27,6 +27,19 @@ def _mask(mask: object, n_el: int, tag: str) -> np.ndarray:
     return m
 
 
+def _per_shell(value: object, n_el: int, tag: str) -> np.ndarray:
+    """Shell temperature: scalar or (n_el,) -> (n_el,); (n_el, 4) nodal values kept."""
+    v = np.asarray(value, float)
+    if v.ndim == 2:
+        if v.shape != (n_el, 4):
+            raise ModelError(f"nodal temperatures for {tag!r} must have shape ({n_el}, 4), got {v.shape}")
+        return v
+    try:
+        return np.broadcast_to(v, (n_el,)).astype(float)
+    except ValueError as err:
+        raise ModelError(f"temperature for {tag!r} must be a scalar or shape ({n_el},)") from err
+
+
 def _nodal(case: LoadCase, n_dofs: int) -> np.ndarray:
     f = np.zeros(n_dofs)
     rows = np.asarray(case.nodal, float).reshape(-1, 3) if len(case.nodal) else np.zeros((0, 3))

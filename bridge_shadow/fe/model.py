@@ -218,7 +218,8 @@ class Thermal:
 
     Attributes:
         tag: element set tag (shell or beam).
-        uniform: K, uniform temperature change.
+        uniform: K, temperature change: a scalar, one value per element ``(n_el,)``, or for shells
+            nodal values per element ``(n_el, 4)`` (interpolated bilinearly in the element).
         gradient: K, shells: temperature at the +normal face minus the -normal face (linear through
             the thickness); beams: difference across ``depth_z`` (the +z face minus the -z face).
         gradient_y: K, beams only: difference across ``depth_y`` (+y face minus -y face).
@@ -227,8 +228,8 @@ class Thermal:
     """
 
     tag: str
-    uniform: float = 0.0
-    gradient: float = 0.0
+    uniform: Any = 0.0
+    gradient: Any = 0.0
     gradient_y: float = 0.0
     mask: Any = None
 

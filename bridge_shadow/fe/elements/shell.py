@@ -202,6 +202,14 @@ def _bending_b(kin: ShellKinematics) -> tuple[np.ndarray, np.ndarray]:
     return bb, bs
 
 
+def _btdb(b: np.ndarray, d: np.ndarray | None, w: np.ndarray) -> np.ndarray:
+    """Sum over Gauss points of ``w B^T D B``: b (n_el, q, r, m), d (n_el, r, r) or None, w (n_el, q)."""
+    db = b if d is None else np.einsum("eab,eqbj->eqaj", d, b)
+    n_el, q, r, m = b.shape
+    left = (b * w[:, :, None, None]).reshape(n_el, q * r, m)
+    return np.swapaxes(left, 1, 2) @ db.reshape(n_el, q * r, m)
+
+
 def _material(E: np.ndarray, nu: np.ndarray) -> np.ndarray:
     """Plane-stress matrix (n_el, 3, 3) per unit thickness, Pa."""
     c = np.zeros((len(E), 3, 3))
@@ -244,27 +252,26 @@ def shell_stiffness(
     shear_mod = np.asarray(E, float) / (2 * (1 + np.asarray(nu, float)))
     b, g, bd = _membrane_b(kin)
     wt = kin.dA * t[:, None]  # (n_el, 4)
-    kuu = np.einsum("eq,eqai,eab,eqbj->eij", wt, b, c, b)
-    kua = np.einsum("eq,eqai,eab,eqbj->eij", wt, b, c, g)
-    kaa = np.einsum("eq,eqai,eab,eqbj->eij", wt, g, c, g)
+    bg = np.concatenate([b, g], axis=3)
+    kall = _btdb(bg, c, wt)
+    kuu, kua, kaa = kall[:, :8, :8], kall[:, :8, 8:], kall[:, 8:, 8:]
     km8 = kuu - kua @ np.linalg.solve(kaa, np.swapaxes(kua, 1, 2))
     # membrane on (u, v, rz) x 4 = 12 DOFs, plus drilling
     km = np.zeros((len(t), 12, 12))
     uv = np.array([3 * a + d for a in range(4) for d in (0, 1)])
     km[:, uv[:, None], uv[None, :]] = km8
-    km += np.einsum("e,eq,eqi,eqj->eij", drill_factor * shear_mod * t, kin.dA, bd, bd)
+    km += _btdb(bd[:, :, None, :], None, kin.dA * (drill_factor * shear_mod * t)[:, None])
 
     bb, bs = _bending_b(kin)
     db = c * (t**3 / 12.0)[:, None, None]
     ds = (5.0 / 6.0) * shear_mod * t
-    kb = np.einsum("eq,eqai,eab,eqbj->eij", kin.dA, bb, db, bb)
-    kb += np.einsum("eq,e,eqai,eqaj->eij", kin.dA, ds, bs, bs)
+    kb = _btdb(bb, db, kin.dA) + _btdb(bs, None, kin.dA * ds[:, None])
 
     memb, bend = _flat_to_dofs()
     kf = np.zeros((len(t), 24, 24))
     kf[:, memb[:, None], memb[None, :]] = km
     kf[:, bend[:, None], bend[None, :]] = kb
-    return np.einsum("eai,eab,ebj->eij", kin.tt, kf, kin.tt)
+    return np.swapaxes(kin.tt, 1, 2) @ kf @ kin.tt
 
 
 def shell_thermal_vector(
@@ -279,23 +286,36 @@ def shell_thermal_vector(
     """Equivalent nodal loads (n_el, 24), global axes, of a uniform change and a through-thickness gradient.
 
     ``d_gradient`` is the temperature of the +normal face minus the -normal face (K); free thermal
-    strain ``alpha (d_uniform + d_gradient z / t)``.
+    strain ``alpha (d_uniform + d_gradient z / t)``. Each of ``d_uniform``, ``d_gradient`` is
+    ``(n_el,)`` (constant per element) or ``(n_el, 4)`` (nodal values, interpolated bilinearly).
     """
     t = np.asarray(thickness, float)
+    n_el = len(t)
     c = _material(np.asarray(E, float), np.asarray(nu, float))
     ones = np.array([1.0, 1.0, 0.0])
-    n_t = np.einsum("eab,b->ea", c, ones) * (t * alpha * d_uniform)[:, None]
-    m_t = np.einsum("eab,b->ea", c, ones) * (t**2 / 12.0 * alpha * d_gradient)[:, None]
-    b, _, _ = _membrane_b(kin)
+
+    def at_gauss(d: np.ndarray) -> np.ndarray:
+        d = np.asarray(d, float)
+        return np.broadcast_to(d[:, None], (n_el, 4)) if d.ndim == 1 else d @ kin.n.T
+
+    cu = np.einsum("eab,b->ea", c, ones)
+    n_t = cu[:, None, :] * (t * alpha)[:, None, None] * at_gauss(d_uniform)[:, :, None]
+    m_t = cu[:, None, :] * (t**2 / 12.0 * alpha)[:, None, None] * at_gauss(d_gradient)[:, :, None]
+    b, g, _ = _membrane_b(kin)
     bb, _ = _bending_b(kin)
-    fm = np.einsum("eq,eqai,ea->ei", kin.dA, b, n_t)
-    fb = np.einsum("eq,eqai,ea->ei", kin.dA, bb, m_t)
-    memb, bend = _flat_to_dofs()
+    fm = np.einsum("eq,eqai,eqa->ei", kin.dA, b, n_t)
+    fa = np.einsum("eq,eqai,eqa->ei", kin.dA, g, n_t)  # incompatible modes, condensed out
+    wt = kin.dA * t[:, None]
+    kall = _btdb(np.concatenate([b, g], axis=3), c, wt)
+    fm = fm - np.einsum(
+        "eij,ej->ei", kall[:, :8, 8:], np.linalg.solve(kall[:, 8:, 8:], fa[:, :, None])[:, :, 0]
+    )
+    fb = np.einsum("eq,eqai,eqa->ei", kin.dA, bb, m_t)
+    _, bend = _flat_to_dofs()
     ff = np.zeros((len(t), 24))
     uv = np.array([6 * a + d for a in range(4) for d in (0, 1)])
     ff[:, uv] = fm
     ff[:, bend] = fb
-    del memb
     return np.einsum("eai,ea->ei", kin.tt, ff)
 
 
