@@ -55,14 +55,13 @@ def _clear_sky(t_ns: np.ndarray) -> np.ndarray:
 def lowpass(x: np.ndarray, tau_s: float, dt_s: float) -> np.ndarray:
     """First-order lag ``tau dy/dt = x - y`` on a regular grid (exact for piecewise-constant x).
 
-    ``y`` starts at the mean of ``x`` over the first ``tau`` (steady state for a slow start).
+    ``y`` starts in steady state at ``x[0]``.
     """
     x = np.asarray(x, float)
     if tau_s <= 0.0:
         return x.copy()
     a = np.exp(-dt_s / tau_s)
-    y0 = x[: max(1, round(tau_s / dt_s))].mean()
-    y, _ = lfilter([1.0 - a], [1.0, -a], x, zi=[a * y0])
+    y, _ = lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[0]])
     return y
 
 
