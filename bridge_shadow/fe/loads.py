@@ -75,9 +75,11 @@ def load_vector(
         for th in case.thermal:
             if th.tag == s.tag:
                 m = _mask(th.mask, s.n_el, s.tag)
-                fe += shell_thermal_vector(
-                    kin, s.thickness, s.E, s.nu, s.alpha, th.uniform * m, th.gradient * m
-                )
+                du = _per_shell(th.uniform, s.n_el, s.tag)
+                dg = _per_shell(th.gradient, s.n_el, s.tag)
+                du = du * (m if du.ndim == 1 else m[:, None])
+                dg = dg * (m if dg.ndim == 1 else m[:, None])
+                fe += shell_thermal_vector(kin, s.thickness, s.E, s.nu, s.alpha, du, dg)
         f += scatter_vector(n, dofs, fe)
     for b, geo in zip(model.beams, beam_geo, strict=True):
         dofs = element_dofs(b.conn)
