@@ -1,0 +1,167 @@
+"""Parameters of the online shadow: ``config/shadow.yaml`` loaded from plain Python.
+
+The file is also the ROS node's parameter file, so its layout is
+``bridge_shadow: ros__parameters: {name: value}`` with flat names (robot_localization style).
+Every parameter is documented in the YAML file with its unit and default; the defaults here are
+the same values, so an empty file gives the paper's set-up.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from bridge_shadow.contract import NODE_NAME
+from bridge_shadow.errors import ConfigError
+from bridge_shadow.paths import config_file
+
+__all__ = ["ShadowConfig", "load_config"]
+
+_MATCH_MODES = ("hold", "linear")
+_SMOOTHING_MODES = ("reml", "gcv", "fixed", "none")
+_NOISE_MODES = ("adaptive", "fixed")
+
+
+@dataclass
+class ShadowConfig:
+    """All parameters of the shadow pipeline (SI units; see ``config/shadow.yaml``)."""
+
+    # alignment and aggregation
+    window_s: float = 60.0
+    window_min_samples: int = 10
+    temperature_match: str = "linear"
+    temperature_stale_s: float = 120.0
+    topic_timeout_s: float = 30.0
+    # P-spline compensation
+    smoothing: str = "reml"
+    spline_lambda: float = 10.0
+    spline_t_min_c: float = -20.0
+    spline_t_max_c: float = 45.0
+    spline_segments: int = 13
+    spline_forgetting_s: float = 0.0
+    spline_warmup_windows: int = 30
+    # Kalman update
+    prior_sigma_m: list[float] = field(default_factory=lambda: [3.0e-4, 3.0e-4])
+    process_noise_m2_per_s: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    noise_sigma_n: list[float] = field(default_factory=lambda: [60.4, 82.7])
+    # honest uncertainty (noise model)
+    noise_mode: str = "adaptive"
+    noise_warmup_windows: int = 10
+    noise_phi_max: float = 0.99
+    noise_floor: bool = True
+    # gating
+    force_min_n: float = 1.0
+    force_max_n: float = 5.0e6
+    temp_min_c: float = -60.0
+    temp_max_c: float = 70.0
+    mahalanobis_probability: float = 0.999999
+    gate_after_updates: int = 10
+    clock_jump_s: float = 3600.0
+    clock_jump_confirm: int = 100
+    check_frame_id: bool = True
+    # checkpoint
+    checkpoint_path: str = ""
+    checkpoint_period_s: float = 600.0
+    # model
+    surrogate_path: str = ""
+    # node-only parameters (used by bridge_shadow.ros)
+    qos_depth: int = 1000
+    diagnostics_period_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """Raise ConfigError on an inconsistent parameter set."""
+
+        def need(cond: bool, msg: str) -> None:
+            if not cond:
+                raise ConfigError(f"shadow parameters: {msg}")
+
+        need(self.window_s > 0, "window_s must be > 0")
+        need(self.window_min_samples >= 1, "window_min_samples must be >= 1")
+        need(self.temperature_match in _MATCH_MODES, f"temperature_match must be one of {_MATCH_MODES}")
+        need(self.smoothing in _SMOOTHING_MODES, f"smoothing must be one of {_SMOOTHING_MODES}")
+        need(self.noise_mode in _NOISE_MODES, f"noise_mode must be one of {_NOISE_MODES}")
+        need(self.spline_t_max_c > self.spline_t_min_c, "spline_t_max_c must exceed spline_t_min_c")
+        need(self.spline_segments >= 1, "spline_segments must be >= 1")
+        need(self.spline_lambda >= 0, "spline_lambda must be >= 0")
+        need(self.spline_forgetting_s >= 0, "spline_forgetting_s must be >= 0 (0 = off)")
+        for name in ("prior_sigma_m", "process_noise_m2_per_s", "noise_sigma_n"):
+            value = getattr(self, name)
+            need(len(value) == 2, f"{name} must have two values [south, north]")
+            setattr(self, name, [float(v) for v in value])
+        need(min(self.prior_sigma_m) > 0, "prior_sigma_m must be > 0")
+        need(min(self.noise_sigma_n) > 0, "noise_sigma_n must be > 0")
+        need(min(self.process_noise_m2_per_s) >= 0, "process_noise_m2_per_s must be >= 0")
+        need(0.0 <= self.noise_phi_max < 1.0, "noise_phi_max must be in [0, 1)")
+        need(0.0 < self.mahalanobis_probability <= 1.0, "mahalanobis_probability must be in (0, 1]")
+        need(self.force_max_n > self.force_min_n, "force_max_n must exceed force_min_n")
+        need(self.clock_jump_s > 0, "clock_jump_s must be > 0")
+        need(self.clock_jump_confirm >= 1, "clock_jump_confirm must be >= 1")
+        need(self.temperature_stale_s > 0 and self.topic_timeout_s >= 0, "timeouts must be positive")
+
+    @classmethod
+    def from_params(cls, params: dict[str, Any], *, strict: bool = True) -> ShadowConfig:
+        """Build from a flat ``{name: value}`` map; unknown names raise ConfigError when strict."""
+        names = {f.name: f for f in dataclasses.fields(cls)}
+        unknown = sorted(set(params) - set(names))
+        if unknown and strict:
+            raise ConfigError(f"shadow parameters: unknown name(s) {unknown}")
+        kwargs: dict[str, Any] = {}
+        for key, value in params.items():
+            if key not in names:
+                continue
+            default = names[key].default
+            try:
+                if isinstance(default, bool):
+                    if not isinstance(value, bool):
+                        raise TypeError("expected true or false")
+                    kwargs[key] = value
+                elif isinstance(default, int):
+                    kwargs[key] = int(value)
+                elif isinstance(default, float):
+                    kwargs[key] = float(value)
+                elif isinstance(default, str):
+                    kwargs[key] = str(value)
+                else:
+                    kwargs[key] = [float(v) for v in value]
+            except (TypeError, ValueError) as err:
+                raise ConfigError(f"shadow parameters: {key}: bad value {value!r} ({err})") from err
+        return cls(**kwargs)
+
+    def to_params(self) -> dict[str, Any]:
+        """Flat ``{name: value}`` map (the ``ros__parameters`` section)."""
+        return dataclasses.asdict(self)
+
+    def replace(self, **changes: Any) -> ShadowConfig:
+        """Return a copy with some parameters changed (validated)."""
+        return dataclasses.replace(self, **changes)
+
+
+def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> ShadowConfig:
+    """Load ``config/shadow.yaml`` (or ``path``) and apply ``overrides``; ConfigError on problems."""
+    file = Path(path) if path is not None else config_file("shadow.yaml")
+    params: dict[str, Any] = {}
+    if file.is_file():
+        try:
+            data = yaml.safe_load(file.read_text()) or {}
+        except yaml.YAMLError as err:
+            raise ConfigError(f"{file}: not valid YAML ({err})") from err
+        if not isinstance(data, dict):
+            raise ConfigError(f"{file}: expected a mapping at the top level")
+        section = data.get(NODE_NAME, data.get(f"/{NODE_NAME}", data.get("/**", {})))
+        if not isinstance(section, dict) or "ros__parameters" not in section:
+            raise ConfigError(f"{file}: expected '{NODE_NAME}: ros__parameters:' at the top level")
+        params = dict(section["ros__parameters"] or {})
+    elif path is not None:
+        raise ConfigError(f"{file}: parameter file not found")
+    params.update(overrides or {})
+    try:
+        return ShadowConfig.from_params(params)
+    except ConfigError as err:
+        raise ConfigError(f"{file}: {err}") from err

@@ -1,0 +1,709 @@
+"""The shadow pipeline: messages -> gate -> align/aggregate -> compensate -> Kalman -> outputs.
+
+One ``Shadow`` object is driven by the live node (one message or a small batch per call) and by
+offline replay (big chunks) through the same methods, so both give the same posterior:
+
+    shadow = Shadow(config, surrogate)
+    shadow.ingest_forces(0, stamp_ns, force_n, frame_id)     # channel 0 = frc_01 (south)
+    shadow.ingest_temperature(stamp_ns, temp_c, frame_id)
+    for out in shadow.poll():                                 # closed windows, in order
+        publish(out.mean_m, out.covariance_m2, out.compensated_n)
+
+Windows are fixed in stamp time (``[k W, (k + 1) W)``). Window ``k`` closes once every topic has
+a stamp at or past its end, or the data clock (latest accepted stamp of any topic) is
+``topic_timeout_s`` past its end; so results depend on the stamps, never on how messages were
+chunked. The first windows are held until the spline and the noise model are warm, then
+compensated with that fit and applied in order.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, SUPPORTS, TEMPERATURE_FRAME
+from bridge_shadow.estimate.align import window_means
+from bridge_shadow.estimate.config import ShadowConfig
+from bridge_shadow.estimate.gate import REASONS, TopicGate
+from bridge_shadow.estimate.kalman import SettlementFilter
+from bridge_shadow.estimate.noise import WindowNoise
+from bridge_shadow.estimate.spline import OnlinePSpline
+from bridge_shadow.model.surrogate_file import Surrogate, load_surrogate
+from bridge_shadow.series import MonitoringData
+
+__all__ = ["TOPIC_KEYS", "ReplayResult", "Shadow", "WindowOutput"]
+
+#: Keys of the three input topics in counters and diagnostics.
+TOPIC_KEYS: tuple[str, str, str] = (*CHANNELS, "air_temperature")
+_NS = 1_000_000_000
+
+
+@dataclass
+class WindowOutput:
+    """What the shadow says after one closed window.
+
+    Attributes:
+        index: window number ``k`` (window ``[k W, (k + 1) W)`` in stamp ns).
+        end_ns: window end stamp (ns); the stamp of the published outputs.
+        samples: (2,) force samples per channel.
+        temp_c: (2,) C, mean matched temperature per channel.
+        force_n: (2,) N, raw window-mean force.
+        compensated_n: (2,) N, ``y - g(T) + mean(y)`` (NaN when not compensated).
+        mean_m: (2,) m, posterior settlement mean after this window.
+        covariance_m2: (2, 2) m^2, posterior covariance after this window.
+        updated: whether this window updated the filter.
+        reason: ``""`` or why it did not (a key of ``REASONS``).
+
+    """
+
+    index: int
+    end_ns: int
+    samples: np.ndarray
+    temp_c: np.ndarray
+    force_n: np.ndarray
+    compensated_n: np.ndarray
+    mean_m: np.ndarray
+    covariance_m2: np.ndarray
+    updated: bool
+    reason: str = ""
+
+
+class _Buffer:
+    """Accepted samples of one topic not yet consumed: sorted stamps and values in chunks."""
+
+    def __init__(self) -> None:
+        self.stamps: list[np.ndarray] = []
+        self.values: list[np.ndarray] = []
+
+    def append(self, stamps: np.ndarray, values: np.ndarray) -> None:
+        if len(stamps):
+            self.stamps.append(stamps)
+            self.values.append(values)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        if len(self.stamps) > 1:
+            self.stamps = [np.concatenate(self.stamps)]
+            self.values = [np.concatenate(self.values)]
+        if not self.stamps:
+            return np.empty(0, np.int64), np.empty(0)
+        return self.stamps[0], self.values[0]
+
+    def take_before(self, end_ns: int) -> tuple[np.ndarray, np.ndarray]:
+        """Remove and return the samples with stamp < end_ns."""
+        s, v = self.arrays()
+        i = int(np.searchsorted(s, end_ns, side="left"))
+        self.stamps, self.values = ([s[i:]], [v[i:]]) if i < len(s) else ([], [])
+        return s[:i], v[:i]
+
+    def drop_before(self, index: int) -> None:
+        s, v = self.arrays()
+        if index > 0:
+            self.stamps, self.values = [s[index:]], [v[index:]]
+
+    def first_ns(self) -> int | None:
+        return int(self.stamps[0][0]) if self.stamps else None
+
+
+@dataclass
+class ReplayResult:
+    """Result of an offline run (``Shadow.run``); ``to_json`` gives the replay JSON (SI units)."""
+
+    mean_m: np.ndarray
+    covariance_m2: np.ndarray
+    messages: int
+    used: dict[str, int]
+    rejected: dict[str, int]
+    windows: int
+    updates: int
+    spline: dict[str, dict[str, float]]
+    noise: dict[str, Any]
+    outputs: list[WindowOutput] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def messages_per_s(self) -> float:
+        """Input messages processed per wall-clock second."""
+        return self.messages / self.seconds if self.seconds > 0 else float("inf")
+
+    def history(self) -> dict[str, np.ndarray]:
+        """Per-window arrays: end_ns (n,), mean_m (n, 2), covariance_m2 (n, 2, 2), ..."""
+        outs = self.outputs
+        return {
+            "end_ns": np.array([o.end_ns for o in outs], dtype=np.int64),
+            "samples": np.array([o.samples for o in outs], dtype=np.int64).reshape(-1, 2),
+            "temp_c": np.array([o.temp_c for o in outs]).reshape(-1, 2),
+            "force_n": np.array([o.force_n for o in outs]).reshape(-1, 2),
+            "compensated_n": np.array([o.compensated_n for o in outs]).reshape(-1, 2),
+            "mean_m": np.array([o.mean_m for o in outs]).reshape(-1, 2),
+            "covariance_m2": np.array([o.covariance_m2 for o in outs]).reshape(-1, 2, 2),
+            "updated": np.array([o.updated for o in outs], dtype=bool),
+        }
+
+    def to_json(self) -> dict[str, Any]:
+        """Return the replay JSON object (contract keys first)."""
+        return {
+            "posterior": {
+                "mean_m": self.mean_m.tolist(),
+                "covariance_m2": self.covariance_m2.tolist(),
+                "sigma_m": np.sqrt(np.diag(self.covariance_m2)).tolist(),
+                "supports": list(SUPPORTS),
+            },
+            "messages": {
+                "total": self.messages,
+                "used": int(sum(self.used.values())),
+                "used_by_topic": dict(self.used),
+                "rejected": int(sum(v for k, v in self.rejected.items() if k in _MESSAGE_REASONS)),
+            },
+            "rejected": dict(self.rejected),
+            "messages_per_s": self.messages_per_s,
+            "seconds": self.seconds,
+            "windows": {"closed": self.windows, "updates": self.updates},
+            "spline": self.spline,
+            "noise": self.noise,
+        }
+
+
+_MESSAGE_REASONS = (
+    "nonfinite",
+    "out_of_range",
+    "frame_id",
+    "duplicate",
+    "out_of_order",
+    "clock_jump",
+    "late",
+)
+
+
+class Shadow:
+    """The online shadow of the two central-support settlements (no ROS import).
+
+    Attributes:
+        config: the parameters (``config/shadow.yaml``).
+        surrogate: ``u = A x + u0`` (A N/m, u0 N).
+        splines: one ``OnlinePSpline`` per channel (force N on temperature C).
+        noise: the window noise model giving R.
+        filter: the settlement Kalman filter (x m, P m^2).
+        counts: rejections by reason (``REASONS``).
+        used: accepted messages per topic (``TOPIC_KEYS``).
+
+    """
+
+    def __init__(self, config: ShadowConfig | None = None, surrogate: Surrogate | None = None) -> None:
+        self.config = config = config if config is not None else ShadowConfig()
+        if surrogate is None:
+            surrogate = load_surrogate(config.surrogate_path or None)
+        self.surrogate = surrogate
+        self._w_ns = round(config.window_s * _NS)
+        jump_ns = round(config.clock_jump_s * _NS)
+        check = config.check_frame_id
+        self.gates = [
+            TopicGate(
+                FORCE_FRAMES[ch] if check else None,
+                config.force_min_n,
+                config.force_max_n,
+                jump_ns,
+                config.clock_jump_confirm,
+            )
+            for ch in CHANNELS
+        ]
+        self.gates.append(
+            TopicGate(
+                TEMPERATURE_FRAME if check else None,
+                config.temp_min_c,
+                config.temp_max_c,
+                jump_ns,
+                config.clock_jump_confirm,
+            )
+        )
+        self.counts: Counter = Counter({r: 0 for r in REASONS})
+        self.used = dict.fromkeys(TOPIC_KEYS, 0)
+        self._force = [_Buffer(), _Buffer()]
+        self._temp = _Buffer()
+        self.splines = [
+            OnlinePSpline.uniform(
+                config.spline_t_min_c,
+                config.spline_t_max_c,
+                config.spline_segments,
+                mode=config.smoothing,
+                lam=config.spline_lambda,
+            )
+            for _ in CHANNELS
+        ]
+        self.noise = WindowNoise(
+            config.noise_sigma_n,
+            adaptive=config.noise_mode == "adaptive",
+            phi_max=config.noise_phi_max,
+            floor=config.noise_floor,
+        )
+        self.filter = SettlementFilter(
+            surrogate.A,
+            np.asarray(config.prior_sigma_m),
+            np.asarray(config.process_noise_m2_per_s),
+            config.mahalanobis_probability,
+        )
+        warm = [config.spline_warmup_windows if config.smoothing != "none" else 0]
+        warm.append(config.noise_warmup_windows if config.noise_mode == "adaptive" else 0)
+        self._warmup = max(max(warm), 0)
+        self.next_k: int | None = None
+        self.n_windows = 0  # windows closed with data
+        self.n_good = 0  # windows added to the splines
+        self._spline_k = -1  # window index of the last spline update (forgetting)
+        self._pred_ns: int | None = None  # stamp of the filter's last predict
+        self._held: list[dict[str, Any]] = []
+        self._ckpt_ns: int | None = None
+        self._first_ns: int | None = None  # earliest accepted stamp of any topic
+
+    # -- input ------------------------------------------------------------------------------
+    @property
+    def clock_ns(self) -> int | None:
+        """Data clock: the latest accepted stamp over all topics (None before any)."""
+        stamps = [g.last_ns for g in self.gates if g.last_ns is not None]
+        return max(stamps) if stamps else None
+
+    def _clock_span(self) -> tuple[int, int] | None:
+        if self._first_ns is None:
+            return None
+        return (self._first_ns, max(g.last_ns for g in self.gates if g.last_ns is not None))
+
+    def _note_first(self, stamps: np.ndarray) -> None:
+        if len(stamps) and (self._first_ns is None or int(stamps[0]) < self._first_ns):
+            self._first_ns = int(stamps[0])
+
+    def ingest_forces(
+        self,
+        channel: int | str,
+        stamp_ns: np.ndarray | int,
+        force_n: np.ndarray | float,
+        frame_id: np.ndarray | str | None = None,
+        log_ns: np.ndarray | int | None = None,
+    ) -> int:
+        """Take force messages of one channel (0/``frc_01`` south, 1/``frc_02`` north) in arrival order.
+
+        ``frame_id`` None skips the frame check for these messages; ``log_ns`` is accepted for
+        the node's convenience and not used (windows follow the header stamps). Returns the
+        number of messages accepted.
+        """
+        c = CHANNELS.index(channel) if isinstance(channel, str) else int(channel)
+        stamps = np.atleast_1d(np.asarray(stamp_ns, dtype=np.int64))
+        values = np.atleast_1d(np.asarray(force_n, dtype=float))
+        ok = self.gates[c](stamps, values, frame_id, self._clock_span(), self.counts)
+        stamps, values = stamps[ok], values[ok]
+        self._note_first(stamps)
+        if len(stamps):
+            if self.next_k is None:
+                self.next_k = int(stamps[0]) // self._w_ns
+            late = stamps < self.next_k * self._w_ns
+            if late.any():
+                self.counts["late"] += int(np.count_nonzero(late))
+                stamps, values = stamps[~late], values[~late]
+        self._force[c].append(stamps, values)
+        self.used[CHANNELS[c]] += len(stamps)
+        return len(stamps)
+
+    def ingest_temperature(
+        self,
+        stamp_ns: np.ndarray | int,
+        temp_c: np.ndarray | float,
+        frame_id: np.ndarray | str | None = None,
+        log_ns: np.ndarray | int | None = None,
+    ) -> int:
+        """Take air-temperature messages in arrival order; return the number accepted."""
+        stamps = np.atleast_1d(np.asarray(stamp_ns, dtype=np.int64))
+        values = np.atleast_1d(np.asarray(temp_c, dtype=float))
+        ok = self.gates[2](stamps, values, frame_id, self._clock_span(), self.counts)
+        self._note_first(stamps[ok])
+        self._temp.append(stamps[ok], values[ok])
+        n = int(np.count_nonzero(ok))
+        self.used["air_temperature"] += n
+        return n
+
+    # -- windows ----------------------------------------------------------------------------
+    def _due(self, k: int, clock: int) -> bool:
+        end = (k + 1) * self._w_ns
+        late_ok = clock >= end + round(self.config.topic_timeout_s * _NS)
+        return all((g.last_ns is not None and g.last_ns >= end) or late_ok for g in self.gates)
+
+    def poll(self, now_ns: int | None = None) -> list[WindowOutput]:
+        """Close every due window and return its outputs, in window order.
+
+        ``now_ns`` (optional) extends the data clock for the missing-topic timeout, e.g. a node's
+        wall clock when all inputs stop; leave it None to stay on stamp time (replay-exact).
+        """
+        outputs: list[WindowOutput] = []
+        clock = self.clock_ns
+        if clock is None or self.next_k is None:
+            return outputs
+        if now_ns is not None:
+            clock = max(clock, int(now_ns))
+        while self._due(self.next_k, clock):
+            outputs.extend(self._close(self.next_k))
+            self.next_k = self._next_window(self.next_k + 1)
+        self._maybe_checkpoint()
+        return outputs
+
+    def flush(self) -> list[WindowOutput]:
+        """Close every window that holds data (end of a replay); later data will be ``late``."""
+        outputs: list[WindowOutput] = []
+        while self.next_k is not None and any(b.first_ns() is not None for b in self._force):
+            outputs.extend(self._close(self.next_k))
+            self.next_k = self._next_window(self.next_k + 1)
+        if self._held:
+            outputs.extend(self._release())
+        return outputs
+
+    def _next_window(self, k: int) -> int:
+        """Skip windows that can never receive data (empty buffers, every channel past them)."""
+        firsts = [b.first_ns() for b in self._force]
+        if any(f is not None for f in firsts):
+            return max(k, min(f for f in firsts if f is not None) // self._w_ns)
+        lasts = [g.last_ns for g in self.gates[:2] if g.last_ns is not None]
+        return max(k, min(lasts) // self._w_ns) if lasts else k
+
+    def _close(self, k: int) -> list[WindowOutput]:
+        end = (k + 1) * self._w_ns
+        taken = [b.take_before(end) for b in self._force]
+        if not any(len(s) for s, _ in taken):
+            self._prune_temperature(end)
+            return []
+        self.n_windows += 1
+        ts, tv = self._temp.arrays()
+        cfg = self.config
+        wm = window_means(
+            [s for s, _ in taken],
+            [v for _, v in taken],
+            ts,
+            tv,
+            cfg.temperature_match,
+            round(cfg.temperature_stale_s * _NS),
+        )
+        self._prune_temperature(end)
+        reason = ""
+        if np.any(wm.samples == 0):
+            reason = "missing_topic"
+        elif np.any(wm.samples < cfg.window_min_samples):
+            reason = "sparse_window"
+        elif wm.stale:
+            reason = "stale_temperature"
+        if reason:
+            self.counts[reason] += 1
+            return [self._output(k, wm.samples, wm.temp_c, wm.force_n, np.full(2, np.nan), False, reason)]
+        decay = 1.0
+        if cfg.spline_forgetting_s > 0 and self._spline_k >= 0:
+            decay = float(np.exp(-(k - self._spline_k) * cfg.window_s / cfg.spline_forgetting_s))
+        for c in range(2):
+            self.splines[c].add(wm.temp_c[c], wm.force_n[c], 1.0, decay)
+        self._spline_k = k
+        self.n_good += 1
+        self._held.append({"k": k, "samples": wm.samples, "temp_c": wm.temp_c, "force_n": wm.force_n})
+        if self.n_good >= self._warmup:
+            return self._release()
+        return []
+
+    def _prune_temperature(self, end: int) -> None:
+        ts, _ = self._temp.arrays()
+        self._temp.drop_before(int(np.searchsorted(ts, end, side="right")) - 1)
+
+    def _release(self) -> list[WindowOutput]:
+        held, self._held = self._held, []
+        return [self._apply(rec) for rec in held]
+
+    def _apply(self, rec: dict[str, Any]) -> WindowOutput:
+        """Compensate one warm window, update the noise model and the filter."""
+        k, m, temp, force = rec["k"], rec["samples"], rec["temp_c"], rec["force_n"]
+        end = (k + 1) * self._w_ns
+        g = np.array([self.splines[c].predict(temp[c])[0] for c in range(2)])
+        level = np.array([self.splines[c].fit().mean_y for c in range(2)])
+        compensated = force - g + level
+        self.noise.add(force - g, m, k)
+        R = self.noise.R(m)
+        if self._pred_ns is not None:
+            self.filter.predict((end - self._pred_ns) / _NS)
+        self._pred_ns = end
+        gate = self.filter.n_updates >= self.config.gate_after_updates
+        res = self.filter.update(compensated - self.surrogate.u0, R, gate=gate)
+        if not res.accepted:
+            self.counts[res.reason] += 1
+        return self._output(k, m, temp, force, compensated, res.accepted, res.reason)
+
+    def _output(
+        self,
+        k: int,
+        m: np.ndarray,
+        temp: np.ndarray,
+        force: np.ndarray,
+        comp: np.ndarray,
+        updated: bool,
+        reason: str,
+    ) -> WindowOutput:
+        return WindowOutput(
+            k,
+            (k + 1) * self._w_ns,
+            np.asarray(m).copy(),
+            np.asarray(temp).copy(),
+            np.asarray(force).copy(),
+            np.asarray(comp).copy(),
+            self.filter.x,
+            self.filter.P,
+            updated,
+            reason,
+        )
+
+    # -- reporting ----------------------------------------------------------------------------
+    @property
+    def posterior(self) -> tuple[np.ndarray, np.ndarray]:
+        """Posterior mean (2,) m and covariance (2, 2) m^2."""
+        return self.filter.x, self.filter.P
+
+    @property
+    def rejected(self) -> dict[str, int]:
+        """Rejections by reason (every reason listed, zeros included)."""
+        return {r: int(self.counts.get(r, 0)) for r in REASONS}
+
+    def spline_info(self) -> dict[str, dict[str, float]]:
+        """Per channel: edf, lambda, windows fitted, clamped temperatures (NaN before data)."""
+        info: dict[str, dict[str, float]] = {}
+        for ch, sp in zip(CHANNELS, self.splines, strict=True):
+            edf = lam = level = float("nan")
+            if sp.sw > 0:
+                fit = sp.fit()
+                edf, lam, level = fit.edf, fit.lam, fit.mean_y
+            info[ch] = {
+                "edf": edf,
+                "lambda": lam,
+                "mean_force_n": level,
+                "windows": sp.n_obs,
+                "clamped": sp.n_clamped,
+            }
+        return info
+
+    def diagnostics(self, now_ns: int | None = None) -> dict[str, Any]:
+        """Health and key values (SI): level OK/WARN/ERROR, message, posterior, counts, staleness."""
+        mean, cov = self.posterior
+        clock = self.clock_ns
+        ref = now_ns if now_ns is not None else clock
+        staleness = {
+            key: (None if g.last_ns is None or ref is None else (ref - g.last_ns) / _NS)
+            for key, g in zip(TOPIC_KEYS, self.gates, strict=True)
+        }
+        timeout = max(self.config.topic_timeout_s, self.config.window_s)
+        stale = [k for k, v in staleness.items() if v is None or v > timeout]
+        warm = self.n_good >= self._warmup
+        if not np.all(np.isfinite(mean)) or not np.all(np.isfinite(cov)):
+            level, message = "ERROR", "posterior is not finite"
+        elif clock is not None and len(stale) == len(TOPIC_KEYS):
+            level, message = "ERROR", "no input on any topic"
+        elif stale:
+            level, message = "WARN", f"stale or missing topic(s): {', '.join(stale)}"
+        elif not warm:
+            level, message = "WARN", f"warming up ({self.n_good}/{self._warmup} windows)"
+        else:
+            level, message = "OK", "tracking"
+        sigma = np.sqrt(np.diag(cov))
+        summary = ", ".join(
+            f"{s} {1e3 * mu:+.3f} ± {1e3 * sd:.3f} mm"
+            for s, mu, sd in zip(SUPPORTS, mean, sigma, strict=True)
+        )
+        return {
+            "level": level,
+            "message": message,
+            "summary": summary,
+            "mean_m": mean.tolist(),
+            "covariance_m2": cov.tolist(),
+            "sigma_m": sigma.tolist(),
+            "used": dict(self.used),
+            "rejected": self.rejected,
+            "staleness_s": staleness,
+            "spline": self.spline_info(),
+            "noise": self.noise_info(),
+            "windows": {
+                "closed": self.n_windows,
+                "fitted": self.n_good,
+                "held": len(self._held),
+                "updates": self.filter.n_updates,
+                "warm": warm,
+            },
+            "clock_ns": clock,
+        }
+
+    def noise_info(self) -> dict[str, Any]:
+        """Noise model: mode, phi per channel, per-sample-equivalent sigma (N)."""
+        return {
+            "mode": self.config.noise_mode,
+            "phi": self.noise.phi.tolist(),
+            "sigma_n": np.sqrt(np.diag(self.noise.sample_cov())).tolist(),
+            "windows": self.noise.n,
+        }
+
+    # -- state ----------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, Any]:
+        """Return the whole online state as nested plain data (arrays, numbers, strings)."""
+        force = [b.arrays() for b in self._force]
+        temp = self._temp.arrays()
+        held = self._held
+        return {
+            "version": 1,
+            "config": json.dumps(self.config.to_params()),
+            "surrogate": {"A": self.surrogate.A, "u0": self.surrogate.u0},
+            "gates": [g.state_dict() for g in self.gates],
+            "counts": json.dumps({k: int(v) for k, v in self.counts.items()}),
+            "used": json.dumps(self.used),
+            "force": [{"stamps": s, "values": v} for s, v in force],
+            "temp": {"stamps": temp[0], "values": temp[1]},
+            "splines": [sp.state_dict() for sp in self.splines],
+            "noise": self.noise.state_dict(),
+            "filter": self.filter.state_dict(),
+            "held": {
+                "k": np.array([h["k"] for h in held], dtype=np.int64),
+                "samples": np.array([h["samples"] for h in held], dtype=np.int64).reshape(-1, 2),
+                "temp_c": np.array([h["temp_c"] for h in held], dtype=float).reshape(-1, 2),
+                "force_n": np.array([h["force_n"] for h in held], dtype=float).reshape(-1, 2),
+            },
+            "scalars": {
+                "next_k": -(2**62) if self.next_k is None else self.next_k,
+                "n_windows": self.n_windows,
+                "n_good": self.n_good,
+                "spline_k": self._spline_k,
+                "pred_ns": -(2**62) if self._pred_ns is None else self._pred_ns,
+                "ckpt_ns": -(2**62) if self._ckpt_ns is None else self._ckpt_ns,
+                "first_ns": -(2**62) if self._first_ns is None else self._first_ns,
+            },
+        }
+
+    @classmethod
+    def from_state_dict(
+        cls, state: dict[str, Any], config: ShadowConfig | None = None, surrogate: Surrogate | None = None
+    ) -> Shadow:
+        """Rebuild a shadow from ``state_dict`` (config and surrogate default to the saved ones)."""
+        if config is None:
+            config = ShadowConfig.from_params(json.loads(str(state["config"])))
+        if surrogate is None:
+            surrogate = Surrogate(np.asarray(state["surrogate"]["A"]), np.asarray(state["surrogate"]["u0"]))
+        shadow = cls(config, surrogate)
+        for g, s in zip(shadow.gates, state["gates"], strict=True):
+            g.load_state_dict(s)
+        shadow.counts = Counter({r: 0 for r in REASONS})
+        shadow.counts.update(json.loads(str(state["counts"])))
+        shadow.used = {k: int(v) for k, v in json.loads(str(state["used"])).items()}
+        for b, s in zip(shadow._force, state["force"], strict=True):
+            b.append(np.asarray(s["stamps"], np.int64), np.asarray(s["values"], float))
+        shadow._temp.append(
+            np.asarray(state["temp"]["stamps"], np.int64), np.asarray(state["temp"]["values"], float)
+        )
+        for sp, s in zip(shadow.splines, state["splines"], strict=True):
+            sp.load_state_dict(s)
+        shadow.noise.load_state_dict(state["noise"])
+        shadow.filter.load_state_dict(state["filter"])
+        h = state["held"]
+        shadow._held = [
+            {
+                "k": int(k),
+                "samples": np.asarray(m, np.int64),
+                "temp_c": np.asarray(t, float),
+                "force_n": np.asarray(f, float),
+            }
+            for k, m, t, f in zip(
+                np.asarray(h["k"]),
+                np.asarray(h["samples"]).reshape(-1, 2),
+                np.asarray(h["temp_c"]).reshape(-1, 2),
+                np.asarray(h["force_n"]).reshape(-1, 2),
+                strict=True,
+            )
+        ]
+        sc = {k: int(v) for k, v in state["scalars"].items()}
+        none = -(2**62)
+        shadow.next_k = None if sc["next_k"] == none else sc["next_k"]
+        shadow.n_windows, shadow.n_good, shadow._spline_k = sc["n_windows"], sc["n_good"], sc["spline_k"]
+        shadow._pred_ns = None if sc["pred_ns"] == none else sc["pred_ns"]
+        shadow._ckpt_ns = None if sc["ckpt_ns"] == none else sc["ckpt_ns"]
+        shadow._first_ns = None if sc["first_ns"] == none else sc["first_ns"]
+        return shadow
+
+    def save_checkpoint(self, path: str | Path | None = None) -> Path | None:
+        """Write the state atomically to ``path`` (default ``checkpoint_path``); None if disabled."""
+        from bridge_shadow.estimate.checkpoint import save_state
+
+        target = path if path is not None else self.config.checkpoint_path
+        if not target:
+            return None
+        self._ckpt_ns = self.clock_ns
+        return save_state(self.state_dict(), target)
+
+    @classmethod
+    def resume(
+        cls, path: str | Path, config: ShadowConfig | None = None, surrogate: Surrogate | None = None
+    ) -> Shadow:
+        """Rebuild a shadow from a checkpoint file written by ``save_checkpoint``."""
+        from bridge_shadow.estimate.checkpoint import load_state
+
+        return cls.from_state_dict(load_state(path), config, surrogate)
+
+    def _maybe_checkpoint(self) -> None:
+        if not self.config.checkpoint_path or self.clock_ns is None:
+            return
+        if self._ckpt_ns is None:
+            self._ckpt_ns = self.clock_ns
+        elif self.clock_ns - self._ckpt_ns >= self.config.checkpoint_period_s * _NS:
+            self.save_checkpoint()
+
+    # -- offline ----------------------------------------------------------------------------
+    def run(
+        self,
+        data: MonitoringData,
+        chunk: int = 200_000,
+        progress: Callable[[float], None] | None = None,
+        flush: bool = True,
+    ) -> ReplayResult:
+        """Feed ``data`` in arrival (log time) order, ``chunk`` messages per call; return the result."""
+        t0 = time.perf_counter()
+        series = [data.forces[ch] for ch in CHANNELS]
+        temp = data.temperature
+        logs = [s.log_ns for s in series] + [temp.log_ns]
+        sizes = [len(x) for x in logs]
+        total = sum(sizes)
+        topic = np.concatenate([np.full(n, i, dtype=np.int8) for i, n in enumerate(sizes)])
+        pos = np.concatenate([np.arange(n) for n in sizes])
+        order = np.argsort(np.concatenate(logs), kind="stable")
+        topic, pos = topic[order], pos[order]
+        outputs: list[WindowOutput] = []
+        chunk = max(int(chunk), 1)
+        for start in range(0, total, chunk):
+            t_chunk, p_chunk = topic[start : start + chunk], pos[start : start + chunk]
+            for i in range(3):
+                sel = p_chunk[t_chunk == i]
+                if not len(sel):
+                    continue
+                # positions of one topic are increasing, so a contiguous range is a slice
+                sl = slice(int(sel[0]), int(sel[-1]) + 1) if sel[-1] - sel[0] + 1 == len(sel) else sel
+                if i < 2:
+                    s = series[i]
+                    self.ingest_forces(i, s.stamp_ns[sl], s.force_n[sl], s.frame_id[sl])
+                else:
+                    self.ingest_temperature(temp.stamp_ns[sl], temp.temp_c[sl], temp.frame_id[sl])
+            outputs.extend(self.poll())
+            if progress is not None:
+                progress(min(start + chunk, total) / max(total, 1))
+        if flush:
+            outputs.extend(self.flush())
+            if self.config.checkpoint_path:
+                self.save_checkpoint()
+        mean, cov = self.posterior
+        return ReplayResult(
+            mean_m=mean,
+            covariance_m2=cov,
+            messages=total,
+            used=dict(self.used),
+            rejected=self.rejected,
+            windows=self.n_windows,
+            updates=self.filter.n_updates,
+            spline=self.spline_info(),
+            noise=self.noise_info(),
+            outputs=outputs,
+            seconds=time.perf_counter() - t0,
+        )
