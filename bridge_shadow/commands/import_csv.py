@@ -1,19 +1,72 @@
-"""``bridge-shadow import-csv``: not implemented yet (placeholder until its issue lands)."""
+"""``bridge-shadow import-csv``: munich-bridge-data CSV records -> a monitoring bag."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from datetime import date
 
-from bridge_shadow.errors import BridgeShadowError
+HELP = "convert munich-bridge-data force/temperature CSVs (or zips of them) into a monitoring bag"
+DESCRIPTION = """\
+Convert the munich-bridge-data CSV format into a rosbag2 bag with the contract input topics
+(/bridge/frc_01/force, /bridge/frc_02/force: WrenchStamped in N; /bridge/air_temperature:
+Temperature in C). Each FILE is a force or temperature CSV, or a zip holding some, recognized by
+its header. Local time (Europe/Berlin) becomes UTC; kN becomes N; several temperature files are
+merged; sample-and-hold repeats are kept and counted; a swapped month/day in force stamps
+(2022-04-11 written as 2022-11-04) is detected from the file name, the temperature files' dates,
+the file date or a future date, or fixed with --date.
 
-HELP = "(not implemented yet)"
+example:
+  bridge-shadow import-csv ../shared/data/munich-bridge-data/Settlements/*.zip --out /tmp/apr11
+"""
+
+
+def _date(text: str) -> date:
+    try:
+        return date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a date YYYY-MM-DD: {text!r}") from None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Accept anything until the real subcommand lands."""
-    parser.add_argument("rest", nargs=argparse.REMAINDER)
+    """Declare the arguments."""
+    parser.add_argument("files", nargs="+", metavar="FILE", help="force/temperature CSV or zip")
+    parser.add_argument("--out", required=True, metavar="BAG", help="output bag directory")
+    parser.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3", help="bag storage")
+    parser.add_argument(
+        "--date",
+        type=_date,
+        default=None,
+        metavar="YYYY-MM-DD",
+        help="true recording date of the force files",
+    )
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing output bag")
+    parser.add_argument("--json", action="store_true", help="print one JSON summary object")
 
 
 def run(args: argparse.Namespace) -> int:
-    """Fail with a clear message."""
-    raise BridgeShadowError("'import-csv' is not implemented yet")
+    """Import, write the bag, print the summary."""
+    from bridge_shadow.bagio import write_monitoring
+    from bridge_shadow.commands.output import emit_json
+    from bridge_shadow.importers import import_csv
+
+    data, report = import_csv(args.files, date_hint=args.date)
+    out = write_monitoring(args.out, data, args.storage, overwrite=args.overwrite)
+    summary = {"out": str(out), "storage": args.storage, **report.as_dict()}
+    if args.json:
+        emit_json(summary)
+        return 0
+    lines = [f"wrote {out} ({args.storage})"]
+    for name, rows in report.rows.items():
+        span = report.span[name]
+        lines.append(
+            f"  {name:16s} {rows:8d} rows  {span['start'] or '-'} .. {span['end'] or '-'}"
+            f"  repeats {report.repeats[name]}  duplicates dropped {report.duplicates_dropped[name]}"
+        )
+    for fix in report.date_fixes:
+        lines.append(f"  date fixed {fix['written']} -> {fix['used']} ({fix['evidence']}): {fix['file']}")
+    rejected = summary["rejected"]
+    lines.append(f"  rejected rows: {rejected['count']} {rejected['by_reason'] or ''}".rstrip())
+    lines.append(f"  UTC offsets (h): {report.utc_offsets_h}")
+    sys.stdout.write("\n".join(lines) + "\n")
+    return 0

@@ -1,0 +1,331 @@
+"""munich-bridge-data CSV records -> ``MonitoringData`` (SI units, UTC stamps), with a report.
+
+Quirks handled (see ``../shared/data/munich-bridge-data/README.md``): cp1252 headers; force
+stamps ``YYYY-MM-DD hh:mm:ss.fff`` whose month and day are swapped in some files (2022-04-11 reads
+``2022-11-04``); temperature stamps ``DD.MM.YYYY hh:mm:ss.fff`` (day first); CRLF and trailing
+commas; sample-and-hold repeats (kept, counted); several files per channel (merged, sorted, exact
+duplicate stamps dropped); local time Europe/Berlin -> UTC; kN -> N.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import Counter
+from dataclasses import dataclass, field
+from datetime import date, datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, TEMPERATURE_FRAME
+from bridge_shadow.errors import InputError
+from bridge_shadow.importers.localtime import local_to_utc_ns
+from bridge_shadow.importers.sources import CsvSource, find_sources
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+__all__ = ["ImportReport", "import_csv", "parse_source"]
+
+_FORCE_TIME = re.compile(r"^(\d{4})-(\d{2})-(\d{2})[ T](\d{2}:\d{2}:\d{2}(?:\.\d{1,9})?)$")
+_TEMP_TIME = re.compile(r"^(\d{2})\.(\d{2})\.(\d{4}) (\d{2}:\d{2}:\d{2}(?:\.\d{1,9})?)$")
+_NAME_DATE = re.compile(r"(20\d{2})-(\d{2})-(\d{2})")
+_KN_TO_N = 1000.0
+_MAX_EXAMPLES = 20
+TEMPERATURE = "air_temperature"
+
+
+@dataclass
+class Parsed:
+    """One parsed CSV table.
+
+    Attributes:
+        source: where it came from.
+        local_ns: (n,) int64 naive local stamps (ns since 1970-01-01 local).
+        values: (n, k) float64 readings as written (kN or C); NaN where a cell was rejected.
+        columns: channel name of each value column.
+        written_dates: distinct calendar dates as written in the file.
+        rejected: (line number, reason) of each rejected row or cell.
+
+    """
+
+    source: CsvSource
+    local_ns: np.ndarray
+    values: np.ndarray
+    columns: list[str]
+    written_dates: list[date]
+    rejected: list[tuple[int, str]] = field(default_factory=list)
+
+
+@dataclass
+class ImportReport:
+    """What an import did; ``as_dict()`` is the ``--json`` summary (SI units, ISO UTC times)."""
+
+    inputs: list[dict[str, Any]] = field(default_factory=list)
+    rows: dict[str, int] = field(default_factory=dict)
+    span: dict[str, dict[str, str | None]] = field(default_factory=dict)
+    repeats: dict[str, int] = field(default_factory=dict)
+    duplicates_dropped: dict[str, int] = field(default_factory=dict)
+    rejected: list[dict[str, Any]] = field(default_factory=list)
+    date_fixes: list[dict[str, str]] = field(default_factory=list)
+    utc_offsets_h: list[float] = field(default_factory=list)
+    dst_ambiguous: int = 0
+
+    def as_dict(self) -> dict[str, Any]:
+        """Return the JSON-ready summary."""
+        reasons = Counter(r["reason"] for r in self.rejected)
+        return {
+            "inputs": self.inputs,
+            "rows": self.rows,
+            "time_span": self.span,
+            "repeats": self.repeats,
+            "duplicates_dropped": self.duplicates_dropped,
+            "rejected": {
+                "count": len(self.rejected),
+                "by_reason": dict(reasons),
+                "examples": self.rejected[:_MAX_EXAMPLES],
+            },
+            "date_fix": self.date_fixes,
+            "utc_offsets_h": self.utc_offsets_h,
+            "dst_ambiguous_samples": self.dst_ambiguous,
+        }
+
+
+def _iso(ns: int) -> str:
+    stamp = datetime.fromtimestamp(ns // 1_000_000_000, tz=timezone.utc)
+    return stamp.strftime("%Y-%m-%dT%H:%M:%S") + f".{(ns % 1_000_000_000) // 1_000_000:03d}Z"
+
+
+def _lines(text: str) -> list[str]:
+    return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+
+
+def _to_float(col: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Parse a column of numbers; returns values and a mask of cells that did not parse."""
+    try:
+        return np.array(col, dtype=np.float64), np.zeros(len(col), dtype=bool)
+    except ValueError:
+        out = np.full(len(col), np.nan)
+        bad = np.zeros(len(col), dtype=bool)
+        for i, cell in enumerate(col):
+            try:
+                out[i] = float(cell)
+            except ValueError:
+                bad[i] = True
+        return out, bad
+
+
+def parse_source(source: CsvSource) -> Parsed:
+    """Parse one table into naive local stamps and raw readings (no date fix, no units yet)."""
+    lines = _lines(source.text)
+    ncols = 3 if source.kind == "force" else 2
+    columns = list(CHANNELS) if source.kind == "force" else [TEMPERATURE]
+    pattern = _FORCE_TIME if source.kind == "force" else _TEMP_TIME
+    rejected: list[tuple[int, str]] = []
+    line_no: list[int] = []
+    iso: list[str] = []
+    cells: list[list[str]] = []
+    dates: set[tuple[int, int, int]] = set()
+    for no, line in enumerate(lines[1:], start=2):
+        if not line.strip():
+            continue
+        parts = line.split(",")
+        if len(parts) == ncols + 1 and parts[-1].strip() == "":
+            parts.pop()  # trailing comma
+        if len(parts) != ncols:
+            rejected.append((no, f"expected {ncols} fields, found {len(parts)}"))
+            continue
+        m = pattern.match(parts[0].strip())
+        if m is None:
+            rejected.append((no, "unreadable time stamp"))
+            continue
+        if source.kind == "force":
+            y, mo, d, clock = int(m[1]), int(m[2]), int(m[3]), m[4]
+        else:
+            d, mo, y, clock = int(m[1]), int(m[2]), int(m[3]), m[4]
+        dates.add((y, mo, d))
+        iso.append(f"{y:04d}-{mo:02d}-{d:02d}T{clock}")
+        line_no.append(no)
+        cells.append(parts[1:])
+    try:
+        local = np.array(iso, dtype="datetime64[ns]").astype(np.int64)
+    except ValueError:  # an impossible calendar date or clock time somewhere: find it
+        local = np.empty(len(iso), dtype=np.int64)
+        keep = np.ones(len(iso), dtype=bool)
+        for i, text in enumerate(iso):
+            try:
+                local[i] = np.datetime64(text, "ns").astype(np.int64)
+            except ValueError:
+                keep[i] = False
+                rejected.append((line_no[i], "impossible date or time"))
+        local = local[keep]
+        cells = [c for c, k in zip(cells, keep.tolist(), strict=True) if k]
+        line_no = [n for n, k in zip(line_no, keep.tolist(), strict=True) if k]
+    values = np.empty((len(cells), len(columns)), dtype=np.float64)
+    for j, name in enumerate(columns):
+        col, bad = _to_float([c[j] for c in cells])
+        for i in np.flatnonzero(bad).tolist():
+            rejected.append((line_no[i], f"unreadable value of {name}"))
+        col[bad] = np.nan
+        values[:, j] = col
+    written = sorted(date(*t) for t in dates if _valid_date(*t))
+    rejected.sort()
+    return Parsed(source, local, values, columns, written, rejected)
+
+
+def _valid_date(y: int, m: int, d: int) -> bool:
+    try:
+        date(y, m, d)
+    except ValueError:
+        return False
+    return True
+
+
+def _swapped(d: date) -> date | None:
+    try:
+        return date(d.year, d.day, d.month)
+    except ValueError:
+        return None
+
+
+def _name_dates(source: CsvSource) -> set[date]:
+    out = set()
+    for part in (source.file, source.member):
+        for y, m, d in _NAME_DATE.findall(Path(part).name if part else ""):
+            if _valid_date(int(y), int(m), int(d)):
+                out.add(date(int(y), int(m), int(d)))
+    return out
+
+
+def _decide_force_date(
+    written: date, source: CsvSource, explicit: date | None, temp_dates: set[date], today: date
+) -> tuple[date, str | None]:
+    """Return the true recording date of a force file and the evidence for a month/day swap."""
+    swap = _swapped(written)
+    if explicit is not None:
+        if written == explicit:
+            return written, None
+        if swap == explicit:
+            return swap, "--date"
+        raise InputError(
+            f"{source.label}: stamps read {written}, which is not --date {explicit} nor its swap"
+        )
+    if swap is None or swap == written:
+        return written, None
+    evidence = [
+        ("date in the file name", _name_dates(source)),
+        ("date of the temperature files", temp_dates),
+    ]
+    for what, known in evidence:
+        if swap in known and written not in known:
+            return swap, what
+    if source.modified is not None and written > source.modified >= swap:
+        return swap, f"recording after the file was written ({source.modified})"
+    if written > today >= swap:
+        return swap, "date in the future"
+    return written, None
+
+
+def _repeats(values: np.ndarray) -> int:
+    """Count samples equal to the one before (sample-and-hold); NaN never counts."""
+    return int(np.count_nonzero(values[1:] == values[:-1])) if len(values) > 1 else 0
+
+
+def _merge(stamps: list[np.ndarray], values: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
+    """Concatenate, sort by stamp (stable), drop exact duplicate stamps; return the drop count."""
+    s = np.concatenate(stamps) if stamps else np.empty(0, np.int64)
+    v = np.concatenate(values) if values else np.empty(0)
+    order = np.argsort(s, kind="stable")
+    s, v = s[order], v[order]
+    keep = np.ones(len(s), dtype=bool)
+    keep[1:] = s[1:] != s[:-1]
+    return s[keep], v[keep], int(len(s) - np.count_nonzero(keep))
+
+
+def import_csv(
+    files: list[str | Path],
+    *,
+    date_hint: date | None = None,
+    tz: str = "Europe/Berlin",
+    today: date | None = None,
+) -> tuple[MonitoringData, ImportReport]:
+    """Convert munich-bridge-data CSV files (or zips of them) to the contract topics.
+
+    Args:
+        files: force and/or temperature CSVs, or zips holding them (recognized by header).
+        date_hint: the true recording date of the force files (``--date``); fixes a swapped
+            month/day. Without it, a swap is detected from the file name, the temperature files'
+            day-first dates, the file date or a future date.
+        tz: time zone of the stamps.
+        today: the present date for the future-date check (default: today, UTC).
+
+    Returns:
+        The monitoring data (N, C, UTC ns; ``log_ns`` = stamp) and the report.
+
+    Raises:
+        InputError: unreadable input, unknown header, date contradicting ``date_hint``, no rows.
+
+    """
+    today = today or datetime.now(timezone.utc).date()
+    report = ImportReport()
+    parsed = [parse_source(s) for s in find_sources(files)]
+    temp_dates = {d for p in parsed if p.source.kind == "temperature" for d in p.written_dates}
+    stamps: dict[str, list[np.ndarray]] = {name: [] for name in (*CHANNELS, TEMPERATURE)}
+    values: dict[str, list[np.ndarray]] = {name: [] for name in (*CHANNELS, TEMPERATURE)}
+    offsets: set[int] = set()
+    for p in parsed:
+        local = p.local_ns.copy()
+        used_dates = list(p.written_dates)
+        if p.source.kind == "force":
+            for k, written in enumerate(p.written_dates):
+                true, evidence = _decide_force_date(written, p.source, date_hint, temp_dates, today)
+                if evidence is not None:
+                    day_ns = np.datetime64(written, "D").astype("datetime64[ns]").astype(np.int64)
+                    on_day = (p.local_ns >= day_ns) & (p.local_ns < day_ns + 86_400 * 10**9)
+                    shift = (np.datetime64(true, "D") - np.datetime64(written, "D")).astype("timedelta64[ns]")
+                    local[on_day] += shift.astype(np.int64)
+                    used_dates[k] = true
+                    report.date_fixes.append(
+                        {
+                            "file": p.source.label,
+                            "written": str(written),
+                            "used": str(true),
+                            "evidence": evidence,
+                        }
+                    )
+        utc, offset_s, odd = local_to_utc_ns(local, tz)
+        offsets.update(np.unique(offset_s).tolist())
+        report.dst_ambiguous += odd
+        scale = _KN_TO_N if p.source.kind == "force" else 1.0
+        for j, name in enumerate(p.columns):
+            ok = ~np.isnan(p.values[:, j])
+            stamps[name].append(utc[ok])
+            values[name].append(p.values[ok, j] * scale)
+        report.rejected += [{"file": p.source.label, "line": n, "reason": r} for n, r in p.rejected]
+        report.inputs.append(
+            {
+                "file": p.source.file,
+                "member": p.source.member,
+                "kind": p.source.kind,
+                "rows": len(p.local_ns),
+                "dates": [str(d) for d in sorted(set(used_dates))],
+            }
+        )
+    series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for name in (*CHANNELS, TEMPERATURE):
+        s, v, dropped = _merge(stamps[name], values[name])
+        series[name] = (s, v)
+        report.rows[name] = len(s)
+        report.repeats[name] = _repeats(v)
+        report.duplicates_dropped[name] = dropped
+        report.span[name] = {
+            "start": _iso(int(s[0])) if len(s) else None,
+            "end": _iso(int(s[-1])) if len(s) else None,
+        }
+    if not any(report.rows.values()):
+        raise InputError("no data rows in " + ", ".join(str(f) for f in files))
+    report.utc_offsets_h = sorted(o / 3600 for o in offsets)
+    forces = {ch: ForceSeries(*series[ch], FORCE_FRAMES[ch]) for ch in CHANNELS}
+    temp = TemperatureSeries(
+        *series[TEMPERATURE], frame_id=np.full(len(series[TEMPERATURE][0]), TEMPERATURE_FRAME)
+    )
+    return MonitoringData(forces, temp), report

@@ -1,0 +1,213 @@
+"""import-csv on the real munich-bridge-data records: values, dates, time zones, quirks, round trip."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import zipfile
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bridge_shadow.bagio import read_monitoring
+from bridge_shadow.cli import main
+from bridge_shadow.errors import InputError
+from bridge_shadow.importers import import_csv, local_to_utc_ns
+
+pytestmark = pytest.mark.realdata
+
+REF = "ReferenceState/ReferenceStateForceAt100Hz.csv.zip"
+APR_FORCE = "Settlements/UniBw_2022-04-11_ref_support_load_01ForceAt100Hz.csv.zip"
+APR_TEMP = "Settlements/TemperatureData2022-04-11.zip"
+
+
+def _ns(iso: str) -> int:
+    return int(np.datetime64(iso, "ns").astype(np.int64))
+
+
+def _only_member(zip_path: Path) -> bytes:
+    with zipfile.ZipFile(zip_path) as z:
+        (info,) = z.infolist()
+        return z.read(info)
+
+
+def _csv_rows(content: bytes) -> list[list[str]]:
+    return [r for r in csv.reader(io.StringIO(content.decode("cp1252")))][1:]
+
+
+def test_reference_record_first_sample_si_and_utc(munich_data: Path) -> None:
+    data, report = import_csv([munich_data / REF])
+    f1, f2 = data.forces["frc_01"], data.forces["frc_02"]
+    assert f1.force_n[0] == pytest.approx(2.6023853125e5, rel=1e-15)
+    assert f2.force_n[0] == pytest.approx(2.20779578125e5, rel=1e-15)
+    assert f1.stamp_ns[0] == _ns("2022-03-07T15:35:15.601")  # 16:35:15.601 CET = UTC+1
+    assert report.utc_offsets_h == [1.0] and report.date_fixes == []
+    rows = _csv_rows(_only_member(munich_data / REF))
+    assert len(f1) == len(f2) == len(rows) == report.rows["frc_01"]
+    np.testing.assert_allclose(f2.force_n, [float(r[2]) * 1e3 for r in rows], rtol=1e-15)
+    # sample-and-hold repeats, counted by a plain loop over the CSV cells (text equality)
+    for ch, col in (("frc_01", 1), ("frc_02", 2)):
+        assert report.repeats[ch] == sum(rows[i][col] == rows[i - 1][col] for i in range(1, len(rows)))
+    assert report.repeats["frc_02"] > 0.9 * len(rows)  # FRC-02 is the held channel in this record
+    assert list(np.unique(f1.frame_id)) == ["frc_01"] and list(np.unique(f2.frame_id)) == ["frc_02"]
+    # the real central reactions of DESIGN 3: about 260 / 221 kN
+    assert np.mean(f1.force_n) == pytest.approx(260e3, rel=0.03)
+    assert np.mean(f2.force_n) == pytest.approx(221e3, rel=0.03)
+
+
+def test_april_force_date_swap_fixed_from_file_name(munich_data: Path) -> None:
+    data, report = import_csv([munich_data / APR_FORCE])
+    (fix,) = report.date_fixes
+    assert (fix["written"], fix["used"], fix["evidence"]) == (
+        "2022-11-04",
+        "2022-04-11",
+        "date in the file name",
+    )
+    assert data.forces["frc_01"].stamp_ns[0] == _ns("2022-04-11T06:36:24.897")  # 08:36 CEST = UTC+2
+    assert data.forces["frc_01"].force_n[0] == pytest.approx(233.92928125e3, rel=1e-15)
+    assert report.utc_offsets_h == [2.0]
+    np.testing.assert_allclose(
+        np.mean([s.force_n[:1000] for s in data.forces.values()], axis=1), 234e3, rtol=0.01
+    )
+
+
+def test_date_swap_evidence_without_a_dated_name(munich_data: Path, tmp_path: Path) -> None:
+    content = _only_member(munich_data / APR_FORCE)
+    plain = tmp_path / "force.csv"
+    plain.write_bytes(content)
+    # the temperature files' unambiguous day-first dates
+    _, report = import_csv([plain, munich_data / APR_TEMP])
+    assert [(f["used"], f["evidence"]) for f in report.date_fixes] == [
+        ("2022-04-11", "date of the temperature files")
+    ]
+    # a zip member written before the date the stamps claim
+    archive = tmp_path / "force.zip"
+    with zipfile.ZipFile(archive, "w") as z:
+        z.writestr(zipfile.ZipInfo("force.csv", date_time=(2022, 6, 27, 16, 38, 16)), content)
+    _, report = import_csv([archive])
+    assert report.date_fixes[0]["evidence"].startswith("recording after the file was written")
+    # a stamp date in the future
+    _, report = import_csv([plain], today=date(2022, 6, 1))
+    assert report.date_fixes[0]["evidence"] == "date in the future"
+    # no evidence: kept as written; --date fixes it; a contradicting --date is an error
+    data, report = import_csv([plain])
+    assert report.date_fixes == [] and data.forces["frc_01"].stamp_ns[0] == _ns("2022-11-04T07:36:24.897")
+    data, report = import_csv([plain], date_hint=date(2022, 4, 11))
+    assert data.forces["frc_01"].stamp_ns[0] == _ns("2022-04-11T06:36:24.897")
+    with pytest.raises(InputError, match="--date 2022-04-12"):
+        import_csv([plain], date_hint=date(2022, 4, 12))
+
+
+def test_temperature_files_merged_day_first_and_deduplicated(munich_data: Path, tmp_path: Path) -> None:
+    data, report = import_csv([munich_data / APR_TEMP])
+    with zipfile.ZipFile(munich_data / APR_TEMP) as z:
+        members = {i.filename: z.read(i) for i in z.infolist()}
+    rows = [r for content in members.values() for r in _csv_rows(content)]
+    t = data.temperature
+    assert len(members) == 10 and len(t) == len(rows) == report.rows["air_temperature"]
+    assert np.all(np.diff(t.stamp_ns) > 0)
+    assert t.stamp_ns[0] == _ns("2022-04-11T06:36:25.984") and t.stamp_ns[-1] == _ns(
+        "2022-04-11T15:49:48.486"
+    )
+    np.testing.assert_allclose(np.sort(t.temp_c), np.sort([float(r[1]) for r in rows]))
+    assert t.temp_c.min() >= 1.0 and t.temp_c.max() <= 16.0  # an April morning to afternoon
+    np.testing.assert_array_equal(t.variance, 0.0)
+    # one file given twice (inside the zip and on its own): its stamps are dropped once
+    name = "UniBw_2022-04-11_support_load_02.csv"
+    (tmp_path / name).write_bytes(members[name])
+    data2, report2 = import_csv([munich_data / APR_TEMP, tmp_path / name])
+    assert report2.duplicates_dropped["air_temperature"] == len(_csv_rows(members[name]))
+    np.testing.assert_array_equal(data2.temperature.stamp_ns, t.stamp_ns)
+
+
+def test_rejected_rows_cp1252_crlf_trailing_comma(tmp_path: Path) -> None:
+    text = (
+        "Time (-),Air Temperature (°C),\r\n"
+        "07.03.2022 16:35:00.000,5.5\r\n"
+        "07.03.2022 16:35:01.000,5.5,\r\n"
+        "07.03.2022 16:35:02.000,oops\r\n"
+        "2022-03-07 16:35:03.000,5.6\r\n"
+        "31.02.2022 16:35:04.000,5.6\r\n"
+        "07.03.2022 16:35:05.000,5.7,1,2\r\n"
+        "\r\n"
+    )
+    path = tmp_path / "t.csv"
+    path.write_bytes(text.encode("cp1252"))
+    data, report = import_csv([path])
+    np.testing.assert_array_equal(data.temperature.temp_c, [5.5, 5.5])
+    assert data.temperature.stamp_ns[0] == _ns("2022-03-07T15:35:00")
+    assert report.repeats["air_temperature"] == 1
+    reasons = {(r["line"], r["reason"]) for r in report.rejected}
+    assert reasons == {
+        (4, "unreadable value of air_temperature"),
+        (5, "unreadable time stamp"),
+        (6, "impossible date or time"),
+        (7, "expected 2 fields, found 4"),
+    }
+
+
+def test_local_time_to_utc_across_dst() -> None:
+    local = np.array(
+        [
+            "2022-03-07T16:35",
+            "2022-03-27T01:30",
+            "2022-03-27T02:30",
+            "2022-03-27T03:30",
+            "2022-04-11T08:36",
+            "2022-10-30T02:30",
+            "2022-10-30T03:30",
+        ],
+        dtype="datetime64[ns]",
+    ).astype(np.int64)
+    utc, offset_s, odd = local_to_utc_ns(local)
+    expected = [
+        "2022-03-07T15:35",
+        "2022-03-27T00:30",
+        "2022-03-27T01:30",
+        "2022-03-27T01:30",
+        "2022-04-11T06:36",
+        "2022-10-30T00:30",
+        "2022-10-30T02:30",
+    ]
+    np.testing.assert_array_equal(utc, np.array(expected, dtype="datetime64[ns]").astype(np.int64))
+    np.testing.assert_array_equal(offset_s // 3600, [1, 1, 1, 2, 2, 2, 1])
+    assert odd == 2  # the missing spring hour and the doubled autumn hour
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_cli_round_trip_both_storages(munich_data: Path, tmp_path: Path, storage: str, capsys) -> None:
+    files = [str(munich_data / APR_FORCE), str(munich_data / APR_TEMP)]
+    out = tmp_path / "apr11"
+    assert main(["import-csv", *files, "--out", str(out), "--storage", storage, "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["rows"] == {"frc_01": 72000, "frc_02": 72000, "air_temperature": 28330}
+    assert summary["time_span"]["frc_01"]["start"] == "2022-04-11T06:36:24.897Z"
+    assert summary["date_fix"][0]["used"] == "2022-04-11" and summary["rejected"]["count"] == 0
+    expected, _ = import_csv(files)
+    got = read_monitoring(out)
+    for ch in ("frc_01", "frc_02"):
+        np.testing.assert_array_equal(got.forces[ch].stamp_ns, expected.forces[ch].stamp_ns)
+        np.testing.assert_array_equal(got.forces[ch].force_n, expected.forces[ch].force_n)
+    np.testing.assert_array_equal(got.temperature.temp_c, expected.temperature.temp_c)
+    assert got.temperature.frame_id[0] == "air_temperature"
+    # a second run without --overwrite is a one-line user error
+    assert main(["import-csv", *files, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--overwrite" in err and err.count("\n") == 1
+
+
+def test_cli_rejects_foreign_csv(munich_data: Path, tmp_path: Path, capsys) -> None:
+    code = main(
+        [
+            "import-csv",
+            str(munich_data / "Weather/TemperatureComparisonMUC.csv"),
+            "--out",
+            str(tmp_path / "b"),
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and "not a munich-bridge-data" in err and err.count("\n") == 1
+    assert not (tmp_path / "b").exists()
