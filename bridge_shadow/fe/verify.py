@@ -47,8 +47,9 @@ class Case:
         return asdict(self)
 
 
-def _case(name: str, computed: float, reference: float, tol: float | None, mesh: str, dofs: int,
-          seconds: float) -> Case:  # fmt: skip
+def _case(
+    name: str, computed: float, reference: float, tol: float | None, mesh: str, dofs: int, seconds: float
+) -> Case:
     """Check ``|computed / reference - 1| <= tol``, or ``|computed| <= tol`` when the reference is 0."""
     if reference == 0.0:
         ratio = None
@@ -233,8 +234,9 @@ def thermal_strip(n: int, tol: float | None = 1e-6) -> Case:
         solver = LinearStaticSolver(model)
         res = solver.solve(LoadCase("gradient", thermal=[Thermal("strip", gradient=dT)]))
         w = -res.u[tip, 2]
-    return _case("thermal_strip_gradient", w, alpha * dT * L**2 / (2 * h), tol, f"{n}x2", solver.n_free,
-                 tm.seconds)  # fmt: skip
+    return _case(
+        "thermal_strip_gradient", w, alpha * dT * L**2 / (2 * h), tol, f"{n}x2", solver.n_free, tm.seconds
+    )
 
 
 # ----------------------------------------------------------------------------------- two equal spans
@@ -248,8 +250,18 @@ def _two_span_beam(n: int) -> tuple[Model, float, float]:
     h, Iy = 1.0, 6.447e-3
     s, conn = line(2 * n)
     nodes = np.column_stack([s * 2 * _SPAN, np.zeros_like(s), np.zeros_like(s)])
-    beam = BeamSet(conn, A=0.04, Iy=Iy, Iz=1.6e-4, J=1.2e-5, E=_E, G=_E / (2 * (1 + _NU)), alpha=_ALPHA,
-                   depth_z=h, tag="girder")  # fmt: skip
+    beam = BeamSet(
+        conn,
+        A=0.04,
+        Iy=Iy,
+        Iz=1.6e-4,
+        J=1.2e-5,
+        E=_E,
+        G=_E / (2 * (1 + _NU)),
+        alpha=_ALPHA,
+        depth_z=h,
+        tag="girder",
+    )
     supports = [
         Support("west", [0], (0, 1, 2, 3)),
         Support("mid", [n], (1, 2)),
