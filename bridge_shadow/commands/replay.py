@@ -1,19 +1,173 @@
-"""``bridge-shadow replay``: not implemented yet (placeholder until its issue lands)."""
+"""``bridge-shadow replay``: run a monitoring bag through the shadow (direct or through DDS)."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+from typing import Any
 
-from bridge_shadow.errors import BridgeShadowError
+HELP = "replay a monitoring bag through the shadow: posterior settlements, compensation, gating"
+DESCRIPTION = """\
+Replay a rosbag2 bag with the contract input topics (/bridge/frc_01/force, /bridge/frc_02/force,
+/bridge/air_temperature) through the online shadow: gate -> 60 s windows -> P-spline temperature
+compensation -> Kalman update of the two central-support settlements over u = A x + u0.
 
-HELP = "(not implemented yet)"
+By default the bag is decoded vectorized and fed to the pipeline directly; --live plays it through
+the rclpy node in a loopback DDS graph (same pipeline, same posterior). Parameters come from
+config/shadow.yaml or --params. --json prints one object: posterior.mean_m [south, north] (m),
+posterior.covariance_m2 (m^2), messages used and rejected by reason, messages_per_s, spline edf
+and lambda per channel.
+"""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Accept anything until the real subcommand lands."""
-    parser.add_argument("rest", nargs=argparse.REMAINDER)
+    """Add BAG, --params, --live, --out, --plots, --json."""
+    parser.add_argument("bag", metavar="BAG", help="rosbag2 directory (sqlite3 or MCAP)")
+    parser.add_argument("--params", metavar="YAML", help="shadow parameter file (default config/shadow.yaml)")
+    parser.add_argument("--live", action="store_true", help="play through the rclpy node over DDS (loopback)")
+    parser.add_argument("--out", metavar="OUTBAG", help="write the outputs (mean, covariance, ...) as a bag")
+    parser.add_argument("--plots", metavar="DIR", help="write PNG plots (compensation, posterior, ellipse)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object (SI units)")
+
+
+def write_outputs(path: str | Path, result: Any, shadow: Any) -> Path:
+    """Write window outputs as a bag: mean, covariance, compensated forces and diagnostics."""
+    import numpy as np
+
+    from bridge_shadow.bagio import BagOutputWriter
+    from bridge_shadow.contract import (
+        CHANNELS,
+        COMPENSATED_TOPICS,
+        COVARIANCE_LAYOUT_LABELS,
+        COVARIANCE_TOPIC,
+        DIAGNOSTICS_TOPIC,
+        FORCE_FRAMES,
+        MEAN_LAYOUT_LABEL,
+        MEAN_TOPIC,
+        NODE_NAME,
+    )
+
+    levels = {"OK": 0, "WARN": 1, "ERROR": 2}
+    diag = shadow.diagnostics()
+    with BagOutputWriter(path) as writer:
+        for out in result.outputs:
+            t = int(out.end_ns)
+            writer.write_float64_array(MEAN_TOPIC, t, out.mean_m, [MEAN_LAYOUT_LABEL])
+            writer.write_float64_array(COVARIANCE_TOPIC, t, out.covariance_m2, list(COVARIANCE_LAYOUT_LABELS))
+            if np.all(np.isfinite(out.compensated_n)):
+                for c, ch in enumerate(CHANNELS):
+                    writer.write_wrench(COMPENSATED_TOPICS[ch], t, t, FORCE_FRAMES[ch], out.compensated_n[c])
+            values = {
+                "window_end_ns": t,
+                "updated": out.updated,
+                "reason": out.reason,
+                "mean_m": list(out.mean_m),
+                "sigma_m": list(np.sqrt(np.diag(out.covariance_m2))),
+                "force_n": list(out.force_n),
+                "temp_c": list(out.temp_c),
+            }
+            writer.write_diagnostics(
+                DIAGNOSTICS_TOPIC,
+                t,
+                t,
+                [
+                    {
+                        "name": f"{NODE_NAME}: window",
+                        "level": 0 if out.updated else 1,
+                        "message": out.reason or "updated",
+                        "values": values,
+                    }
+                ],
+            )
+        if result.outputs:
+            t = int(result.outputs[-1].end_ns)
+            writer.write_diagnostics(
+                DIAGNOSTICS_TOPIC,
+                t,
+                t,
+                [
+                    {
+                        "name": f"{NODE_NAME}: final",
+                        "level": levels[diag["level"]],
+                        "message": diag["summary"],
+                        "values": {"rejected": diag["rejected"], "spline": diag["spline"]},
+                    }
+                ],
+            )
+    return Path(path)
+
+
+def _summary(js: dict[str, Any]) -> str:
+    import numpy as np
+
+    mean = np.array(js["posterior"]["mean_m"])
+    cov = np.array(js["posterior"]["covariance_m2"])
+    sd = np.sqrt(np.diag(cov))
+    rho = cov[0, 1] / (sd[0] * sd[1]) if sd.all() else float("nan")
+    msgs = js["messages"]
+    lines = [
+        "posterior settlement (positive upward, 95% interval):",
+        *(
+            f"  {name:5s} {1e3 * m:+8.3f} mm ± {1e3 * 1.96 * s:.3f} mm"
+            for name, m, s in zip(("south", "north"), mean, sd, strict=True)
+        ),
+        f"  correlation {rho:+.3f}",
+        f"messages: {msgs['total']} in, {msgs['used']} used, {msgs['rejected']} rejected; "
+        f"{js['messages_per_s']:.0f} msg/s",
+        f"windows: {js['windows']['closed']} closed, {js['windows']['updates']} updates",
+    ]
+    rejected = {k: v for k, v in js["rejected"].items() if v}
+    if rejected:
+        lines.append("rejected: " + ", ".join(f"{k} {v}" for k, v in rejected.items()))
+    for ch, sp in js["spline"].items():
+        lines.append(
+            f"compensation {ch}: edf {sp['edf']:.2f}, lambda {sp['lambda']:.3g}, "
+            f"mean {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
+        )
+    return "\n".join(lines)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Fail with a clear message."""
-    raise BridgeShadowError("'replay' is not implemented yet")
+    """Replay the bag and print the result; exit 0."""
+    import sys
+
+    from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.estimate import Shadow, load_config
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    if args.live:
+        from bridge_shadow.ros.live_replay import run_live
+
+        js = run_live(args.bag, args.params, out=args.out, plots=args.plots)
+        if args.json:
+            emit_json(js)
+        else:
+            print(_summary(js))
+        return 0
+
+    from bridge_shadow.bagio import read_monitoring
+
+    config = load_config(args.params)
+    surrogate = load_surrogate(config.surrogate_path or None)
+    data = read_monitoring(args.bag)
+    shadow = Shadow(config, surrogate)
+    show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "replay"))
+    result = shadow.run(data, progress=show)
+    js = result.to_json()
+    js["bag"] = str(args.bag)
+    js["surrogate"] = {
+        "A": surrogate.A.tolist(),
+        "u0": surrogate.u0.tolist(),
+        "solver": surrogate.provenance.get("solver", ""),
+    }
+    if args.out:
+        js["out"] = str(write_outputs(args.out, result, shadow))
+    if args.plots:
+        from bridge_shadow.estimate.plots import write_plots
+
+        js["plots"] = [str(p) for p in write_plots(args.plots, result, shadow)]
+    if args.json:
+        emit_json(js)
+    else:
+        print(_summary(js))
+    return 0

@@ -24,6 +24,7 @@ __all__ = ["ShadowConfig", "load_config"]
 _MATCH_MODES = ("hold", "linear")
 _SMOOTHING_MODES = ("reml", "gcv", "fixed", "none")
 _NOISE_MODES = ("adaptive", "fixed")
+_LEVELS = ("warmup_mean", "mean", "reference")
 
 
 @dataclass
@@ -44,6 +45,8 @@ class ShadowConfig:
     spline_segments: int = 13
     spline_forgetting_s: float = 0.0
     spline_warmup_windows: int = 30
+    compensation_level: str = "warmup_mean"
+    reference_temperature_c: float = 10.0
     # Kalman update
     prior_sigma_m: list[float] = field(default_factory=lambda: [3.0e-4, 3.0e-4])
     process_noise_m2_per_s: list[float] = field(default_factory=lambda: [0.0, 0.0])
@@ -86,6 +89,7 @@ class ShadowConfig:
         need(self.window_min_samples >= 1, "window_min_samples must be >= 1")
         need(self.temperature_match in _MATCH_MODES, f"temperature_match must be one of {_MATCH_MODES}")
         need(self.smoothing in _SMOOTHING_MODES, f"smoothing must be one of {_SMOOTHING_MODES}")
+        need(self.compensation_level in _LEVELS, f"compensation_level must be one of {_LEVELS}")
         need(self.noise_mode in _NOISE_MODES, f"noise_mode must be one of {_NOISE_MODES}")
         need(self.spline_t_max_c > self.spline_t_min_c, "spline_t_max_c must exceed spline_t_min_c")
         need(self.spline_segments >= 1, "spline_segments must be >= 1")

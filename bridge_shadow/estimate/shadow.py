@@ -259,6 +259,7 @@ class Shadow:
         self._held: list[dict[str, Any]] = []
         self._ckpt_ns: int | None = None
         self._first_ns: int | None = None  # earliest accepted stamp of any topic
+        self._t_ref: np.ndarray | None = None  # frozen reference temperature (warmup_mean), C
 
     # -- input ------------------------------------------------------------------------------
     @property
@@ -419,7 +420,7 @@ class Shadow:
         k, m, temp, force = rec["k"], rec["samples"], rec["temp_c"], rec["force_n"]
         end = (k + 1) * self._w_ns
         g = np.array([self.splines[c].predict(temp[c])[0] for c in range(2)])
-        level = np.array([self.splines[c].fit().mean_y for c in range(2)])
+        level = self._level()
         compensated = force - g + level
         self.noise.add(force - g, m, k)
         R = self.noise.R(m)
@@ -431,6 +432,19 @@ class Shadow:
         if not res.accepted:
             self.counts[res.reason] += 1
         return self._output(k, m, temp, force, compensated, res.accepted, res.reason)
+
+    def _level(self) -> np.ndarray:
+        """Level added back by compensation (N), per ``compensation_level``."""
+        mode = self.config.compensation_level
+        if mode == "mean" or self.config.smoothing == "none":
+            return np.array([sp.fit().mean_y for sp in self.splines])
+        if mode == "reference":
+            t_ref = np.full(2, self.config.reference_temperature_c)
+        else:
+            if self._t_ref is None:
+                self._t_ref = np.array([sp.mean_t for sp in self.splines])
+            t_ref = self._t_ref
+        return np.array([sp.predict(t_ref[c])[0] for c, sp in enumerate(self.splines)])
 
     def _output(
         self,
@@ -565,6 +579,7 @@ class Shadow:
                 "temp_c": np.array([h["temp_c"] for h in held], dtype=float).reshape(-1, 2),
                 "force_n": np.array([h["force_n"] for h in held], dtype=float).reshape(-1, 2),
             },
+            "t_ref": np.full(2, np.nan) if self._t_ref is None else self._t_ref,
             "scalars": {
                 "next_k": -(2**62) if self.next_k is None else self.next_k,
                 "n_windows": self.n_windows,
@@ -616,6 +631,8 @@ class Shadow:
                 strict=True,
             )
         ]
+        t_ref = np.asarray(state["t_ref"], float)
+        shadow._t_ref = None if np.isnan(t_ref).any() else t_ref
         sc = {k: int(v) for k, v in state["scalars"].items()}
         none = -(2**62)
         shadow.next_k = None if sc["next_k"] == none else sc["next_k"]

@@ -1,0 +1,88 @@
+"""PNG plots of a replay (matplotlib Agg): compensation, raw vs compensated, posterior, ellipse.
+
+Human-facing, so forces are in kN and settlements in mm.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.contract import CHANNELS, SUPPORTS
+
+__all__ = ["write_plots"]
+
+
+def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
+    """Write the four PNGs of a ``ReplayResult`` into ``directory``; return their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    h = result.history()
+    t_h = (h["end_ns"] - (h["end_ns"][0] if len(h["end_ns"]) else 0)) / 3.6e12
+    paths: list[Path] = []
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for c, ax in enumerate(axes):
+        ok = np.isfinite(h["temp_c"][:, c]) & np.isfinite(h["force_n"][:, c])
+        ax.plot(h["temp_c"][ok, c], 1e-3 * h["force_n"][ok, c], ".", ms=3, alpha=0.5, label="60 s means")
+        sp = shadow.splines[c]
+        if sp.sw > 0 and ok.any():
+            grid = np.linspace(h["temp_c"][ok, c].min(), h["temp_c"][ok, c].max(), 200)
+            fit = sp.fit()
+            ax.plot(grid, 1e-3 * sp.predict(grid), "r-", label=f"g(T), edf {fit.edf:.1f}")
+        ax.set(xlabel="air temperature (°C)", ylabel="reaction (kN)", title=f"{CHANNELS[c]} ({SUPPORTS[c]})")
+        ax.legend()
+    paths.append(_save(fig, out / "compensation_curve.png"))
+
+    fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    for c, ax in enumerate(axes):
+        ax.plot(t_h, 1e-3 * h["force_n"][:, c], "-", lw=0.8, label="raw")
+        ax.plot(t_h, 1e-3 * h["compensated_n"][:, c], "-", lw=0.8, label="compensated")
+        ax.set(ylabel=f"{SUPPORTS[c]} (kN)")
+        ax.legend()
+    axes[-1].set(xlabel="time (h)")
+    paths.append(_save(fig, out / "raw_vs_compensated.png"))
+
+    fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    sd = np.sqrt(np.stack([h["covariance_m2"][:, 0, 0], h["covariance_m2"][:, 1, 1]], axis=1))
+    for c, ax in enumerate(axes):
+        mu = 1e3 * h["mean_m"][:, c]
+        ax.fill_between(t_h, mu - 2e3 * sd[:, c], mu + 2e3 * sd[:, c], alpha=0.3, label="±2σ")
+        ax.plot(t_h, mu, "-", label="posterior mean")
+        ax.set(ylabel=f"{SUPPORTS[c]} settlement (mm)")
+        ax.legend()
+    axes[-1].set(xlabel="time (h)")
+    paths.append(_save(fig, out / "posterior.png"))
+
+    fig, ax = plt.subplots(figsize=(5.5, 5))
+    mean, cov = 1e3 * result.mean_m, 1e6 * result.covariance_m2
+    prior = 1e3 * np.asarray(shadow.config.prior_sigma_m)
+    theta = np.linspace(0, 2 * np.pi, 200)
+    circle = np.stack([np.cos(theta), np.sin(theta)])
+    k95 = np.sqrt(5.991)  # chi2(2) 95%
+    vals, vecs = np.linalg.eigh(cov)
+    ell = mean[:, None] + k95 * vecs @ (np.sqrt(np.clip(vals, 0, None))[:, None] * circle)
+    ax.plot(k95 * prior[0] * circle[0], k95 * prior[1] * circle[1], "k--", lw=0.8, label="prior 95%")
+    ax.plot(ell[0], ell[1], "r-", label="posterior 95%")
+    ax.plot(*mean, "r+")
+    ax.set(xlabel="south settlement (mm)", ylabel="north settlement (mm)", title="credible region")
+    ax.axis("equal")
+    ax.legend()
+    paths.append(_save(fig, out / "credible_ellipse.png"))
+    return paths
+
+
+def _save(fig: Any, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return path
