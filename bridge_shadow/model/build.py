@@ -1,0 +1,163 @@
+"""Bridge mesh + configuration -> FE model (``bridge_shadow.fe``) and the surrogate's load cases.
+
+Bearings: the end bearings are elastic vertical supports that slide in x and y. Each central bearing
+is a spring (``bearing_stiffness`` vertically; ``fixed_bearing_stiffness`` in x at both and in y at
+FRC-01 only) from the bottom flange nodes to a ground node; the ground node is the rigid support
+whose vertical displacement is the settlement ``x`` (positive up) and whose reaction is the load
+cell force (positive in compression). So the deck expands freely from the central support.
+
+Thermal load cases (1 K each):
+
+- ``uniform``: every element +1 K;
+- ``vertical_gradient``: the linear field ``T = (z - h/2) / h`` (1 K over the girder depth h, top
+  warmer), applied to every element (elements get the field's value at their centroid, shells also
+  its difference through their thickness);
+- ``transverse_gradient``: the south girder's steel (web, flanges, stiffeners) +0.5 K, the north
+  girder's -0.5 K; slab, connectors (embedded in concrete) and braces unchanged: the sun-lit south
+  girder warms relative to the deck and the shaded north girder.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bridge_shadow.fe import BeamSet, LoadCase, Model, RigidLinks, ShellSet, SpringSet, Support, Thermal
+from bridge_shadow.model.config import BridgeConfig
+from bridge_shadow.model.mesh import CENTRAL_BEARINGS, BridgeMesh
+
+__all__ = ["THERMAL_CASE_NAMES", "build_model", "dead_load_case", "settlement_cases", "thermal_cases"]
+
+THERMAL_CASE_NAMES: tuple[str, str, str] = ("uniform", "vertical_gradient", "transverse_gradient")
+
+_GIRDER_STEEL = ("web", "flange", "stiffener")
+
+
+def _material(cfg: BridgeConfig, name: str) -> dict[str, float]:
+    """E, nu, rho, alpha, G of a material name (``steel``, ``concrete``, ``joint``)."""
+    mats, par = cfg.data["materials"], cfg.params
+    if name == "concrete":
+        c = mats["concrete"]
+        out = {"E": par["E_concrete"], "nu": c["nu"], "rho": c["rho"], "alpha": par["alpha_concrete"]}
+    else:
+        s = mats["steel"]
+        out = {"E": s["E"], "nu": s["nu"], "rho": s["rho"], "alpha": s["alpha"]}
+        if name == "joint":  # fictitious bolted-joint beams: no mass, no thermal strain
+            out.update(rho=0.0, alpha=0.0)
+    out["G"] = out["E"] / (2.0 * (1.0 + out["nu"]))
+    return out
+
+
+def build_model(cfg: BridgeConfig, mesh: BridgeMesh, *, free_central_uz: bool = False) -> Model:
+    """Return the FE model of ``mesh``; ``free_central_uz`` leaves the ground nodes' uz unsupported.
+
+    With ``free_central_uz`` the model is only stable together with a condensation on those two DOFs
+    (the Schur complement route to ``A``).
+    """
+    par = cfg.params
+    shells = []
+    for tag, part in mesh.shells.items():
+        mat = _material(cfg, part.material)
+        shells.append(
+            ShellSet(part.conn, part.thickness, mat["E"], mat["nu"], mat["rho"], mat["alpha"], tag=tag)
+        )
+    beams = []
+    for tag, part in mesh.beams.items():
+        mat = _material(cfg, part.material)
+        p = part.props
+        beams.append(
+            BeamSet(
+                part.conn,
+                p["A"],
+                p["Iy"],
+                p["Iz"],
+                p["J"],
+                mat["E"],
+                mat["G"],
+                rho=mat["rho"],
+                alpha=mat["alpha"],
+                Asy=p.get("Asy"),
+                Asz=p.get("Asz"),
+                depth_y=p["depth_y"],
+                depth_z=p["depth_z"],
+                orientation=part.orientation,
+                tag=tag,
+            )
+        )
+    springs = [SpringSet(s.node_i, s.node_j, s.k, tag=t) for t, s in mesh.springs.items()]
+    supports = []
+    for name, nodes in mesh.end_bearings.items():
+        supports.append(Support(name, nodes, dofs=(2,), stiffness=par["end_bearing_stiffness"] / len(nodes)))
+    kf = par["fixed_bearing_stiffness"]
+    for gi, name in enumerate(CENTRAL_BEARINGS):
+        nodes, ground = mesh.central[name]
+        k = np.array([kf, kf if gi == 0 else 0.0, par["bearing_stiffness"], 0.0, 0.0, 0.0]) / len(nodes)
+        springs.append(SpringSet(nodes, np.full(len(nodes), ground), k, tag=f"bearing_{name}"))
+        dofs = (0, 1, 3, 4, 5) if free_central_uz else (0, 1, 2, 3, 4, 5)
+        supports.append(Support(name, [ground], dofs=dofs))
+    links = [RigidLinks(mesh.links[0], mesh.links[1], tag="brace_ends")] if len(mesh.links[0]) else []
+    return Model(mesh.nodes, shells=shells, beams=beams, springs=springs, links=links, supports=supports)
+
+
+def settlement_cases() -> list[LoadCase]:
+    """Unit (1 m, upward) displacement of each central bearing's ground point, the other at rest."""
+    unit = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+    return [LoadCase(name=f"settle {n}", prescribed={n: unit}) for n in CENTRAL_BEARINGS]
+
+
+def dead_load_case(cfg: BridgeConfig) -> LoadCase:
+    """Self-weight of every part plus the superimposed load on the slab, zero settlement."""
+    loads = cfg.data["loads"]
+    return LoadCase(
+        name="dead",
+        gravity=(0.0, 0.0, -float(loads["gravity"])),
+        pressure={"slab": -float(loads["superimposed_pa"])},  # slab normals point up (+z)
+    )
+
+
+def _shell_normals(nodes: np.ndarray, conn: np.ndarray) -> np.ndarray:
+    x = nodes[conn]
+    n = np.cross(x[:, 2] - x[:, 0], x[:, 3] - x[:, 1])
+    return n / np.linalg.norm(n, axis=1)[:, None]
+
+
+def _beam_axes(nodes: np.ndarray, conn: np.ndarray, orientation: tuple[float, ...]) -> tuple:
+    ex = nodes[conn[:, 1]] - nodes[conn[:, 0]]
+    ex /= np.linalg.norm(ex, axis=1)[:, None]
+    o = np.asarray(orientation, float)[None, :]
+    ez = o - (ex @ o.T) * ex
+    ez /= np.linalg.norm(ez, axis=1)[:, None]
+    return np.cross(ez, ex), ez
+
+
+def thermal_cases(mesh: BridgeMesh) -> list[LoadCase]:
+    """The three 1 K thermal load cases (see the module docstring), in ``THERMAL_CASE_NAMES`` order."""
+    nodes = mesh.nodes
+    h, zc = mesh.info["girder_depth"], mesh.info["z_girder_mid"]
+    uniform, vertical, transverse = [], [], []
+    for tag, part in mesh.shells.items():
+        n_el = len(part.conn)
+        uniform.append(Thermal(tag, uniform=np.ones(n_el)))  # type: ignore[arg-type]
+        zc_el = nodes[part.conn][:, :, 2].mean(axis=1)
+        grad = _shell_normals(nodes, part.conn)[:, 2] / h * part.thickness
+        vertical.append(Thermal(tag, uniform=(zc_el - zc) / h, gradient=grad))  # type: ignore[arg-type]
+        if tag in _GIRDER_STEEL:
+            t = np.where(part.girder == 0, 0.5, np.where(part.girder == 1, -0.5, 0.0))
+            transverse.append(Thermal(tag, uniform=t))  # type: ignore[arg-type]
+    for tag, part in mesh.beams.items():
+        n_el = len(part.conn)
+        uniform.append(Thermal(tag, uniform=np.ones(n_el)))  # type: ignore[arg-type]
+        zc_el = nodes[part.conn][:, :, 2].mean(axis=1)
+        ey, ez = _beam_axes(nodes, part.conn, part.orientation)
+        vertical.append(
+            Thermal(
+                tag,
+                uniform=(zc_el - zc) / h,  # type: ignore[arg-type]
+                gradient=ez[:, 2] / h * np.broadcast_to(part.props["depth_z"], (n_el,)),  # type: ignore[arg-type]
+                gradient_y=ey[:, 2] / h * np.broadcast_to(part.props["depth_y"], (n_el,)),  # type: ignore[arg-type]
+            )
+        )
+    return [
+        LoadCase(name="uniform", thermal=uniform),
+        LoadCase(name="vertical_gradient", thermal=vertical),
+        LoadCase(name="transverse_gradient", thermal=transverse),
+    ]
