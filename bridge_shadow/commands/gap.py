@@ -33,6 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="hold out these whole days (0 = first 24 h of the record) instead of leave-one-day-out",
     )
     parser.add_argument("--surrogate", metavar="YAML", help="surrogate file (default config/surrogate.yaml)")
+    parser.add_argument(
+        "--replay",
+        action="store_true",
+        help="also replay the whole online shadow before/after adding the best effect (slower)",
+    )
     parser.add_argument("--window", type=float, default=60.0, metavar="S", help="window length in s (60)")
 
 
@@ -77,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--window must be positive")
     data = read_monitoring(args.bag)
     surrogate = load_surrogate(args.surrogate) if args.surrogate else None
-    dg = diagnose(data, surrogate, width_s=args.window, holdout_days=args.holdout_days)
+    dg = diagnose(data, surrogate, width_s=args.window, holdout_days=args.holdout_days, replay=args.replay)
     summary = dict(dg.summary)
     summary["bag"] = str(args.bag)
     if args.report:

@@ -181,16 +181,9 @@ def _uniform(ctx: Context, _: Any) -> np.ndarray:
 
 
 def _sun_case(case: str) -> Design:
-    """Gradient driver ``g_sun sun + g_clear sun clearness`` (two columns).
-
-    The daily clearness is known only through the daily air-temperature range, whose overcast
-    floor is not zero, so the fit gets an affine map of it.
-    """
-
     def design(ctx: Context, _: Any) -> np.ndarray:
         d = ctx.drivers
-        vec = ctx.surrogate.thermal[case]
-        return np.concatenate([_const(ctx, vec, d.sun), _const(ctx, vec, d.sun * d.clearness)], axis=2)
+        return _const(ctx, ctx.surrogate.thermal[case], d.sun * d.clearness)
 
     return design
 
@@ -239,15 +232,15 @@ CANDIDATES: tuple[Candidate, ...] = (
     Candidate("uniform_temperature", ("c [N/K]",), _uniform, magnitude=lambda p, g: float(p[0])),
     Candidate(
         "vertical_gradient",
-        ("g_sun [K]", "g_clear [K]"),
+        ("g [K]",),
         _sun_case("vertical_gradient"),
-        magnitude=lambda p, g: float(p[0] + p[1]),
+        magnitude=lambda p, g: float(p[0]),
     ),
     Candidate(
         "transverse_gradient",
-        ("g_sun [K]", "g_clear [K]"),
+        ("g [K]",),
         _sun_case("transverse_gradient"),
-        magnitude=lambda p, g: float(p[0] + p[1]),
+        magnitude=lambda p, g: float(p[0]),
     ),
     Candidate(
         "thermal_lag", ("scale [1]",), _thermal_lag, LAG_GRID_H, "tau [h]", magnitude=lambda p, g: float(g)

@@ -19,6 +19,10 @@ __all__ = ["Drivers", "clear_sky_fallback", "compute_drivers", "lowpass"]
 DAY_S = 86400.0
 #: Neubiberg (UniBw Munich), DESIGN section 6.
 LAT_DEG, LON_DEG = 48.08, 11.64
+#: Daily air-temperature swing at the bridge on an overcast and on a clear day, K: the smallest and
+#: largest daily ranges of March 2022 (``Weather/TemperatureComparisonMUC.csv``: 3.7 and 23.6 K,
+#: DESIGN section 3), less about 1 K of irregular weather in each.
+OVERCAST_SWING_K, CLEAR_SWING_K = 3.0, 22.5
 
 
 def clear_sky_fallback(t_ns: np.ndarray) -> np.ndarray:
@@ -76,7 +80,7 @@ class Drivers:
         dtemp_k: (n,) air temperature minus its mean over the record, K.
         dt_s: window length in s.
         sun: (n,) clear-sky sun covariate, 0..1.
-        clearness: (n,) daily clearness estimate 0..1 (daily air-temperature range over the largest).
+        clearness: (n,) daily clearness estimate 0..1 from the daily warming of the air.
         warming: (n,) bool, smoothed air temperature rising.
         traffic: (n,) N, excess of the window mean over its median on the summed channels in windows
             flagged as events (within-window maximum far above the noise), 0 elsewhere.
@@ -118,6 +122,32 @@ def _traffic_driver(w: Windows, z: float = 6.0) -> np.ndarray:
     return np.where(event, excess, 0.0)
 
 
+def _clearness(t_ns: np.ndarray, temp: np.ndarray) -> np.ndarray:
+    """Daily clearness 0..1 from the sun-driven warming of the air.
+
+    Per solar day (mean solar time at the site) the warming is the afternoon maximum (10-18 h)
+    minus the morning minimum (02-10 h); the clearness maps it linearly from an overcast day
+    (``OVERCAST_SWING_K``) to a clear one (``CLEAR_SWING_K``). A day without both parts gets the
+    record's median.
+    """
+    solar_s = t_ns // NS + LON_DEG / 15.0 * 3600.0
+    sday = np.floor(solar_s / DAY_S).astype(np.int64)
+    hour = (solar_s % DAY_S) / 3600.0
+    days = np.unique(sday)
+    warming = np.full(len(days), np.nan)
+    for k, dd in enumerate(days):
+        sel = sday == dd
+        morning = sel & (hour >= 2.0) & (hour < 10.0)
+        afternoon = sel & (hour >= 10.0) & (hour < 18.0)
+        if morning.sum() > 10 and afternoon.sum() > 10:
+            warming[k] = temp[afternoon].max() - temp[morning].min()
+    if not np.isfinite(warming).any():
+        return np.ones(len(t_ns))
+    warming = np.where(np.isfinite(warming), warming, np.nanmedian(warming))
+    by_day = np.clip((warming - OVERCAST_SWING_K) / (CLEAR_SWING_K - OVERCAST_SWING_K), 0.0, 1.0)
+    return by_day[np.searchsorted(days, sday)]
+
+
 def compute_drivers(w: Windows) -> Drivers:
     """Compute every temporal driver from the windows (no truth, no model)."""
     t_s = (w.t_ns - w.t_ns[0]) / NS
@@ -125,12 +155,7 @@ def compute_drivers(w: Windows) -> Drivers:
     day = np.floor(t_day + 1e-9).astype(int)
     temp = np.asarray(w.temp_c, float)
     sun = _clear_sky(w.t_ns)
-    ranges = np.array([np.ptp(temp[day == d]) for d in np.unique(day)])
-    span = np.array([np.ptp(t_day[day == d]) for d in np.unique(day)])
-    full = span > 0.75
-    ref = ranges[full].max() if full.any() and ranges[full].max() > 0 else max(ranges.max(), 1e-9)
-    clear_by_day = np.clip(ranges / ref, 0.0, 1.0)
-    clearness = clear_by_day[np.searchsorted(np.unique(day), day)]
+    clearness = _clearness(w.t_ns, temp)
     smooth = lowpass(temp, 1800.0, w.width_s)
     warming = np.gradient(smooth) > 0
     return Drivers(

@@ -1,35 +1,78 @@
-"""Posterior settlements of the shadow on window means, before and after adding an effect.
+"""Posterior settlements of the shadow, before and after adding the best effect to the model.
 
-Stand-in for the online pipeline (``bridge_shadow.estimate``) until its batch interface is used
-here: the linear Gaussian update of DESIGN section 2 on ``m`` window means,
-``Sigma' = (Sigma_X^-1 + m A^T Sigma_E^-1 A)^-1`` and
-``mu' = Sigma' A^T Sigma_E^-1 sum_i (y_i - u0 - thermal_uniform dT_i)``, with the paper's prior and
-noise. Windows missing a channel are skipped.
+Two ways, both through ``bridge_shadow.estimate``:
+
+- ``posterior``: the shadow's batch linear Gaussian update (``estimate.kalman.batch_posterior``,
+  the paper's formula, equal to its Kalman filter with ``Q = 0``) on the 60 s window means with the
+  prior and noise of ``config/shadow.yaml``: ``Sigma' = (Sigma_X^-1 + m A^T Sigma_E^-1 A)^-1``,
+  ``mu' = Sigma' A^T Sigma_E^-1 sum_i (y_i - u0 - thermal_uniform dT_i)``. Fast; the default.
+- ``replay_posterior``: the whole online ``Shadow`` (gate, P-spline compensation, adaptive noise,
+  Kalman) replayed on the record, and on the record with the effect's fitted contribution
+  subtracted from every force sample (interpolated between window centres).
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from bridge_shadow.contract import CHANNELS
 from bridge_shadow.model.surrogate_file import Surrogate
+from bridge_shadow.series import ForceSeries, MonitoringData
 
-__all__ = ["PRIOR_SD_M", "SIGMA_E_N", "posterior"]
-
-#: Prior standard deviation of each settlement, m (paper: 0.3 mm).
-PRIOR_SD_M = 3.0e-4
-#: Load-cell noise standard deviations [south, north], N (paper: 0.0604 kN, 0.0827 kN).
-SIGMA_E_N = np.array([60.4, 82.7])
+__all__ = ["posterior", "replay_posterior"]
 
 
-def posterior(force_n: np.ndarray, dtemp_k: np.ndarray, s: Surrogate) -> dict[str, list]:
+def _prior_and_noise() -> tuple[np.ndarray, np.ndarray]:
+    """Prior covariance (2, 2) m^2 and window noise covariance (2, 2) N^2 from the shadow config."""
+    from bridge_shadow.estimate.config import load_config
+
+    cfg = load_config()
+    return np.diag(np.square(cfg.prior_sigma_m)), np.diag(np.square(cfg.noise_sigma_n))
+
+
+def posterior(force_n: np.ndarray, dtemp_k: np.ndarray, s: Surrogate) -> dict[str, Any]:
     """Return ``{"mean_m": [south, north], "covariance_m2": 2x2, "windows": m}`` from window means."""
+    from bridge_shadow.estimate.kalman import batch_posterior
+
     ok = np.isfinite(force_n).all(axis=1)
     z = force_n[ok] - s.u0 - dtemp_k[ok, None] * s.thermal.get("uniform", np.zeros(2))
-    m = int(ok.sum())
-    r_inv = np.diag(1.0 / SIGMA_E_N**2)
-    # Sigma' = (Sigma_X^-1 + m A' R^-1 A)^-1 ; mu' = Sigma' A' R^-1 sum z
-    info = np.eye(2) / PRIOR_SD_M**2 + m * s.A.T @ r_inv @ s.A
-    cov = np.linalg.inv(info)
-    cov = 0.5 * (cov + cov.T)
-    mean = cov @ s.A.T @ r_inv @ z.sum(axis=0)
-    return {"mean_m": mean.tolist(), "covariance_m2": cov.tolist(), "windows": m}
+    sigma_x, sigma_e = _prior_and_noise()
+    if not len(z):
+        return {"mean_m": [0.0, 0.0], "covariance_m2": sigma_x.tolist(), "windows": 0}
+    mean, cov = batch_posterior(s.A, sigma_x, sigma_e, z)
+    return {
+        "mean_m": mean.tolist(),
+        "covariance_m2": (0.5 * (cov + cov.T)).tolist(),
+        "windows": int(ok.sum()),
+    }
+
+
+def _subtract(data: MonitoringData, t_ns: np.ndarray, contribution_n: np.ndarray) -> MonitoringData:
+    forces = {}
+    for i, ch in enumerate(CHANNELS):
+        f = data.forces[ch]
+        c = np.interp(f.stamp_ns.astype(float), t_ns.astype(float), np.nan_to_num(contribution_n[:, i]))
+        forces[ch] = ForceSeries(f.stamp_ns, f.force_n - c, f.frame_id, f.log_ns)
+    return MonitoringData(forces, data.temperature)
+
+
+def replay_posterior(
+    data: MonitoringData, s: Surrogate, t_ns: np.ndarray, contribution_n: np.ndarray, min_samples: int
+) -> dict[str, Any]:
+    """Replay the online shadow before and after subtracting ``contribution_n`` (n, 2) N at ``t_ns``."""
+    from bridge_shadow.estimate import Shadow, load_config
+
+    cfg = load_config(overrides={"window_min_samples": int(max(1, min_samples)), "checkpoint_path": ""})
+    out = {}
+    for key, d in (("before", data), ("after", _subtract(data, t_ns, contribution_n))):
+        r = Shadow(cfg, s).run(d)
+        out[key] = {
+            "mean_m": r.mean_m.tolist(),
+            "covariance_m2": r.covariance_m2.tolist(),
+            "updates": r.updates,
+        }
+    out["change_m"] = (np.array(out["after"]["mean_m"]) - np.array(out["before"]["mean_m"])).tolist()
+    out["method"] = "online Shadow replay (bridge_shadow.estimate), before and after"
+    return out
