@@ -1,19 +1,141 @@
-"""``bridge-shadow synth``: not implemented yet (placeholder until its issue lands)."""
+"""``bridge-shadow synth``: write a synthetic monitoring bag from the truth twin, with its truth."""
 
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
-from bridge_shadow.errors import BridgeShadowError
+from bridge_shadow.effects import EFFECTS
 
-HELP = "(not implemented yet)"
+HELP = "write a synthetic monitoring bag from the truth twin (and BAG/truth.yaml)"
+
+DESCRIPTION = """\
+Write a rosbag2 bag with the three input topics of the contract (/bridge/frc_01/force,
+/bridge/frc_02/force as WrenchStamped in N; /bridge/air_temperature in C), simulated by the truth
+twin: March weather at the bridge (diurnal cycle, day-to-day level and cloudiness), clear-sky sun at
+Neubiberg, the FE surrogate (config/surrogate.yaml, else its closed-form placeholder), AR(1)-
+correlated load-cell noise (60 s means phi ~ 0.9), dropouts and a few NaN readings. Without
+--effect the bag is the baseline model (x = 0, FE uniform thermal response). The same seed gives
+the same bag.
+
+Forces come at --rate Hz (default 1 Hz) on both channels, the air temperature at --temp-rate Hz
+(default one a minute). The ground truth (every parameter, the effects, the seed, and the true
+settlement path: mean, start and end in m) goes to BAG/truth.yaml; nothing that estimates or
+diagnoses reads it.
+
+Effects (--effect NAME=VALUE, repeatable; SI units; see bridge_shadow/effects.py):
+""" + "\n".join(f"  {e.name:<20} [{e.unit}] e.g. {e.realistic:g} (edge {e.edge:g})" for e in EFFECTS.values())
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Accept anything until the real subcommand lands."""
-    parser.add_argument("rest", nargs=argparse.REMAINDER)
+    """Declare the options of ``synth``."""
+    parser.add_argument("--out", required=True, metavar="BAG", help="output bag directory")
+    parser.add_argument("--days", type=float, default=3.0, help="record length in days (default 3)")
+    parser.add_argument("--rate", type=float, default=1.0, metavar="HZ", help="force rate, Hz (default 1)")
+    parser.add_argument(
+        "--temp-rate",
+        type=float,
+        default=1.0 / 60.0,
+        metavar="HZ",
+        help="air-temperature rate, Hz (default 1/60)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument(
+        "--effect",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="inject an effect of the vocabulary with a magnitude in SI units (repeatable)",
+    )
+    parser.add_argument(
+        "--step",
+        action="append",
+        default=[],
+        metavar="DAY:SOUTH:NORTH",
+        help="extra settlement step from DAY (days after the start) on, in m, positive upward (repeatable)",
+    )
+    parser.add_argument(
+        "--start",
+        default=None,
+        metavar="ISO",
+        help="first stamp, ISO 8601; local Europe/Berlin unless it has an offset (default 2022-03-14T00:00)",
+    )
+    parser.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3", help="bag storage")
+    parser.add_argument(
+        "--compress", action="store_true", help="zstd-compress the MCAP chunks (mcap only, ~3.5x smaller)"
+    )
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing bag")
+    parser.add_argument("--json", action="store_true", help="print one JSON object with the summary")
+
+
+def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
+    from bridge_shadow.errors import InputError
+
+    steps = []
+    for item in items:
+        try:
+            day, south, north = (float(v) for v in item.split(":"))
+        except ValueError:
+            raise InputError(f"--step {item!r}: expected DAY:SOUTH:NORTH (days, m, m)") from None
+        steps.append((day, south, north))
+    return steps
+
+
+def _bag_bytes(path: Any) -> int:
+    return sum(f.stat().st_size for f in path.iterdir() if f.is_file())
 
 
 def run(args: argparse.Namespace) -> int:
-    """Fail with a clear message."""
-    raise BridgeShadowError("'synth' is not implemented yet")
+    """Simulate, write the bag and its truth, print a summary."""
+    from bridge_shadow.commands.output import emit_json
+    from bridge_shadow.twin.bag import write_twin_bag
+    from bridge_shadow.twin.simulate import parse_effects
+    from bridge_shadow.twin.truth import truth_path
+
+    out, truth = write_twin_bag(
+        args.out,
+        storage=args.storage,
+        overwrite=args.overwrite,
+        compress=args.compress,
+        days=args.days,
+        rate_hz=args.rate,
+        seed=args.seed,
+        effects=parse_effects(args.effect),
+        start=args.start,
+        temp_rate_hz=args.temp_rate,
+        steps=_parse_steps(args.step),
+    )
+    truth_file = truth_path(out)
+    counts = truth["counts"]
+    summary = {
+        "bag": str(out),
+        "storage": args.storage,
+        "compressed": bool(args.compress),
+        "bytes": _bag_bytes(out),
+        "truth": str(truth_file),
+        "seed": truth["seed"],
+        "days": truth["days"],
+        "rate_hz": truth["rate_hz"],
+        "temp_rate_hz": truth["temp_rate_hz"],
+        "start": truth["start"],
+        "effects": truth["effects"],
+        "messages": {
+            "/bridge/frc_01/force": counts["force_messages"]["frc_01"],
+            "/bridge/frc_02/force": counts["force_messages"]["frc_02"],
+            "/bridge/air_temperature": counts["temperature_messages"],
+        },
+        "nan": {**counts["force_nan"], "air_temperature": counts["temperature_nan"]},
+        "surrogate": truth["surrogate"]["provenance"].get("solver", "unknown"),
+    }
+    if args.json:
+        emit_json(summary)
+        return 0
+    eff = ", ".join(f"{k}={v:g}" for k, v in truth["effects"].items()) or "none (baseline)"
+    m = summary["messages"]
+    print(
+        f"wrote {out} ({args.storage}, {summary['bytes'] / 1e6:.2f} MB): {truth['days']:g} days from "
+        f"{truth['start_local']}, forces {m['/bridge/frc_01/force']} + {m['/bridge/frc_02/force']} msgs "
+        f"at {truth['rate_hz']:g} Hz, air temperature {m['/bridge/air_temperature']} msgs; "
+        f"seed {truth['seed']}; effects: {eff}; surrogate: {summary['surrogate']}; truth in {truth_file}"
+    )
+    return 0

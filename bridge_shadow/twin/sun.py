@@ -1,0 +1,70 @@
+"""Sun position and the clear-sky sun covariate at the bridge (Neubiberg, 48.08 N, 11.64 E).
+
+Solar position: the low-precision formulas of the Astronomical Almanac (declination, right
+ascension and sidereal time from days since J2000.0), good to about 0.01 degree in declination and
+well under 1 degree in elevation for 1950-2050, which is far below what a thermal covariate needs.
+
+Clear-sky irradiance: the Haurwitz model, ``GHI = 1098 W/m^2 cos(z) exp(-0.059 / cos(z))`` with
+``z`` the solar zenith angle (Haurwitz 1945; the simplest clear-sky model that is within about 10 %
+of the detailed ones, Reno et al., Sandia SAND2012-2389). ``clear_sky`` normalizes it by its peak
+at the site, the value at solar noon on the June solstice, so it runs from 0 (night) to 1; in
+mid-March its daily maximum at Neubiberg is about 0.72.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["LAT_DEG", "LON_DEG", "clear_sky", "haurwitz_ghi", "solar_elevation_deg"]
+
+#: Site of the bridge (UniBw Munich campus, Neubiberg), degrees north and east.
+LAT_DEG: float = 48.08
+LON_DEG: float = 11.64
+
+_NS_PER_DAY = 86_400 * 1_000_000_000
+#: 2000-01-01 12:00 UTC (J2000.0) in ns since the Unix epoch.
+_J2000_NS = 946_728_000 * 1_000_000_000
+#: Obliquity of the ecliptic at J2000.0, degrees.
+_OBLIQUITY_DEG = 23.439
+
+
+def solar_elevation_deg(
+    t_ns: np.ndarray | int, lat_deg: float = LAT_DEG, lon_deg: float = LON_DEG
+) -> np.ndarray:
+    """Geometric solar elevation above the horizon in degrees for stamps ``t_ns`` (UTC ns), any shape."""
+    days = (np.asarray(t_ns, dtype=np.int64) - _J2000_NS) / _NS_PER_DAY
+    mean_anomaly = np.radians((357.529 + 0.98560028 * days) % 360.0)
+    mean_longitude = (280.459 + 0.98564736 * days) % 360.0
+    ecl_longitude = np.radians(
+        mean_longitude + 1.915 * np.sin(mean_anomaly) + 0.020 * np.sin(2.0 * mean_anomaly)
+    )
+    eps = np.radians(_OBLIQUITY_DEG - 3.6e-7 * days)
+    declination = np.arcsin(np.sin(eps) * np.sin(ecl_longitude))
+    right_ascension = np.arctan2(np.cos(eps) * np.sin(ecl_longitude), np.cos(ecl_longitude))
+    gmst_h = (18.697374558 + 24.06570982441908 * days) % 24.0
+    hour_angle = np.radians(gmst_h * 15.0 + lon_deg) - right_ascension
+    lat = np.radians(lat_deg)
+    sin_el = np.sin(lat) * np.sin(declination) + np.cos(lat) * np.cos(declination) * np.cos(hour_angle)
+    return np.degrees(np.arcsin(np.clip(sin_el, -1.0, 1.0)))
+
+
+def haurwitz_ghi(elevation_deg: np.ndarray | float) -> np.ndarray:
+    """Clear-sky global horizontal irradiance in W/m^2 for a solar elevation in degrees (0 at night)."""
+    cos_z = np.sin(np.radians(np.asarray(elevation_deg, dtype=float)))
+    safe = np.where(cos_z > 0.0, cos_z, 1.0)
+    return np.where(cos_z > 0.0, 1098.0 * cos_z * np.exp(-0.059 / safe), 0.0)
+
+
+def _site_peak_ghi(lat_deg: float) -> float:
+    """Clear-sky irradiance at solar noon on the June solstice at latitude ``lat_deg``, W/m^2."""
+    return float(haurwitz_ghi(min(90.0, 90.0 - lat_deg + _OBLIQUITY_DEG)))
+
+
+def clear_sky(t_ns: np.ndarray | int, lat_deg: float = LAT_DEG, lon_deg: float = LON_DEG) -> np.ndarray:
+    """Clear-sky sun covariate, 0..1, for stamps ``t_ns`` (UTC ns), any shape.
+
+    The Haurwitz clear-sky irradiance at the site divided by its yearly peak (solar noon at the
+    June solstice). It carries the daily and seasonal course of the sun, not the clouds.
+    """
+    ghi = haurwitz_ghi(solar_elevation_deg(t_ns, lat_deg, lon_deg))
+    return np.clip(ghi / _site_peak_ghi(lat_deg), 0.0, 1.0)
