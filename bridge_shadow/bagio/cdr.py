@@ -57,6 +57,8 @@ def _decode_frames(chars: np.ndarray) -> np.ndarray:
     n, width = chars.shape
     if width == 0:
         return np.full(n, "", dtype=object)
+    if np.array_equal(chars, np.broadcast_to(chars[0], chars.shape)):  # one frame_id: the usual case
+        return np.full(n, bytes(chars[0]).rstrip(b"\0").decode("utf-8", errors="replace"), dtype=object)
     fixed = np.ascontiguousarray(chars).view(f"S{width}").ravel()  # numpy strips trailing NULs
     uniq, inverse = np.unique(fixed, return_inverse=True)
     text = np.array([u.decode("utf-8", errors="replace") for u in uniq], dtype=object)
@@ -123,11 +125,12 @@ def _decode_block(
     sec = _field(block, 4, order + "i4").astype(np.int64)
     nsec = _field(block, 8, order + "u4").astype(np.int64)
     stamp_ns[rows] = sec * _NS + nsec
-    for off in np.unique(offset).tolist():
-        sub = np.flatnonzero(offset == off)
+    same = offset.min() == offset.max()
+    for off in [int(offset[0])] if same else np.unique(offset).tolist():
+        sub = slice(None) if same else np.flatnonzero(offset == off)
         part = block[sub]
         floats = np.ascontiguousarray(part[:, off : off + 8 * n_floats]).view(order + "f8")
-        values[rows[sub]] = floats.reshape(len(sub), n_floats)
+        values[rows[sub]] = floats.reshape(len(part), n_floats)
         frames[rows[sub]] = _decode_frames(part[:, _HEADER_BYTES:off])
 
 

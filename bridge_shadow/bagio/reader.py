@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import sqlite3
 import struct
 from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from datetime import datetime, timezone
+from operator import attrgetter, itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +45,7 @@ _STORAGE_ERRORS: tuple[type[BaseException], ...] = (
     AttributeError,
     AssertionError,
     struct.error,
+    sqlite3.Error,
 )
 try:  # the sqlite3 back end of rosbags
     import apsw
@@ -175,8 +178,62 @@ def iter_raw(
             yield conn.topic, conn.msgtype, log_ns, raw
 
 
+def _sqlite_files(reader: Any) -> list[Path] | None:
+    """Storage files of an uncompressed sqlite3 bag (read directly, faster), else None."""
+    if reader.compression_mode:
+        return None
+    storages = getattr(reader.storage, "storages", None) or [reader.storage]
+    if not all(
+        type(s).__name__ == "Sqlite3Reader" and isinstance(getattr(s, "path", None), Path) for s in storages
+    ):
+        return None
+    return [s.path for s in storages]
+
+
+def _read_sqlite(files: list[Path], topics: Collection[str]) -> dict[str, tuple[list[int], list[bytes]]]:
+    """Read ``(log_ns, raw)`` per topic with one SQL query per topic and file (C loops only)."""
+    out: dict[str, tuple[list[int], list[bytes]]] = {}
+    for file in files:
+        db = sqlite3.connect(f"file:{file}?immutable=1", uri=True)
+        try:
+            ids = dict(db.execute("SELECT name, id FROM topics").fetchall())
+            for topic in topics:
+                if topic not in ids:
+                    continue
+                rows = db.execute(
+                    "SELECT timestamp, data FROM messages WHERE topic_id = ? ORDER BY timestamp",
+                    (ids[topic],),
+                ).fetchall()
+                stamps, raws = out.setdefault(topic, ([], []))
+                if rows:
+                    t, r = zip(*rows, strict=True)
+                    stamps.extend(t)
+                    raws.extend(r)
+        finally:
+            db.close()
+    return out
+
+
+def _read_generic(reader: Any, conns: list[Any]) -> dict[str, tuple[list[int], list[bytes]]]:
+    """Read ``(log_ns, raw)`` per topic through rosbags' message iterator (any storage)."""
+    out: dict[str, tuple[list[int], list[bytes]]] = {c.topic: ([], []) for c in conns}
+    items = list(reader.messages(connections=conns))
+    if not items:
+        return out
+    cs, ts, rs = zip(*items, strict=True)
+    topic_of = np.array(list(map(attrgetter("topic"), cs)), dtype=object)
+    for topic in out:
+        idx = np.flatnonzero(topic_of == topic).tolist()
+        if idx:
+            pick = itemgetter(*idx) if len(idx) > 1 else (lambda seq, i=idx[0]: (seq[i],))
+            out[topic] = (list(pick(ts)), list(pick(rs)))
+    return out
+
+
 def read_raw_topics(path: str | Path, topics: dict[str, str]) -> dict[str, tuple[np.ndarray, list[bytes]]]:
     """Read every message of the given ``{topic: expected_type}`` present in the bag.
+
+    Uncompressed sqlite3 bags are read with one SQL query per topic; other bags through rosbags.
 
     Returns:
         ``{topic: (log_ns (n,) int64, raws)}`` for each topic the bag holds, in log-time order.
@@ -186,7 +243,6 @@ def read_raw_topics(path: str | Path, topics: dict[str, str]) -> dict[str, tuple
 
     """
     path = Path(path)
-    out: dict[str, tuple[list[int], list[bytes]]] = {}
     with open_bag(path) as reader:
         conns = [c for c in reader.connections if c.topic in topics]
         for conn in conns:
@@ -194,13 +250,12 @@ def read_raw_topics(path: str | Path, topics: dict[str, str]) -> dict[str, tuple
                 raise UnexpectedTypeError(
                     f"{path}: topic {conn.topic} has type {conn.msgtype}, expected {topics[conn.topic]}"
                 )
-            out.setdefault(conn.topic, ([], []))
-        if conns:
-            with _translated(path, "reading messages"):
-                for conn, log_ns, raw in reader.messages(connections=conns):
-                    stamps, raws = out[conn.topic]
-                    stamps.append(log_ns)
-                    raws.append(raw)
+        present = {c.topic for c in conns}
+        with _translated(path, "reading messages"):
+            files = _sqlite_files(reader)
+            out = _read_sqlite(files, present) if files is not None else _read_generic(reader, conns)
+    for topic in present:
+        out.setdefault(topic, ([], []))
     return {t: (np.asarray(s, dtype=np.int64), r) for t, (s, r) in out.items()}
 
 
