@@ -19,7 +19,7 @@ from bridge_shadow.fe.errors import ModelError, SolverError
 from bridge_shadow.fe.loads import load_vector
 from bridge_shadow.fe.model import DOF_NAMES, LoadCase, Model
 
-__all__ = ["Factorization", "LinearStaticSolver", "Result", "assemble_stiffness"]
+__all__ = ["Factorization", "LinearStaticSolver", "Result", "assemble_stiffness", "nested_dissection"]
 
 
 def assemble_stiffness(model: Model) -> tuple[sp.csr_matrix, list[ShellKinematics], list[BeamGeometry]]:
@@ -57,46 +57,105 @@ def assemble_stiffness(model: Model) -> tuple[sp.csr_matrix, list[ShellKinematic
     return coo.tocsr(), kins, geos
 
 
-class Factorization:
-    """Sparse direct factorization of a symmetric matrix, reused for many right-hand sides.
+#: Smallest admissible pivot over its diagonal entry before the matrix is declared singular.
+PIVOT_RTOL = 1e-12
 
-    CHOLMOD (scikit-sparse) when importable and ``backend`` allows it, else SuperLU with
-    ``MMD_AT_PLUS_A`` ordering in symmetric mode.
+
+def nested_dissection(k: sp.spmatrix, groups: np.ndarray) -> np.ndarray | None:
+    """Fill-reducing order of the rows of ``k`` by METIS nested dissection on the node graph, or None.
+
+    ``groups (n,)`` names the node of each row; the DOFs of a node stay together. Needs the optional
+    ``pymetis`` package; returns None when it is not importable.
+    """
+    try:
+        import pymetis  # type: ignore[import-not-found]
+    except ImportError:
+        return None
+    groups = np.asarray(groups, np.int64)
+    _, node = np.unique(groups, return_inverse=True)
+    n_nodes = int(node.max()) + 1
+    p = sp.csr_matrix((np.ones(len(node)), (np.arange(len(node)), node)), shape=(len(node), n_nodes))
+    pattern = sp.csr_matrix(k, copy=True)
+    pattern.data[:] = 1.0
+    g = (p.T @ pattern @ p).tocsr()
+    g.setdiag(0)
+    g.eliminate_zeros()
+    adjacency = pymetis.CSRAdjacency(g.indptr, g.indices) if hasattr(pymetis, "CSRAdjacency") else None
+    if adjacency is not None:
+        perm, _ = pymetis.nested_dissection(adjacency)
+    else:
+        perm, _ = pymetis.nested_dissection(xadj=g.indptr, adjncy=g.indices)
+    rank = np.empty(n_nodes, np.int64)
+    rank[np.asarray(perm)] = np.arange(n_nodes)
+    return np.lexsort((np.arange(len(node)), rank[node]))
+
+
+class Factorization:
+    """Sparse direct factorization of a symmetric positive definite matrix, reused for many right-hand sides.
+
+    Backends: ``cholmod`` (scikit-sparse, optional), ``splu-nd`` (SuperLU in symmetric mode on a
+    METIS nested-dissection order of the node graph; needs the optional ``pymetis`` and ``groups``),
+    ``splu-mmd`` (SuperLU with ``MMD_AT_PLUS_A``, always available). ``auto`` takes the first available.
     """
 
-    def __init__(self, k: sp.spmatrix, backend: str = "auto") -> None:
+    def __init__(self, k: sp.spmatrix, backend: str = "auto", groups: np.ndarray | None = None) -> None:
+        if backend not in ("auto", "cholmod", "splu-nd", "splu-mmd"):
+            raise SolverError(f"unknown solver backend {backend!r} (auto, cholmod, splu-nd, splu-mmd)")
         k = sp.csc_matrix(k)
         self.n = k.shape[0]
-        self.backend = "splu"
+        self.backend = "splu-mmd"
+        self._order: np.ndarray | None = None
         if self.n == 0:
             self._solve = lambda b: np.zeros_like(b)
             return
         if backend in ("auto", "cholmod"):
             try:
                 from sksparse.cholmod import cholesky  # type: ignore[import-not-found]
-
-                factor = cholesky(k)
-                self._solve = factor
-                self.backend = "cholmod"
-                return
             except ImportError:
                 if backend == "cholmod":
                     raise SolverError(
                         "backend 'cholmod' needs scikit-sparse, which is not installed"
                     ) from None
-            except Exception as err:  # CholmodNotPositiveDefiniteError and friends
-                raise SolverError(f"stiffness matrix not positive definite (mechanism?): {err}") from err
+            else:
+                try:
+                    self._solve = cholesky(k)
+                except Exception as err:  # CholmodNotPositiveDefiniteError and friends
+                    raise SolverError(f"stiffness matrix not positive definite (mechanism?): {err}") from err
+                self.backend = "cholmod"
+                return
+        spec = "MMD_AT_PLUS_A"
+        if backend in ("auto", "splu-nd") and groups is not None:
+            self._order = nested_dissection(k, groups)
+            if self._order is not None:
+                k = k[self._order][:, self._order].tocsc()
+                spec = "NATURAL"
+                self.backend = "splu-nd"
+        if backend == "splu-nd" and self._order is None:
+            raise SolverError("backend 'splu-nd' needs pymetis and DOF groups")
         try:
-            lu = spla.splu(
-                k, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}
-            )
+            lu = spla.splu(k, permc_spec=spec, diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         except RuntimeError as err:
             raise SolverError(f"singular stiffness matrix (mechanism or missing support): {err}") from err
+        # A mechanism shows as a pivot that vanishes against its diagonal entry (SPD: pivot <= K_ii).
+        diag = np.abs(k.diagonal())[lu.perm_c]
+        pivots = np.abs(lu.U.diagonal())
+        weak = np.flatnonzero(~(pivots > PIVOT_RTOL * diag) | (diag == 0))
+        if weak.size:
+            first = lu.perm_c[weak[0]]
+            index = int(first if self._order is None else self._order[first])
+            err = SolverError(f"singular stiffness matrix (mechanism or missing support) at unknown {index}")
+            err.index = index  # type: ignore[attr-defined]
+            raise err
         self._solve = lu.solve
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """Solve ``K x = b`` for ``b (n,)`` or ``(n, m)``."""
-        x = self._solve(np.asarray(b, float))
+        b = np.asarray(b, float)
+        if self._order is None:
+            x = self._solve(b)
+        else:
+            x = np.empty_like(b)
+            x[self._order] = self._solve(np.ascontiguousarray(b[self._order]))
         if not np.all(np.isfinite(x)):
             raise SolverError("non-finite displacements (mechanism or missing support)")
         return x
@@ -148,7 +207,17 @@ class LinearStaticSolver:
         self._kf = (cf.T @ self.K @ cf).tocsc()
         self._kfp = (cf.T @ self.K @ cp).tocsr()
         t1 = time.perf_counter()
-        self._factor = Factorization(self._kf, backend)
+        try:
+            self._factor = Factorization(self._kf, backend, groups=self.constraints.free // 6)
+        except SolverError as err:
+            index = getattr(err, "index", None)
+            if index is None:
+                raise
+            dof = int(self.constraints.free[index])
+            raise SolverError(
+                f"singular stiffness matrix: mechanism or missing support near node {dof // 6} "
+                f"({DOF_NAMES[dof % 6]})"
+            ) from err
         t2 = time.perf_counter()
         self.timings = {"assembly": t1 - t0, "factorization": t2 - t1, "solve": 0.0}
 
@@ -159,7 +228,7 @@ class LinearStaticSolver:
 
     @property
     def backend(self) -> str:
-        """Factorization backend in use (``splu`` or ``cholmod``)."""
+        """Factorization backend in use (``cholmod``, ``splu-nd`` or ``splu-mmd``)."""
         return self._factor.backend
 
     def _prescribed(self, case: LoadCase) -> np.ndarray:

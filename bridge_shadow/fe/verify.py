@@ -25,7 +25,7 @@ from bridge_shadow.fe.meshes import fixities, grid, line, node_at
 from bridge_shadow.fe.model import BeamLoad, BeamSet, LoadCase, Model, ShellSet, Support, Thermal
 from bridge_shadow.fe.solve import LinearStaticSolver
 
-__all__ = ["Case", "run_cases", "suite"]
+__all__ = ["Case", "run_cases", "scordelis_lo_model", "suite"]
 
 
 @dataclass
@@ -72,26 +72,31 @@ class _Timer:
 # ---------------------------------------------------------------------------------------------- shells
 
 
+def scordelis_lo_model(n: int) -> tuple[Model, LoadCase, int]:
+    """Scordelis-Lo roof quarter model ``n x n``: model, self-weight case, node of the free-edge midpoint."""
+    R, L, t = 25.0, 50.0, 0.25
+    st, conn = grid(n, n)
+    x, th = st[:, 0] * L / 2, st[:, 1] * np.deg2rad(40.0)
+    nodes = np.column_stack([x, R * np.sin(th), R * np.cos(th)])
+    shell = ShellSet(conn, t, 4.32e8, 0.0, rho=90.0 / t, tag="roof")  # 90 per unit area
+    eps = 1e-9
+    sup = fixities(
+        [
+            (np.flatnonzero(np.abs(x) < eps), (1, 2)),  # rigid diaphragm
+            (np.flatnonzero(np.abs(x - L / 2) < eps), (0, 4, 5)),  # symmetry x = L/2
+            (np.flatnonzero(np.abs(th) < eps), (1, 3, 5)),  # symmetry at the crown
+        ]
+    )
+    i = node_at(nodes, (L / 2, R * np.sin(np.deg2rad(40.0)), R * np.cos(np.deg2rad(40.0))))
+    return Model(nodes, shells=[shell], supports=sup), LoadCase("self-weight", gravity=(0.0, 0.0, -1.0)), i
+
+
 def scordelis_lo(n: int, tol: float | None = 0.01) -> Case:
     """Scordelis-Lo roof, quarter model ``n x n``, vertical displacement at the free-edge midpoint."""
     with _Timer() as tm:
-        R, L, t = 25.0, 50.0, 0.25
-        st, conn = grid(n, n)
-        x, th = st[:, 0] * L / 2, st[:, 1] * np.deg2rad(40.0)
-        nodes = np.column_stack([x, R * np.sin(th), R * np.cos(th)])
-        shell = ShellSet(conn, t, 4.32e8, 0.0, rho=90.0 / t, tag="roof")  # 90 per unit area
-        eps = 1e-9
-        sup = fixities(
-            [
-                (np.flatnonzero(np.abs(x) < eps), (1, 2)),  # rigid diaphragm
-                (np.flatnonzero(np.abs(x - L / 2) < eps), (0, 4, 5)),  # symmetry x = L/2
-                (np.flatnonzero(np.abs(th) < eps), (1, 3, 5)),  # symmetry at the crown
-            ]
-        )
-        solver = LinearStaticSolver(Model(nodes, shells=[shell], supports=sup))
-        res = solver.solve(LoadCase("self-weight", gravity=(0.0, 0.0, -1.0)))
-        i = node_at(nodes, (L / 2, R * np.sin(np.deg2rad(40.0)), R * np.cos(np.deg2rad(40.0))))
-        w = -res.u[i, 2]
+        model, case, i = scordelis_lo_model(n)
+        solver = LinearStaticSolver(model)
+        w = -solver.solve(case).u[i, 2]
     return _case(f"scordelis_lo_{n}x{n}", w, 0.3024, tol, f"{n}x{n} quarter", solver.n_free, tm.seconds)
 
 
