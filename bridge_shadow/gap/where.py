@@ -21,9 +21,16 @@ BANDS_H: tuple[tuple[str, float, float], ...] = (
 )
 
 
+def _nanmean(x: np.ndarray, axis: int = 0) -> np.ndarray:
+    """``nanmean`` that gives NaN for an empty or all-NaN slice without a warning."""
+    ok = np.isfinite(x)
+    n = ok.sum(axis=axis)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, np.where(ok, x, 0.0).sum(axis=axis) / n, np.nan)
+
+
 def _rms(x: np.ndarray, axis: int = 0) -> np.ndarray:
-    with np.errstate(invalid="ignore"):
-        return np.sqrt(np.nanmean(x**2, axis=axis))
+    return np.sqrt(_nanmean(x**2, axis=axis))
 
 
 def _per_channel(x: np.ndarray) -> dict[str, float]:
@@ -73,8 +80,7 @@ def where(w: Windows, d: Drivers, resid: np.ndarray) -> dict[str, Any]:
     for h in range(24):
         sel = hour == h
         if sel.any():
-            with np.errstate(invalid="ignore"):
-                prof[h] = np.nanmean(resid[sel], axis=0)
+            prof[h] = _nanmean(resid[sel], axis=0)
     # Share of the residual's mean square explained by its hour-of-day profile.
     fitted = prof[hour]
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -97,7 +103,7 @@ def where(w: Windows, d: Drivers, resid: np.ndarray) -> dict[str, Any]:
         ]
     return {
         "rms_n": _per_channel(_rms(resid)),
-        "mean_n": _per_channel(np.nanmean(resid, axis=0)),
+        "mean_n": _per_channel(_nanmean(resid, axis=0)),
         "channel_share": _per_channel(ss / ss.sum() if ss.sum() > 0 else np.full(2, np.nan)),
         "by_day": [{"day": int(k), "rms_n": _per_channel(_rms(resid[d.day == k]))} for k in np.unique(d.day)],
         "time_of_day": {
