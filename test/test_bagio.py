@@ -66,10 +66,10 @@ def _assert_same(a: MonitoringData, b: MonitoringData) -> None:
     assert list(x.frame_id) == list(y.frame_id)
 
 
-@pytest.mark.parametrize("storage", STORAGES)
-def test_round_trip_is_exact(tmp_path: Path, storage: str) -> None:
+@pytest.mark.parametrize(("storage", "compress"), [("sqlite3", False), ("mcap", False), ("mcap", True)])
+def test_round_trip_is_exact(tmp_path: Path, storage: str, compress: bool) -> None:
     data = _data()
-    write_monitoring(tmp_path / "bag", data, storage)
+    write_monitoring(tmp_path / "bag", data, storage, compress=compress)
     _assert_same(data, read_monitoring(tmp_path / "bag"))
     summary = bag_summary(tmp_path / "bag")
     assert summary["storage"] == storage
@@ -203,7 +203,7 @@ def test_missing_storage_file(tmp_path: Path) -> None:
 
 def test_overwrite_only_replaces_bags(tmp_path: Path) -> None:
     write_monitoring(tmp_path / "bag", _data(20))
-    with pytest.raises(BagExistsError, match="--overwrite"):
+    with pytest.raises(BagExistsError, match="exists already"):
         write_monitoring(tmp_path / "bag", _data(20))
     write_monitoring(tmp_path / "bag", _data(30, seed=2), "mcap", overwrite=True)
     assert bag_summary(tmp_path / "bag")["storage"] == "mcap"
@@ -214,6 +214,8 @@ def test_overwrite_only_replaces_bags(tmp_path: Path) -> None:
     assert (tmp_path / "src" / "keep.py").exists()
     with pytest.raises(BagError, match="storage"):
         write_monitoring(tmp_path / "other", _data(20), "rosbag1")
+    with pytest.raises(BagError, match="mcap"):
+        write_monitoring(tmp_path / "other", _data(20), "sqlite3", compress=True)
 
 
 @pytest.mark.parametrize("storage", STORAGES)

@@ -143,9 +143,11 @@ def bag_summary(path: str | Path) -> dict[str, Any]:
         start = int(reader.start_time) if count else None
         end = int(reader.end_time) - 1 if count else None
         storage = _storage_name(reader)
+        compression = reader.compression_mode or None
     return {
         "path": str(path),
         "storage": storage,
+        "compression": compression,
         "message_count": count,
         "topics": topics,
         "start_ns": start,

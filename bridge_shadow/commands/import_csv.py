@@ -46,12 +46,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Import, write the bag, print the summary."""
-    from bridge_shadow.bagio import write_monitoring
+    from bridge_shadow.bagio import BagExistsError, write_monitoring
     from bridge_shadow.commands.output import emit_json
     from bridge_shadow.importers import import_csv
 
     data, report = import_csv(args.files, date_hint=args.date)
-    out = write_monitoring(args.out, data, args.storage, overwrite=args.overwrite)
+    try:
+        out = write_monitoring(args.out, data, args.storage, overwrite=args.overwrite)
+    except BagExistsError as err:
+        if args.overwrite:
+            raise
+        raise BagExistsError(f"{err} (pass --overwrite to replace it)") from None
     summary = {"out": str(out), "storage": args.storage, **report.as_dict()}
     if args.json:
         emit_json(summary)
