@@ -10,6 +10,8 @@ import pytest
 from bridge_shadow.paths import repo_root, shared_data_dir
 from bridge_shadow.ros.netenv import confine_to_loopback
 
+pytest_plugins = ["twin_fixtures"]
+
 # Network hygiene: set before any test can import rclpy (DESIGN 7).
 confine_to_loopback(new_domain=True)
 os.environ.setdefault("MPLBACKEND", "Agg")

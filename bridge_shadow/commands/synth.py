@@ -87,11 +87,16 @@ def _bag_bytes(path: Any) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate, write the bag and its truth, print a summary."""
+    from pathlib import Path
+
     from bridge_shadow.commands.output import emit_json
+    from bridge_shadow.errors import InputError
     from bridge_shadow.twin.bag import write_twin_bag
     from bridge_shadow.twin.simulate import parse_effects
     from bridge_shadow.twin.truth import truth_path
 
+    if Path(args.out).exists() and not args.overwrite:
+        raise InputError(f"{args.out}: exists already (use --overwrite to replace it)")
     out, truth = write_twin_bag(
         args.out,
         storage=args.storage,
