@@ -1,0 +1,76 @@
+"""Gap diagnosis speed: three days diagnosed at 60 s windows (target: under 60 s on 2 cores).
+
+Makes a 3-day truth-twin record (forces at ``--rate`` Hz, a settlement drift withheld), writes it
+as a bag, then times in the same run:
+
+- baseline ``read``: ``bagio.read_monitoring`` of the bag (what any consumer of the bag pays);
+- ``aggregate``: the 60 s window statistics (mean, spread, max, median) of the record;
+- ``diagnose``: the whole diagnosis in memory (windows, drivers, every candidate with whole-day
+  cross-validation and grids, partial effects, where, posterior before/after);
+- ``bridge-shadow gap --json``: the command end to end (read + diagnose + JSON).
+
+Prints seconds and the ratio to the read baseline. Usage::
+
+    .venv/bin/python benchmarks/gap_speed.py [--rate HZ] [--repeat R]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import tempfile
+import time
+from pathlib import Path
+
+from bridge_shadow.bagio import read_monitoring, write_monitoring
+from bridge_shadow.cli import main as cli_main
+from bridge_shadow.gap.diagnose import diagnose
+from bridge_shadow.gap.windows import aggregate
+from bridge_shadow.twin.simulate import simulate
+
+
+def _best(fn, repeat: int) -> float:
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rate", type=float, default=1.0, help="force rate, Hz (default 1)")
+    parser.add_argument("--days", type=float, default=3.0)
+    parser.add_argument("--repeat", type=int, default=2)
+    args = parser.parse_args()
+    data, _ = simulate(args.days, args.rate, 5, {"settlement_drift": 2e-4})
+    with tempfile.TemporaryDirectory() as tmp:
+        bag = Path(tmp) / "bag"
+        write_monitoring(bag, data)
+        t_read = _best(lambda: read_monitoring(bag), args.repeat)
+        t_agg = _best(lambda: aggregate(data), args.repeat)
+        t_diag = _best(lambda: diagnose(data), args.repeat)
+
+        def cli() -> None:
+            with contextlib.redirect_stdout(io.StringIO()):
+                assert cli_main(["gap", str(bag), "--json"]) == 0
+
+        t_cli = _best(cli, args.repeat)
+    n = data.n_messages
+    print(f"{args.days:g} days, forces at {args.rate:g} Hz: {n} messages, {int(args.days * 1440)} windows")
+    print(f"{'step':<28}{'seconds':>10}{'x read':>10}")
+    for name, t in (
+        ("read (baseline)", t_read),
+        ("aggregate", t_agg),
+        ("diagnose", t_diag),
+        ("bridge-shadow gap --json", t_cli),
+    ):
+        print(f"{name:<28}{t:>10.3f}{t / t_read:>10.2f}")
+    verdict = "OK" if t_cli < 60.0 else "TOO SLOW"
+    print(f"end to end {t_cli:.2f} s against the 60 s target: {verdict}")
+
+
+if __name__ == "__main__":
+    main()
