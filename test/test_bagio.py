@@ -265,3 +265,12 @@ def test_bare_storage_file_is_readable(tmp_path: Path) -> None:
     mcap = next((tmp_path / "bag").glob("*.mcap"))
     shutil.copy(mcap, tmp_path / "bare.mcap")
     _assert_same(data, read_monitoring(tmp_path / "bare.mcap"))
+
+
+def test_undecodable_message_is_a_corrupt_bag(tmp_path: Path) -> None:
+    good = encode_stamped_floats(np.array([T0, T0 + 1]), "frc_01", np.ones((2, 6)))
+    with BagOutputWriter(tmp_path / "bag") as bag:
+        bag.write_raw(FORCE_TOPICS["frc_01"], FORCE_TYPE, T0, good[0])
+        bag.write_raw(FORCE_TOPICS["frc_01"], FORCE_TYPE, T0 + 1, good[1][:30])  # cut inside the floats
+    with pytest.raises(CorruptBagError, match="/bridge/frc_01/force does not decode"):
+        read_monitoring(tmp_path / "bag", required=False)

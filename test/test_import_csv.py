@@ -211,3 +211,17 @@ def test_cli_rejects_foreign_csv(munich_data: Path, tmp_path: Path, capsys) -> N
     err = capsys.readouterr().err
     assert code == 2 and "not a munich-bridge-data" in err and err.count("\n") == 1
     assert not (tmp_path / "b").exists()
+
+
+def test_cli_compress_needs_mcap(munich_data: Path, tmp_path: Path, capsys) -> None:
+    args = ["import-csv", str(munich_data / APR_TEMP), "--out", str(tmp_path / "b"), "--compress"]
+    assert main(args) == 2 and "--storage mcap" in capsys.readouterr().err
+    assert main([*args, "--storage", "mcap", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["time_span"]["all"] == {
+        "start": "2022-04-11T06:36:25.984Z",
+        "end": "2022-04-11T15:49:48.486Z",
+    }
+    assert (
+        len(read_monitoring(tmp_path / "b", required=False).temperature) == summary["rows"]["air_temperature"]
+    )

@@ -69,6 +69,8 @@ def _translated(path: Path, doing: str) -> Iterator[None]:
         yield
     except BagError:
         raise
+    except PermissionError as err:
+        raise BagError(f"{path}: permission denied ({err.filename or path})") from err
     except FileNotFoundError as err:
         if not path.exists():
             raise BagNotFoundError(f"{path}: no such bag") from err

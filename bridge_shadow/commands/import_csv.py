@@ -41,6 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="true recording date of the force files",
     )
     parser.add_argument("--overwrite", action="store_true", help="replace an existing output bag")
+    parser.add_argument("--compress", action="store_true", help="zstd-compressed chunks (mcap storage only)")
     parser.add_argument("--json", action="store_true", help="print one JSON summary object")
 
 
@@ -48,11 +49,14 @@ def run(args: argparse.Namespace) -> int:
     """Import, write the bag, print the summary."""
     from bridge_shadow.bagio import BagExistsError, write_monitoring
     from bridge_shadow.commands.output import emit_json
+    from bridge_shadow.errors import InputError
     from bridge_shadow.importers import import_csv
 
+    if args.compress and args.storage != "mcap":
+        raise InputError("--compress needs --storage mcap")
     data, report = import_csv(args.files, date_hint=args.date)
     try:
-        out = write_monitoring(args.out, data, args.storage, overwrite=args.overwrite)
+        out = write_monitoring(args.out, data, args.storage, overwrite=args.overwrite, compress=args.compress)
     except BagExistsError as err:
         if args.overwrite:
             raise

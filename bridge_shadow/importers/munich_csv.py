@@ -321,6 +321,12 @@ def import_csv(
             "start": _iso(int(s[0])) if len(s) else None,
             "end": _iso(int(s[-1])) if len(s) else None,
         }
+    first = [int(s[0]) for s, _ in series.values() if len(s)]
+    last = [int(s[-1]) for s, _ in series.values() if len(s)]
+    report.span["all"] = {
+        "start": _iso(min(first)) if first else None,
+        "end": _iso(max(last)) if last else None,
+    }
     if not any(report.rows.values()):
         raise InputError("no data rows in " + ", ".join(str(f) for f in files))
     report.utc_offsets_h = sorted(o / 3600 for o in offsets)
