@@ -390,3 +390,25 @@ def test_every_effect_of_the_vocabulary_changes_the_forces() -> None:
             - tb["series"]["drift_n"]
         )
         assert np.abs(d).max() > 100.0, name  # well above the noise of a 60 s mean
+
+
+@pytest.mark.parametrize("style", ["A", "dA"])
+def test_stiffness_sensitivities_from_the_surrogate_file_block(style: str) -> None:
+    d = "d" if style == "dA" else ""
+    block = {
+        "relative_step": 0.05,
+        "bearing_stiffness": {
+            f"{d}A": [[1e5, 0.0], [0.0, 1e5]],
+            f"{d}u0": [2e3, 1e3],
+            f"{d}thermal": {"vertical_gradient": [10.0, 20.0]},
+        },
+    }
+    r, v = -0.5, 7e-4
+    kw = dict(days=0.2, rate_hz=0.1, seed=1, surrogate=SUR, sensitivities_block=block)
+    _, tb = simulate(effects={"settlement_offset": v}, **kw)
+    _, te = simulate(effects={"settlement_offset": v, "bearing_stiffness": r}, **kw)
+    assert te["sensitivities"]["bearing_stiffness"]["source"] == "surrogate sensitivities"
+    assert te["sensitivities"]["connector_stiffness"]["source"] == "closed-form placeholder"
+    diff = te["series"]["clean_force_n"] - tb["series"]["clean_force_n"]
+    expected = r * (np.array([2e3, 1e3]) + 1e5 * np.array([v, -v]))
+    np.testing.assert_allclose(diff, np.broadcast_to(expected, diff.shape), rtol=1e-9)

@@ -4,9 +4,10 @@
 placeholder, and ``stiffness_sensitivities`` the change of that surrogate per unit relative
 stiffness change ``r`` (``k -> (1 + r) k``) of the central bearings and of the girder-slab
 connectors: from the surrogate file's ``sensitivities`` block when the FE model wrote one
-(``{bearing_stiffness: {dA, du0, dthermal}, connector_stiffness: {...}}``), else a closed-form
-placeholder with the same numbers as the gap diagnosis' stand-in (``gap.candidates``), so that a
-stiffness effect injected here has the signature the diagnosis looks for.
+(``{bearing_stiffness: {A, u0, thermal}, connector_stiffness: {...}}``, each the change per
+unit ``r``), else a closed-form placeholder with the same numbers as the gap diagnosis' stand-in
+(``gap.candidates``), so that a stiffness effect injected here has the signature the diagnosis
+looks for.
 """
 
 from __future__ import annotations
@@ -112,16 +113,20 @@ def stiffness_sensitivities(
     out = _placeholder(surrogate)
     for name in out:
         entry = (block or {}).get(name)
-        if not isinstance(entry, dict) or "du0" not in entry:
+        if not isinstance(entry, dict):
+            continue
+        # ``bridge-shadow surrogate`` writes {A, u0, thermal}; {dA, du0, dthermal} is accepted too.
+        keys = ("dA", "du0", "dthermal") if "du0" in entry else ("A", "u0", "thermal")
+        if keys[1] not in entry:
             continue
         try:
             out[name] = StiffnessSensitivity(
-                np.asarray(entry.get("dA", np.zeros((2, 2))), float).reshape(2, 2),
-                np.asarray(entry["du0"], float).reshape(2),
-                {k: np.asarray(v, float).reshape(2) for k, v in (entry.get("dthermal") or {}).items()},
+                np.asarray(entry.get(keys[0], np.zeros((2, 2))), float).reshape(2, 2),
+                np.asarray(entry[keys[1]], float).reshape(2),
+                {k: np.asarray(v, float).reshape(2) for k, v in (entry.get(keys[2]) or {}).items()},
                 "surrogate sensitivities",
             )
-        except (TypeError, ValueError) as err:
+        except (TypeError, ValueError, AttributeError) as err:
             raise ConfigError(f"surrogate sensitivities for {name} are malformed ({err})") from err
     return out
 
