@@ -19,6 +19,7 @@ import numpy as np
 import yaml
 
 from bridge_shadow.effects import EFFECTS
+from bridge_shadow.errors import ConfigError
 from bridge_shadow.gap.drivers import Drivers
 from bridge_shadow.model.surrogate_file import Surrogate
 from bridge_shadow.paths import config_file
@@ -82,8 +83,8 @@ def stiffness_sensitivities(s: Surrogate, path: str | Path | None = None) -> dic
     """Stiffness sensitivities from the surrogate's ``sensitivities`` block, else the placeholder.
 
     The block (written by ``bridge-shadow surrogate``) maps ``bearing_stiffness`` and
-    ``connector_stiffness`` to ``{dA, du0, dthermal}``. It is read from the ``Surrogate`` attribute
-    ``sensitivities`` when present, or else from the YAML file.
+    ``connector_stiffness`` to ``{dA, du0, dthermal}`` (or ``{A, u0, thermal}``). It is read from
+    the ``Surrogate`` attribute ``sensitivities`` when present, or else from the YAML file.
     """
     block: Any = getattr(s, "sensitivities", None)
     if block is None:
@@ -97,13 +98,23 @@ def stiffness_sensitivities(s: Surrogate, path: str | Path | None = None) -> dic
     if isinstance(block, dict):
         for name in out:
             b = block.get(name)
-            if isinstance(b, dict) and "du0" in b:
+            if not isinstance(b, dict):
+                continue
+            # Either spelling: {dA, du0, dthermal} or {A, u0, thermal} (per unit r).
+            du0 = b.get("du0", b.get("u0"))
+            if du0 is None:
+                continue
+            da = b.get("dA", b.get("A", np.zeros((2, 2))))
+            dth = b.get("dthermal", b.get("thermal")) or {}
+            try:
                 out[name] = Sensitivity(
-                    np.asarray(b.get("dA", np.zeros((2, 2))), float).reshape(2, 2),
-                    np.asarray(b["du0"], float).reshape(2),
-                    {k: np.asarray(v, float).reshape(2) for k, v in (b.get("dthermal") or {}).items()},
+                    np.asarray(da, float).reshape(2, 2),
+                    np.asarray(du0, float).reshape(2),
+                    {k: np.asarray(v, float).reshape(2) for k, v in dth.items()},
                     "surrogate sensitivities",
                 )
+            except (TypeError, ValueError) as err:
+                raise ConfigError(f"surrogate sensitivities for {name} are malformed ({err})") from err
     return out
 
 
