@@ -29,6 +29,8 @@ def test_every_toleranced_case_passes(cases: dict[str, Case]) -> None:
         ("macneal_rectangular_inplane", 0.1081, 0.02),
         ("macneal_rectangular_outofplane", 0.4321, 0.02),
         ("ss_plate_8x8", 0.0040624, 0.01),
+        ("twisted_beam_inplane", 0.005424, 0.02),  # warped quads
+        ("twisted_beam_outofplane", 0.001754, 0.02),
         ("two_span_beam_uniform_load", 5 * 25e3 * 15.0 / 4, 0.005),
     ],
 )

@@ -156,6 +156,31 @@ def macneal_cantilever(shape: str, direction: str, tol: float | None) -> Case:
     return _case(f"macneal_{shape}_{direction}", w, ref, tol, "6x1", solver.n_free, tm.seconds)
 
 
+def twisted_beam(direction: str, tol: float | None = None) -> Case:
+    """MacNeal-Harder twisted beam (90 degree twist, 12 x 2 warped quads): tip displacement along the load.
+
+    Length 12, width 1.1, thickness 0.32, E = 29e6, nu = 0.22; the width turns from y at the root to
+    z at the tip. Unit tip load in the plane of the tip, along z (``inplane``, reference 0.005424),
+    or normal to it, along y (``outofplane``, 0.001754); both meshes' quads are warped.
+    """
+    with _Timer() as tm:
+        st, conn = grid(12, 2)
+        phi = st[:, 0] * np.pi / 2
+        v = (st[:, 1] - 0.5) * 1.1
+        nodes = np.column_stack([st[:, 0] * 12.0, v * np.cos(phi), v * np.sin(phi)])
+        shell = ShellSet(conn, 0.32, 29.0e6, 0.22, tag="twisted")
+        root = np.flatnonzero(st[:, 0] == 0.0)
+        tip = np.flatnonzero(st[:, 0] == 1.0)  # ordered across the width
+        solver = LinearStaticSolver(Model(nodes, shells=[shell], supports=[Support("root", root, range(6))]))
+        d = 2 if direction == "inplane" else 1
+        res = solver.solve(
+            LoadCase("tip", nodal=[(int(i), d, f) for i, f in zip(tip, (0.25, 0.5, 0.25), strict=True)])
+        )
+        w = res.u[tip[1], d]
+    ref = 0.005424 if direction == "inplane" else 0.001754
+    return _case(f"twisted_beam_{direction}", w, ref, tol, "12x2 warped", solver.n_free, tm.seconds)
+
+
 def ss_plate(n: int, tol: float | None = 0.01) -> Case:
     """Simply supported square plate (hard support), uniform pressure, quarter model ``n x n``, centre."""
     with _Timer() as tm:
@@ -416,6 +441,8 @@ def suite(quick: bool = False) -> list[Callable[[], Case | list[Case]]]:
         for direction in ("inplane", "outofplane"):
             tol = 0.02 if shape == "rectangular" else None
             cases.append(lambda s=shape, d=direction, t=tol: macneal_cantilever(s, d, t))
+    cases.append(lambda: twisted_beam("inplane", tol=0.02))
+    cases.append(lambda: twisted_beam("outofplane", tol=0.02))
     cases.append(lambda: ss_plate(8))
     cases.append(lambda: patch_test("membrane"))
     cases.append(lambda: patch_test("bending"))
