@@ -412,3 +412,19 @@ def test_stiffness_sensitivities_from_the_surrogate_file_block(style: str) -> No
     diff = te["series"]["clean_force_n"] - tb["series"]["clean_force_n"]
     expected = r * (np.array([2e3, 1e3]) + 1e5 * np.array([v, -v]))
     np.testing.assert_allclose(diff, np.broadcast_to(expected, diff.shape), rtol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("start", "expected_s"),
+    [
+        ("2022-03-14T00:00", 1_647_212_400.0),  # naive: Europe/Berlin (CET)
+        ("2022-04-11T08:36:00.25", 1_649_658_960.25),  # CEST: 06:36 UTC
+        ("2022-03-14T00:00:00.5+00:00", 1_647_216_000.5),
+    ],
+)
+def test_start_stamp(start: str, expected_s: float) -> None:
+    data, truth = simulate(days=0.01, rate_hz=0.1, seed=0, start=start, surrogate=SUR)
+    assert truth["start_ns"] == round(expected_s * 1e6) * 1000
+    assert data.forces["frc_01"].stamp_ns[0] == truth["start_ns"]  # no dropout in 0.01 day
+    ns = 1_647_216_000_123_456_789
+    assert simulate(days=0.01, rate_hz=0.1, seed=0, start=ns, surrogate=SUR)[1]["start_ns"] == ns

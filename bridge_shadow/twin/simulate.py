@@ -109,7 +109,8 @@ def _start_ns(start: dt.datetime | str | int | None) -> int:
             raise InputError(f"start {start!r} is not an ISO 8601 date/time") from None
     if start.tzinfo is None:
         start = start.replace(tzinfo=DEFAULT_START.tzinfo)
-    return round(start.timestamp()) * NS + start.microsecond * 1000
+    delta = start - dt.datetime(1970, 1, 1, tzinfo=dt.timezone.utc)  # exact integer arithmetic
+    return (delta.days * 86_400 + delta.seconds) * NS + delta.microseconds * 1000
 
 
 def _settlement_path(
