@@ -272,11 +272,11 @@ class LinearStaticSolver:
         u = cf @ q + cp @ up
         resid = self.K @ u - f
         rp = cp.T @ resid
-        results = [self._result(c, u[:, i], rp[:, i], seq[i]) for i, c in enumerate(seq)]
+        results = [self._result(c, u[:, i], rp[:, i]) for i, c in enumerate(seq)]
         self.timings["solve"] = time.perf_counter() - t0
         return results[0] if single else results
 
-    def _result(self, case: LoadCase, u: np.ndarray, rp: np.ndarray, _c: LoadCase) -> Result:
+    def _result(self, case: LoadCase, u: np.ndarray, rp: np.ndarray) -> Result:
         reactions: dict[str, np.ndarray] = {}
         dofs: dict[str, tuple[str, ...]] = {}
         for s in self.model.supports:
