@@ -141,14 +141,15 @@ def test_rejected_rows_cp1252_crlf_trailing_comma(tmp_path: Path) -> None:
         "2022-03-07 16:35:03.000,5.6\r\n"
         "31.02.2022 16:35:04.000,5.6\r\n"
         "07.03.2022 16:35:05.000,5.7,1,2\r\n"
+        "07.03.2022 16:35:06.000,NaN\r\n"
         "\r\n"
     )
     path = tmp_path / "t.csv"
     path.write_bytes(text.encode("cp1252"))
     data, report = import_csv([path])
-    np.testing.assert_array_equal(data.temperature.temp_c, [5.5, 5.5])
+    np.testing.assert_array_equal(data.temperature.temp_c, [5.5, 5.5, np.nan])  # a NaN reading is kept
     assert data.temperature.stamp_ns[0] == _ns("2022-03-07T15:35:00")
-    assert report.repeats["air_temperature"] == 1
+    assert report.repeats["air_temperature"] == 1 and report.non_finite["air_temperature"] == 1
     reasons = {(r["line"], r["reason"]) for r in report.rejected}
     assert reasons == {
         (4, "unreadable value of air_temperature"),

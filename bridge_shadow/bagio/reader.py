@@ -295,7 +295,8 @@ def read_monitoring(path: str | Path, *, required: bool | Collection[str] = True
     raw = read_raw_topics(path, INPUT_TOPICS)
     missing = sorted(must - set(raw))
     if missing:
-        raise MissingTopicError(f"{path}: missing topic(s) {', '.join(missing)}")
+        has = ", ".join(sorted(raw)) or "none of the contract topics"
+        raise MissingTopicError(f"{path}: missing topic(s) {', '.join(missing)} (bag has {has})")
 
     def decode(topic: str, msgtype: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         log_ns, raws = raw.get(topic, (np.empty(0, np.int64), []))

@@ -71,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
         lines.append(
             f"  {name:16s} {rows:8d} rows  {span['start'] or '-'} .. {span['end'] or '-'}"
             f"  repeats {report.repeats[name]}  duplicates dropped {report.duplicates_dropped[name]}"
+            f"  non-finite {report.non_finite[name]}"
         )
     for fix in report.date_fixes:
         lines.append(f"  date fixed {fix['written']} -> {fix['used']} ({fix['evidence']}): {fix['file']}")

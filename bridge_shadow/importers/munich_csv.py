@@ -41,7 +41,8 @@ class Parsed:
     Attributes:
         source: where it came from.
         local_ns: (n,) int64 naive local stamps (ns since 1970-01-01 local).
-        values: (n, k) float64 readings as written (kN or C); NaN where a cell was rejected.
+        values: (n, k) float64 readings as written (kN or C); NaN/inf cells are kept as read.
+        ok: (n, k) bool, False where a cell did not parse (that sample is rejected).
         columns: channel name of each value column.
         written_dates: distinct calendar dates as written in the file.
         rejected: (line number, reason) of each rejected row or cell.
@@ -51,6 +52,7 @@ class Parsed:
     source: CsvSource
     local_ns: np.ndarray
     values: np.ndarray
+    ok: np.ndarray
     columns: list[str]
     written_dates: list[date]
     rejected: list[tuple[int, str]] = field(default_factory=list)
@@ -65,6 +67,7 @@ class ImportReport:
     span: dict[str, dict[str, str | None]] = field(default_factory=dict)
     repeats: dict[str, int] = field(default_factory=dict)
     duplicates_dropped: dict[str, int] = field(default_factory=dict)
+    non_finite: dict[str, int] = field(default_factory=dict)
     rejected: list[dict[str, Any]] = field(default_factory=list)
     date_fixes: list[dict[str, str]] = field(default_factory=list)
     utc_offsets_h: list[float] = field(default_factory=list)
@@ -79,6 +82,7 @@ class ImportReport:
             "time_span": self.span,
             "repeats": self.repeats,
             "duplicates_dropped": self.duplicates_dropped,
+            "non_finite": self.non_finite,
             "rejected": {
                 "count": len(self.rejected),
                 "by_reason": dict(reasons),
@@ -161,15 +165,16 @@ def parse_source(source: CsvSource) -> Parsed:
         cells = [c for c, k in zip(cells, keep.tolist(), strict=True) if k]
         line_no = [n for n, k in zip(line_no, keep.tolist(), strict=True) if k]
     values = np.empty((len(cells), len(columns)), dtype=np.float64)
+    ok = np.ones(values.shape, dtype=bool)
     for j, name in enumerate(columns):
         col, bad = _to_float([c[j] for c in cells])
         for i in np.flatnonzero(bad).tolist():
             rejected.append((line_no[i], f"unreadable value of {name}"))
-        col[bad] = np.nan
+        ok[:, j] = ~bad
         values[:, j] = col
     written = sorted(date(*t) for t in dates if _valid_date(*t))
     rejected.sort()
-    return Parsed(source, local, values, columns, written, rejected)
+    return Parsed(source, local, values, ok, columns, written, rejected)
 
 
 def _valid_date(y: int, m: int, d: int) -> bool:
@@ -297,7 +302,7 @@ def import_csv(
         report.dst_ambiguous += odd
         scale = _KN_TO_N if p.source.kind == "force" else 1.0
         for j, name in enumerate(p.columns):
-            ok = ~np.isnan(p.values[:, j])
+            ok = p.ok[:, j]
             stamps[name].append(utc[ok])
             values[name].append(p.values[ok, j] * scale)
         report.rejected += [{"file": p.source.label, "line": n, "reason": r} for n, r in p.rejected]
@@ -316,6 +321,7 @@ def import_csv(
         series[name] = (s, v)
         report.rows[name] = len(s)
         report.repeats[name] = _repeats(v)
+        report.non_finite[name] = int(np.count_nonzero(~np.isfinite(v)))
         report.duplicates_dropped[name] = dropped
         report.span[name] = {
             "start": _iso(int(s[0])) if len(s) else None,
