@@ -264,3 +264,24 @@ def test_vtu_round_trip(tmp_path) -> None:
     mesh = meshio.read(path)
     np.testing.assert_allclose(mesh.points, solver.model.nodes)
     np.testing.assert_allclose(mesh.point_data["dead:displacement"], res.u[:, :3])
+
+
+def test_shell_girder_linear_temperature_is_stress_free_bending() -> None:
+    """A simply supported shell I-girder with T linear over the depth bends freely: w = kappa L^2 / 8."""
+    from bridge_shadow.fe.verify import _i_girder
+
+    model, _, h, z_nodes = _i_girder(10)
+    keep = [s for s in model.supports if s.name not in ("mid", "fork_mid")]
+    solver = LinearStaticSolver(Model(model.nodes, shells=model.shells, supports=keep))
+    dT, alpha, span = 10.0, 1.2e-5, 30.0
+    # T linear over the depth: nodal values in the web, and across each flange's thickness too
+    tf = 0.036
+    grad = [
+        Thermal(tag, uniform=dT * (z_nodes[tag] / h - 0.5), gradient=0.0 if tag == "web" else dT * tf / h)
+        for tag in ("web", "top", "bottom")
+    ]
+    res = solver.solve(LoadCase("gradient", thermal=grad))
+    mid = node_at(model.nodes, (span / 2, 0.0, 0.0))
+    assert res.u[mid, 2] == pytest.approx(alpha * dT / h * span**2 / 8, rel=1e-6)
+    restrained = 2.1e11 * (0.019 + 2 * 0.3 * tf) * alpha * dT  # N, force a full restraint would take
+    assert abs(res.reaction("west", "uz")) < 1e-9 * restrained

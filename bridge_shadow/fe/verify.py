@@ -405,7 +405,12 @@ def two_span_cases(n_beam: int, n_shell: int) -> Iterator[Case]:
     with _Timer() as tm:
         model, ei, h, zn = _i_girder(n_shell)
         solver = LinearStaticSolver(model)
-        grad = [Thermal(tag, uniform=dT * (zn[tag] / h - 0.5)) for tag in ("web", "top", "bottom")]
+        # T linear over the depth: nodal values in the web, and across each flange's thickness too
+        tf = 0.036
+        grad = [
+            Thermal(tag, uniform=dT * (zn[tag] / h - 0.5), gradient=0.0 if tag == "web" else dT * tf / h)
+            for tag in ("web", "top", "bottom")
+        ]
         bf = 0.3
         res = solver.solve(
             [
