@@ -1,19 +1,98 @@
-"""``bridge-shadow surrogate``: not implemented yet (placeholder until its issue lands)."""
+"""``bridge-shadow surrogate``: solve the bridge FE model and write ``config/surrogate.yaml``."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from bridge_shadow.errors import BridgeShadowError
+HELP = "run the bridge FE model and write the surrogate u = A x + u0 (+ thermal, sensitivities)"
+DESCRIPTION = """\
+Builds the parametric FE model of the test bridge from config/bridge.yaml and computes:
+  A        2x2 N/m, reaction change of [FRC-01 south, FRC-02 north] per metre of upward
+           displacement of each central bearing (unit-settlement solves, checked against the
+           Schur complement to 1e-8 relative)
+  u0       [south, north] N, reactions under self-weight + superimposed load, zero settlement
+  thermal  N/K for uniform, vertical_gradient (top warmer), transverse_gradient (south warmer)
+  sensitivities  change of A, u0, thermal per unit relative change of bearing_stiffness and
+           connector_stiffness (central difference, +-10 %)
+and writes them with provenance (model sha256, overrides, mesh, DOFs, solver, seconds).
 
-HELP = "(not implemented yet)"
+examples:
+  bridge-shadow surrogate                          # default mesh -> config/surrogate.yaml
+  bridge-shadow surrogate --mesh coarse --out /tmp/s.yaml --json
+  bridge-shadow surrogate --set bearing_stiffness=1e9 --set composite_action=0.5 --out /tmp/s.yaml
+  bridge-shadow surrogate --mesh coarse --vtk /tmp/vtk --png docs/model.png --out /tmp/s.yaml
+"""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Accept anything until the real subcommand lands."""
-    parser.add_argument("rest", nargs=argparse.REMAINDER)
+    """Declare the options."""
+    parser.add_argument("--mesh", default="default", metavar="LEVEL", help="coarse, default or fine")
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a named parameter of bridge.yaml (repeatable), SI units",
+    )
+    parser.add_argument(
+        "--model", type=Path, default=None, help="bridge model YAML (default config/bridge.yaml)"
+    )
+    parser.add_argument("--out", type=Path, default=None, help="output YAML (default config/surrogate.yaml)")
+    parser.add_argument("--vtk", type=Path, default=None, metavar="DIR", help="write mesh + deflected shapes")
+    parser.add_argument("--png", type=Path, default=None, help="write a 3D view of the model")
+    parser.add_argument("--no-sensitivities", action="store_true", help="skip the +-10 %% stiffness solves")
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def _summary(doc: dict) -> str:
+    a, u0, th, prov = doc["A"], doc["u0"], doc["thermal"], doc["provenance"]
+    lines = [
+        f"mesh {prov['mesh']}: {prov['dofs']} DOFs, {prov['seconds']:.1f} s, solver {prov['solver']}",
+        f"A [kN/mm]     [[{a[0][0] / 1e6:8.3f} {a[0][1] / 1e6:8.3f}]",
+        f"               [{a[1][0] / 1e6:8.3f} {a[1][1] / 1e6:8.3f}]]"
+        f"   Schur check {prov['schur_check']['max_rel_diff']:.1e}",
+        f"u0 [kN]       {u0[0] / 1e3:8.2f} {u0[1] / 1e3:8.2f}   (total dead load "
+        f"{prov['total_dead_load_N'] / 1e3:.1f} kN)",
+    ]
+    lines += [f"{k:<13} {v[0] / 1e3:8.3f} {v[1] / 1e3:8.3f}  kN/K" for k, v in th.items()]
+    lower = [sum(row) * -0.01 / 1e3 for row in a]
+    lines.append(f"1 cm lowering of both central bearings: dR = {lower[0]:.2f} / {lower[1]:.2f} kN")
+    return "\n".join(lines)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Fail with a clear message."""
-    raise BridgeShadowError("'surrogate' is not implemented yet")
+    """Compute and write the surrogate."""
+    import sys
+
+    from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.model.config import load_bridge_config, parse_overrides
+    from bridge_shadow.model.surrogate import compute_surrogate, write_surrogate
+    from bridge_shadow.paths import config_file
+
+    cfg = load_bridge_config(args.model, parse_overrides(args.overrides))
+    cfg.mesh(args.mesh)  # fail early on an unknown level
+    run_ = compute_surrogate(
+        cfg, args.mesh, sensitivities=not args.no_sensitivities, report=lambda f, s: progress(f, "surrogate")
+    )
+    out = args.out if args.out is not None else config_file("surrogate.yaml")
+    write_surrogate(run_, out)
+    doc = run_.document()
+    doc["provenance"]["written_to"] = str(out)
+    if args.vtk is not None:
+        from bridge_shadow.fe.vtk import write_vtu
+
+        args.vtk.mkdir(parents=True, exist_ok=True)
+        vtu = write_vtu(args.vtk / f"bridge_{args.mesh}.vtu", run_.base.model, run_.base.results)
+        doc["provenance"]["vtk"] = str(vtu)
+    if args.png is not None:
+        from bridge_shadow.model.plot import plot_model
+
+        doc["provenance"]["png"] = str(plot_model(run_.base.mesh, args.png, run_.base))
+    if args.json:
+        emit_json(doc)
+    else:
+        print(_summary(doc))
+        print(f"wrote {out}", file=sys.stderr)
+    return 0

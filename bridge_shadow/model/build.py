@@ -1,10 +1,13 @@
 """Bridge mesh + configuration -> FE model (``bridge_shadow.fe``) and the surrogate's load cases.
 
-Bearings: the end bearings are elastic vertical supports that slide in x and y. Each central bearing
-is a spring (``bearing_stiffness`` vertically; ``fixed_bearing_stiffness`` in x at both and in y at
-FRC-01 only) from the bottom flange nodes to a ground node; the ground node is the rigid support
-whose vertical displacement is the settlement ``x`` (positive up) and whose reaction is the load
-cell force (positive in compression). So the deck expands freely from the central support.
+Bearings: every bearing is three springs from the bottom flange (both tips and the web junction,
+weights 1/6, 2/3, 1/6) to its own ground node, which is a rigid support. So a bearing is free to
+rotate about y (girder bending) but restrains the girder's twist like a uniform bearing pressure
+over the flange width (``k b^2 / 12``). Vertically the springs carry ``bearing_stiffness`` (central) or
+``end_bearing_stiffness`` (ends); horizontally ``fixed_bearing_stiffness`` holds x at both central
+bearings and y at FRC-01 only; the end bearings slide. So the deck expands freely from the central
+support. The ground point's vertical displacement is the settlement ``x`` (positive up) and its
+reaction the load cell force (positive in compression).
 
 Thermal load cases (1 K each):
 
@@ -23,7 +26,7 @@ import numpy as np
 
 from bridge_shadow.fe import BeamSet, LoadCase, Model, RigidLinks, ShellSet, SpringSet, Support, Thermal
 from bridge_shadow.model.config import BridgeConfig
-from bridge_shadow.model.mesh import CENTRAL_BEARINGS, BridgeMesh
+from bridge_shadow.model.mesh import CENTRAL_BEARINGS, END_BEARINGS, BridgeMesh
 
 __all__ = ["THERMAL_CASE_NAMES", "build_model", "dead_load_case", "settlement_cases", "thermal_cases"]
 
@@ -85,21 +88,30 @@ def build_model(cfg: BridgeConfig, mesh: BridgeMesh, *, free_central_uz: bool = 
         )
     springs = [SpringSet(s.node_i, s.node_j, s.k, tag=t) for t, s in mesh.springs.items()]
     supports = []
-    for name, nodes in mesh.end_bearings.items():
-        supports.append(Support(name, nodes, dofs=(2,), stiffness=par["end_bearing_stiffness"] / len(nodes)))
-    kf = par["fixed_bearing_stiffness"]
-    for gi, name in enumerate(CENTRAL_BEARINGS):
-        nodes, ground = mesh.central[name]
-        k = np.array([kf, kf if gi == 0 else 0.0, par["bearing_stiffness"], 0.0, 0.0, 0.0]) / len(nodes)
-        springs.append(SpringSet(nodes, np.full(len(nodes), ground), k, tag=f"bearing_{name}"))
-        dofs = (0, 1, 3, 4, 5) if free_central_uz else (0, 1, 2, 3, 4, 5)
-        supports.append(Support(name, [ground], dofs=dofs))
+    kf, kb, ke = par["fixed_bearing_stiffness"], par["bearing_stiffness"], par["end_bearing_stiffness"]
+    per_bearing = {
+        CENTRAL_BEARINGS[0]: (kf, kf, kb),  # fixed point: x and y held
+        CENTRAL_BEARINGS[1]: (kf, 0.0, kb),  # x held, slides transversely
+        **dict.fromkeys(END_BEARINGS, (0.0, 0.0, ke)),  # slide in x and y
+    }
+    for name, bearing in mesh.bearings.items():
+        k = np.array([*per_bearing[name], 0.0, 0.0, 0.0])
+        springs.append(
+            SpringSet(
+                bearing.nodes,
+                np.full(len(bearing.nodes), bearing.ground),
+                bearing.weights[:, None] * k[None, :],
+                tag=f"bearing_{name}",
+            )
+        )
+        free = free_central_uz and name in CENTRAL_BEARINGS
+        supports.append(Support(name, [bearing.ground], dofs=(0, 1, 3, 4, 5) if free else tuple(range(6))))
     links = [RigidLinks(mesh.links[0], mesh.links[1], tag="brace_ends")] if len(mesh.links[0]) else []
     return Model(mesh.nodes, shells=shells, beams=beams, springs=springs, links=links, supports=supports)
 
 
 def settlement_cases() -> list[LoadCase]:
-    """Unit (1 m, upward) displacement of each central bearing's ground point, the other at rest."""
+    """Return unit (1 m, upward) displacements of each central bearing's ground point, the other at rest."""
     unit = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
     return [LoadCase(name=f"settle {n}", prescribed={n: unit}) for n in CENTRAL_BEARINGS]
 
@@ -130,7 +142,7 @@ def _beam_axes(nodes: np.ndarray, conn: np.ndarray, orientation: tuple[float, ..
 
 
 def thermal_cases(mesh: BridgeMesh) -> list[LoadCase]:
-    """The three 1 K thermal load cases (see the module docstring), in ``THERMAL_CASE_NAMES`` order."""
+    """Return the three 1 K thermal load cases (see the module docstring), in ``THERMAL_CASE_NAMES`` order."""
     nodes = mesh.nodes
     h, zc = mesh.info["girder_depth"], mesh.info["z_girder_mid"]
     uniform, vertical, transverse = [], [], []

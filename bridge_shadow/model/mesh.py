@@ -11,8 +11,8 @@ slab segments and connectors stay separate where springs join them):
   to the slab mid-plane (tied to the slab by "dowel" springs) and a beam for its flange, bolted to
   the girder's top flange by short vertical beams ("joints");
 - HEB280 / HEB120 cross braces as beams between the webs at mid-height;
-- bearings: the flange nodes over each bearing (ends: elastic supports; central: springs to a
-  ground node that carries the load cell reaction).
+- bearings: springs from the flange nodes over each bearing to a ground node (the support that
+  carries the reaction; for FRC-01/02 the load cell force).
 """
 
 from __future__ import annotations
@@ -24,10 +24,21 @@ import numpy as np
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.model.config import BridgeConfig
 
-__all__ = ["CENTRAL_BEARINGS", "BeamPart", "BridgeMesh", "ShellPart", "SpringPart", "build_mesh"]
+__all__ = [
+    "CENTRAL_BEARINGS",
+    "END_BEARINGS",
+    "BeamPart",
+    "Bearing",
+    "BridgeMesh",
+    "ShellPart",
+    "SpringPart",
+    "build_mesh",
+]
 
 #: Central bearing names [south, north] (load cells FRC-01 and FRC-02).
 CENTRAL_BEARINGS: tuple[str, str] = ("FRC-01", "FRC-02")
+#: End bearing names: west south, west north, east south, east north.
+END_BEARINGS: tuple[str, str, str, str] = ("end_W_S", "end_W_N", "end_E_S", "end_E_N")
 
 _STEEL_KEY, _SLAB_KEY, _CONN_KEY, _BRACE_KEY, _GROUND_KEY = 0, 1_000, 2_000, 5_000, 9_000
 
@@ -67,15 +78,31 @@ class SpringPart:
 
 
 @dataclass
+class Bearing:
+    """A bearing: springs from bottom-flange nodes over it to its own ground node.
+
+    Attributes:
+        nodes: (3,) flange nodes: south tip, web junction, north tip.
+        weights: (3,) fractions of the bearing stiffness carried by each spring (sum 1).
+        ground: the ground node, at the web junction (a rigid support in the FE model).
+
+    """
+
+    nodes: np.ndarray
+    weights: np.ndarray
+    ground: int
+
+
+@dataclass
 class BridgeMesh:
     """Nodes, element parts and bearings of the bridge.
 
     Attributes:
         nodes: (n_nodes, 3) m.
         shells / beams / springs: tag -> part.
-        end_bearings: name -> flange nodes over that end bearing (elastic supports).
+        bearings: name -> :class:`Bearing`, the two central ones (``CENTRAL_BEARINGS``) and the four
+            end bearings (``END_BEARINGS``).
         links: (masters, slaves) rigid links of the brace ends to their end-plate patches.
-        central: name -> (flange nodes, ground node) of FRC-01 / FRC-02.
         info: geometry summary (spans, z levels, ...), SI.
 
     """
@@ -84,13 +111,12 @@ class BridgeMesh:
     shells: dict[str, ShellPart] = field(default_factory=dict)
     beams: dict[str, BeamPart] = field(default_factory=dict)
     springs: dict[str, SpringPart] = field(default_factory=dict)
-    end_bearings: dict[str, np.ndarray] = field(default_factory=dict)
-    central: dict[str, tuple[np.ndarray, int]] = field(default_factory=dict)
+    bearings: dict[str, Bearing] = field(default_factory=dict)
     links: tuple[np.ndarray, np.ndarray] = (np.zeros(0, np.int64), np.zeros(0, np.int64))
     info: dict[str, float] = field(default_factory=dict)
 
     def element_counts(self) -> dict[str, int]:
-        """Number of elements per tag (shells, beams, springs)."""
+        """Return the number of elements per tag (shells, beams, springs)."""
         out = {t: len(p.conn) for t, p in self.shells.items()}
         out.update({t: len(p.conn) for t, p in self.beams.items()})
         out.update({t: len(p.node_i) for t, p in self.springs.items()})
@@ -272,11 +298,18 @@ def build_mesh(cfg: BridgeConfig, level: str = "default") -> BridgeMesh:
             brace_ends += [(int(line[0]), x, y_g[0]), (int(line[-1]), x, y_g[1])]
         braces[tag] = np.concatenate(conns) if conns else np.zeros((0, 2), np.int64)
 
-    # ground nodes of the central bearings, coincident with the bottom flange centre
-    i_mid = sup_i[1]
-    ground = [
-        int(pts.add(np.array([[xs[i_mid], yg, z_bot]]), _GROUND_KEY + gi)[0]) for gi, yg in enumerate(y_g)
-    ]
+    # one ground node per bearing, coincident with the bottom flange centre over it
+    bearing_at = {
+        name: (sup_i[k], gi)
+        for k, (w_e, w_n) in enumerate(
+            ((END_BEARINGS[0], END_BEARINGS[1]), CENTRAL_BEARINGS, END_BEARINGS[2:])
+        )
+        for gi, name in enumerate((w_e, w_n))
+    }
+    ground = {
+        name: int(pts.add(np.array([[xs[i], y_g[gi], z_bot]]), _GROUND_KEY + n)[0])
+        for n, (name, (i, gi)) in enumerate(bearing_at.items())
+    }
 
     nodes, keys, remap = pts.merge()
     masters, slaves = [], []
@@ -372,13 +405,13 @@ def build_mesh(cfg: BridgeConfig, level: str = "default") -> BridgeMesh:
             np.concatenate(si), np.concatenate(sj), np.tile(ty[:, None] * per_m, (n_seg - 1, 1))
         )
 
-    # bearings
-    ends = {"end_W": sup_i[0], "end_E": sup_i[2]}
-    for name, i in ends.items():
-        for gi, label in enumerate(("S", "N")):
-            mesh.end_bearings[f"{name}_{label}"] = np.unique(remap[bot_idx[gi][i]])
-    for gi, name in enumerate(CENTRAL_BEARINGS):
-        mesh.central[name] = (np.unique(remap[bot_idx[gi][i_mid]]), int(remap[ground[gi]]))
+    # bearings: springs at the flange centre and both tips with Simpson weights (1/6, 2/3, 1/6):
+    # vertical stiffness k, twist stiffness k b^2 / 12 (a uniform bearing pressure over the flange
+    # width b), the same on every mesh level
+    cols = [0, n_hf, 2 * n_hf]
+    for name, (i, gi) in bearing_at.items():
+        nodes3 = remap[bot_idx[gi][i, cols]]
+        mesh.bearings[name] = Bearing(nodes3, np.array([1.0, 4.0, 1.0]) / 6.0, int(remap[ground[name]]))
 
     mesh.info = {
         "length": length,

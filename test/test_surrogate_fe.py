@@ -1,0 +1,176 @@
+"""FE surrogate of the bridge (coarse mesh): A, u0, thermal, sensitivities against physics and data."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from bridge_shadow.cli import main
+from bridge_shadow.model.config import load_bridge_config
+from bridge_shadow.model.surrogate import (
+    SENSITIVITY_PARAMETERS,
+    closed_forms,
+    compute_surrogate,
+    load_sensitivities,
+    solve_bridge,
+    write_surrogate,
+)
+from bridge_shadow.model.surrogate_file import load_surrogate
+
+MEASURED_TOTAL_N = 470e3  # DESIGN 3: ~260 + 221 kN (2022-03-07), ~234 + 234 kN (2022-04-11)
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return load_bridge_config()
+
+
+@pytest.fixture(scope="module")
+def coarse_run(cfg):
+    return compute_surrogate(cfg, "coarse", sensitivities=True)
+
+
+@pytest.fixture(scope="module")
+def coarse(coarse_run):
+    return coarse_run.surrogate
+
+
+def test_A_symmetric_positive_definite(coarse):
+    a = coarse.A
+    np.testing.assert_allclose(a, a.T, rtol=1e-8)
+    assert np.all(np.linalg.eigvalsh(0.5 * (a + a.T)) > 0)
+    assert a[0, 0] > 0 and a[1, 1] > 0
+    assert a[0, 1] < 0  # raising FRC-01 unloads FRC-02 (the deck twists about the south bearing)
+
+
+def test_A_equals_schur_complement(coarse_run):
+    rel = coarse_run.surrogate.provenance["schur_check"]["max_rel_diff"]
+    assert rel < 1e-8
+    np.testing.assert_allclose(coarse_run.schur, coarse_run.surrogate.A, rtol=1e-8)
+
+
+def test_u0_total_matches_measured_central_reaction(coarse):
+    assert coarse.u0.sum() == pytest.approx(MEASURED_TOTAL_N, rel=0.10)
+    # symmetric structure and load: both bearings carry the same (the y restraint is horizontal)
+    assert coarse.u0[0] == pytest.approx(coarse.u0[1], rel=1e-3)
+
+
+def test_u0_is_the_two_span_share_of_the_dead_load(coarse):
+    """R_mid = 1.25 w L of a continuous beam: 62.5 % of the total load goes to the middle."""
+    prov = coarse.provenance
+    assert coarse.u0.sum() / prov["total_dead_load_N"] == pytest.approx(0.625, rel=0.03)
+
+
+def test_common_mode_lies_between_bare_steel_and_composite_closed_forms(coarse, cfg):
+    """Settling both bearings together: per girder, 6 EI / L^3 with EI between steel and composite."""
+    cf = closed_forms(cfg)
+    common = coarse.A.sum(axis=1)  # reaction change per metre when both bearings rise together
+    for k in common:
+        assert cf["k_settle_steel_N_per_m"] < k < cf["k_settle_composite_N_per_m"]
+        assert k > 0.85 * cf["k_settle_composite_N_per_m"]  # composite action is nearly full
+
+
+def test_vertical_gradient_between_closed_forms(coarse, cfg):
+    cf = closed_forms(cfg)
+    v = coarse.thermal["vertical_gradient"]
+    assert np.all(v < 0)  # top warmer lifts the deck off the middle support
+    for value in v:
+        assert cf["gradient_composite_N_per_K"] < value < cf["gradient_steel_N_per_K"]
+
+
+def test_uniform_temperature_is_restraint_free(coarse):
+    """Free longitudinal bearings and one alpha for steel and concrete: ~no reaction change."""
+    u = coarse.thermal["uniform"]
+    v = coarse.thermal["vertical_gradient"]
+    assert np.all(np.abs(u) < 1e-2 * np.abs(v))
+    assert np.all(np.abs(u) < 50.0)  # N/K
+
+
+def test_uniform_temperature_bends_the_section_when_alphas_differ(cfg):
+    """The test above could fail: with alpha_concrete = 1.0e-5 the mismatch curvature shows up."""
+    sol = solve_bridge(cfg.with_overrides({"alpha_concrete": 1.0e-5}), "coarse")
+    assert np.all(np.abs(sol.thermal["uniform"]) > 500.0)
+
+
+def test_transverse_gradient_loads_the_warm_south_girder(coarse):
+    t = coarse.thermal["transverse_gradient"]
+    assert t[0] > 0 > t[1]
+    assert t[0] == pytest.approx(-t[1], rel=1e-3)
+
+
+def test_lowering_both_bearings_unloads_both(coarse, cfg):
+    du = coarse.A @ np.array([-0.01, -0.01])
+    cf = closed_forms(cfg)
+    assert np.all(du < 0)
+    for value in du:
+        assert -0.01 * cf["k_settle_composite_N_per_m"] < value < -0.01 * cf["k_settle_steel_N_per_m"]
+
+
+def test_sensitivities_match_a_direct_perturbation(coarse_run, cfg):
+    """Central difference at +-10 % predicts the response at +5 % (the model is near-linear in k)."""
+    sens = coarse_run.sensitivities
+    assert set(SENSITIVITY_PARAMETERS) <= set(sens)
+    base = coarse_run.base
+    for name in SENSITIVITY_PARAMETERS:
+        plus = solve_bridge(cfg.with_overrides({name: cfg.params[name] * 1.05}), "coarse")
+        d_a = np.asarray(sens[name]["A"])
+        np.testing.assert_allclose(plus.A - base.A, 0.05 * d_a, rtol=0.05, atol=1e-3 * np.abs(d_a).max())
+    # stiffer bearings and joints make the structure stiffer at the bearings
+    assert np.all(np.diag(sens["bearing_stiffness"]["A"]) > 0)
+    assert np.all(np.sum(sens["connector_stiffness"]["A"], axis=1) > 0)
+
+
+@pytest.mark.slow
+def test_mesh_convergence_coarse_to_default(coarse, cfg):
+    default = solve_bridge(cfg, "default")
+    np.testing.assert_allclose(coarse.A.sum(axis=1), default.A.sum(axis=1), rtol=2e-3)
+    np.testing.assert_allclose(coarse.A, default.A, rtol=0.03)
+    np.testing.assert_allclose(coarse.u0, default.u0, rtol=2e-3)
+    for case in ("vertical_gradient", "transverse_gradient"):
+        np.testing.assert_allclose(coarse.thermal[case], default.thermal[case], rtol=0.01)
+
+
+def test_write_and_load_round_trip(coarse_run, tmp_path):
+    path = write_surrogate(coarse_run, tmp_path / "s.yaml")
+    back = load_surrogate(path)
+    np.testing.assert_array_equal(back.A, coarse_run.surrogate.A)
+    np.testing.assert_array_equal(back.u0, coarse_run.surrogate.u0)
+    for k, v in coarse_run.surrogate.thermal.items():
+        np.testing.assert_array_equal(back.thermal[k], v)
+    sens = load_sensitivities(path)
+    np.testing.assert_array_equal(
+        sens["bearing_stiffness"]["A"], coarse_run.sensitivities["bearing_stiffness"]["A"]
+    )
+    assert back.provenance["mesh"] == "coarse"
+
+
+def test_cli_json_and_overrides(tmp_path, capsys):
+    out = tmp_path / "s.yaml"
+    code = main(
+        [
+            "surrogate",
+            "--mesh",
+            "coarse",
+            "--no-sensitivities",
+            "--set",
+            "composite_action=0.5",
+            "--out",
+            str(out),
+            "--json",
+        ]
+    )
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert {"A", "u0", "thermal", "provenance"} <= set(doc)
+    assert doc["provenance"]["overrides"] == {"composite_action": 0.5}
+    assert set(doc["thermal"]) == {"uniform", "vertical_gradient", "transverse_gradient"}
+    assert out.is_file()
+
+
+def test_cli_bad_parameter_is_one_line_exit_2(tmp_path, capsys):
+    code = main(["surrogate", "--mesh", "coarse", "--set", "nonsense=1", "--out", str(tmp_path / "s.yaml")])
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nonsense" in err[0]
