@@ -26,6 +26,7 @@ from bridge_shadow.gap.fit import (
     CvResult,
     ar1_phi,
     chance_threshold,
+    chance_threshold_mc,
     cross_validate,
     effective_n,
 )
@@ -40,6 +41,9 @@ __all__ = ["COLLINEAR_COS", "Diagnosis", "baseline_residual", "diagnose"]
 #: Two candidates whose all-data fitted reaction changes have a cosine above this, and of which
 #: neither adds a significant held-out gain to the other, are reported as indistinguishable.
 COLLINEAR_COS = 0.9
+#: Below this effective sample size the chance level of the held-out gain is simulated
+#: (``chance_threshold_mc``) instead of taken from its large-sample formula.
+MC_BELOW_N_EFF = 100.0
 #: Minimum number of valid windows (per channel) to diagnose at all.
 MIN_WINDOWS = 8
 
@@ -140,7 +144,10 @@ def diagnose(
     phi = ar1_phi(resid - cv[top.name].pred_full)
     n_obs = int(valid.sum())
     n_eff = effective_n(n_obs, phi)
-    thr = {c.name: chance_threshold(c.n_params, n_eff, n_folds, z) for c in CANDIDATES}
+    if n_eff >= MC_BELOW_N_EFF:
+        thr = {c.name: chance_threshold(c.n_params, n_eff, n_folds, z) for c in CANDIDATES}
+    else:
+        thr = {c.name: chance_threshold_mc(designs[c.name], valid, fold, phi) for c in CANDIDATES}
     sse0 = float(np.sum(resid[valid] ** 2))
 
     def ic(c: Candidate) -> float:
@@ -256,10 +263,17 @@ def diagnose(
             "change_m": (np.array(post_after["mean_m"]) - np.array(post_before["mean_m"])).tolist(),
             "method": "shadow batch update (estimate.kalman.batch_posterior) on the window means",
         },
-        "noise": {"ar1_phi": phi, "n_windows": n_obs, "n_eff": n_eff, "z": z},
+        "noise": {
+            "ar1_phi": phi,
+            "n_windows": n_obs,
+            "n_eff": n_eff,
+            "z": z,
+            "chance_level": "simulated" if n_eff < MC_BELOW_N_EFF else "large-sample formula",
+        },
         "validation": {"kind": cv_kind, "folds": n_folds},
         "baseline": {
             "model": "u0 + thermal['uniform'] * (T_air - mean T_air)",
+            "air_temperature": "present" if d.has_temperature else "missing: temperature drivers are zero",
             "surrogate": str(s.provenance.get("solver", "")),
             "sensitivities": ctx.sensitivities["bearing_stiffness"].source,
         },

@@ -84,6 +84,7 @@ class Drivers:
         warming: (n,) bool, smoothed air temperature rising.
         traffic: (n,) N, excess of the window mean over its median on the summed channels in windows
             flagged as events (within-window maximum far above the noise), 0 elsewhere.
+        has_temperature: False when the record holds no air temperature (temperature drivers 0).
         _lag_cache: memo of lowpassed temperature per time constant.
 
     """
@@ -97,6 +98,7 @@ class Drivers:
     clearness: np.ndarray
     warming: np.ndarray
     traffic: np.ndarray
+    has_temperature: bool = True
     _lag_cache: dict[float, np.ndarray] = field(default_factory=dict, repr=False)
 
     def __len__(self) -> int:
@@ -154,8 +156,13 @@ def compute_drivers(w: Windows) -> Drivers:
     t_day = t_s / DAY_S
     day = np.floor(t_day + 1e-9).astype(int)
     temp = np.asarray(w.temp_c, float)
+    has_temp = bool(np.isfinite(temp).any())
+    if not has_temp:
+        # No air temperature: temperature-driven candidates get a zero driver, the sun one a
+        # clear sky every day.
+        temp = np.zeros(len(w))
     sun = _clear_sky(w.t_ns)
-    clearness = _clearness(w.t_ns, temp)
+    clearness = _clearness(w.t_ns, temp) if has_temp else np.ones(len(w))
     smooth = lowpass(temp, 1800.0, w.width_s)
     warming = np.gradient(smooth) > 0
     return Drivers(
@@ -168,4 +175,5 @@ def compute_drivers(w: Windows) -> Drivers:
         clearness=clearness,
         warming=warming,
         traffic=_traffic_driver(w),
+        has_temperature=has_temp,
     )

@@ -32,7 +32,8 @@ class Windows:
         max_n: (n, 2) float, within-window maximum in N (NaN if empty).
         median_n: (n, 2) float, within-window median in N (NaN if empty).
         count: (n, 2) int, samples per window.
-        temp_c: (n,) float, air temperature in C (window mean, linearly interpolated over gaps).
+        temp_c: (n,) float, air temperature in C (window mean, linearly interpolated over gaps; all
+            NaN when the record holds no temperature).
 
     """
 
@@ -95,8 +96,9 @@ def aggregate(data: MonitoringData, width_s: float = 60.0) -> Windows:
     """Aggregate forces and air temperature to windows of ``width_s`` seconds.
 
     Non-finite samples are dropped. The grid spans the force records; the temperature is the
-    window mean where a window holds temperature samples and is linearly interpolated elsewhere.
-    Raises ``GapError`` when there is no finite force or temperature sample.
+    window mean where a window holds temperature samples and is linearly interpolated elsewhere
+    (all NaN when the record has no temperature). Raises ``GapError`` when a force channel has no
+    finite sample.
     """
     width_ns = round(width_s * NS)
     stamps, values = [], []
@@ -109,8 +111,6 @@ def aggregate(data: MonitoringData, width_s: float = 60.0) -> Windows:
         raise GapError("no finite force samples on one of the load-cell channels")
     temp = data.temperature
     tok = np.isfinite(temp.temp_c)
-    if not tok.any():
-        raise GapError("no finite air-temperature samples")
     first = min(int(s.min()) for s in stamps) // width_ns
     last = max(int(s.max()) for s in stamps) // width_ns
     n = last - first + 1
@@ -120,6 +120,8 @@ def aggregate(data: MonitoringData, width_s: float = 60.0) -> Windows:
         for s, v in zip(stamps, values, strict=True)
     ]
     mean, std, vmax, median, count = (np.stack([st[k] for st in stats], axis=1) for k in range(5))
+    if not tok.any():
+        return Windows(t_ns, width_s, mean, std, vmax, median, count.astype(np.int64), np.full(n, np.nan))
     ts, tv = temp.stamp_ns[tok], temp.temp_c[tok]
     widx = ts // width_ns - first
     inside = (widx >= 0) & (widx < n)
