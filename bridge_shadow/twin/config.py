@@ -77,7 +77,7 @@ class TwinConfig:
         traffic_start_h: start of the traffic window, local time, h.
         traffic_end_h: end of the traffic window, local time, h.
         traffic_duration_s: mean crossing time of the 30 m bridge, s (uniform +-20 %).
-        traffic_lateral_sd: sd of the south share of a car's weight around 0.5 (lane position).
+        traffic_lateral_sd: sd of the south share of a car's weight around 0.5 (lane position, about +-10 cm).
         span_m: span length of each of the two equal spans, m.
         spinup_days: days of weather simulated before the start (lagged states in steady state).
 
@@ -109,7 +109,7 @@ class TwinConfig:
     traffic_start_h: float = 8.0
     traffic_end_h: float = 18.0
     traffic_duration_s: float = 10.0
-    traffic_lateral_sd: float = 0.05
+    traffic_lateral_sd: float = 0.02
     span_m: float = 15.0
     spinup_days: float = 2.0
 
