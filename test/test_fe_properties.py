@@ -244,8 +244,12 @@ def test_beam_line_load_and_gradient_two_spans() -> None:
 def test_mechanism_and_bad_input_raise_clear_errors() -> None:
     model, _ = _cantilever()
     free = Model(model.nodes, beams=model.beams)
-    with pytest.raises(SolverError):
+    with pytest.raises(SolverError, match="node"):
         LinearStaticSolver(free).solve(LoadCase("x", nodal=[(8, 2, 1.0)]))
+    # a beam line with its torsion left free is a mechanism too
+    torsion_free = Support("root", [0], (0, 1, 2, 4, 5))
+    with pytest.raises(SolverError, match="rx"):
+        LinearStaticSolver(Model(model.nodes, beams=model.beams, supports=[torsion_free]))
     solver = LinearStaticSolver(model)
     with pytest.raises(ModelError):
         solver.solve(LoadCase("x", prescribed={"nowhere": 0.0}))

@@ -63,7 +63,6 @@ class ShellKinematics:
         frame: (n_el, 3, 3) rows e1, e2, e3 (e3 the normal) of each element's local axes.
         xy: (n_el, 4, 2) m, nodal coordinates in the mean plane.
         warp: (n_el, 4) m, offset of each node from the mean plane along e3.
-        tt: (n_el, 24, 24), maps global nodal DOFs to flat local DOFs (rotation + warping offset).
         n: (4, 4) shape functions at the 4 Gauss points; dndx: (n_el, 4, 2, 4) Cartesian derivatives.
         dA: (n_el, 4) m^2, Gauss weight times det J.
 
@@ -72,11 +71,39 @@ class ShellKinematics:
     frame: np.ndarray
     xy: np.ndarray
     warp: np.ndarray
-    tt: np.ndarray
     n: np.ndarray
     dndx: np.ndarray
     dA: np.ndarray
     jac: np.ndarray
+
+    def to_global(self, kf: np.ndarray) -> np.ndarray:
+        """``T^T kf T`` for flat local matrices ``kf (n_el, 24, 24)``; T = warping offset, then rotation.
+
+        Flat DOFs follow the real nodes through rigid offsets to the mean plane
+        (``u_flat = u - z ry``, ``v_flat = v + z rx``, local axes), then each 3-vector is rotated.
+        """
+        k = kf.copy()
+        z = self.warp
+        for a in range(4):  # k <- k W (columns), then W^T k (rows)
+            k[:, :, 6 * a + 4] -= z[:, a, None] * k[:, :, 6 * a]
+            k[:, :, 6 * a + 3] += z[:, a, None] * k[:, :, 6 * a + 1]
+        for a in range(4):
+            k[:, 6 * a + 4, :] -= z[:, a, None] * k[:, 6 * a, :]
+            k[:, 6 * a + 3, :] += z[:, a, None] * k[:, 6 * a + 1, :]
+        n_el, rot = len(k), self.frame[:, None, :, :]
+        k = (k.reshape(n_el, 24, 8, 3) @ rot).reshape(n_el, 24, 24)  # K R, block by block
+        k = (np.swapaxes(k, 1, 2).reshape(n_el, 24, 8, 3) @ rot).reshape(n_el, 24, 24)  # (R^T K R)^T
+        return np.swapaxes(k, 1, 2)
+
+    def vector_to_global(self, ff: np.ndarray) -> np.ndarray:
+        """``T^T ff`` for flat local load vectors ``ff (n_el, 24)``."""
+        f = ff.copy()
+        z = self.warp
+        for a in range(4):
+            f[:, 6 * a + 4] -= z[:, a] * f[:, 6 * a]
+            f[:, 6 * a + 3] += z[:, a] * f[:, 6 * a + 1]
+        f3 = np.einsum("eji,eaj->eai", self.frame, f.reshape(-1, 8, 3))
+        return f3.reshape(-1, 24)
 
 
 def shell_kinematics(xyz: np.ndarray) -> ShellKinematics:
@@ -87,7 +114,6 @@ def shell_kinematics(xyz: np.ndarray) -> ShellKinematics:
 
     """
     xyz = np.asarray(xyz, float)
-    n_el = len(xyz)
     c = xyz.mean(axis=1)
     normal = np.cross(xyz[:, 2] - xyz[:, 0], xyz[:, 3] - xyz[:, 1])
     norm = np.linalg.norm(normal, axis=1)
@@ -102,17 +128,6 @@ def shell_kinematics(xyz: np.ndarray) -> ShellKinematics:
     rel = xyz - c[:, None, :]
     local = np.einsum("eij,ekj->eki", frame, rel)
     xy, warp = local[:, :, :2], local[:, :, 2]
-
-    # Rotation of each node's 6 DOFs to local axes, then the rigid offset to the mean plane:
-    # u_flat = u - z ry, v_flat = v + z rx.
-    rot = np.zeros((n_el, 24, 24))
-    for a in range(8):
-        rot[:, 3 * a : 3 * a + 3, 3 * a : 3 * a + 3] = frame
-    w = np.broadcast_to(np.eye(24), (n_el, 24, 24)).copy()
-    for a in range(4):
-        w[:, 6 * a, 6 * a + 4] = -warp[:, a]
-        w[:, 6 * a + 1, 6 * a + 3] = warp[:, a]
-    tt = w @ rot
 
     ns, dndx, dA, jacs = [], [], [], []
     for xi, eta in _GP:
@@ -131,7 +146,6 @@ def shell_kinematics(xyz: np.ndarray) -> ShellKinematics:
         frame=frame,
         xy=xy,
         warp=warp,
-        tt=tt,
         n=np.array(ns),
         dndx=np.stack(dndx, axis=1),
         dA=np.stack(dA, axis=1),
@@ -278,7 +292,7 @@ def shell_stiffness(
     kf = np.zeros((len(t), 24, 24))
     kf[:, memb[:, None], memb[None, :]] = km
     kf[:, bend[:, None], bend[None, :]] = kb
-    return np.swapaxes(kin.tt, 1, 2) @ kf @ kin.tt
+    return kin.to_global(kf)
 
 
 def shell_thermal_vector(
@@ -322,7 +336,7 @@ def shell_thermal_vector(
     ff = np.zeros((len(t), 24))
     ff[:, memb] = fm
     ff[:, bend] = fb
-    return np.einsum("eai,ea->ei", kin.tt, ff)
+    return kin.vector_to_global(ff)
 
 
 def shell_nodal_areas(kin: ShellKinematics) -> np.ndarray:
