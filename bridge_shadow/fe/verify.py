@@ -10,7 +10,9 @@ References (DESIGN section 7): Scordelis-Lo roof 0.3024; pinched cylinder 1.8248
 straight cantilever 0.1081 in-plane / 0.4321 out-of-plane; simply supported plate
 ``w = 0.0040624 q a^4 / D``; two equal spans: ``dR_mid = -6 EI delta / L^3`` (settlement delta
 downward, so the middle reaction drops), ``dR_mid = -3 EI alpha dT / (h L)`` (top warmer),
-``R_mid = 5 q L / 4``, and no reaction under uniform temperature with free sliding.
+``R_mid = 5 q L / 4``, and no reaction under uniform temperature with free sliding. The shell
+I-girder is reported against those Euler-Bernoulli values and checked (1 %) against Timoshenko
+beam theory with the web as shear area.
 """
 
 from __future__ import annotations
@@ -429,6 +431,18 @@ def two_span_cases(n_beam: int, n_shell: int) -> Iterator[Case]:
     yield _case("two_span_shell_gradient", rm[1], -3 * ei * _ALPHA * dT / (h * L), None, mesh, dofs, sec)
     yield _case("two_span_shell_uniform_load", rm[2], 5 * q * L / 4, None, mesh, dofs, sec)
     yield _case("two_span_shell_uniform_temperature", abs(rm[3]) / ea, 0.0, 1e-8, mesh, dofs, sec)
+    # Timoshenko beam theory (shear area = web h tw): two spans = a 2L simple beam pushed back at mid-span,
+    # flexibility L^3 / (6 EI) + L / (2 G As) under a mid-span force.
+    g_as = _E / (2 * (1 + _NU)) * 1.0 * 0.019
+    flex = L**3 / (6 * ei) + L / (2 * g_as)
+    load_defl = 5 * q * L**4 / (24 * ei) + q * L**2 / (2 * g_as)  # mid-span deflection of the 2L beam under q
+    tim = {
+        "settlement": -settle / flex,
+        "gradient": -(_ALPHA * dT / h) * L**2 / 2 / flex,
+        "uniform_load": load_defl / flex,
+    }
+    for k, (kind, ref) in enumerate(tim.items()):
+        yield _case(f"two_span_shell_{kind}_timoshenko", rm[k], ref, 0.01, mesh, dofs, sec)
 
 
 # ------------------------------------------------------------------------------------------- suite
