@@ -1,11 +1,313 @@
-"""``bridge_shadow_node``: placeholder until the online-shadow issue lands its rclpy node."""
+"""``bridge_shadow_node``: the live shadow, a thin rclpy shell over ``bridge_shadow.estimate.Shadow``.
+
+Wiring (topics and types from ``bridge_shadow.contract``)::
+
+    /bridge/frc_01/force, /bridge/frc_02/force   WrenchStamped  --raw CDR-->  buffer per topic
+    /bridge/air_temperature                      Temperature    --raw CDR-->  buffer per topic
+    buffers --(vectorized decode)--> Shadow.ingest_* --> Shadow.poll() --> per closed window:
+        /bridge_shadow/settlement/mean        Float64MultiArray [south, north] m, dim ``support``
+        /bridge_shadow/settlement/covariance  Float64MultiArray 2x2 m^2, dims ``row``, ``col``
+        /bridge_shadow/compensated/frc_0{1,2} WrenchStamped, stamp = window end, N
+    timer (diagnostics_period_s) --> /diagnostics  DiagnosticArray (settlement, inputs, compensation)
+    service /bridge_shadow/flush (std_srvs/Trigger): end of a replay, close every window holding
+        data, publish it and answer with the diagnostics as JSON (what the offline replay's
+        ``flush`` does; ``bridge-shadow replay --live`` calls it after the last message).
+
+Subscriptions take raw CDR (no Python message object per sample) and the buffers are decoded in
+blocks: when one holds ``BATCH`` messages, when a message's stamp reaches the end of the open
+window (so a window's outputs leave within a millisecond of the message that closes it), and every
+``DRAIN_PERIOD_S``. The shadow's result does not depend on that chunking.
+
+Parameters: every entry of ``config/shadow.yaml`` (its values are the declared defaults), overridable
+with ``--ros-args -p name:=value`` or ``--params-file FILE``. ``qos_depth`` is the input history
+depth; 0 means KEEP_ALL (lossless: a slow node pushes back on reliable publishers, as the live
+replay needs). Inputs are RELIABLE.
+
+Checkpoint: with ``checkpoint_path`` set, the node resumes from that file when it exists, the shadow
+saves it every ``checkpoint_period_s`` of stamp time, and the node saves it on SIGINT/SIGTERM
+after ingesting what it has buffered.
+
+Network: before ``rclpy.init`` the node confines DDS discovery to loopback
+(``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ``ROS_DOMAIN_ID`` if none is set) unless the
+environment already sets ``ROS_AUTOMATIC_DISCOVERY_RANGE``: an explicit choice (e.g. ``SUBNET`` on
+a real monitoring network) is respected.
+
+Executor: ``rclpy.experimental.EventsExecutor`` driven by ``spin_once`` in a loop. In rclpy 7.1
+its ``spin()`` neither returns on SIGINT/SIGTERM nor idles (it busy-waits), so it is not used.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import json
+import os
+import struct
 import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Temperature
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+from bridge_shadow.commands.output import jsonable
+from bridge_shadow.contract import (
+    CHANNELS,
+    COMPENSATED_TOPICS,
+    COVARIANCE_TOPIC,
+    DIAGNOSTICS_TOPIC,
+    FORCE_FRAMES,
+    FORCE_TOPICS,
+    MEAN_TOPIC,
+    NODE_NAME,
+    TEMPERATURE_TOPIC,
+)
+from bridge_shadow.errors import BridgeShadowError
+from bridge_shadow.estimate import Shadow, ShadowConfig, load_config
+from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.ros import convert
+from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
+from bridge_shadow.ros.netenv import confine_to_loopback
+
+__all__ = ["BATCH", "DRAIN_PERIOD_S", "FLUSH_SERVICE", "ShadowNode", "input_qos", "main"]
+
+#: Service that closes every window holding data (end of a replay).
+FLUSH_SERVICE = f"/{NODE_NAME}/flush"
+#: Buffered messages per topic that trigger a decode-and-ingest.
+BATCH = 1024
+#: Period of the timer that ingests whatever is buffered [s].
+DRAIN_PERIOD_S = 0.05
+_NS = 1_000_000_000
+_TOPICS = (*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC)
+
+_USAGE = """\
+usage: bridge_shadow_node [--ros-args [-p NAME:=VALUE ...] [--params-file FILE]]
+
+The live digital shadow of the UniBw Munich test bridge: subscribes to the two central-bearing
+load cells and the air temperature, publishes the posterior settlements, their covariance, the
+temperature-compensated forces and /diagnostics. Parameters: config/shadow.yaml (documented there).
+Stop with Ctrl-C or SIGTERM (a checkpoint is written when checkpoint_path is set).
+"""
+
+
+def input_qos(depth: int) -> QoSProfile:
+    """RELIABLE QoS of the given history depth; ``depth <= 0`` means KEEP_ALL (lossless)."""
+    reliable = ReliabilityPolicy.RELIABLE
+    if depth <= 0:
+        return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=reliable)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=reliable)
+
+
+class ShadowNode(Node):
+    """Wires the contract topics, a diagnostics timer and the flush service to one ``Shadow``.
+
+    Attributes:
+        config: the parameters in force (``ShadowConfig``).
+        shadow: the pipeline (fresh, or resumed from ``checkpoint_path``).
+        received: raw messages taken per input topic key.
+        malformed: raw messages that could not be decoded (dropped).
+        windows_published: window outputs published so far.
+
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self.config = self._read_parameters()
+        cfg = self.config
+        surrogate = load_surrogate(cfg.surrogate_path or None)
+        ckpt = Path(cfg.checkpoint_path) if cfg.checkpoint_path else None
+        if ckpt is not None and ckpt.is_file():
+            self.shadow = Shadow.resume(ckpt, cfg, surrogate)
+            self.get_logger().info(
+                f"resumed from {ckpt}: {self.shadow.n_windows} windows, "
+                f"{self.shadow.filter.n_updates} updates"
+            )
+        else:
+            self.shadow = Shadow(cfg, surrogate)
+        self.received = [0, 0, 0]
+        self.malformed = 0
+        self.windows_published = 0
+        self._raw: list[list[bytes]] = [[], [], []]
+        self._arrival: list[float | None] = [None, None, None]
+        self._next_end_ns = self._window_end()
+        self._timeout_s = max(cfg.topic_timeout_s, cfg.window_s)
+        in_qos = input_qos(cfg.qos_depth)
+        out_qos = input_qos(cfg.qos_depth if cfg.qos_depth <= 0 else max(cfg.qos_depth, 100))
+        types = (WrenchStamped, WrenchStamped, Temperature)
+        self._subs = [
+            self.create_subscription(t, topic, self._callback(i), in_qos, raw=True)
+            for i, (t, topic) in enumerate(zip(types, _TOPICS, strict=True))
+        ]
+        self._pub_mean = self.create_publisher(Float64MultiArray, MEAN_TOPIC, out_qos)
+        self._pub_cov = self.create_publisher(Float64MultiArray, COVARIANCE_TOPIC, out_qos)
+        self._pub_comp = [
+            self.create_publisher(WrenchStamped, COMPENSATED_TOPICS[ch], out_qos) for ch in CHANNELS
+        ]
+        self._pub_diag = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
+        self._drain_timer = self.create_timer(DRAIN_PERIOD_S, self.drain)
+        self._diag_timer = self.create_timer(cfg.diagnostics_period_s, self.publish_diagnostics)
+        self._flush_srv = self.create_service(Trigger, FLUSH_SERVICE, self._on_flush)
+
+    # -- parameters ------------------------------------------------------------------------
+    def _read_parameters(self) -> ShadowConfig:
+        """Declare every shadow parameter (defaults: config/shadow.yaml) and read them back."""
+        defaults = load_config().to_params()
+        for f in dataclasses.fields(ShadowConfig):
+            descriptor = ParameterDescriptor(
+                description=f"see config/shadow.yaml: {f.name}", dynamic_typing=True
+            )
+            self.declare_parameter(f.name, defaults[f.name], descriptor)
+        params = {}
+        for name in defaults:
+            value = self.get_parameter(name).value
+            if value is not None and not isinstance(value, (str, bool, int, float)):
+                value = [float(v) for v in value]  # DOUBLE_ARRAY comes back as array.array
+            params[name] = value
+        return ShadowConfig.from_params(params)
+
+    # -- input -----------------------------------------------------------------------------
+    def _callback(self, i: int) -> Any:
+        """Subscription callback of topic ``i``: buffer raw bytes, ingest on batch or window end."""
+        buf = self._raw[i]
+        append = buf.append
+        unpack = struct.Struct("<iI").unpack_from
+
+        def callback(raw: bytes) -> None:
+            append(raw)
+            if len(buf) >= BATCH:
+                self.drain()
+            elif len(raw) >= 12:
+                sec, nsec = unpack(raw, 4)
+                if sec * _NS + nsec >= self._next_end_ns:
+                    self.drain()
+
+        return callback
+
+    def _window_end(self) -> int:
+        k = self.shadow.next_k
+        return -(2**62) if k is None else (k + 1) * round(self.config.window_s * _NS)
+
+    def ingest_pending(self) -> None:
+        """Decode and ingest every buffered message (no window is closed here)."""
+        now = time.monotonic()
+        for i, buf in enumerate(self._raw):
+            if not buf:
+                continue
+            raws = buf[:]
+            buf.clear()
+            self.received[i] += len(raws)
+            self._arrival[i] = now
+            if i < 2:
+                stamp, force, frame, bad = convert.decode_forces(raws)
+                self.shadow.ingest_forces(i, stamp, force, frame)
+            else:
+                stamp, temp, frame, bad = convert.decode_temperatures(raws)
+                self.shadow.ingest_temperature(stamp, temp, frame)
+            self.malformed += bad
+
+    def drain(self) -> None:
+        """Ingest the buffers, close due windows and publish their outputs."""
+        self.ingest_pending()
+        self._publish(self.shadow.poll())
+        self._next_end_ns = self._window_end()
+
+    # -- output ----------------------------------------------------------------------------
+    def _publish(self, outputs: list[Any]) -> None:
+        for out in outputs:
+            self._pub_mean.publish(convert.mean_msg(out.mean_m))
+            self._pub_cov.publish(convert.covariance_msg(out.covariance_m2))
+            if np.all(np.isfinite(out.compensated_n)):
+                for c, ch in enumerate(CHANNELS):
+                    self._pub_comp[c].publish(
+                        convert.wrench_msg(out.end_ns, FORCE_FRAMES[ch], out.compensated_n[c])
+                    )
+            self.windows_published += 1
+
+    def report(self) -> dict[str, Any]:
+        """``Shadow.diagnostics()`` plus the node's counters (SI units, plain data)."""
+        diag = self.shadow.diagnostics()
+        keys = list(diag["used"])
+        diag["node"] = {
+            "received": dict(zip(keys, self.received, strict=True)),
+            "malformed": self.malformed,
+            "windows_published": self.windows_published,
+            "arrival_age_s": self._ages(),
+        }
+        return diag
+
+    def _ages(self) -> dict[str, float | None]:
+        now = time.monotonic()
+        keys = list(self.shadow.used)
+        return {k: (None if t is None else now - t) for k, t in zip(keys, self._arrival, strict=True)}
+
+    def publish_diagnostics(self) -> None:
+        """Publish /diagnostics: settlement (mm with sigma), inputs (counts, staleness), compensation."""
+        self.drain()
+        items = statuses(self.shadow.diagnostics(), self._ages(), self.malformed, self._timeout_s)
+        self._pub_diag.publish(diagnostic_array(items, self.get_clock().now().nanoseconds))
+
+    def _on_flush(self, request: Any, response: Any) -> Any:
+        """Close every window holding data, publish, checkpoint; answer with the report as JSON."""
+        self.drain()
+        self._publish(self.shadow.flush())
+        self._next_end_ns = self._window_end()
+        if self.config.checkpoint_path:
+            self.shadow.save_checkpoint()
+        response.success = True
+        response.message = json.dumps(jsonable(self.report()))
+        return response
+
+    def save_on_exit(self) -> Path | None:
+        """Ingest what is buffered and write the checkpoint (if configured); return its path."""
+        self.ingest_pending()
+        return self.shadow.save_checkpoint() if self.config.checkpoint_path else None
 
 
 def main(args: list[str] | None = None) -> int:
-    """Exit with a clear message."""
-    print("bridge_shadow_node: the live node is not implemented yet", file=sys.stderr)
-    return 1
+    """Run the node until SIGINT/SIGTERM; return 0, or 2 with one line on a configuration error."""
+    argv = sys.argv[1:] if args is None else list(args)
+    if "--ros-args" not in argv and any(a in ("-h", "--help") for a in argv):
+        print(_USAGE, end="")
+        return 0
+    if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in os.environ:
+        confine_to_loopback()
+    rclpy.init(args=[sys.argv[0], *argv])
+    node = None
+    code = 0
+    try:
+        node = ShadowNode()
+        executor = EventsExecutor()
+        executor.add_node(node)
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.5)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except BridgeShadowError as err:
+        print(f"bridge_shadow_node: {err}", file=sys.stderr)
+        code = 2
+    finally:
+        if node is not None:
+            try:
+                path = node.save_on_exit()
+                if path is not None:
+                    print(f"bridge_shadow_node: checkpoint written to {path}", file=sys.stderr)
+            except BridgeShadowError as err:
+                print(f"bridge_shadow_node: checkpoint not written: {err}", file=sys.stderr)
+                code = 2
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,110 @@
+"""Contract messages <-> numpy: the node's only knowledge of message layouts.
+
+Inputs arrive as raw CDR bytes (``raw=True`` subscriptions: no Python message object per sample)
+and are decoded in blocks by ``bridge_shadow.bagio.decode_stamped_floats``, the same vectorized
+codec the offline replay uses. Outputs are built as typed rclpy messages (one per window, cheap).
+Units are SI: forces in N, settlements in m, covariances in m^2, stamps in integer ns.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import WrenchStamped
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+from bridge_shadow.bagio.cdr import CdrFormatError, decode_stamped_floats
+from bridge_shadow.contract import COVARIANCE_LAYOUT_LABELS, MEAN_LAYOUT_LABEL
+
+__all__ = [
+    "Decoded",
+    "array_from_msg",
+    "covariance_msg",
+    "decode_forces",
+    "decode_temperatures",
+    "mean_msg",
+    "stamp_msg",
+    "wrench_msg",
+]
+
+_NS = 1_000_000_000
+#: ``Decoded``: stamp_ns (n,) int64, value (n,) float64, frame_id (n,) object, malformed count.
+Decoded = tuple[np.ndarray, np.ndarray, np.ndarray, int]
+
+
+def _decode(raws: Sequence[bytes], n_floats: int, column: int) -> Decoded:
+    """Decode a block; on a malformed message decode one by one and drop (count) the bad ones."""
+    try:
+        stamp, frame, values = decode_stamped_floats(raws, n_floats)
+        return stamp, values[:, column], frame, 0
+    except CdrFormatError:
+        good = []
+        for raw in raws:
+            try:
+                decode_stamped_floats([raw], n_floats)
+            except CdrFormatError:
+                continue
+            good.append(raw)
+        stamp, frame, values = decode_stamped_floats(good, n_floats)
+        return stamp, values[:, column], frame, len(raws) - len(good)
+
+
+def decode_forces(raws: Sequence[bytes]) -> Decoded:
+    """Decode raw ``WrenchStamped`` CDR: header stamp (ns), ``wrench.force.z`` (N), frame_id."""
+    return _decode(raws, 6, 2)
+
+
+def decode_temperatures(raws: Sequence[bytes]) -> Decoded:
+    """Decode raw ``sensor_msgs/Temperature`` CDR: header stamp (ns), temperature (C), frame_id."""
+    return _decode(raws, 2, 0)
+
+
+def stamp_msg(stamp_ns: int) -> Time:
+    """``builtin_interfaces/Time`` from integer ns since the epoch."""
+    sec, nanosec = divmod(int(stamp_ns), _NS)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def _array_msg(values: np.ndarray, labels: Sequence[str]) -> Float64MultiArray:
+    """Row-major ``Float64MultiArray`` with one layout dim per label (size, stride per REP/std_msgs)."""
+    values = np.asarray(values, dtype=float)
+    if values.ndim != len(labels):
+        raise ValueError(f"array of shape {values.shape} needs {values.ndim} labels, got {list(labels)}")
+    msg = Float64MultiArray()
+    strides = np.cumprod(values.shape[::-1])[::-1]
+    msg.layout.dim = [
+        MultiArrayDimension(label=label, size=int(size), stride=int(stride))
+        for label, size, stride in zip(labels, values.shape, strides, strict=True)
+    ]
+    msg.layout.data_offset = 0
+    msg.data = values.ravel().tolist()
+    return msg
+
+
+def mean_msg(mean_m: np.ndarray) -> Float64MultiArray:
+    """Posterior mean ``[south, north]`` in m; layout dim label ``support``."""
+    return _array_msg(np.asarray(mean_m, float).reshape(2), [MEAN_LAYOUT_LABEL])
+
+
+def covariance_msg(covariance_m2: np.ndarray) -> Float64MultiArray:
+    """Posterior covariance, 2x2 row-major in m^2; layout dims ``row``, ``col``."""
+    return _array_msg(np.asarray(covariance_m2, float).reshape(2, 2), COVARIANCE_LAYOUT_LABELS)
+
+
+def array_from_msg(msg: Float64MultiArray) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Inverse of ``mean_msg``/``covariance_msg``: the array shaped by its layout, and its labels."""
+    dims = list(msg.layout.dim)
+    shape = tuple(int(d.size) for d in dims)
+    data = np.asarray(msg.data, dtype=float)[int(msg.layout.data_offset) :]
+    return data[: int(np.prod(shape))].reshape(shape), tuple(d.label for d in dims)
+
+
+def wrench_msg(stamp_ns: int, frame_id: str, force_n: float) -> WrenchStamped:
+    """``WrenchStamped`` with the force (N) in ``wrench.force.z``, as the input contract."""
+    msg = WrenchStamped()
+    msg.header.stamp = stamp_msg(stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.wrench.force.z = float(force_n)
+    return msg

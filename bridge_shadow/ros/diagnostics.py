@@ -1,0 +1,143 @@
+"""``/diagnostics`` for the node: the small piece of diagnostic_updater we need (not on PyPI).
+
+``statuses`` turns ``Shadow.diagnostics()`` plus the node's own input bookkeeping into three
+statuses (plain data, testable without DDS); ``diagnostic_array`` builds the
+``diagnostic_msgs/DiagnosticArray``. Levels follow ``diagnostic_msgs/DiagnosticStatus``:
+0 OK, 1 WARN, 2 ERROR. Values are text for people, so settlements are in mm and forces in kN.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from bridge_shadow.contract import CHANNELS, NODE_NAME, SUPPORTS
+from bridge_shadow.ros.convert import stamp_msg
+
+__all__ = ["LEVELS", "Status", "diagnostic_array", "statuses"]
+
+#: diagnostic_msgs levels by the names ``Shadow.diagnostics()`` uses.
+LEVELS: dict[str, int] = {"OK": 0, "WARN": 1, "ERROR": 2}
+HARDWARE_ID = "unibw_test_bridge"
+
+
+@dataclass
+class Status:
+    """One ``DiagnosticStatus`` as plain data (level 0 OK, 1 WARN, 2 ERROR)."""
+
+    name: str
+    level: int
+    message: str
+    values: dict[str, str] = field(default_factory=dict)
+
+
+def _num(value: Any, fmt: str) -> str:
+    return "n/a" if value is None or value != value else format(value, fmt)
+
+
+def _estimate(diag: Mapping[str, Any]) -> Status:
+    mean = diag["mean_m"]
+    sigma = diag["sigma_m"]
+    cov = diag["covariance_m2"]
+    values: dict[str, str] = {}
+    for i, side in enumerate(SUPPORTS):
+        values[f"{side} settlement [mm]"] = _num(1e3 * mean[i], "+.4f")
+        values[f"{side} sigma [mm]"] = _num(1e3 * sigma[i], ".4f")
+    rho = cov[0][1] / (sigma[0] * sigma[1]) if sigma[0] > 0 and sigma[1] > 0 else float("nan")
+    values["correlation"] = _num(rho, "+.3f")
+    windows = diag["windows"]
+    for key in ("closed", "fitted", "held", "updates"):
+        values[f"windows {key}"] = str(windows[key])
+    values["warm"] = str(bool(windows["warm"])).lower()
+    return Status(
+        f"{NODE_NAME}: settlement",
+        LEVELS[diag["level"]],
+        f"{diag['message']}; {diag['summary']}",
+        values,
+    )
+
+
+def _inputs(
+    diag: Mapping[str, Any], arrival_age_s: Mapping[str, float | None], malformed: int, timeout_s: float
+) -> Status:
+    values: dict[str, str] = {}
+    quiet = []
+    for topic, used in diag["used"].items():
+        age = arrival_age_s.get(topic)
+        values[f"{topic} used"] = str(used)
+        values[f"{topic} last arrival [s ago]"] = _num(age, ".2f")
+        values[f"{topic} stamp lag [s]"] = _num(diag["staleness_s"].get(topic), ".2f")
+        if age is None or age > timeout_s:
+            quiet.append(topic)
+    rejected = diag["rejected"]
+    for reason, count in rejected.items():
+        values[f"rejected {reason}"] = str(count)
+    values["rejected malformed"] = str(malformed)
+    n_rejected = sum(rejected.values()) + malformed
+    if len(quiet) == len(diag["used"]):
+        level, message = LEVELS["ERROR"], f"no input for {timeout_s:g} s on any topic"
+    elif quiet:
+        level, message = LEVELS["WARN"], f"no input for {timeout_s:g} s: {', '.join(quiet)}"
+    else:
+        level, message = LEVELS["OK"], "receiving"
+    if n_rejected:
+        top = sorted(((c, r) for r, c in rejected.items() if c), reverse=True)[:3]
+        message += f"; {n_rejected} rejected ({', '.join(f'{r} {c}' for c, r in top) or 'malformed'})"
+    return Status(f"{NODE_NAME}: inputs", level, message, values)
+
+
+def _compensation(diag: Mapping[str, Any]) -> Status:
+    values: dict[str, str] = {}
+    for ch in CHANNELS:
+        sp = diag["spline"][ch]
+        values[f"{ch} edf"] = _num(sp["edf"], ".2f")
+        values[f"{ch} lambda"] = _num(sp["lambda"], ".4g")
+        values[f"{ch} mean force [kN]"] = _num(1e-3 * sp["mean_force_n"], ".3f")
+        values[f"{ch} windows"] = str(sp["windows"])
+        values[f"{ch} clamped"] = str(sp["clamped"])
+    noise = diag["noise"]
+    values["noise mode"] = str(noise["mode"])
+    for ch, phi, sd in zip(CHANNELS, noise["phi"], noise["sigma_n"], strict=True):
+        values[f"{ch} noise phi"] = _num(phi, ".3f")
+        values[f"{ch} noise sigma [kN]"] = _num(1e-3 * sd, ".4f")
+    warm = bool(diag["windows"]["warm"])
+    message = "warm" if warm else f"warming up ({diag['windows']['fitted']} windows fitted)"
+    return Status(f"{NODE_NAME}: compensation", LEVELS["OK" if warm else "WARN"], message, values)
+
+
+def statuses(
+    diag: Mapping[str, Any],
+    arrival_age_s: Mapping[str, float | None],
+    malformed: int = 0,
+    timeout_s: float = 60.0,
+) -> list[Status]:
+    """Build the node's statuses: settlement, inputs, compensation.
+
+    Args:
+        diag: ``Shadow.diagnostics()`` (SI units).
+        arrival_age_s: per topic key, wall seconds since the last message arrived (None: never).
+        malformed: raw messages the node could not decode.
+        timeout_s: an input quiet for longer is stale (WARN; ERROR when every topic is).
+
+    """
+    return [_estimate(diag), _inputs(diag, arrival_age_s, malformed, timeout_s), _compensation(diag)]
+
+
+def diagnostic_array(items: Sequence[Status], stamp_ns: int) -> DiagnosticArray:
+    """Build a ``DiagnosticArray`` stamped ``stamp_ns`` from plain statuses."""
+    msg = DiagnosticArray()
+    msg.header.stamp = stamp_msg(stamp_ns)
+    msg.status = [
+        DiagnosticStatus(
+            level=bytes([s.level]),
+            name=s.name,
+            message=s.message,
+            hardware_id=HARDWARE_ID,
+            values=[KeyValue(key=k, value=v) for k, v in s.values.items()],
+        )
+        for s in items
+    ]
+    return msg
