@@ -289,3 +289,16 @@ def test_shell_girder_linear_temperature_is_stress_free_bending() -> None:
     assert res.u[mid, 2] == pytest.approx(alpha * dT / h * span**2 / 8, rel=1e-6)
     restrained = 2.1e11 * (0.019 + 2 * 0.3 * tf) * alpha * dT  # N, force a full restraint would take
     assert abs(res.reaction("west", "uz")) < 1e-9 * restrained
+
+
+def test_package_docstring_example_runs() -> None:
+    """The usage example in ``bridge_shadow.fe``'s docstring runs and gives the closed forms."""
+    import bridge_shadow.fe as fe
+
+    block = fe.__doc__.split("::")[1].split("Modules:")[0]
+    ns: dict[str, object] = {}
+    exec("\n".join(line[4:] for line in block.splitlines()), ns)
+    ei, L = 210e9 * 1e-4, 10.0
+    assert ns["settle"].reaction("mid", "uz") == pytest.approx(-6 * ei * 1e-3 / L**3, rel=1e-9)  # type: ignore[attr-defined]
+    assert ns["dead"].reaction("mid", "uz") == pytest.approx(5 * 25e3 * L / 4, rel=1e-9)  # type: ignore[attr-defined]
+    np.testing.assert_allclose(ns["A"], [[6 * ei / L**3]], rtol=1e-9)
