@@ -169,6 +169,47 @@ def test_cli_json_and_overrides(tmp_path, capsys):
     assert out.is_file()
 
 
+def test_cli_writes_vtk_with_deflected_shapes_and_png(tmp_path, capsys):
+    meshio = pytest.importorskip("meshio")
+    code = main(
+        [
+            "surrogate",
+            "--mesh",
+            "coarse",
+            "--no-sensitivities",
+            "--out",
+            str(tmp_path / "s.yaml"),
+            "--vtk",
+            str(tmp_path / "vtk"),
+            "--png",
+            str(tmp_path / "model.png"),
+            "--json",
+        ]
+    )
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    mesh = meshio.read(doc["provenance"]["vtk"])
+    assert len(mesh.points) == doc["provenance"]["nodes"]
+    names = set(mesh.point_data)
+    for case in (
+        "settle FRC-01",
+        "settle FRC-02",
+        "dead",
+        "uniform",
+        "vertical_gradient",
+        "transverse_gradient",
+    ):
+        assert f"{case}:displacement" in names
+    # the unit settlement of FRC-01 lifts its ground node (x 15, y -1, flange level) by exactly 1 m,
+    # the flange above it by 1 m less the bearing's compression
+    at = np.flatnonzero(np.linalg.norm(mesh.points - [15.0, -1.0, 0.018], axis=1) < 1e-9)
+    lifted = np.sort(mesh.point_data["settle FRC-01:displacement"][at, 2])
+    assert len(at) == 2
+    assert lifted[1] == pytest.approx(1.0, abs=1e-12)
+    assert 0.99 < lifted[0] < 1.0
+    assert (tmp_path / "model.png").stat().st_size > 10_000
+
+
 def test_cli_bad_parameter_is_one_line_exit_2(tmp_path, capsys):
     code = main(["surrogate", "--mesh", "coarse", "--set", "nonsense=1", "--out", str(tmp_path / "s.yaml")])
     assert code == 2

@@ -216,7 +216,7 @@ def compute_surrogate(
             tick(f"{name}+")
             minus = solve_bridge(cfg.with_overrides({name: value * (1 - rel_step)}), level)
             tick(f"{name}-")
-            sens[name] = _delta(plus, minus, rel_step)
+            sens[name] = {"value": value, **_delta(plus, minus, rel_step)}
     counts = base.mesh.element_counts()
     dead_total = float(base.u0.sum() + sum(base.end_reactions.values()))
     provenance: dict[str, Any] = {
@@ -263,8 +263,9 @@ def write_surrogate(run: SurrogateRun, path: str | Path) -> Path:
 def load_sensitivities(path: str | Path | None = None) -> dict[str, Any]:
     """Return the ``sensitivities`` block of a surrogate file (default ``config/surrogate.yaml``).
 
-    Maps parameter name -> ``{"A": (2, 2), "u0": (2,), "thermal": {case: (2,)}}`` numpy arrays, per
-    unit relative change of the parameter; empty when the file has no such block.
+    Maps parameter name -> ``{"value": float, "A": (2, 2), "u0": (2,), "thermal": {case: (2,)}}``
+    (numpy arrays, per unit relative change of the parameter around ``value``); empty when the file
+    has no such block.
     """
     from bridge_shadow.paths import config_file
 
@@ -277,6 +278,7 @@ def load_sensitivities(path: str | Path | None = None) -> dict[str, Any]:
     for name, block in (data.get("sensitivities") or {}).items():
         if isinstance(block, dict) and "A" in block:
             out[name] = {
+                "value": float(block.get("value", np.nan)),
                 "A": np.asarray(block["A"], float).reshape(2, 2),
                 "u0": np.asarray(block["u0"], float).reshape(2),
                 "thermal": {k: np.asarray(v, float).reshape(2) for k, v in block["thermal"].items()},
