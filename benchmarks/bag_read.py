@@ -6,7 +6,8 @@ MCAP), then times, on the same bag in the same run:
 - baseline ``rosbags raw``: iterate ``Reader.messages()`` (bytes only, no decoding);
 - ``rosbags deserialize``: the same plus ``typestore.deserialize_cdr`` of every message and
   extraction of stamp and value (what a per-message reader must do);
-- ``bagio read_monitoring``: our read into ``MonitoringData`` (raw read + vectorized decode).
+- ``bagio read_monitoring``: our read into ``MonitoringData``: blobs per topic (one SQL query per
+  topic for sqlite3, the chunks' message indexes for MCAP) + vectorized CDR decode.
 
 Prints msg/s and the ratio to the raw-read baseline. Usage::
 

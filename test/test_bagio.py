@@ -19,6 +19,7 @@ from bridge_shadow.bagio import (
     NotABagError,
     UnexpectedTypeError,
     bag_summary,
+    decode_buffer,
     decode_stamped_floats,
     encode_stamped_floats,
     get_typestore,
@@ -274,3 +275,48 @@ def test_undecodable_message_is_a_corrupt_bag(tmp_path: Path) -> None:
         bag.write_raw(FORCE_TOPICS["frc_01"], FORCE_TYPE, T0 + 1, good[1][:30])  # cut inside the floats
     with pytest.raises(CorruptBagError, match="/bridge/frc_01/force does not decode"):
         read_monitoring(tmp_path / "bag", required=False)
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_mcap_index_fast_path_equals_rosbags_iteration(tmp_path: Path, compress: bool) -> None:
+    from bridge_shadow.bagio.mcap_direct import mcap_files, read_mcap_topics
+
+    data = _data(3000)
+    write_monitoring(tmp_path / "bag", data, "mcap", compress=compress)
+    blocks, types = read_mcap_topics(
+        mcap_files(tmp_path / "bag"), set(FORCE_TOPICS.values()) | {TEMPERATURE_TOPIC}
+    )
+    assert types[TEMPERATURE_TOPIC] == TEMPERATURE_TYPE
+    with Reader(tmp_path / "bag") as reader:
+        for conn in reader.connections:
+            ref = list(reader.messages(connections=[conn]))
+            assert blocks[conn.topic].raws() == [raw for _, _, raw in ref]
+            np.testing.assert_array_equal(blocks[conn.topic].log_ns, [t for _, t, _ in ref])
+
+
+def test_mcap_fallback_to_rosbags_gives_the_same_data(tmp_path: Path, monkeypatch) -> None:
+    import bridge_shadow.bagio.reader as reader_module
+    from bridge_shadow.bagio.mcap_direct import McapLayoutError
+
+    data = _data(300)
+    write_monitoring(tmp_path / "bag", data, "mcap")
+
+    def refuse(*_args: object) -> None:
+        raise McapLayoutError("layout not handled")
+
+    monkeypatch.setattr(reader_module, "read_mcap_topics", refuse)
+    _assert_same(data, read_monitoring(tmp_path / "bag"))
+
+
+def test_decode_buffer_gathers_scattered_messages() -> None:
+    raws = encode_stamped_floats(
+        np.array([5, 6, 7]), ["a", "bbbbbbbbbbbb", "a"], np.arange(18.0).reshape(3, 6)
+    )
+    junk = b"\xff" * 5
+    buf = np.frombuffer(junk + raws[2] + junk + raws[0] + raws[1], dtype=np.uint8)
+    starts = np.array([5 + len(raws[2]) + 5, 5 + len(raws[2]) + 5 + len(raws[0]), 5])
+    lengths = np.array([len(r) for r in raws])
+    stamp, frames, values = decode_buffer(buf, starts, lengths, 6)
+    np.testing.assert_array_equal(stamp, [5, 6, 7])
+    assert list(frames) == ["a", "bbbbbbbbbbbb", "a"]
+    np.testing.assert_array_equal(values, np.arange(18.0).reshape(3, 6))

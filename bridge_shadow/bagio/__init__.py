@@ -5,7 +5,13 @@ No ROS import: bags are read and written with ``rosbags`` in sqlite3 or MCAP sto
 
 from __future__ import annotations
 
-from bridge_shadow.bagio.cdr import N_FLOATS, decode_stamped_floats, encode_stamped_floats
+from bridge_shadow.bagio.cdr import (
+    N_FLOATS,
+    RawBlock,
+    decode_buffer,
+    decode_stamped_floats,
+    encode_stamped_floats,
+)
 from bridge_shadow.bagio.errors import (
     BagError,
     BagExistsError,
@@ -15,7 +21,14 @@ from bridge_shadow.bagio.errors import (
     NotABagError,
     UnexpectedTypeError,
 )
-from bridge_shadow.bagio.reader import bag_summary, iter_raw, open_bag, read_monitoring, read_raw_topics
+from bridge_shadow.bagio.reader import (
+    bag_summary,
+    iter_raw,
+    open_bag,
+    read_blocks,
+    read_monitoring,
+    read_raw_topics,
+)
 from bridge_shadow.bagio.writer import STORAGES, BagOutputWriter, get_typestore, write_monitoring
 
 __all__ = [
@@ -28,13 +41,16 @@ __all__ = [
     "CorruptBagError",
     "MissingTopicError",
     "NotABagError",
+    "RawBlock",
     "UnexpectedTypeError",
     "bag_summary",
+    "decode_buffer",
     "decode_stamped_floats",
     "encode_stamped_floats",
     "get_typestore",
     "iter_raw",
     "open_bag",
+    "read_blocks",
     "read_monitoring",
     "read_raw_topics",
     "write_monitoring",

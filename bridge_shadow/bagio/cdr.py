@@ -18,12 +18,15 @@ blocks, one per (length, frame_id length): no Python work per message beyond ``l
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 __all__ = [
     "N_FLOATS",
     "CdrFormatError",
+    "RawBlock",
+    "decode_buffer",
     "decode_stamped_floats",
     "encode_stamped_floats",
 ]
@@ -40,6 +43,36 @@ _NS = 1_000_000_000
 
 class CdrFormatError(ValueError):
     """A raw message does not have the fixed layout it claims (reported per topic by the reader)."""
+
+
+@dataclass
+class RawBlock:
+    """Messages of one topic lying in one buffer.
+
+    Attributes:
+        log_ns: (n,) int64 log times, ascending.
+        buf: (N,) uint8 buffer.
+        starts: (n,) int64 offset of each CDR message in ``buf``.
+        lengths: (n,) int64 size of each CDR message.
+
+    """
+
+    log_ns: np.ndarray
+    buf: np.ndarray
+    starts: np.ndarray
+    lengths: np.ndarray
+
+    def raws(self) -> list[bytes]:
+        """Return the messages as separate ``bytes`` (slow path for callers that need them)."""
+        data = self.buf.tobytes()
+        return [data[s : s + n] for s, n in zip(self.starts.tolist(), self.lengths.tolist(), strict=True)]
+
+    @staticmethod
+    def from_raws(log_ns: Sequence[int] | np.ndarray, raws: Sequence[bytes]) -> RawBlock:
+        """Pack separate messages into one buffer."""
+        lengths = np.fromiter(map(len, raws), dtype=np.int64, count=len(raws))
+        buf = np.frombuffer(b"".join(raws), dtype=np.uint8)
+        return RawBlock(np.asarray(log_ns, dtype=np.int64), buf, np.cumsum(lengths) - lengths, lengths)
 
 
 def _align8(n: np.ndarray) -> np.ndarray:
@@ -81,28 +114,60 @@ def decode_stamped_floats(raws: Sequence[bytes], n_floats: int) -> tuple[np.ndar
             inconsistent string length.
 
     """
-    n = len(raws)
+    lengths = np.fromiter(map(len, raws), dtype=np.int64, count=len(raws))
+    starts = np.cumsum(lengths) - lengths
+    buf = np.frombuffer(b"".join(raws), dtype=np.uint8)
+    return decode_buffer(buf, starts, lengths, n_floats)
+
+
+def _gather(buf: np.ndarray, starts: np.ndarray, length: int) -> np.ndarray:
+    """Return the ``(m, length) uint8`` block of messages at ``starts`` (a view when they are packed)."""
+    m = len(starts)
+    if m and int(starts[-1]) - int(starts[0]) == (m - 1) * length and np.all(np.diff(starts) == length):
+        return buf[int(starts[0]) : int(starts[0]) + m * length].reshape(m, length)
+    block = np.empty((m, length), dtype=np.uint8)
+    for j in range(length):  # one vectorized gather per byte column: no Python work per message
+        block[:, j] = buf[starts + j]
+    return block
+
+
+def decode_buffer(
+    buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, n_floats: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Decode n messages lying in one byte buffer at ``starts`` with ``lengths`` (see above).
+
+    Args:
+        buf: (N,) uint8 buffer holding the messages (e.g. joined blobs or MCAP chunk records).
+        starts, lengths: (n,) int64 offset and size of each message in ``buf``.
+        n_floats: number of float64 fields after the header.
+
+    """
+    n = len(starts)
     stamp_ns = np.empty(n, dtype=np.int64)
     frames = np.empty(n, dtype=object)
     values = np.empty((n, n_floats), dtype=np.float64)
     if n == 0:
         return stamp_ns, frames, values
-    lengths = np.fromiter(map(len, raws), dtype=np.int64, count=n)
-    for length in np.unique(lengths).tolist():
-        rows = np.flatnonzero(lengths == length)
+    starts = np.asarray(starts, dtype=np.int64)
+    lengths = np.asarray(lengths, dtype=np.int64)
+    if int((starts + lengths).max()) > len(buf) or int(starts.min()) < 0:
+        raise CdrFormatError("message extends beyond its buffer")
+    same = lengths.min() == lengths.max()
+    for length in [int(lengths[0])] if same else np.unique(lengths).tolist():
+        rows = np.arange(n) if same else np.flatnonzero(lengths == length)
         if length < _HEADER_BYTES + 8 * n_floats:
             raise CdrFormatError(f"message {int(rows[0])} is {length} bytes, too short for the layout")
-        joined = b"".join(raws) if len(rows) == n else b"".join([raws[i] for i in rows.tolist()])
-        block = np.frombuffer(joined, dtype=np.uint8).reshape(len(rows), length)
+        block = _gather(buf, starts[rows], length)
         if np.any(block[:, 0] != 0) or np.any(block[:, 1] > 1):
             bad = int(rows[np.flatnonzero((block[:, 0] != 0) | (block[:, 1] > 1))[0]])
             raise CdrFormatError(f"message {bad} has an unknown CDR encapsulation")
-        for little in (True, False):
-            sel = np.flatnonzero(block[:, 1] == (1 if little else 0))
-            if len(sel):
-                _decode_block(
-                    block[sel], rows[sel], n_floats, "<" if little else ">", stamp_ns, frames, values
-                )
+        little = block[:, 1] == 1
+        if np.all(little):
+            _decode_block(block, rows, n_floats, "<", stamp_ns, frames, values)
+            continue
+        for mask, order in ((little, "<"), (~little, ">")):
+            if np.any(mask):
+                _decode_block(block[mask], rows[mask], n_floats, order, stamp_ns, frames, values)
     return stamp_ns, frames, values
 
 

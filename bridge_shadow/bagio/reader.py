@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from bridge_shadow.bagio.cdr import N_FLOATS, CdrFormatError, decode_stamped_floats
+from bridge_shadow.bagio.cdr import N_FLOATS, CdrFormatError, RawBlock, decode_buffer
 from bridge_shadow.bagio.errors import (
     BagError,
     BagNotFoundError,
@@ -22,6 +22,8 @@ from bridge_shadow.bagio.errors import (
     NotABagError,
     UnexpectedTypeError,
 )
+from bridge_shadow.bagio.mcap_direct import McapLayoutError, mcap_files, read_mcap_topics
+from bridge_shadow.bagio.sqlite_direct import plain_sqlite_files, read_sqlite_topics
 from bridge_shadow.contract import (
     CHANNELS,
     FORCE_TOPICS,
@@ -32,7 +34,7 @@ from bridge_shadow.contract import (
 )
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
-__all__ = ["bag_summary", "iter_raw", "open_bag", "read_monitoring", "read_raw_topics"]
+__all__ = ["bag_summary", "iter_raw", "open_bag", "read_blocks", "read_monitoring", "read_raw_topics"]
 
 #: Storage failures that mean a damaged file (apsw errors are added at import time below).
 _STORAGE_ERRORS: tuple[type[BaseException], ...] = (
@@ -182,45 +184,9 @@ def iter_raw(
             yield conn.topic, conn.msgtype, log_ns, raw
 
 
-def _sqlite_files(reader: Any) -> list[Path] | None:
-    """Storage files of an uncompressed sqlite3 bag (read directly, faster), else None."""
-    if reader.compression_mode:
-        return None
-    storages = getattr(reader.storage, "storages", None) or [reader.storage]
-    if not all(
-        type(s).__name__ == "Sqlite3Reader" and isinstance(getattr(s, "path", None), Path) for s in storages
-    ):
-        return None
-    return [s.path for s in storages]
-
-
-def _read_sqlite(files: list[Path], topics: Collection[str]) -> dict[str, tuple[list[int], list[bytes]]]:
-    """Read ``(log_ns, raw)`` per topic with one SQL query per topic and file (C loops only)."""
-    out: dict[str, tuple[list[int], list[bytes]]] = {}
-    for file in files:
-        db = sqlite3.connect(f"file:{file}?immutable=1", uri=True)
-        try:
-            ids = dict(db.execute("SELECT name, id FROM topics").fetchall())
-            for topic in topics:
-                if topic not in ids:
-                    continue
-                rows = db.execute(
-                    "SELECT timestamp, data FROM messages WHERE topic_id = ? ORDER BY timestamp",
-                    (ids[topic],),
-                ).fetchall()
-                stamps, raws = out.setdefault(topic, ([], []))
-                if rows:
-                    t, r = zip(*rows, strict=True)
-                    stamps.extend(t)
-                    raws.extend(r)
-        finally:
-            db.close()
-    return out
-
-
-def _read_generic(reader: Any, conns: list[Any]) -> dict[str, tuple[list[int], list[bytes]]]:
-    """Read ``(log_ns, raw)`` per topic through rosbags' message iterator (any storage)."""
-    out: dict[str, tuple[list[int], list[bytes]]] = {c.topic: ([], []) for c in conns}
+def _read_generic(reader: Any, conns: list[Any]) -> dict[str, RawBlock]:
+    """Read the messages of the given connections through rosbags' iterator (any storage)."""
+    out: dict[str, RawBlock] = {c.topic: RawBlock.from_raws([], []) for c in conns}
     items = list(reader.messages(connections=conns))
     if not items:
         return out
@@ -230,37 +196,55 @@ def _read_generic(reader: Any, conns: list[Any]) -> dict[str, tuple[list[int], l
         idx = np.flatnonzero(topic_of == topic).tolist()
         if idx:
             pick = itemgetter(*idx) if len(idx) > 1 else (lambda seq, i=idx[0]: (seq[i],))
-            out[topic] = (list(pick(ts)), list(pick(rs)))
+            out[topic] = RawBlock.from_raws(list(pick(ts)), list(pick(rs)))
     return out
 
 
-def read_raw_topics(path: str | Path, topics: dict[str, str]) -> dict[str, tuple[np.ndarray, list[bytes]]]:
-    """Read every message of the given ``{topic: expected_type}`` present in the bag.
+def _check_types(path: Path, found: dict[str, str], topics: dict[str, str]) -> None:
+    for topic, msgtype in found.items():
+        if topic in topics and msgtype != topics[topic]:
+            raise UnexpectedTypeError(f"{path}: topic {topic} has type {msgtype}, expected {topics[topic]}")
 
-    Uncompressed sqlite3 bags are read with one SQL query per topic; other bags through rosbags.
+
+def read_blocks(path: str | Path, topics: dict[str, str]) -> dict[str, RawBlock]:
+    """Read the messages of the given ``{topic: expected_type}`` as one buffer per topic.
+
+    Plain sqlite3 bags are read with one SQL query per topic (``sqlite_direct``), MCAP bags
+    through their message indexes (``mcap_direct``); anything else, or an MCAP file that the
+    fast path does not handle, through rosbags.
 
     Returns:
-        ``{topic: (log_ns (n,) int64, raws)}`` for each topic the bag holds, in log-time order.
+        ``{topic: RawBlock}`` for each topic the bag holds, messages in log-time order.
 
     Raises:
-        UnexpectedTypeError: a topic is present with another message type.
+        UnexpectedTypeError: a topic is present with another message type; other ``BagError``s.
 
     """
     path = Path(path)
+    if path.exists():
+        if (files := plain_sqlite_files(path)) is not None:
+            with _translated(path, "reading messages"):
+                out, found = read_sqlite_topics(files, set(topics))
+            _check_types(path, found, topics)
+            return out
+        if (files := mcap_files(path)) is not None:
+            try:
+                out, found = read_mcap_topics(files, set(topics))
+            except McapLayoutError:
+                pass  # rosbags decides: a damaged file becomes a CorruptBagError below
+            else:
+                _check_types(path, found, topics)
+                return out
     with open_bag(path) as reader:
         conns = [c for c in reader.connections if c.topic in topics]
-        for conn in conns:
-            if conn.msgtype != topics[conn.topic]:
-                raise UnexpectedTypeError(
-                    f"{path}: topic {conn.topic} has type {conn.msgtype}, expected {topics[conn.topic]}"
-                )
-        present = {c.topic for c in conns}
+        _check_types(path, {c.topic: c.msgtype for c in conns}, topics)
         with _translated(path, "reading messages"):
-            files = _sqlite_files(reader)
-            out = _read_sqlite(files, present) if files is not None else _read_generic(reader, conns)
-    for topic in present:
-        out.setdefault(topic, ([], []))
-    return {t: (np.asarray(s, dtype=np.int64), r) for t, (s, r) in out.items()}
+            return _read_generic(reader, conns)
+
+
+def read_raw_topics(path: str | Path, topics: dict[str, str]) -> dict[str, tuple[np.ndarray, list[bytes]]]:
+    """Like ``read_blocks``, as ``{topic: (log_ns (n,) int64, [raw bytes, ...])}``."""
+    return {t: (b.log_ns, b.raws()) for t, b in read_blocks(path, topics).items()}
 
 
 def _required_topics(required: bool | Collection[str]) -> set[str]:
@@ -292,19 +276,21 @@ def read_monitoring(path: str | Path, *, required: bool | Collection[str] = True
     """
     path = Path(path)
     must = _required_topics(required)
-    raw = read_raw_topics(path, INPUT_TOPICS)
+    raw = read_blocks(path, INPUT_TOPICS)
     missing = sorted(must - set(raw))
     if missing:
         has = ", ".join(sorted(raw)) or "none of the contract topics"
         raise MissingTopicError(f"{path}: missing topic(s) {', '.join(missing)} (bag has {has})")
 
     def decode(topic: str, msgtype: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        log_ns, raws = raw.get(topic, (np.empty(0, np.int64), []))
+        block = raw.get(topic) or RawBlock.from_raws([], [])
         try:
-            stamp_ns, frames, values = decode_stamped_floats(raws, N_FLOATS[msgtype])
+            stamp_ns, frames, values = decode_buffer(
+                block.buf, block.starts, block.lengths, N_FLOATS[msgtype]
+            )
         except CdrFormatError as err:
             raise CorruptBagError(f"{path}: topic {topic} does not decode as {msgtype}: {err}") from err
-        return stamp_ns, frames, values, log_ns
+        return stamp_ns, frames, values, block.log_ns
 
     forces = {}
     for ch in CHANNELS:
