@@ -258,3 +258,22 @@ def test_cli_compress_needs_mcap(munich_data: Path, tmp_path: Path, capsys) -> N
     assert (
         len(read_monitoring(tmp_path / "b", required=False).temperature) == summary["rows"]["air_temperature"]
     )
+
+
+def test_swap_decided_per_file_across_midnight(tmp_path: Path) -> None:
+    path = tmp_path / "UniBw_2022-04-11_night.csv"
+    path.write_text(
+        "Time (-),FRC-01 (kN),FRC-02 (kN)\n"
+        "2022-11-04 23:59:59.990,1.5,2.5\n"
+        "2022-12-04 00:00:00.000,1.5,2.75\n"
+    )
+    data, report = import_csv([path])
+    assert [(f["written"], f["used"]) for f in report.date_fixes] == [
+        ("2022-11-04", "2022-04-11"),
+        ("2022-12-04", "2022-04-12"),
+    ]
+    np.testing.assert_array_equal(
+        data.forces["frc_02"].stamp_ns, [_ns("2022-04-11T21:59:59.990"), _ns("2022-04-11T22:00:00")]
+    )
+    np.testing.assert_array_equal(data.forces["frc_02"].force_n, [2500.0, 2750.0])
+    assert report.repeats == {"frc_01": 1, "frc_02": 0, "air_temperature": 0}

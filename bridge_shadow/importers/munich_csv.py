@@ -201,33 +201,38 @@ def _name_dates(source: CsvSource) -> set[date]:
     return out
 
 
-def _decide_force_date(
-    written: date, source: CsvSource, explicit: date | None, temp_dates: set[date], today: date
-) -> tuple[date, str | None]:
-    """Return the true recording date of a force file and the evidence for a month/day swap."""
-    swap = _swapped(written)
+def _swap_evidence(
+    written: list[date], source: CsvSource, explicit: date | None, temp_dates: set[date], today: date
+) -> str | None:
+    """Say why the force stamps of a file have month and day swapped, or None if they have not.
+
+    The decision is for the whole file (a record crossing midnight keeps one convention). A swap
+    needs positive evidence: ``--date``; the date in the file name or of the temperature files
+    (day-first, unambiguous) matching the swapped but not the written dates; or written dates
+    after the file's own date or in the future while the swapped ones are not.
+    """
+    swaps = [_swapped(d) for d in written]
     if explicit is not None:
-        if written == explicit:
-            return written, None
-        if swap == explicit:
-            return swap, "--date"
-        raise InputError(
-            f"{source.label}: stamps read {written}, which is not --date {explicit} nor its swap"
-        )
-    if swap is None or swap == written:
-        return written, None
-    evidence = [
+        if explicit in written:
+            return None
+        if explicit in swaps:
+            return "--date"
+        shown = ", ".join(str(d) for d in written)
+        raise InputError(f"{source.label}: stamps read {shown}, which is not --date {explicit} nor its swap")
+    if not written or any(d is None for d in swaps) or swaps == written:
+        return None
+    for what, known in (
         ("date in the file name", _name_dates(source)),
         ("date of the temperature files", temp_dates),
-    ]
-    for what, known in evidence:
-        if swap in known and written not in known:
-            return swap, what
-    if source.modified is not None and written > source.modified >= swap:
-        return swap, f"recording after the file was written ({source.modified})"
-    if written > today >= swap:
-        return swap, "date in the future"
-    return written, None
+    ):
+        if any(d in known for d in swaps) and not any(d in known for d in written):
+            return what
+    latest, latest_swapped = max(written), max(d for d in swaps if d is not None)
+    if source.modified is not None and latest > source.modified >= latest_swapped:
+        return f"recording after the file was written ({source.modified})"
+    if latest > today >= latest_swapped:
+        return "date in the future"
+    return None
 
 
 def _repeats(values: np.ndarray) -> int:
@@ -281,14 +286,17 @@ def import_csv(
         local = p.local_ns.copy()
         used_dates = list(p.written_dates)
         if p.source.kind == "force":
-            for k, written in enumerate(p.written_dates):
-                true, evidence = _decide_force_date(written, p.source, date_hint, temp_dates, today)
-                if evidence is not None:
+            evidence = _swap_evidence(p.written_dates, p.source, date_hint, temp_dates, today)
+            if evidence is not None:
+                used_dates = []
+                for written in p.written_dates:
+                    true = _swapped(written)
+                    assert true is not None
                     day_ns = np.datetime64(written, "D").astype("datetime64[ns]").astype(np.int64)
                     on_day = (p.local_ns >= day_ns) & (p.local_ns < day_ns + 86_400 * 10**9)
                     shift = (np.datetime64(true, "D") - np.datetime64(written, "D")).astype("timedelta64[ns]")
                     local[on_day] += shift.astype(np.int64)
-                    used_dates[k] = true
+                    used_dates.append(true)
                     report.date_fixes.append(
                         {
                             "file": p.source.label,
