@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader, Writer
+from rosbags.rosbag2 import StoragePlugin as Plugin
 
 from bridge_shadow.bagio import (
     BagError,
@@ -154,9 +155,11 @@ def test_optional_topics_and_missing_topic(tmp_path: Path) -> None:
     np.testing.assert_array_equal(got.forces["frc_02"].force_n, data.forces["frc_02"].force_n)
 
 
-def test_unexpected_type(tmp_path: Path) -> None:
+@pytest.mark.parametrize("storage", STORAGES)
+def test_unexpected_type(tmp_path: Path, storage: str) -> None:
     ts = get_typestore()
-    with Writer(tmp_path / "wrong", version=9) as w:
+    plugin = Plugin.SQLITE3 if storage == "sqlite3" else Plugin.MCAP
+    with Writer(tmp_path / "wrong", version=9, storage_plugin=plugin) as w:
         conn = w.add_connection(TEMPERATURE_TOPIC, "std_msgs/msg/Float64", typestore=ts)
         w.write(
             conn,

@@ -1,4 +1,10 @@
-"""Read rosbag2 bags (sqlite3 or MCAP) into ``MonitoringData``; raw iteration and summaries."""
+"""Read rosbag2 bags (sqlite3 or MCAP) into ``MonitoringData``; raw iteration and summaries.
+
+``read_monitoring`` gets each topic's CDR blobs as one buffer (``RawBlock``): plain sqlite3 bags
+through one SQL query per topic (``sqlite_direct``), MCAP bags through their message indexes
+(``mcap_direct``), anything else through rosbags. It then decodes each buffer vectorized
+(``cdr.decode_buffer``). Every storage failure becomes a one-line ``BagError`` naming the bag.
+"""
 
 from __future__ import annotations
 
