@@ -210,6 +210,12 @@ def test_cli_writes_vtk_with_deflected_shapes_and_png(tmp_path, capsys):
     assert (tmp_path / "model.png").stat().st_size > 10_000
 
 
+def test_cli_refuses_to_overwrite_the_shipped_surrogate_with_a_variant(capsys):
+    code = main(["surrogate", "--mesh", "coarse", "--no-sensitivities"])
+    assert code == 2
+    assert "--out" in capsys.readouterr().err
+
+
 def test_cli_bad_parameter_is_one_line_exit_2(tmp_path, capsys):
     code = main(["surrogate", "--mesh", "coarse", "--set", "nonsense=1", "--out", str(tmp_path / "s.yaml")])
     assert code == 2

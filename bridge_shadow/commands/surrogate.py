@@ -67,12 +67,18 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.errors import InputError
     from bridge_shadow.model.config import load_bridge_config, parse_overrides
     from bridge_shadow.model.surrogate import compute_surrogate, write_surrogate
     from bridge_shadow.paths import config_file
 
     cfg = load_bridge_config(args.model, parse_overrides(args.overrides))
     cfg.mesh(args.mesh)  # fail early on an unknown level
+    if args.out is None and (cfg.overrides or args.mesh != "default" or args.model is not None):
+        raise InputError(
+            "the shipped config/surrogate.yaml is built from the default model and mesh without "
+            "overrides; give --out for this variant"
+        )
     run_ = compute_surrogate(
         cfg, args.mesh, sensitivities=not args.no_sensitivities, report=lambda f, s: progress(f, "surrogate")
     )
