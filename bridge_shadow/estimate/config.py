@@ -53,7 +53,7 @@ class ShadowConfig:
     noise_sigma_n: list[float] = field(default_factory=lambda: [60.4, 82.7])
     # honest uncertainty (noise model)
     noise_mode: str = "adaptive"
-    noise_warmup_windows: int = 10
+    noise_warmup_windows: int = 30
     noise_phi_max: float = 0.99
     noise_floor: bool = True
     # gating

@@ -10,7 +10,8 @@ compensation curve) and their lag-1 autocorrelation ``phi`` between adjacent win
 
 with ``C`` the residual correlation between channels: the long-run variance of an AR(1) mean,
 so that a run of ``N`` windows carries ``N (1 - phi) / (1 + phi)`` windows' worth of
-information. With ``noise_floor`` the diagonal never drops below the paper's ``Sigma_E / m``.
+information, times ``nu / (nu - 2)`` (Student t, ``nu`` = effective windows - 1) for the
+uncertainty of the estimate itself. With ``noise_floor`` the diagonal never drops below the paper's ``Sigma_E / m``.
 """
 
 from __future__ import annotations
@@ -68,6 +69,8 @@ class WindowNoise:
             return np.zeros(2)
         with np.errstate(divide="ignore", invalid="ignore"):
             phi = np.where(self.S0 > 0, self.S1 / self.S0, 0.0)
+        # first-order bias correction of the lag-1 estimator (Kendall): E[phi^] ~ phi - (1 + 3 phi) / n
+        phi = phi + (1.0 + 3.0 * phi) / self.n_pairs
         return np.clip(phi, 0.0, self.phi_max)
 
     def sample_cov(self) -> np.ndarray:
@@ -85,6 +88,10 @@ class WindowNoise:
         cov = self.sample_cov()
         phi = self.phi
         var = np.diag(cov) * (1.0 + phi) / (1.0 - phi) / m
+        # the variance is itself estimated from n (1 - phi) / (1 + phi) effective windows: use the
+        # variance of a Student t with that many degrees of freedom (>= 3), not of a normal
+        dof = np.maximum(self.n * (1.0 - phi) / (1.0 + phi) - 1.0, 3.0)
+        var = var * dof / (dof - 2.0)
         if self.floor:
             var = np.maximum(var, paper)
         sd = np.sqrt(var)

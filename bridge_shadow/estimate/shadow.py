@@ -412,17 +412,20 @@ class Shadow:
         self._temp.drop_before(int(np.searchsorted(ts, end, side="right")) - 1)
 
     def _release(self) -> list[WindowOutput]:
+        """Compensate the held windows with the current fit, feed the noise model, then update."""
         held, self._held = self._held, []
-        return [self._apply(rec) for rec in held]
-
-    def _apply(self, rec: dict[str, Any]) -> WindowOutput:
-        """Compensate one warm window, update the noise model and the filter."""
-        k, m, temp, force = rec["k"], rec["samples"], rec["temp_c"], rec["force_n"]
-        end = (k + 1) * self._w_ns
-        g = np.array([self.splines[c].predict(temp[c])[0] for c in range(2)])
+        comp = []
+        for rec in held:
+            g = np.array([self.splines[c].predict(rec["temp_c"][c])[0] for c in range(2)])
+            self.noise.add(rec["force_n"] - g, rec["samples"], rec["k"])
+            comp.append(rec["force_n"] - g)
         level = self._level()
-        compensated = force - g + level
-        self.noise.add(force - g, m, k)
+        return [self._apply(rec, resid + level) for rec, resid in zip(held, comp, strict=True)]
+
+    def _apply(self, rec: dict[str, Any], compensated: np.ndarray) -> WindowOutput:
+        """Update the filter with one compensated window (noise model already holds it)."""
+        k, m = rec["k"], rec["samples"]
+        end = (k + 1) * self._w_ns
         R = self.noise.R(m)
         if self._pred_ns is not None:
             self.filter.predict((end - self._pred_ns) / _NS)
@@ -431,7 +434,7 @@ class Shadow:
         res = self.filter.update(compensated - self.surrogate.u0, R, gate=gate)
         if not res.accepted:
             self.counts[res.reason] += 1
-        return self._output(k, m, temp, force, compensated, res.accepted, res.reason)
+        return self._output(k, m, rec["temp_c"], rec["force_n"], compensated, res.accepted, res.reason)
 
     def _level(self) -> np.ndarray:
         """Level added back by compensation (N), per ``compensation_level``."""

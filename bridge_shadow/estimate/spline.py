@@ -37,11 +37,33 @@ def clamped_knots(breakpoints: np.ndarray) -> np.ndarray:
 
 
 def _basis(knots: np.ndarray, x: np.ndarray, nu: int = 0) -> np.ndarray:
-    """Dense basis (or its ``nu``-th derivative) at ``x``: (len(x), q)."""
+    """Dense basis (or its ``nu``-th derivative) at ``x`` inside the knot range: (len(x), q).
+
+    Values use the Cox-de Boor recursion vectorized over ``x`` (equal to
+    ``BSpline.design_matrix`` to rounding, without its per-call overhead); derivatives use scipy.
+    """
     q = len(knots) - _DEGREE - 1
-    if nu == 0:
-        return BSpline.design_matrix(x, knots, _DEGREE).toarray()
-    return BSpline(knots, np.eye(q), _DEGREE).derivative(nu)(x)
+    if nu:
+        return BSpline(knots, np.eye(q), _DEGREE).derivative(nu)(x)
+    x = np.asarray(x, dtype=float)
+    # interval i with t_i <= x < t_{i+1}; the right end belongs to the last non-empty interval
+    i = np.clip(np.searchsorted(knots, x, side="right") - 1, _DEGREE, q - 1)
+    n = np.ones((len(x), _DEGREE + 1))
+    left = np.empty((len(x), _DEGREE + 1))
+    right = np.empty((len(x), _DEGREE + 1))
+    for j in range(1, _DEGREE + 1):
+        left[:, j] = x - knots[i + 1 - j]
+        right[:, j] = knots[i + j] - x
+        saved = np.zeros(len(x))
+        for r in range(j):
+            temp = n[:, r] / (right[:, r + 1] + left[:, j - r])
+            n[:, r] = saved + right[:, r + 1] * temp
+            saved = left[:, j - r] * temp
+        n[:, j] = saved
+    out = np.zeros((len(x), q))
+    cols = (i - _DEGREE)[:, None] + np.arange(_DEGREE + 1)
+    np.put_along_axis(out, cols, n, axis=1)
+    return out
 
 
 def gram_penalty(knots: np.ndarray) -> np.ndarray:
@@ -129,9 +151,10 @@ class OnlinePSpline:
             self.sw *= decay
             self.sy *= decay
             self.st *= decay
-        b = self.basis(t)
-        self.G += (b * wv[:, None]).T @ b
-        self.r += b.T @ (wv * yv)
+        if self.mode != "none":  # a constant curve needs only the scalar sums
+            b = self.basis(t)
+            self.G += (b * wv[:, None]).T @ b
+            self.r += b.T @ (wv * yv)
         self.yy += float(np.sum(wv * yv * yv))
         self.sw += float(np.sum(wv))
         self.sy += float(np.sum(wv * yv))
@@ -215,6 +238,8 @@ class OnlinePSpline:
 
     def predict(self, temp_c: np.ndarray) -> np.ndarray:
         """``g(T)`` (temperatures clamped into the knot range)."""
+        if self.mode == "none":
+            return np.full(np.shape(np.atleast_1d(temp_c)), self.fit().mean_y)
         return self.basis(np.atleast_1d(temp_c)) @ self.fit().beta
 
     def compensate(self, temp_c: np.ndarray, y: np.ndarray) -> np.ndarray:
