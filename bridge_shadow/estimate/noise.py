@@ -11,7 +11,8 @@ compensation curve) and their lag-1 autocorrelation ``phi`` between adjacent win
 with ``C`` the residual correlation between channels: the long-run variance of an AR(1) mean,
 so that a run of ``N`` windows carries ``N (1 - phi) / (1 + phi)`` windows' worth of
 information, times ``nu / (nu - 2)`` (Student t, ``nu`` = effective windows - 1) for the
-uncertainty of the estimate itself. With ``noise_floor`` the diagonal never drops below the paper's ``Sigma_E / m``.
+uncertainty of the estimate itself. With ``noise_floor`` the diagonal never drops below the
+paper's ``Sigma_E / m``.
 """
 
 from __future__ import annotations
