@@ -3,11 +3,13 @@
 Bearings: every bearing is three springs from the bottom flange (both tips and the web junction,
 weights 1/6, 2/3, 1/6) to its own ground node, which is a rigid support. So a bearing is free to
 rotate about y (girder bending) but restrains the girder's twist like a uniform bearing pressure
-over the flange width (``k b^2 / 12``). Vertically the springs carry ``bearing_stiffness`` (central) or
-``end_bearing_stiffness`` (ends); horizontally ``fixed_bearing_stiffness`` holds x at both central
-bearings and y at FRC-01 only; the end bearings slide. So the deck expands freely from the central
-support. The ground point's vertical displacement is the settlement ``x`` (positive up) and its
-reaction the load cell force (positive in compression).
+over the flange width (``k b^2 / 12``; at FRC-01/02 times ``central_bearing_twist_restraint``, the
+fraction of the Simpson share the tip springs keep). Vertically the springs carry
+``bearing_stiffness`` (central) or ``end_bearing_stiffness`` (ends); horizontally
+``fixed_bearing_stiffness`` holds x at both central bearings and y at FRC-01 only; the end
+bearings slide. So the deck expands freely from the central support. The ground point's vertical
+displacement is the settlement ``x`` (positive up) and its reaction the load cell force (positive
+in compression).
 
 Thermal load cases (1 K each):
 
@@ -94,13 +96,18 @@ def build_model(cfg: BridgeConfig, mesh: BridgeMesh, *, free_central_uz: bool = 
         CENTRAL_BEARINGS[1]: (kf, 0.0, kb),  # x held, slides transversely
         **dict.fromkeys(END_BEARINGS, (0.0, 0.0, ke)),  # slide in x and y
     }
+    twist = par["central_bearing_twist_restraint"]
     for name, bearing in mesh.bearings.items():
         k = np.array([*per_bearing[name], 0.0, 0.0, 0.0])
+        w = bearing.weights.copy()
+        if name in CENTRAL_BEARINGS:  # scale the tip share: twist stiffness twist * k b^2 / 12
+            w[[0, 2]] *= twist
+            w[1] = 1.0 - w[0] - w[2]
         springs.append(
             SpringSet(
                 bearing.nodes,
                 np.full(len(bearing.nodes), bearing.ground),
-                bearing.weights[:, None] * k[None, :],
+                w[:, None] * k[None, :],
                 tag=f"bearing_{name}",
             )
         )

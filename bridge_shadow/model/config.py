@@ -24,6 +24,8 @@ __all__ = ["MESH_LEVELS", "BridgeConfig", "file_sha256", "load_bridge_config", "
 MESH_LEVELS: tuple[str, str, str] = ("coarse", "default", "fine")
 
 _SECTIONS = ("geometry", "sections", "materials", "loads", "parameters", "mesh")
+_MAY_BE_ZERO = ("central_bearing_twist_restraint",)
+_FRACTIONS = ("composite_action", "central_bearing_twist_restraint")
 _MESH_KEYS = ("dx", "web", "half_flange", "cantilever", "between", "connector", "brace")
 
 
@@ -111,10 +113,11 @@ def _validate(cfg: BridgeConfig) -> None:
         if not isinstance(m, dict) or any(k not in m for k in _MESH_KEYS):
             raise ConfigError(f"{where}: mesh.{level} must define {', '.join(_MESH_KEYS)}")
     for name, value in d["parameters"].items():
-        if not isinstance(value, float | int) or not value > 0:
+        if not isinstance(value, float | int) or (not value > 0 and name not in _MAY_BE_ZERO):
             raise ConfigError(f"{where}: parameter {name} must be a positive number, got {value!r}")
-    if d["parameters"].get("composite_action", 1.0) > 1.0:
-        raise ConfigError("composite_action must lie in (0, 1]")
+    for name in _FRACTIONS:
+        if not 0.0 <= d["parameters"].get(name, 1.0) <= 1.0:
+            raise ConfigError(f"{where}: parameter {name} must lie in [0, 1]")
     geo = d["geometry"]
     if geo["deck_width"] <= geo["girder_spacing"]:
         raise ConfigError(f"{where}: deck_width must exceed girder_spacing")
