@@ -143,11 +143,8 @@ class BagOutputWriter:
 
     def write_raw(self, topic: str, msgtype: str, log_ns: int, raw: bytes) -> None:
         """Write one already serialized CDR message."""
-        self._writer_write(self._connection(topic, msgtype), int(log_ns), raw)
+        self._writer.write(self._connection(topic, msgtype), int(log_ns), raw)
         self.counts[topic] += 1
-
-    def _writer_write(self, conn: Any, log_ns: int, raw: bytes) -> None:
-        self._writer.write(conn, log_ns, raw)
 
     def write_many_raw(self, topic: str, msgtype: str, log_ns: Iterable[int], raws: Iterable[bytes]) -> None:
         """Write many serialized messages of one topic."""
