@@ -34,21 +34,29 @@ def _cli_json(argv: list[str]) -> dict[str, Any]:
     return json.loads(out.getvalue())
 
 
-def _synth(out: Path, effect: str | None) -> Path:
+def _synth(out: Path, effect: str | None, extra: list[str] = ()) -> Path:
     argv = ["synth", "--out", str(out), "--days", DAYS, "--rate", RATE, "--seed", str(SEED)]
     if effect:
         argv += ["--effect", f"{effect}={EFFECTS[effect].realistic}"]
+    for item in extra:
+        argv += ["--effect", item]
     with contextlib.redirect_stdout(io.StringIO()):
         assert main(argv) == 0
     (out / "truth.yaml").unlink()
     return out
 
 
+#: Several effects at once, as in the demo bag: the paper's offset, sun gradients and a test car.
+MIXED = {"settlement_offset": 7e-4, "vertical_gradient": 4.0, "transverse_gradient": 3.0, "traffic": 2.5e4}
+
+
 @pytest.fixture(scope="session")
 def twin_bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """Bags keyed by effect name ("none" for the clean bag), truth.yaml removed."""
+    """Bags keyed by effect name ("none" for the clean bag, "mixed" for MIXED), truth.yaml removed."""
     base = tmp_path_factory.mktemp("gap_twin")
-    return {name: _synth(base / name, None if name == "none" else name) for name in ("none", *EFFECT_NAMES)}
+    bags = {name: _synth(base / name, None if name == "none" else name) for name in ("none", *EFFECT_NAMES)}
+    bags["mixed"] = _synth(base / "mixed", None, [f"{k}={v}" for k, v in MIXED.items()])
+    return bags
 
 
 @pytest.fixture(scope="session")
@@ -169,3 +177,22 @@ def test_bad_holdout_day_is_one_line_error(twin_bags: dict[str, Path], capsys):
     assert main(["gap", str(twin_bags["none"]), "--holdout-days", "9"]) == 2
     err = capsys.readouterr().err
     assert "holdout" in err and "Traceback" not in err
+
+
+def test_several_effects_at_once_are_all_found(diagnoses):
+    s = diagnoses["mixed"]
+    found = [s["best"], *s["indistinguishable_from"], *(a["effect"] for a in s["also_present"])]
+    assert set(found) == set(MIXED)
+    assert s["also_present"][-1]["cumulative_heldout_reduction"]["total"] >= 0.9
+    # With the thermal and traffic effects in the model, the shadow sees the settlement alone.
+    post = s["posterior"]["after_all_but_settlement"]
+    v = MIXED["settlement_offset"]
+    np.testing.assert_allclose(post["mean_m"], [v, -v], atol=0.03 * v)
+    fitted = {a["effect"]: a["params"] for a in s["also_present"]}
+    assert fitted["vertical_gradient"]["g [K]"] == pytest.approx(MIXED["vertical_gradient"], rel=0.2)
+    assert fitted["transverse_gradient"]["g [K]"] == pytest.approx(MIXED["transverse_gradient"], rel=0.2)
+
+
+def test_single_effect_bags_report_nothing_else(diagnoses):
+    for name in ("settlement_offset", "settlement_drift", "thermal_lag", "traffic"):
+        assert diagnoses[name]["also_present"] == [], name

@@ -106,6 +106,79 @@ def _params(c: Candidate, r: CvResult) -> dict[str, Any]:
     return out
 
 
+def _forward_selection(
+    best: str,
+    group: list[str],
+    designs: dict[str, list[np.ndarray]],
+    cv: dict[str, CvResult],
+    resid: np.ndarray,
+    valid: np.ndarray,
+    fold: np.ndarray,
+    thr: dict[str, float],
+    max_steps: int = 3,
+) -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
+    """Further effects present beside the best one: forward selection on the held-out gain.
+
+    From the best effect (its all-data grid value fixed), add at each step the candidate whose
+    joint cross-validated fit removes the largest share of what remains, while that share beats
+    the candidate's chance level; members of the best one's indistinguishable group are skipped.
+    Returns the added effects and the all-data contribution (n, 2) N of each effect of the joint
+    model (empty when nothing was added).
+    """
+    by_name = {c.name: c for c in CANDIDATES}
+    fixed = designs[best][cv[best].grid_index]
+    sse_now = cv[best].sse_after.sum()
+    remaining = [c.name for c in CANDIDATES if c.name not in group]
+    out: list[dict[str, Any]] = []
+    blocks = [(best, fixed)]
+    beta_all = cv[best].beta
+    for _ in range(max_steps):
+        trials = {}
+        for name in remaining:
+            joint = [np.concatenate([fixed, x], axis=2) for x in designs[name]]
+            trials[name] = cross_validate(joint, resid, valid, fold)
+        if not trials:
+            break
+        name = max(trials, key=lambda k: -trials[k].sse_after.sum())
+        r = trials[name]
+        gain = float(1.0 - r.sse_after.sum() / sse_now)
+        if gain < thr[name]:
+            break
+        c = by_name[name]
+        p = len(c.params)
+        beta = r.beta[-p:]
+        params: dict[str, Any] = {k: float(v) for k, v in zip(c.params, beta, strict=True)}
+        if c.grid_name is not None:
+            params[c.grid_name] = c.grid[r.grid_index]
+        red = r.reduction
+        out.append(
+            {
+                "effect": name,
+                "part": c.part,
+                "partial_heldout_gain": gain,
+                "params": params,
+                "cumulative_heldout_reduction": {
+                    SUPPORTS[0]: float(red[0]),
+                    SUPPORTS[1]: float(red[1]),
+                    "total": r.reduction_total,
+                },
+            }
+        )
+        blocks.append((name, designs[name][r.grid_index]))
+        beta_all = r.beta
+        fixed = np.concatenate([fixed, designs[name][r.grid_index]], axis=2)
+        sse_now = r.sse_after.sum()
+        remaining.remove(name)
+    if not out:
+        return out, {}
+    contributions, k = {}, 0
+    for name, x in blocks:
+        p = x.shape[2]
+        contributions[name] = x @ beta_all[k : k + p]
+        k += p
+    return out, contributions
+
+
 def diagnose(
     data: MonitoringData,
     surrogate: Surrogate | None = None,
@@ -147,7 +220,7 @@ def diagnose(
     if n_eff >= MC_BELOW_N_EFF:
         thr = {c.name: chance_threshold(c.n_params, n_eff, n_folds, z) for c in CANDIDATES}
     else:
-        thr = {c.name: chance_threshold_mc(designs[c.name], valid, fold, phi) for c in CANDIDATES}
+        thr = chance_threshold_mc(designs, valid, fold, phi)
     sse0 = float(np.sum(resid[valid] ** 2))
 
     def ic(c: Candidate) -> float:
@@ -180,6 +253,9 @@ def diagnose(
         group.sort(key=lambda name: ic(by_name[name]))
     best = group[0] if group else "none"
     others = group[1:]
+    also, contributions = (
+        _forward_selection(best, group, designs, cv, resid, valid, fold, thr) if group else ([], {})
+    )
 
     if best == "none":
         statement = (
@@ -198,6 +274,14 @@ def diagnose(
                 f" It cannot be told apart from {', '.join(others)} with two reactions alone: their fitted "
                 "reaction changes are nearly collinear and neither adds a significant held-out gain to "
                 f"the other; {best} is listed first by the information criterion."
+            )
+        if also:
+            statement += (
+                " Also present, each given the ones before: "
+                + ", ".join(
+                    f"{a['effect']} ({100 * a['partial_heldout_gain']:.0f}% of what remained)" for a in also
+                )
+                + "."
             )
 
     candidates_json = []
@@ -254,6 +338,7 @@ def diagnose(
     summary: dict[str, Any] = {
         "best": best,
         "indistinguishable_from": others,
+        "also_present": also,
         "statement": statement,
         "where": where_json,
         "candidates": candidates_json,
@@ -285,6 +370,13 @@ def diagnose(
         },
         "seconds": time.perf_counter() - t0,
     }
+    if contributions:
+        # Every effect found except settlements goes into the model; settlements stay the shadow's.
+        added = [k for k in contributions if k not in ("settlement_offset", "settlement_drift")]
+        total = sum((np.nan_to_num(contributions[k]) for k in added), np.zeros_like(resid))
+        post_all = posterior(w.mean_n - total, d.dtemp_k, s)
+        post_all["effects_added"] = added
+        summary["posterior"]["after_all_but_settlement"] = post_all
     if replay:
         summary["posterior"]["shadow_replay"] = post_replay
     return Diagnosis(summary, w, d, resid, fold, cv, best)

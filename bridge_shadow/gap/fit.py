@@ -7,7 +7,7 @@ predictions come from fits that never saw the held-out day (or block, for record
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -178,28 +178,62 @@ def chance_threshold(p: int, n_eff: float, n_folds: int, z: float = 4.0) -> floa
 
 
 def chance_threshold_mc(
-    alts: Sequence[np.ndarray],
+    designs: Mapping[str, Sequence[np.ndarray]],
     valid: np.ndarray,
     fold: np.ndarray,
     phi: float,
     quantile: float = 0.995,
     draws: int = 400,
     seed: int = 0,
-) -> float:
-    """Chance level of the held-out gain by simulation, for short records.
+) -> dict[str, float]:
+    """Chance level of the held-out gain by simulation, for short or strongly correlated records.
 
     Draws AR(1) noise with the given ``phi`` (independent channels, the record's mask and folds),
-    cross-validates the candidate on it, and returns the ``quantile`` of the gain (its null
-    distribution is skewed for few samples, so a quantile rather than mean plus sigmas). Used where
-    the large-sample ``chance_threshold`` does not hold (few effective samples).
+    cross-validates every candidate (name -> grid alternatives) on the same draws, and returns per
+    candidate the ``quantile`` of its gain (the null distribution is skewed for few effective
+    samples, so a quantile rather than mean plus sigmas). Used where the large-sample
+    ``chance_threshold`` does not hold.
     """
     rng = np.random.default_rng(seed)
     n = valid.shape[0]
-    e = rng.standard_normal((draws, n, 2))
-    e[:, 0] /= np.sqrt(max(1e-12, 1.0 - phi**2))  # stationary start
-    noise = lfilter([1.0], [1.0, -phi], e, axis=1)
-    gains = np.empty(draws)
-    for k in range(draws):
-        r = np.where(valid, noise[k], np.nan)
-        gains[k] = cross_validate(alts, r, valid, fold).mse_gain
-    return float(np.quantile(gains, quantile))
+    e = rng.standard_normal((n, 2, draws))
+    e[0] /= np.sqrt(max(1e-12, 1.0 - phi**2))  # stationary start
+    noise = lfilter([1.0], [1.0, -phi], e, axis=0)
+    before = {name: np.zeros(draws) for name in designs}
+    after = {name: np.zeros(draws) for name in designs}
+    # Every draw at once: the fits are linear in the data (one right-hand side per draw).
+    for f in np.unique(fold[fold >= 0]):
+        hold = valid & (fold == f)[:, None]
+        train = valid & ~(fold == f)[:, None]
+        if not train.any() or not hold.any():
+            continue
+        y_tr, y_h = noise[train], noise[hold]  # (k, draws), (h, draws)
+        ss_tr, ss_h = np.sum(y_tr**2, axis=0), np.sum(y_h**2, axis=0)
+        for name, alts in designs.items():
+            best_sse = np.full(draws, np.inf)
+            pred = np.zeros_like(y_h)
+            for x in alts:
+                xt = x[train]
+                norm = np.linalg.norm(xt, axis=0)
+                live = norm > 0
+                if not live.any():
+                    sse, p_h = ss_tr, np.zeros_like(y_h)
+                else:
+                    # x = Q R: b = R^-1 Q'y, SSE = |y|^2 - |Q'y|^2 (scaled columns; dependent
+                    # columns dropped through the diagonal of R).
+                    q, r = np.linalg.qr(xt[:, live] / norm[live])
+                    keep = np.abs(np.diag(r)) > 1e-10 * np.abs(np.diag(r)).max()
+                    q, r = q[:, keep], r[np.ix_(keep, keep)]
+                    qty = q.T @ y_tr
+                    sse = ss_tr - np.sum(qty**2, axis=0)
+                    b = np.linalg.solve(r, qty) / norm[live][keep][:, None]
+                    p_h = x[hold][:, live][:, keep] @ b
+                better = sse < best_sse
+                best_sse = np.where(better, sse, best_sse)
+                pred[:, better] = p_h[:, better]
+            before[name] += ss_h
+            after[name] += np.sum((y_h - pred) ** 2, axis=0)
+    return {
+        name: float(np.quantile(1.0 - after[name] / np.maximum(before[name], 1e-300), quantile))
+        for name in designs
+    }

@@ -140,6 +140,15 @@ def _markdown(summary: dict[str, Any], source: str) -> str:
             f"{_pct(red['total'])} | {_pct(par['heldout_gain'])} ({par['given']}) | "
             f"{c['information_criterion']['bic_ar1']:.1f} | {fitted} |"
         )
+    also = summary.get("also_present", [])
+    if also:
+        lines += ["", "Also present (forward selection, each given the ones before):", ""]
+        for a in also:
+            red = a["cumulative_heldout_reduction"]
+            lines.append(
+                f"- `{a['effect']}` ({a['part']}): removes {_pct(a['partial_heldout_gain'])} of the "
+                f"remaining held-out squared residual; cumulative held-out RMS reduction {_pct(red['total'])}"
+            )
     mb, ma = (np.array(post[k]["mean_m"]) * 1e3 for k in ("before", "after"))
     lines += [
         "",
@@ -149,8 +158,15 @@ def _markdown(summary: dict[str, Any], source: str) -> str:
         "",
         f"Posterior settlements [mm] (south, north): before {mb[0]:+.3f}, {mb[1]:+.3f}; "
         f"after adding `{summary['best']}`: {ma[0]:+.3f}, {ma[1]:+.3f} ({post['method']}).",
-        "",
     ]
+    if "after_all_but_settlement" in post:
+        pa = post["after_all_but_settlement"]
+        m = np.array(pa["mean_m"]) * 1e3
+        lines.append(
+            f"With every effect found except settlements added to the model "
+            f"({', '.join(pa['effects_added']) or 'none'}): {m[0]:+.3f}, {m[1]:+.3f}."
+        )
+    lines.append("")
     return "\n".join(lines)
 
 
