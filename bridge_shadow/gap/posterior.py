@@ -26,9 +26,15 @@ __all__ = ["posterior", "replay_posterior"]
 
 def _prior_and_noise() -> tuple[np.ndarray, np.ndarray]:
     """Prior covariance (2, 2) m^2 and window noise covariance (2, 2) N^2 from the shadow config."""
-    from bridge_shadow.estimate.config import load_config
+    from bridge_shadow.errors import ConfigError
+    from bridge_shadow.estimate.config import ShadowConfig, load_config
 
-    cfg = load_config()
+    try:
+        cfg = load_config()
+    except ConfigError:
+        # The diagnosis needs only the paper's prior and noise: do not fail on a parameter file
+        # written for a newer or older node; use the documented defaults instead.
+        cfg = ShadowConfig()
     return np.diag(np.square(cfg.prior_sigma_m)), np.diag(np.square(cfg.noise_sigma_n))
 
 
