@@ -60,6 +60,7 @@ class Diagnosis:
         fold: (n,) int, cross-validation fold per window (-1: training only).
         cv: candidate name -> its cross-validated fit.
         best: the best effect's name or ``"none"``.
+        joint_fit: (n, 2) N, all-data fit of the best effect plus those also present (or None).
 
     """
 
@@ -70,6 +71,7 @@ class Diagnosis:
     fold: np.ndarray
     cv: dict[str, CvResult] = field(default_factory=dict)
     best: str = "none"
+    joint_fit: np.ndarray | None = None
 
 
 def baseline_residual(w: Windows, d: Drivers, s: Surrogate) -> np.ndarray:
@@ -379,4 +381,5 @@ def diagnose(
         summary["posterior"]["after_all_but_settlement"] = post_all
     if replay:
         summary["posterior"]["shadow_replay"] = post_replay
-    return Diagnosis(summary, w, d, resid, fold, cv, best)
+    joint = sum(contributions.values()) if contributions else None
+    return Diagnosis(summary, w, d, resid, fold, cv, best, joint)

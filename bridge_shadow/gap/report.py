@@ -26,6 +26,8 @@ def _plot_residual(dg: Diagnosis, plt: Any, path: Path) -> None:
         ax.plot(h, dg.resid[:, c] / 1e3, lw=0.6, color="0.3", label="residual (60 s means)")
         if best is not None:
             ax.plot(h, best.pred_full[:, c] / 1e3, lw=1.2, color="C3", label=f"fitted {dg.best}")
+        if dg.joint_fit is not None:
+            ax.plot(h, dg.joint_fit[:, c] / 1e3, lw=0.8, color="C0", label="with the effects also present")
         ax.set_ylabel(f"{SUPPORTS[c]} [kN]")
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize=8)
