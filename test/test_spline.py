@@ -136,3 +136,13 @@ def test_basis_equals_scipy_design_matrix() -> None:
     ref = BSpline.design_matrix(x, sp.knots, 3).toarray()
     assert np.allclose(sp.basis(x), ref, rtol=0.0, atol=1e-14)
     assert np.allclose(sp.basis(x).sum(axis=1), 1.0, rtol=0.0, atol=1e-14)
+
+
+def test_leverage_gives_leave_one_out_residuals() -> None:
+    t, y = _data(60, seed=8)
+    sp = OnlinePSpline.uniform(-10.0, 30.0, 8, mode="fixed", lam=20.0)
+    sp.add(t, y)
+    loo = (y[7] - sp.predict(t[7])[0]) / (1.0 - sp.leverage(t[7])[0])
+    drop = OnlinePSpline.uniform(-10.0, 30.0, 8, mode="fixed", lam=20.0)
+    drop.add(np.delete(t, 7), np.delete(y, 7))
+    assert loo == pytest.approx(y[7] - drop.predict(t[7])[0], rel=1e-9)

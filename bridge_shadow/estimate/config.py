@@ -63,6 +63,7 @@ class ShadowConfig:
     temp_max_c: float = 70.0
     mahalanobis_probability: float = 0.999999
     gate_after_updates: int = 10
+    gate_max_consecutive: int = 5
     clock_jump_s: float = 3600.0
     clock_jump_confirm: int = 100
     check_frame_id: bool = True
@@ -106,6 +107,7 @@ class ShadowConfig:
         need(0.0 < self.mahalanobis_probability <= 1.0, "mahalanobis_probability must be in (0, 1]")
         need(self.force_max_n > self.force_min_n, "force_max_n must exceed force_min_n")
         need(self.clock_jump_s > 0, "clock_jump_s must be > 0")
+        need(self.gate_max_consecutive >= 1, "gate_max_consecutive must be >= 1")
         need(self.clock_jump_confirm >= 1, "clock_jump_confirm must be >= 1")
         need(self.temperature_stale_s > 0 and self.topic_timeout_s >= 0, "timeouts must be positive")
 

@@ -250,7 +250,10 @@ class Shadow:
         )
         warm = [config.spline_warmup_windows if config.smoothing != "none" else 0]
         warm.append(config.noise_warmup_windows if config.noise_mode == "adaptive" else 0)
-        self._warmup = max(max(warm), 0)
+        # a spline needs one window before it can compensate, the noise model two
+        warm.append(1 if config.smoothing != "none" else 0)
+        warm.append(2 if config.noise_mode == "adaptive" else 0)
+        self._warmup = max(warm)
         self.next_k: int | None = None
         self.n_windows = 0  # windows closed with data
         self.n_good = 0  # windows added to the splines
@@ -260,6 +263,8 @@ class Shadow:
         self._ckpt_ns: int | None = None
         self._first_ns: int | None = None  # earliest accepted stamp of any topic
         self._t_ref: np.ndarray | None = None  # frozen reference temperature (warmup_mean), C
+        self._outlier_run = 0  # consecutive Mahalanobis outliers
+        self.gate_resets = 0  # outlier runs accepted as a real change
 
     # -- input ------------------------------------------------------------------------------
     @property
@@ -395,51 +400,87 @@ class Shadow:
         if reason:
             self.counts[reason] += 1
             return [self._output(k, wm.samples, wm.temp_c, wm.force_n, np.full(2, np.nan), False, reason)]
+        rec = {"k": k, "samples": wm.samples, "temp_c": wm.temp_c, "force_n": wm.force_n}
+        if self.n_good < self._warmup:
+            self._fit_window(rec)
+            self._held.append(rec)
+            return self._release() if self.n_good >= self._warmup else []
+        return [self._apply_online(rec)]
+
+    def _fit_window(self, rec: dict[str, Any]) -> None:
+        """Add a window to the spline sums (with forgetting)."""
+        cfg = self.config
         decay = 1.0
         if cfg.spline_forgetting_s > 0 and self._spline_k >= 0:
-            decay = float(np.exp(-(k - self._spline_k) * cfg.window_s / cfg.spline_forgetting_s))
+            decay = float(np.exp(-(rec["k"] - self._spline_k) * cfg.window_s / cfg.spline_forgetting_s))
         for c in range(2):
-            self.splines[c].add(wm.temp_c[c], wm.force_n[c], 1.0, decay)
-        self._spline_k = k
+            self.splines[c].add(rec["temp_c"][c], rec["force_n"][c], 1.0, decay)
+        self._spline_k = rec["k"]
         self.n_good += 1
-        self._held.append({"k": k, "samples": wm.samples, "temp_c": wm.temp_c, "force_n": wm.force_n})
-        if self.n_good >= self._warmup:
-            return self._release()
-        return []
 
     def _prune_temperature(self, end: int) -> None:
         ts, _ = self._temp.arrays()
         self._temp.drop_before(int(np.searchsorted(ts, end, side="right")) - 1)
 
-    def _release(self) -> list[WindowOutput]:
-        """Compensate the held windows with the current fit, feed the noise model, then update."""
-        held, self._held = self._held, []
-        comp = []
-        for rec in held:
-            g = np.array([self.splines[c].predict(rec["temp_c"][c])[0] for c in range(2)])
-            self.noise.add(rec["force_n"] - g, rec["samples"], rec["k"])
-            comp.append(rec["force_n"] - g)
-        level = self._level()
-        return [self._apply(rec, resid + level) for rec, resid in zip(held, comp, strict=True)]
+    def _curve(self, temp_c: np.ndarray, force_n: np.ndarray) -> np.ndarray:
+        """Compensation curve ``g(T)`` per channel (N); with ``none`` the mean so far (compensated = y)."""
+        if self.config.smoothing == "none":
+            return np.array(
+                [sp.fit().mean_y if sp.sw > 0 else f for sp, f in zip(self.splines, force_n, strict=True)]
+            )
+        return np.array([self.splines[c].predict(temp_c[c])[0] for c in range(2)])
 
-    def _apply(self, rec: dict[str, Any], compensated: np.ndarray) -> WindowOutput:
-        """Update the filter with one compensated window (noise model already holds it)."""
+    def _release(self) -> list[WindowOutput]:
+        """Compensate the held windows with the warm fit, feed the noise model, then update in order."""
+        held, self._held = self._held, []
+        resid = [rec["force_n"] - self._curve(rec["temp_c"], rec["force_n"]) for rec in held]
+        for rec, e in zip(held, resid, strict=True):
+            # leave-one-out residuals: the same out-of-sample scatter the online windows will show
+            h = np.array([sp.leverage(rec["temp_c"][c])[0] for c, sp in enumerate(self.splines)])
+            self.noise.add(e / np.maximum(1.0 - h, 1e-3), rec["samples"], rec["k"])
+        level = self._level()
+        return [self._update(rec, e + level)[0] for rec, e in zip(held, resid, strict=True)]
+
+    def _apply_online(self, rec: dict[str, Any]) -> WindowOutput:
+        """Compensate with the fit so far, gate and update; a kept window then joins the fit.
+
+        A Mahalanobis outlier stays out of the spline and the noise model, so one wild window
+        (a glitch, a heavy vehicle) cannot bend the compensation. After ``gate_max_consecutive``
+        outliers in a row the change is taken as real and the window is used anyway (no lock-out).
+        """
+        resid = rec["force_n"] - self._curve(rec["temp_c"], rec["force_n"])
+        force = self._outlier_run >= self.config.gate_max_consecutive
+        out, accepted = self._update(rec, resid + self._level(), gate=not force)
+        if accepted:
+            self._outlier_run = 0
+            self.gate_resets += int(force)
+            self.noise.add(resid, rec["samples"], rec["k"])
+            self._fit_window(rec)
+        else:
+            self._outlier_run += 1
+        return out
+
+    def _update(
+        self, rec: dict[str, Any], compensated: np.ndarray, gate: bool = True
+    ) -> tuple[WindowOutput, bool]:
+        """Kalman predict and update with one compensated window (R from the noise model)."""
         k, m = rec["k"], rec["samples"]
         end = (k + 1) * self._w_ns
         R = self.noise.R(m)
         if self._pred_ns is not None:
             self.filter.predict((end - self._pred_ns) / _NS)
         self._pred_ns = end
-        gate = self.filter.n_updates >= self.config.gate_after_updates
+        gate = gate and self.filter.n_updates >= self.config.gate_after_updates
         res = self.filter.update(compensated - self.surrogate.u0, R, gate=gate)
         if not res.accepted:
             self.counts[res.reason] += 1
-        return self._output(k, m, rec["temp_c"], rec["force_n"], compensated, res.accepted, res.reason)
+        out = self._output(k, m, rec["temp_c"], rec["force_n"], compensated, res.accepted, res.reason)
+        return out, res.accepted
 
     def _level(self) -> np.ndarray:
         """Level added back by compensation (N), per ``compensation_level``."""
         mode = self.config.compensation_level
-        if mode == "mean" or self.config.smoothing == "none":
+        if self.config.smoothing == "none" or mode == "mean":
             return np.array([sp.fit().mean_y for sp in self.splines])
         if mode == "reference":
             t_ref = np.full(2, self.config.reference_temperature_c)
@@ -539,6 +580,7 @@ class Shadow:
             "staleness_s": staleness,
             "spline": self.spline_info(),
             "noise": self.noise_info(),
+            "gate_resets": self.gate_resets,
             "windows": {
                 "closed": self.n_windows,
                 "fitted": self.n_good,
@@ -591,6 +633,8 @@ class Shadow:
                 "pred_ns": -(2**62) if self._pred_ns is None else self._pred_ns,
                 "ckpt_ns": -(2**62) if self._ckpt_ns is None else self._ckpt_ns,
                 "first_ns": -(2**62) if self._first_ns is None else self._first_ns,
+                "outlier_run": self._outlier_run,
+                "gate_resets": self.gate_resets,
             },
         }
 
@@ -643,6 +687,7 @@ class Shadow:
         shadow._pred_ns = None if sc["pred_ns"] == none else sc["pred_ns"]
         shadow._ckpt_ns = None if sc["ckpt_ns"] == none else sc["ckpt_ns"]
         shadow._first_ns = None if sc["first_ns"] == none else sc["first_ns"]
+        shadow._outlier_run, shadow.gate_resets = sc["outlier_run"], sc["gate_resets"]
         return shadow
 
     def save_checkpoint(self, path: str | Path | None = None) -> Path | None:

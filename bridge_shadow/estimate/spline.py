@@ -172,7 +172,10 @@ class OnlinePSpline:
     def _eigen(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Simultaneous diagonalization of ``(G, Omega)``: (g, d, v~ = V^T L^-1 r)."""
         kappa = np.trace(self.G) / np.trace(self.omega)
-        chol = np.linalg.cholesky(self.G + kappa * self.omega)  # S = L L^T
+        # S = L L^T; a relative 1e-12 ridge keeps S definite when the data leave the slope
+        # unidentified (all windows at one temperature); it only steers the lambda search
+        S = self.G + kappa * self.omega
+        chol = np.linalg.cholesky(S + 1e-12 * np.trace(S) / self.q * np.eye(self.q))
         linv, info = linalg.lapack.dtrtri(chol, lower=1)
         if info != 0:
             raise np.linalg.LinAlgError("singular Cholesky factor")
@@ -231,7 +234,8 @@ class OnlinePSpline:
             return self._fit
         lam = self.select_lambda()
         lhs = self.G + lam * self.omega
-        sol = np.linalg.solve(lhs, np.column_stack([self.r, self.G]))
+        # least squares = solve for a regular system; minimum norm when the slope is unidentified
+        sol = np.linalg.lstsq(lhs, np.column_stack([self.r, self.G]), rcond=1e-13)[0]
         beta, edf = sol[:, 0], float(np.trace(sol[:, 1:]))
         self._fit = SplineFit(beta, float(lam), edf, mean_y)
         return self._fit
@@ -241,6 +245,18 @@ class OnlinePSpline:
         if self.mode == "none":
             return np.full(np.shape(np.atleast_1d(temp_c)), self.fit().mean_y)
         return self.basis(np.atleast_1d(temp_c)) @ self.fit().beta
+
+    def leverage(self, temp_c: np.ndarray) -> np.ndarray:
+        """Diagonal of the hat matrix ``b(T)' (G + lambda Omega)^-1 b(T)`` for unit weight (n,).
+
+        ``(y - g(T)) / (1 - h)`` is then the leave-one-out residual of an observation in the fit.
+        """
+        if self.mode == "none":
+            return np.full(np.shape(np.atleast_1d(temp_c)), 1.0 / self.sw)
+        fit = self.fit()
+        b = self.basis(np.atleast_1d(temp_c))
+        lhs = self.G + fit.lam * self.omega
+        return np.einsum("ij,ji->i", b, np.linalg.lstsq(lhs, b.T, rcond=1e-13)[0])
 
     def compensate(self, temp_c: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Compensated values ``y - g(T) + mean(y)``."""

@@ -1,0 +1,218 @@
+"""Shadow pipeline: gating of every bad input, chunking invariance, checkpoint and resume."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bridge_shadow.errors import ConfigError
+from bridge_shadow.estimate import REASONS, Shadow, ShadowConfig, load_config
+from bridge_shadow.model.surrogate_file import placeholder_surrogate
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+T0 = 1_700_000_040 * 10**9  # a window boundary (divisible by 60 s)
+S = 10**9
+
+
+def synthetic(minutes: int = 90, rate: int = 5, seed: int = 0, x_m=(4e-4, -3e-4)) -> MonitoringData:
+    """Forces with a temperature effect (S 300 N/K, N 80 N/K) and AR(1) noise; 1 Hz temperature."""
+    sur = placeholder_surrogate()
+    rng = np.random.default_rng(seed)
+    n = minutes * 60 * rate
+    stamps = T0 + np.arange(n, dtype=np.int64) * (S // rate)
+    t_stamps = T0 + np.arange(minutes * 60, dtype=np.int64) * S
+    temp = 8.0 + 6.0 * np.sin(2 * np.pi * np.arange(minutes * 60) / 7200.0)
+    t_at = np.interp(stamps, t_stamps, temp)
+    noise = np.zeros((n, 2))
+    e = rng.normal(0.0, 120.0, (n, 2))
+    for i in range(1, n):
+        noise[i] = 0.9 * noise[i - 1] + e[i]
+    forces = sur.reactions(np.array(x_m)) + np.c_[300.0 * (t_at - 8.0), 80.0 * (t_at - 8.0)] + noise
+    return MonitoringData.from_arrays(stamps, forces, t_stamps, temp)
+
+
+def small_config(**kw) -> ShadowConfig:
+    base = dict(
+        spline_warmup_windows=10,
+        noise_warmup_windows=10,
+        gate_after_updates=5,
+        spline_segments=6,
+        spline_t_min_c=0.0,
+        spline_t_max_c=20.0,
+    )
+    base.update(kw)
+    return ShadowConfig(**base)
+
+
+def test_shipped_parameter_file_equals_the_defaults(root: Path) -> None:
+    assert load_config(root / "config" / "shadow.yaml") == ShadowConfig()
+    with pytest.raises(ConfigError):
+        ShadowConfig.from_params({"window_s": 60.0, "windw_s": 1.0})
+    with pytest.raises(ConfigError):
+        ShadowConfig(smoothing="magic")
+
+
+@pytest.mark.parametrize("smoothing", ["reml", "gcv", "fixed"])
+def test_chunking_does_not_change_the_posterior(smoothing: str) -> None:
+    data = synthetic(minutes=40, rate=2)
+    cfg = small_config(smoothing=smoothing)
+    ref = Shadow(cfg, placeholder_surrogate()).run(data, chunk=1)
+    for chunk in (7, 1000, 10**7):
+        res = Shadow(cfg, placeholder_surrogate()).run(data, chunk=chunk)
+        assert np.allclose(res.mean_m, ref.mean_m, rtol=1e-12, atol=0.0)
+        assert np.allclose(res.covariance_m2, ref.covariance_m2, rtol=1e-12, atol=0.0)
+        assert res.updates == ref.updates >= 35
+
+
+def test_resume_from_checkpoint_equals_an_uninterrupted_run(tmp_path: Path) -> None:
+    data = synthetic(minutes=60, rate=2, seed=3)
+    cfg = small_config(checkpoint_path=str(tmp_path / "shadow.npz"), checkpoint_period_s=300.0)
+    whole = Shadow(cfg, placeholder_surrogate()).run(data)
+    half = 60 * 60  # messages of the first ~15 min of 2 x 2 Hz forces + 1 Hz temperature
+    first = _slice(data, 0, half)
+    rest = _slice(data, half, None)
+    a = Shadow(cfg, placeholder_surrogate())
+    a.run(first, flush=False)  # stops mid-window, spline still warming up
+    a.save_checkpoint()
+    assert (tmp_path / "shadow.npz").is_file() and not list(tmp_path.glob("*.tmp"))
+    b = Shadow.resume(tmp_path / "shadow.npz")
+    res = b.run(rest)
+    assert np.allclose(res.mean_m, whole.mean_m, rtol=1e-12, atol=0.0)
+    assert np.allclose(res.covariance_m2, whole.covariance_m2, rtol=1e-12, atol=0.0)
+    assert b.rejected == Shadow(cfg, placeholder_surrogate()).run(data).rejected
+    assert b.spline_info()["frc_01"]["edf"] == pytest.approx(whole.spline["frc_01"]["edf"], rel=1e-12)
+
+
+def _slice(data: MonitoringData, lo: int, hi: int | None) -> MonitoringData:
+    """Messages lo:hi in log-time order across the three topics."""
+    logs = np.concatenate(
+        [data.forces["frc_01"].log_ns, data.forces["frc_02"].log_ns, data.temperature.log_ns]
+    )
+    cut_lo = np.sort(logs, kind="stable")[lo]
+    cut_hi = np.sort(logs, kind="stable")[hi] if hi is not None else None
+
+    def sel(log: np.ndarray) -> np.ndarray:
+        return (log >= cut_lo) & (log < cut_hi if cut_hi is not None else True)
+
+    forces = {}
+    for ch, f in data.forces.items():
+        m = sel(f.log_ns)
+        forces[ch] = ForceSeries(f.stamp_ns[m], f.force_n[m], f.frame_id[m], f.log_ns[m])
+    t = data.temperature
+    m = sel(t.log_ns)
+    return MonitoringData(forces, TemperatureSeries(t.stamp_ns[m], t.temp_c[m], t.variance[m], t.frame_id[m]))
+
+
+def test_every_bad_input_is_dropped_and_counted() -> None:
+    rate, minutes = 5, 40
+    data = synthetic(minutes=minutes, rate=rate, seed=1)
+    f1, f2, tmp = data.forces["frc_01"], data.forces["frc_02"], data.temperature
+    s1, v1 = list(f1.stamp_ns), list(f1.force_n)
+    fr1, lg1 = list(f1.frame_id), list(f1.log_ns)
+
+    def minute(m: float) -> int:
+        return int(m * 60 * rate)
+
+    # frc_01 in minute 12: NaN, inf, negative, absurd, wrong frame, duplicate, out of order, clock jump
+    i = minute(12.5)
+    bad = [
+        (s1[i] + 1, np.nan, "frc_01"),
+        (s1[i] + 2, np.inf, "frc_01"),
+        (s1[i] + 3, -5.0, "frc_01"),
+        (s1[i] + 4, 1e9, "frc_01"),
+        (s1[i] + 5, v1[i], "frc_02"),
+        (s1[i], v1[i], "frc_01"),
+        (s1[i] - S, v1[i], "frc_01"),
+        (s1[i] + 2 * 86400 * S, v1[i], "frc_01"),
+    ]
+    for k, (st, val, fr) in enumerate(bad):
+        s1.insert(i + 1 + k, st)
+        v1.insert(i + 1 + k, val)
+        fr1.insert(i + 1 + k, fr)
+        lg1.insert(i + 1 + k, s1[i])
+    f1 = ForceSeries(np.array(s1), np.array(v1), np.array(fr1, dtype=object), np.array(lg1))
+    # minute 15: both forces +40 kN for the whole window -> Mahalanobis outlier
+    m15 = (f1.stamp_ns >= T0 + 15 * 60 * S) & (f1.stamp_ns < T0 + 16 * 60 * S)
+    f1.force_n[m15] += 40e3
+    m15b = (f2.stamp_ns >= T0 + 15 * 60 * S) & (f2.stamp_ns < T0 + 16 * 60 * S)
+    f2.force_n[m15b] += 40e3
+    # minute 22: frc_02 keeps only 3 samples -> sparse window
+    m22 = (f2.stamp_ns >= T0 + 22 * 60 * S + 3 * (S // rate)) & (f2.stamp_ns < T0 + 23 * 60 * S)
+    # minutes 26-30: frc_02 silent -> missing topic (5 windows), except its first 10 s of
+    # minute 29, which arrive after frc_01 has moved on (log time 30.9 min): late
+    m26 = (f2.stamp_ns >= T0 + 26 * 60 * S) & (f2.stamp_ns < T0 + 29 * 60 * S)
+    m26 |= (f2.stamp_ns >= T0 + 29 * 60 * S + 10 * S) & (f2.stamp_ns < T0 + 31 * 60 * S)
+    keep2 = ~(m22 | m26)
+    log2 = f2.log_ns.copy()
+    delayed = (f2.stamp_ns >= T0 + 29 * 60 * S) & (f2.stamp_ns < T0 + 29 * 60 * S + 10 * S)
+    log2[delayed] = T0 + int(30.9 * 60 * S)
+    f2 = ForceSeries(f2.stamp_ns[keep2], f2.force_n[keep2], f2.frame_id[keep2], log2[keep2])
+    # temperature: a 300 s hole from 16.5 to 21.5 min (stale),
+    # one NaN, one out of range, one wrong frame
+    tkeep = ~((tmp.stamp_ns > T0 + 990 * S) & (tmp.stamp_ns < T0 + 1290 * S))
+    tv = tmp.temp_c.copy()
+    tv[100], tv[200] = np.nan, 150.0
+    tframe = tmp.frame_id.copy()
+    tframe[300] = "wrong"
+    temp = TemperatureSeries(tmp.stamp_ns[tkeep], tv[tkeep], None, tframe[tkeep])
+    data = MonitoringData({"frc_01": f1, "frc_02": f2}, temp)
+
+    shadow = Shadow(small_config(), placeholder_surrogate())
+    res = shadow.run(data, chunk=50)
+    rej = res.rejected
+    expected = {
+        "nonfinite": 3,
+        "out_of_range": 3,
+        "frame_id": 2,
+        "duplicate": 1,
+        "out_of_order": 1,
+        "clock_jump": 1,
+        "late": 10 * rate,
+        "missing_topic": 5,
+        "sparse_window": 1,
+        "outlier": 1,
+    }
+    for reason, count in expected.items():
+        assert rej[reason] == count, (reason, rej)
+    # windows 18, 19 have samples > 120 s from any reading; window 20 closes on the 30 s topic
+    # timeout before the reading at 21.5 min arrives, so it is stale too
+    assert rej["stale_temperature"] == 3
+    reasons = {o.index - res.outputs[0].index: o.reason for o in res.outputs if o.reason}
+    assert reasons == {
+        15: "outlier",
+        18: "stale_temperature",
+        19: "stale_temperature",
+        20: "stale_temperature",
+        22: "sparse_window",
+        **dict.fromkeys(range(26, 31), "missing_topic"),
+    }
+    assert set(rej) == set(REASONS)
+    assert np.all(np.isfinite(res.mean_m)) and np.all(np.isfinite(res.covariance_m2))
+    assert res.updates > 20
+    diag = shadow.diagnostics()
+    assert diag["level"] in ("OK", "WARN") and diag["rejected"] == rej
+
+
+def test_missing_temperature_only_warns_and_never_updates() -> None:
+    data = synthetic(minutes=20, rate=2)
+    empty = TemperatureSeries(np.empty(0, np.int64), np.empty(0))
+    shadow = Shadow(small_config(), placeholder_surrogate())
+    res = shadow.run(MonitoringData(data.forces, empty))
+    assert res.updates == 0 and res.rejected["stale_temperature"] == 20
+    assert np.array_equal(res.mean_m, np.zeros(2))
+    assert shadow.diagnostics()["level"] == "WARN"
+
+
+def test_compensated_settlement_recovers_the_truth() -> None:
+    x_true = np.array([4e-4, -3e-4])
+    data = synthetic(minutes=240, rate=2, seed=5, x_m=x_true)
+    # truth is the reaction at 8 C: compensate to that reference temperature
+    res = Shadow(
+        ShadowConfig(compensation_level="reference", reference_temperature_c=8.0), placeholder_surrogate()
+    ).run(data)
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    assert np.all(np.abs(res.mean_m - x_true) < 4 * sd), (res.mean_m, sd)
+    assert np.all(sd < 3e-5)  # data, not the 0.3 mm prior, decide
+    assert 2.0 <= res.spline["frc_01"]["edf"] < 10.0
