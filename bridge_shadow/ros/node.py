@@ -12,16 +12,24 @@ Wiring (topics and types from ``bridge_shadow.contract``)::
     service /bridge_shadow/flush (std_srvs/Trigger): end of a replay, close every window holding
         data, publish it and answer with the diagnostics as JSON (what the offline replay's
         ``flush`` does; ``bridge-shadow replay --live`` calls it after the last message).
+    service /bridge_shadow/status (std_srvs/Trigger): raw messages taken per input topic, as JSON
+        (the live replay's flow control).
 
 Subscriptions take raw CDR (no Python message object per sample) and the buffers are decoded in
 blocks: when one holds ``BATCH`` messages, when a message's stamp reaches the end of the open
 window (so a window's outputs leave within a millisecond of the message that closes it), and every
-``DRAIN_PERIOD_S``. The shadow's result does not depend on that chunking.
+``DRAIN_PERIOD_S``. The shadow's result does not depend on that chunking, but its missing-topic
+timeout reads the data clock (the newest stamp of any topic), so topics must be ingested in step:
+DDS keeps the order within a topic, not across topics, and in a fast replay a few milliseconds of
+transport skew are hours of stamp time. A decoded message therefore waits until every other topic
+has delivered a stamp at least as new (or that topic has been quiet, or the message has waited,
+for ``REORDER_HOLD_S``). Live, the window-closing message never waits: the others are past it.
 
 Parameters: every entry of ``config/shadow.yaml`` (its values are the declared defaults), overridable
 with ``--ros-args -p name:=value`` or ``--params-file FILE``. ``qos_depth`` is the input history
-depth; 0 means KEEP_ALL (lossless: a slow node pushes back on reliable publishers, as the live
-replay needs). Inputs are RELIABLE.
+depth (RELIABLE, KEEP_LAST; 0 means KEEP_ALL). Note that a full reliable reader drops samples for
+the writer to resend at its next heartbeat (seconds later, in Fast DDS), so a fast replay keeps
+fewer than ``qos_depth`` messages in flight using the status service instead.
 
 Checkpoint: with ``checkpoint_path`` set, the node resumes from that file when it exists, the shadow
 saves it every ``checkpoint_period_s`` of stamp time, and the node saves it on SIGINT/SIGTERM
@@ -79,14 +87,31 @@ from bridge_shadow.ros import convert
 from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
 from bridge_shadow.ros.netenv import confine_to_loopback
 
-__all__ = ["BATCH", "DRAIN_PERIOD_S", "FLUSH_SERVICE", "ShadowNode", "input_qos", "main"]
+__all__ = [
+    "BATCH",
+    "DRAIN_PERIOD_S",
+    "FLUSH_SERVICE",
+    "MIN_DRAIN_GAP_S",
+    "REORDER_HOLD_S",
+    "STATUS_SERVICE",
+    "ShadowNode",
+    "input_qos",
+    "main",
+]
 
 #: Service that closes every window holding data (end of a replay).
 FLUSH_SERVICE = f"/{NODE_NAME}/flush"
+#: Service answering with the raw messages taken per input topic (flow control of a replay).
+STATUS_SERVICE = f"/{NODE_NAME}/status"
 #: Buffered messages per topic that trigger a decode-and-ingest.
 BATCH = 1024
 #: Period of the timer that ingests whatever is buffered [s].
 DRAIN_PERIOD_S = 0.05
+#: A message reaching the open window's end triggers a drain unless one ran this recently [s]
+#: (live, windows end minutes apart; in a fast replay the batch and the timer take over).
+MIN_DRAIN_GAP_S = 0.005
+#: Longest wall time a message waits for the other topics to catch up with its stamp [s].
+REORDER_HOLD_S = 2.0
 _NS = 1_000_000_000
 _TOPICS = (*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC)
 
@@ -139,6 +164,9 @@ class ShadowNode(Node):
         self.windows_published = 0
         self._raw: list[list[bytes]] = [[], [], []]
         self._arrival: list[float | None] = [None, None, None]
+        self._latest: list[int | None] = [None, None, None]
+        self._last_drain = 0.0
+        self._pending: list[tuple[np.ndarray, ...] | None] = [None, None, None]
         self._next_end_ns = self._window_end()
         self._timeout_s = max(cfg.topic_timeout_s, cfg.window_s)
         in_qos = input_qos(cfg.qos_depth)
@@ -157,6 +185,7 @@ class ShadowNode(Node):
         self._drain_timer = self.create_timer(DRAIN_PERIOD_S, self.drain)
         self._diag_timer = self.create_timer(cfg.diagnostics_period_s, self.publish_diagnostics)
         self._flush_srv = self.create_service(Trigger, FLUSH_SERVICE, self._on_flush)
+        self._status_srv = self.create_service(Trigger, STATUS_SERVICE, self._on_status)
 
     # -- parameters ------------------------------------------------------------------------
     def _read_parameters(self) -> ShadowConfig:
@@ -181,6 +210,7 @@ class ShadowNode(Node):
         buf = self._raw[i]
         append = buf.append
         unpack = struct.Struct("<iI").unpack_from
+        clock = time.monotonic
 
         def callback(raw: bytes) -> None:
             append(raw)
@@ -188,7 +218,7 @@ class ShadowNode(Node):
                 self.drain()
             elif len(raw) >= 12:
                 sec, nsec = unpack(raw, 4)
-                if sec * _NS + nsec >= self._next_end_ns:
+                if sec * _NS + nsec >= self._next_end_ns and clock() - self._last_drain >= MIN_DRAIN_GAP_S:
                     self.drain()
 
         return callback
@@ -197,9 +227,8 @@ class ShadowNode(Node):
         k = self.shadow.next_k
         return -(2**62) if k is None else (k + 1) * round(self.config.window_s * _NS)
 
-    def ingest_pending(self) -> None:
-        """Decode and ingest every buffered message (no window is closed here)."""
-        now = time.monotonic()
+    def _decode_buffers(self, now: float) -> None:
+        """Move raw buffers into the decoded pending arrays (arrival order per topic)."""
         for i, buf in enumerate(self._raw):
             if not buf:
                 continue
@@ -207,17 +236,64 @@ class ShadowNode(Node):
             buf.clear()
             self.received[i] += len(raws)
             self._arrival[i] = now
-            if i < 2:
-                stamp, force, frame, bad = convert.decode_forces(raws)
-                self.shadow.ingest_forces(i, stamp, force, frame)
-            else:
-                stamp, temp, frame, bad = convert.decode_temperatures(raws)
-                self.shadow.ingest_temperature(stamp, temp, frame)
+            decode = convert.decode_forces if i < 2 else convert.decode_temperatures
+            stamp, value, frame, bad = decode(raws)
             self.malformed += bad
+            if not len(stamp):
+                continue
+            top = int(stamp.max())
+            self._latest[i] = top if self._latest[i] is None else max(self._latest[i], top)
+            old = self._pending[i]
+            new = (stamp, value, frame, np.full(len(stamp), now))
+            self._pending[i] = (
+                new if old is None else tuple(np.concatenate(x) for x in zip(old, new, strict=True))
+            )
 
-    def drain(self) -> None:
+    def _releasable(self, i: int, now: float) -> int:
+        """Messages at the head of topic ``i``'s pending arrays that may be ingested now.
+
+        A message waits while its stamp is ahead of the newest stamp some other topic has
+        delivered (that topic may still be in flight: DDS keeps order within a topic, not across
+        topics), unless that topic is quiet or the message has waited ``REORDER_HOLD_S``.
+        """
+        stamp, _, _, t_dec = self._pending[i]
+        others = [
+            self._latest[j]
+            for j in range(3)
+            if j != i and self._latest[j] is not None and now - self._arrival[j] < REORDER_HOLD_S
+        ]
+        if not others:
+            return len(stamp)
+        ahead = np.flatnonzero(stamp > min(others))
+        n_horizon = int(ahead[0]) if len(ahead) else len(stamp)
+        n_aged = int(np.searchsorted(t_dec, now - REORDER_HOLD_S, side="right"))
+        return max(n_horizon, n_aged)
+
+    def ingest_pending(self, everything: bool = False) -> None:
+        """Decode the buffers and ingest what is in step across topics (all with ``everything``).
+
+        No window is closed here (``drain`` polls).
+        """
+        now = time.monotonic()
+        self._decode_buffers(now)
+        for i in range(3):
+            if self._pending[i] is None:
+                continue
+            n = len(self._pending[i][0]) if everything else self._releasable(i, now)
+            if n == 0:
+                continue
+            stamp, value, frame, t_dec = self._pending[i]
+            if i < 2:
+                self.shadow.ingest_forces(i, stamp[:n], value[:n], frame[:n])
+            else:
+                self.shadow.ingest_temperature(stamp[:n], value[:n], frame[:n])
+            rest = (stamp[n:], value[n:], frame[n:], t_dec[n:])
+            self._pending[i] = rest if len(rest[0]) else None
+
+    def drain(self, everything: bool = False) -> None:
         """Ingest the buffers, close due windows and publish their outputs."""
-        self.ingest_pending()
+        self._last_drain = time.monotonic()
+        self.ingest_pending(everything)
         self._publish(self.shadow.poll())
         self._next_end_ns = self._window_end()
 
@@ -256,9 +332,16 @@ class ShadowNode(Node):
         items = statuses(self.shadow.diagnostics(), self._ages(), self.malformed, self._timeout_s)
         self._pub_diag.publish(diagnostic_array(items, self.get_clock().now().nanoseconds))
 
+    def _on_status(self, request: Any, response: Any) -> Any:
+        """Answer ``{"taken": [n_frc_01, n_frc_02, n_air_temperature]}``: raw messages taken so far."""
+        taken = [n + len(buf) for n, buf in zip(self.received, self._raw, strict=True)]
+        response.success = True
+        response.message = json.dumps({"taken": taken})
+        return response
+
     def _on_flush(self, request: Any, response: Any) -> Any:
         """Close every window holding data, publish, checkpoint; answer with the report as JSON."""
-        self.drain()
+        self.drain(everything=True)
         self._publish(self.shadow.flush())
         self._next_end_ns = self._window_end()
         if self.config.checkpoint_path:
@@ -269,7 +352,7 @@ class ShadowNode(Node):
 
     def save_on_exit(self) -> Path | None:
         """Ingest what is buffered and write the checkpoint (if configured); return its path."""
-        self.ingest_pending()
+        self.ingest_pending(everything=True)
         return self.shadow.save_checkpoint() if self.config.checkpoint_path else None
 
 

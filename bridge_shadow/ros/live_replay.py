@@ -1,0 +1,381 @@
+"""Live replay: play a bag to ``bridge_shadow_node`` through a real (loopback) DDS graph.
+
+``run_live`` starts the node as a subprocess (``NodeProcess``), publishes the bag's raw CDR bytes in
+log order from this process (``Player``), calls the node's flush service once every message is
+acknowledged, and returns the posterior the node published, with the replay JSON keys of the
+direct mode (``posterior.mean_m``, ``posterior.covariance_m2``, ``messages``, ``rejected``,
+``messages_per_s``, ``spline``, ...).
+
+Why a subprocess rather than the node on an executor thread of this process: it is the graph of a
+real deployment (two processes, DDS between them, the same ``bridge_shadow_node`` entry point),
+and on a 2-core machine the node and the player do not share one interpreter lock, so the measured
+rate is the node's.
+
+Nothing is lost and the topics stay in step: the graph is RELIABLE, and the player keeps fewer
+messages in flight than the node's history depth (``qos_depth``), asking the node's status service
+how many it has taken. (Letting DDS push back instead is not enough: a full reliable reader drops
+samples for the writer to resend at its next heartbeat, seconds later, and the three topics drift
+hours of stamp time apart.) Once the node has taken every message (status service again; reliable
+acknowledgements come only at the writer's heartbeat) the player calls flush; the node reports how
+many messages it received and run_live checks that against what it published.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rclpy
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import WrenchStamped
+from rclpy.duration import Duration
+from rclpy.experimental import EventsExecutor
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import Temperature
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+from bridge_shadow.contract import (
+    CHANNELS,
+    COMPENSATED_TOPICS,
+    COVARIANCE_TOPIC,
+    DIAGNOSTICS_TOPIC,
+    FORCE_TOPICS,
+    INPUT_TOPICS,
+    MEAN_TOPIC,
+    NODE_NAME,
+    OUTPUT_TOPICS,
+    SUPPORTS,
+    TEMPERATURE_TOPIC,
+)
+from bridge_shadow.errors import InputError
+from bridge_shadow.ros.convert import array_from_msg
+from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
+from bridge_shadow.ros.node import FLUSH_SERVICE, STATUS_SERVICE, input_qos
+
+__all__ = ["INPUT_ORDER", "Player", "merge_log_order", "run_live"]
+
+#: Input topics in the node's index order (frc_01, frc_02, air temperature).
+INPUT_ORDER: tuple[str, str, str] = (*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC)
+_OUTPUT_TYPES = {
+    MEAN_TOPIC: Float64MultiArray,
+    COVARIANCE_TOPIC: Float64MultiArray,
+    **{COMPENSATED_TOPICS[ch]: WrenchStamped for ch in CHANNELS},
+    DIAGNOSTICS_TOPIC: DiagnosticArray,
+}
+
+
+def merge_log_order(log_ns: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Merge per-topic log times into one arrival order (stable: ties keep topic order).
+
+    Returns:
+        ``topic`` (n,) int index into ``log_ns``, ``pos`` (n,) index within that topic, and the
+        merged ``log_ns`` (n,) int64.
+
+    """
+    sizes = [len(x) for x in log_ns]
+    topic = np.concatenate([np.full(n, i, dtype=np.int64) for i, n in enumerate(sizes)])
+    pos = np.concatenate([np.arange(n, dtype=np.int64) for n in sizes])
+    merged = np.concatenate([np.asarray(x, np.int64) for x in log_ns])
+    order = np.argsort(merged, kind="stable")
+    return topic[order], pos[order], merged[order]
+
+
+class Player:
+    """The far end of the node's graph, in its own rclpy context and executor thread.
+
+    Publishes raw input messages (RELIABLE, KEEP_ALL), records every output message raw with its
+    receive time (wall ns), and calls the node's flush service.
+
+    Attributes:
+        records: output topic -> list of ``(receive_ns, raw_cdr)``, in arrival order.
+
+    """
+
+    def __init__(self, name: str = "bridge_shadow_player", *, record_diagnostics: bool = True) -> None:
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(name, context=self.context)
+        qos = input_qos(0)
+        types = (WrenchStamped, WrenchStamped, Temperature)
+        self.publishers = [
+            self.node.create_publisher(t, topic, qos) for t, topic in zip(types, INPUT_ORDER, strict=True)
+        ]
+        self.records: dict[str, list[tuple[int, bytes]]] = {topic: [] for topic in _OUTPUT_TYPES}
+        topics = [t for t in _OUTPUT_TYPES if record_diagnostics or t != DIAGNOSTICS_TOPIC]
+        self._subs = [
+            self.node.create_subscription(
+                _OUTPUT_TYPES[t], t, self._recorder(t), 10 if t == DIAGNOSTICS_TOPIC else qos, raw=True
+            )
+            for t in topics
+        ]
+        self.flush_client = self.node.create_client(Trigger, FLUSH_SERVICE)
+        self.status_client = self.node.create_client(Trigger, STATUS_SERVICE)
+        self.executor = EventsExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name="player-executor", daemon=True)
+        self._thread.start()
+
+    def _recorder(self, topic: str) -> Any:
+        log = self.records[topic]
+        now = time.time_ns
+
+        def record(raw: bytes) -> None:
+            log.append((now(), raw))
+
+        return record
+
+    def _spin(self) -> None:
+        while not self._stop.is_set() and self.context.ok():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def graph_ready(self) -> bool:
+        """Return True once the node's input subscriptions, output publishers and service are matched."""
+        subs_ok = all(p.get_subscription_count() > 0 for p in self.publishers)
+        pubs_ok = all(s.get_publisher_count() > 0 for s in self._subs if s.topic_name != DIAGNOSTICS_TOPIC)
+        services_ok = self.flush_client.service_is_ready() and self.status_client.service_is_ready()
+        return subs_ok and pubs_ok and services_ok
+
+    def wait_for_node(self, node: NodeProcess | None, timeout_s: float = 20.0) -> float:
+        """Wait for discovery (no fixed sleep); return the seconds it took."""
+        alive = node.check_alive if node is not None else None
+        return wait_until(self.graph_ready, timeout_s, "the bridge_shadow node to appear", alive)
+
+    def publish(
+        self,
+        topic: np.ndarray,
+        pos: np.ndarray,
+        raws: Sequence[Sequence[bytes]],
+        log_ns: np.ndarray | None = None,
+        rate: float | None = None,
+        in_flight: int | None = None,
+        node: NodeProcess | None = None,
+    ) -> tuple[float, float]:
+        """Publish ``raws[topic[j]][pos[j]]`` for j in order; return (first, last) perf_counter times.
+
+        With ``rate`` (a speed factor of log time, 1.0 = real time) the player sleeps to keep pace.
+        With ``in_flight`` it keeps at most that many messages published but not yet taken by the
+        node (asked through its status service), so the node's reliable readers never overflow:
+        an overflowing reader drops samples for the writer to resend at its next heartbeat, which
+        stalls the stream for seconds and lets topics drift apart.
+        """
+        pubs = [p.publish for p in self.publishers]
+        n = len(topic)
+        step = n if not in_flight else max(int(in_flight) // 2, 1)
+        due = None
+        if rate is not None and log_ns is not None:
+            due = ((np.asarray(log_ns, np.int64) - int(log_ns[0])) / (1e9 * float(rate))).tolist()
+        topics, positions = topic.tolist(), pos.tolist()
+        t_first = time.perf_counter()
+        for start in range(0, n, step):
+            stop = min(start + step, n)
+            if due is None:
+                for i, j in zip(topics[start:stop], positions[start:stop], strict=True):
+                    pubs[i](raws[i][j])
+            else:
+                for k in range(start, stop):
+                    lag = t_first + due[k] - time.perf_counter()
+                    if lag > 0:
+                        time.sleep(lag)
+                    pubs[topics[k]](raws[topics[k]][positions[k]])
+            if in_flight and stop < n:
+                while stop - self.taken(node) > step:
+                    pass
+        return t_first, time.perf_counter()
+
+    def _call(self, client: Any, node: NodeProcess | None, timeout_s: float) -> Any:
+        future = client.call_async(Trigger.Request())
+        alive = node.check_alive if node is not None else None
+        wait_until(future.done, timeout_s, f"an answer from {client.srv_name}", alive, period_s=0.0002)
+        response = future.result()
+        if response is None or not response.success:
+            raise NodeError(f"{client.srv_name} failed: {getattr(response, 'message', 'no answer')}")
+        return json.loads(response.message)
+
+    def taken(self, node: NodeProcess | None = None, timeout_s: float = 30.0) -> int:
+        """Ask the node how many input messages it has taken in total."""
+        return int(sum(self._call(self.status_client, node, timeout_s)["taken"]))
+
+    def wait_acked(self, timeout_s: float = 30.0) -> None:
+        """Block until every published message is acknowledged by the node's reliable readers."""
+        for p in self.publishers:
+            if not p.wait_for_all_acked(Duration(seconds=timeout_s)):
+                raise NodeError(f"{p.topic_name}: not acknowledged within {timeout_s:g} s")
+
+    def flush(self, node: NodeProcess | None = None, timeout_s: float = 30.0) -> dict[str, Any]:
+        """Call the node's flush service; return its report (``Shadow.diagnostics()`` + ``node``)."""
+        return self._call(self.flush_client, node, timeout_s)
+
+    def received(self, topic: str) -> int:
+        """Return the number of output messages recorded on ``topic``."""
+        return len(self.records[topic])
+
+    def last(self, topic: str) -> Any:
+        """Return the last recorded message of ``topic``, deserialized."""
+        return deserialize_message(self.records[topic][-1][1], _OUTPUT_TYPES[topic])
+
+    def close(self) -> None:
+        """Stop the executor thread and shut the context down."""
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+    def __enter__(self) -> Player:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _params_file(params: dict[str, Any], directory: Path) -> Path:
+    """Write a complete ``bridge_shadow: ros__parameters:`` file (the node then uses exactly these)."""
+    path = directory / "params.yaml"
+    path.write_text(yaml.safe_dump({NODE_NAME: {"ros__parameters": params}}, sort_keys=False))
+    return path
+
+
+def _write_outputs(path: str | Path, records: dict[str, list[tuple[int, bytes]]]) -> Path:
+    """Record the node's outputs as a bag, log time = receive time (what ``ros2 bag record`` does)."""
+    from bridge_shadow.bagio import BagOutputWriter
+
+    with BagOutputWriter(path) as writer:
+        for topic, items in records.items():
+            if items:
+                stamps, raws = zip(*items, strict=True)
+                writer.write_many_raw(topic, OUTPUT_TOPICS[topic], stamps, raws)
+    return Path(path)
+
+
+def run_live(
+    bag: str | Path,
+    params_path: str | Path | None = None,
+    *,
+    out: str | Path | None = None,
+    plots: str | Path | None = None,
+    rate: float | None = None,
+    overrides: dict[str, Any] | None = None,
+    timeout_s: float = 60.0,
+) -> dict[str, Any]:
+    """Replay ``bag`` through ``bridge_shadow_node`` over loopback DDS; return the replay JSON.
+
+    Args:
+        bag: rosbag2 directory with the contract input topics.
+        params_path: shadow parameter file (default ``config/shadow.yaml``).
+        out: record the node's output topics into this bag (log time = receive time).
+        plots: not available live (the window history is not published): InputError.
+        rate: speed factor of log time (1.0 = real time); None = as fast as the node takes it.
+        overrides: parameter overrides applied after the file (as ``-p name:=value``).
+        timeout_s: limit for discovery, acknowledgement, flush and outputs, each.
+
+    Returns:
+        The direct replay's JSON keys (``posterior``, ``messages``, ``rejected``, ``messages_per_s``,
+        ``seconds``, ``windows``, ``spline``, ``noise``) plus ``live`` (graph timings, node counters).
+
+    """
+    from bridge_shadow.bagio import read_raw_topics
+    from bridge_shadow.estimate import load_config
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    if plots is not None:
+        raise InputError(
+            "--plots needs the direct replay (the live node does not publish its window history)"
+        )
+    config = load_config(params_path, overrides)
+    surrogate = load_surrogate(config.surrogate_path or None)
+    data = read_raw_topics(bag, INPUT_TOPICS)
+    missing = [t for t in INPUT_ORDER if t not in data]
+    if missing:
+        raise InputError(f"{bag}: missing topic(s) {', '.join(missing)}")
+    log_ns = [data[t][0] for t in INPUT_ORDER]
+    raws = [data[t][1] for t in INPUT_ORDER]
+    topic, pos, merged = merge_log_order(log_ns)
+    total = len(topic)
+    with tempfile.TemporaryDirectory(prefix="bridge_shadow_live_") as tmp:
+        # a fresh checkpoint: the replay must not resume an earlier run (the direct mode does not)
+        params = config.replace(checkpoint_path=str(Path(tmp) / "checkpoint.npz")).to_params()
+        node = NodeProcess(["--ros-args", "--params-file", str(_params_file(params, Path(tmp)))])
+        player = None
+        try:
+            t0 = time.perf_counter()
+            node.start()
+            player = Player()
+            discovery_s = player.wait_for_node(node, timeout_s)
+            in_flight = config.qos_depth // 2 if config.qos_depth > 0 else 128
+            t_first, t_last = player.publish(topic, pos, raws, merged, rate, in_flight, node)
+            wait_until(lambda: player.taken(node) >= total, timeout_s, f"the node to take {total} messages")
+            report = player.flush(node, timeout_s)
+            t_done = time.perf_counter()
+            counters = report["node"]
+            got = sum(counters["received"].values())
+            if got != total:
+                raise NodeError(f"the node received {got} of {total} messages")
+            n_out = int(counters["windows_published"])
+            wait_until(
+                lambda: player.received(MEAN_TOPIC) >= n_out and player.received(COVARIANCE_TOPIC) >= n_out,
+                timeout_s,
+                f"{n_out} posterior messages",
+                node.check_alive,
+            )
+            if n_out:
+                mean, _ = array_from_msg(player.last(MEAN_TOPIC))
+                cov, _ = array_from_msg(player.last(COVARIANCE_TOPIC))
+            else:
+                mean, cov = np.asarray(report["mean_m"]), np.asarray(report["covariance_m2"])
+            code = node.stop()
+            if code != 0:
+                raise NodeError(f"bridge_shadow_node exited with code {code}: {node.output().strip()[-300:]}")
+            records = player.records
+        finally:
+            if player is not None:
+                player.close()
+            node.close()
+    seconds = t_done - t_first
+    used = report["used"]
+    js: dict[str, Any] = {
+        "posterior": {
+            "mean_m": mean.tolist(),
+            "covariance_m2": cov.tolist(),
+            "sigma_m": np.sqrt(np.diag(cov)).tolist(),
+            "supports": list(SUPPORTS),
+        },
+        "messages": {
+            "total": total,
+            "used": int(sum(used.values())),
+            "used_by_topic": used,
+            "rejected": total - int(sum(used.values())) - int(counters["malformed"]),
+        },
+        "rejected": report["rejected"],
+        "messages_per_s": total / seconds if seconds > 0 else float("inf"),
+        "seconds": seconds,
+        "windows": {"closed": report["windows"]["closed"], "updates": report["windows"]["updates"]},
+        "spline": report["spline"],
+        "noise": report["noise"],
+        "bag": str(bag),
+        "surrogate": {
+            "A": surrogate.A.tolist(),
+            "u0": surrogate.u0.tolist(),
+            "solver": surrogate.provenance.get("solver", ""),
+        },
+        "live": {
+            "domain_id": int(node.env["ROS_DOMAIN_ID"]),
+            "discovery_s": discovery_s,
+            "startup_s": t_first - t0,
+            "publish_s": t_last - t_first,
+            "windows_published": n_out,
+            "malformed": counters["malformed"],
+            "received": counters["received"],
+        },
+    }
+    if out is not None:
+        js["out"] = str(_write_outputs(out, records))
+    return js
