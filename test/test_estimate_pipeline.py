@@ -138,8 +138,8 @@ def test_every_bad_input_is_dropped_and_counted() -> None:
     f1.force_n[m15] += 40e3
     m15b = (f2.stamp_ns >= T0 + 15 * 60 * S) & (f2.stamp_ns < T0 + 16 * 60 * S)
     f2.force_n[m15b] += 40e3
-    # minute 22: frc_02 keeps only 3 samples -> sparse window
-    m22 = (f2.stamp_ns >= T0 + 22 * 60 * S + 3 * (S // rate)) & (f2.stamp_ns < T0 + 23 * 60 * S)
+    # minute 22: frc_02 keeps only 2 samples (< window_min_samples = 3) -> sparse window
+    m22 = (f2.stamp_ns >= T0 + 22 * 60 * S + 2 * (S // rate)) & (f2.stamp_ns < T0 + 23 * 60 * S)
     # minutes 26-30: frc_02 silent -> missing topic (5 windows), except its first 10 s of
     # minute 29, which arrive after frc_01 has moved on (log time 30.9 min): late
     m26 = (f2.stamp_ns >= T0 + 26 * 60 * S) & (f2.stamp_ns < T0 + 29 * 60 * S)

@@ -33,7 +33,7 @@ class ShadowConfig:
 
     # alignment and aggregation
     window_s: float = 60.0
-    window_min_samples: int = 10
+    window_min_samples: int = 3
     temperature_match: str = "linear"
     temperature_stale_s: float = 120.0
     topic_timeout_s: float = 30.0
@@ -54,8 +54,9 @@ class ShadowConfig:
     # honest uncertainty (noise model)
     noise_mode: str = "adaptive"
     noise_warmup_windows: int = 30
-    noise_phi_max: float = 0.99
+    noise_phi_max: float = 0.999
     noise_floor: bool = True
+    noise_refilter_tolerance: float = 0.1
     # gating
     force_min_n: float = 1.0
     force_max_n: float = 5.0e6

@@ -264,6 +264,9 @@ class Shadow:
         self._first_ns: int | None = None  # earliest accepted stamp of any topic
         self._t_ref: np.ndarray | None = None  # frozen reference temperature (warmup_mean), C
         self._outlier_run = 0  # consecutive Mahalanobis outliers
+        self._zlog: list[tuple[int, np.ndarray, np.ndarray]] = []  # kept windows: end, z (N), m
+        self._r1_ref: np.ndarray | None = None  # per-sample R of the last (re)filter, N^2
+        self.n_refilters = 0
         self.gate_resets = 0  # outlier runs accepted as a real change
 
     # -- input ------------------------------------------------------------------------------
@@ -439,7 +442,48 @@ class Shadow:
             h = np.array([sp.leverage(rec["temp_c"][c])[0] for c, sp in enumerate(self.splines)])
             self.noise.add(e / np.maximum(1.0 - h, 1e-3), rec["samples"], rec["k"])
         level = self._level()
-        return [self._update(rec, e + level)[0] for rec, e in zip(held, resid, strict=True)]
+        outs = [self._update(rec, e + level)[0] for rec, e in zip(held, resid, strict=True)]
+        self._r1_ref = self.noise.R(np.ones(2))
+        return outs
+
+    def _maybe_refilter(self, out: WindowOutput) -> None:
+        """Re-run the filter over all kept windows when the noise model has moved.
+
+        The Kalman weights of early windows were set with the noise estimate of their time; when
+        the per-sample-equivalent R has changed by more than ``noise_refilter_tolerance``
+        (relative, any variance or the correlation), the filter restarts from the prior and
+        replays every kept window with the current R, so the posterior always reflects the
+        current noise model (gate decisions are kept as made).
+        """
+        tol = self.config.noise_refilter_tolerance
+        if not self.noise.adaptive or tol <= 0:
+            return
+        r1 = self.noise.R(np.ones(2))
+        ref = self._r1_ref
+        if ref is not None:
+            d_var = np.abs(np.diag(r1) / np.diag(ref) - 1.0).max()
+            corr = lambda r: r[0, 1] / np.sqrt(r[0, 0] * r[1, 1])  # noqa: E731
+            if d_var <= tol and abs(corr(r1) - corr(ref)) <= tol:
+                return
+        self._r1_ref = r1
+        self.n_refilters += 1
+        cfg = self.config
+        filt = SettlementFilter(
+            self.surrogate.A,
+            np.asarray(cfg.prior_sigma_m),
+            np.asarray(cfg.process_noise_m2_per_s),
+            cfg.mahalanobis_probability,
+        )
+        last = None
+        for end, z, m in self._zlog:
+            if last is not None:
+                filt.predict((end - last) / _NS)
+            last = end
+            filt.update(z, r1 / np.sqrt(np.outer(m, m)), gate=False)  # R(m) = R(1) / sqrt(m_i m_j)
+        if last is not None and self._pred_ns is not None and self._pred_ns > last:
+            filt.predict((self._pred_ns - last) / _NS)
+        self.filter = filt
+        out.mean_m, out.covariance_m2 = filt.x, filt.P
 
     def _apply_online(self, rec: dict[str, Any]) -> WindowOutput:
         """Compensate with the fit so far, gate and update; a kept window then joins the fit.
@@ -450,12 +494,14 @@ class Shadow:
         """
         resid = rec["force_n"] - self._curve(rec["temp_c"], rec["force_n"])
         force = self._outlier_run >= self.config.gate_max_consecutive
-        out, accepted = self._update(rec, resid + self._level(), gate=not force)
+        level = self._level() if self.n_good else rec["force_n"]  # no fit yet: compensated = y
+        out, accepted = self._update(rec, resid + level, gate=not force)
         if accepted:
             self._outlier_run = 0
             self.gate_resets += int(force)
             self.noise.add(resid, rec["samples"], rec["k"])
             self._fit_window(rec)
+            self._maybe_refilter(out)
         else:
             self._outlier_run += 1
         return out
@@ -474,6 +520,8 @@ class Shadow:
         res = self.filter.update(compensated - self.surrogate.u0, R, gate=gate)
         if not res.accepted:
             self.counts[res.reason] += 1
+        else:
+            self._zlog.append((end, compensated - self.surrogate.u0, np.asarray(m, float)))
         out = self._output(k, m, rec["temp_c"], rec["force_n"], compensated, res.accepted, res.reason)
         return out, res.accepted
 
@@ -581,6 +629,7 @@ class Shadow:
             "spline": self.spline_info(),
             "noise": self.noise_info(),
             "gate_resets": self.gate_resets,
+            "refilters": self.n_refilters,
             "windows": {
                 "closed": self.n_windows,
                 "fitted": self.n_good,
@@ -618,6 +667,12 @@ class Shadow:
             "splines": [sp.state_dict() for sp in self.splines],
             "noise": self.noise.state_dict(),
             "filter": self.filter.state_dict(),
+            "zlog": {
+                "end": np.array([e for e, _, _ in self._zlog], dtype=np.int64),
+                "z": np.array([z for _, z, _ in self._zlog], dtype=float).reshape(-1, 2),
+                "m": np.array([m for _, _, m in self._zlog], dtype=float).reshape(-1, 2),
+            },
+            "r1_ref": np.full((2, 2), np.nan) if self._r1_ref is None else self._r1_ref,
             "held": {
                 "k": np.array([h["k"] for h in held], dtype=np.int64),
                 "samples": np.array([h["samples"] for h in held], dtype=np.int64).reshape(-1, 2),
@@ -635,6 +690,7 @@ class Shadow:
                 "first_ns": -(2**62) if self._first_ns is None else self._first_ns,
                 "outlier_run": self._outlier_run,
                 "gate_resets": self.gate_resets,
+                "n_refilters": self.n_refilters,
             },
         }
 
@@ -662,6 +718,18 @@ class Shadow:
             sp.load_state_dict(s)
         shadow.noise.load_state_dict(state["noise"])
         shadow.filter.load_state_dict(state["filter"])
+        zl = state["zlog"]
+        shadow._zlog = [
+            (int(e), np.asarray(z, float), np.asarray(m, float))
+            for e, z, m in zip(
+                np.asarray(zl["end"]),
+                np.asarray(zl["z"]).reshape(-1, 2),
+                np.asarray(zl["m"]).reshape(-1, 2),
+                strict=True,
+            )
+        ]
+        r1 = np.asarray(state["r1_ref"], float)
+        shadow._r1_ref = None if np.isnan(r1).any() else r1
         h = state["held"]
         shadow._held = [
             {
@@ -688,6 +756,7 @@ class Shadow:
         shadow._ckpt_ns = None if sc["ckpt_ns"] == none else sc["ckpt_ns"]
         shadow._first_ns = None if sc["first_ns"] == none else sc["first_ns"]
         shadow._outlier_run, shadow.gate_resets = sc["outlier_run"], sc["gate_resets"]
+        shadow.n_refilters = sc["n_refilters"]
         return shadow
 
     def save_checkpoint(self, path: str | Path | None = None) -> Path | None:

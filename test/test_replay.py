@@ -1,0 +1,108 @@
+"""``bridge-shadow replay``: JSON contract, outputs bag, plots, real records, errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bridge_shadow.cli import main
+from bridge_shadow.contract import COVARIANCE_TOPIC, MEAN_TOPIC
+
+
+def _replay_json(capsys: pytest.CaptureFixture[str], *args: str) -> dict:
+    assert main(["replay", *args, "--json"]) == 0
+    out = capsys.readouterr().out
+    return json.loads(out)
+
+
+def test_replay_json_outputs_and_plots(
+    root: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from bridge_shadow.bagio import read_raw_topics
+    from bridge_shadow.contract import FLOAT_ARRAY_TYPE
+
+    bag = root / "bags" / "baseline_1d"
+    js = _replay_json(capsys, str(bag), "--out", str(tmp_path / "out"), "--plots", str(tmp_path / "plots"))
+    mean = np.array(js["posterior"]["mean_m"])
+    cov = np.array(js["posterior"]["covariance_m2"])
+    assert mean.shape == (2,) and cov.shape == (2, 2)
+    assert np.all(np.isfinite(mean)) and np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0)
+    assert np.all(np.sqrt(np.diag(cov)) < 3e-4)  # the data were informative
+    assert js["messages"]["used"] + js["messages"]["rejected"] == js["messages"]["total"]
+    assert js["messages_per_s"] > 0 and js["windows"]["updates"] > 1000
+    for ch in ("frc_01", "frc_02"):
+        assert js["spline"][ch]["edf"] >= 2.0 and js["spline"][ch]["lambda"] > 0
+    # the outputs bag holds the window posteriors, the last equals the JSON
+    raw = read_raw_topics(
+        tmp_path / "out", {MEAN_TOPIC: FLOAT_ARRAY_TYPE, COVARIANCE_TOPIC: FLOAT_ARRAY_TYPE}
+    )
+    assert len(raw[MEAN_TOPIC][1]) == js["windows"]["closed"]
+    from bridge_shadow.bagio import get_typestore
+
+    last = get_typestore().deserialize_cdr(raw[MEAN_TOPIC][1][-1], FLOAT_ARRAY_TYPE)
+    assert np.allclose(last.data, mean, rtol=1e-15)
+    assert last.layout.dim[0].label == "support"
+    pngs = sorted(p.name for p in (tmp_path / "plots").glob("*.png"))
+    assert pngs == [
+        "compensation_curve.png",
+        "credible_ellipse.png",
+        "posterior.png",
+        "raw_vs_compensated.png",
+    ]
+
+
+def test_replay_same_as_pipeline_on_the_same_data(root: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.estimate import Shadow, load_config
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    bag = root / "bags" / "baseline_1d"
+    js = _replay_json(capsys, str(bag))
+    res = Shadow(load_config(), load_surrogate()).run(read_monitoring(bag), chunk=997)
+    assert np.allclose(js["posterior"]["mean_m"], res.mean_m, rtol=1e-12, atol=0.0)
+    assert np.allclose(js["posterior"]["covariance_m2"], res.covariance_m2, rtol=1e-12, atol=0.0)
+
+
+def test_replay_summary_is_human_text(root: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["replay", str(root / "bags" / "baseline_1d")]) == 0
+    out = capsys.readouterr().out
+    assert "mm" in out and "kN" in out and "south" in out and "north" in out
+
+
+def test_replay_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["replay", str(tmp_path / "nope")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("bridge_shadow:\n  ros__parameters:\n    window_s: -1\n")
+    assert main(["replay", str(tmp_path / "nope"), "--params", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "window_s" in err and err.count("\n") == 1
+
+
+@pytest.mark.realdata
+def test_replay_on_the_real_records(
+    munich_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """2022-04-11 reference state (12 min at 100 Hz, a test car crossing) with that day's air temperature."""
+    from bridge_shadow.bagio import write_monitoring
+    from bridge_shadow.importers import import_csv
+
+    files = [
+        munich_data / "Settlements" / "UniBw_2022-04-11_ref_support_load_01ForceAt100Hz.csv.zip",
+        munich_data / "Settlements" / "TemperatureData2022-04-11.zip",
+    ]
+    data, _ = import_csv(files)
+    write_monitoring(tmp_path / "real", data)
+    js = _replay_json(capsys, str(tmp_path / "real"))
+    mean = np.array(js["posterior"]["mean_m"])
+    sd = np.sqrt(np.diag(js["posterior"]["covariance_m2"]))
+    assert np.all(np.isfinite(mean)) and np.all(np.isfinite(sd))
+    # about 234 / 234 kN against u0 of the surrogate: a settlement of the order of a millimetre
+    assert np.all(np.abs(mean) < 5e-3)
+    assert np.all(sd > 0) and np.all(sd < 3e-4)  # the data narrowed the 0.3 mm prior
+    assert js["windows"]["updates"] >= 10
+    assert js["messages"]["used"] > 100_000
