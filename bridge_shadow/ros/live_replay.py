@@ -60,7 +60,7 @@ from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
 from bridge_shadow.ros.node import FLUSH_SERVICE, STATUS_SERVICE, input_qos
 
-__all__ = ["INPUT_ORDER", "Player", "merge_log_order", "run_live"]
+__all__ = ["INPUT_ORDER", "Player", "merge_log_order", "run_live", "write_params_file"]
 
 #: Input topics in the node's index order (frc_01, frc_02, air temperature).
 INPUT_ORDER: tuple[str, str, str] = (*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC)
@@ -237,7 +237,7 @@ class Player:
         self.close()
 
 
-def _params_file(params: dict[str, Any], directory: Path) -> Path:
+def write_params_file(params: dict[str, Any], directory: Path) -> Path:
     """Write a complete ``bridge_shadow: ros__parameters:`` file (the node then uses exactly these)."""
     path = directory / "params.yaml"
     path.write_text(yaml.safe_dump({NODE_NAME: {"ros__parameters": params}}, sort_keys=False))
@@ -303,7 +303,7 @@ def run_live(
     with tempfile.TemporaryDirectory(prefix="bridge_shadow_live_") as tmp:
         # a fresh checkpoint: the replay must not resume an earlier run (the direct mode does not)
         params = config.replace(checkpoint_path=str(Path(tmp) / "checkpoint.npz")).to_params()
-        node = NodeProcess(["--ros-args", "--params-file", str(_params_file(params, Path(tmp)))])
+        node = NodeProcess(["--ros-args", "--params-file", str(write_params_file(params, Path(tmp)))])
         player = None
         try:
             t0 = time.perf_counter()

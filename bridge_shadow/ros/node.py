@@ -49,6 +49,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import signal
 import struct
 import sys
 import time
@@ -64,6 +65,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
@@ -113,6 +115,7 @@ MIN_DRAIN_GAP_S = 0.005
 #: Longest wall time a message waits for the other topics to catch up with its stamp [s].
 REORDER_HOLD_S = 2.0
 _NS = 1_000_000_000
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _TOPICS = (*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC)
 
 _USAGE = """\
@@ -364,15 +367,19 @@ def main(args: list[str] | None = None) -> int:
         return 0
     if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in os.environ:
         confine_to_loopback()
-    rclpy.init(args=[sys.argv[0], *argv])
+    # SIGINT/SIGTERM only set a flag: the loop ends between callbacks, so no callback is cut off
+    # by a context shut down under it, and the exit path still has a valid context.
+    stop: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, frame: stop.append(signum)) for sig in _STOP_SIGNALS}
+    rclpy.init(args=[sys.argv[0], *argv], signal_handler_options=SignalHandlerOptions.NO)
     node = None
     code = 0
     try:
         node = ShadowNode()
         executor = EventsExecutor()
         executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.5)
+        while not stop and rclpy.ok():
+            executor.spin_once(timeout_sec=0.2)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except BridgeShadowError as err:
@@ -389,6 +396,8 @@ def main(args: list[str] | None = None) -> int:
                 code = 2
             node.destroy_node()
         rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return code
 
 

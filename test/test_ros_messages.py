@@ -1,0 +1,90 @@
+"""Message conversion and /diagnostics content, without a DDS graph (rclpy message types only)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy")
+
+from bridge_shadow.bagio import encode_stamped_floats, read_monitoring
+from bridge_shadow.estimate import Shadow, load_config
+from bridge_shadow.ros.convert import (
+    array_from_msg,
+    covariance_msg,
+    decode_forces,
+    decode_temperatures,
+    mean_msg,
+    wrench_msg,
+)
+from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
+
+
+def test_mean_and_covariance_layout_round_trip() -> None:
+    mean = np.array([7.0e-4, -6.9e-4])
+    cov = np.array([[1.0e-9, -4.0e-10], [-4.0e-10, 2.0e-9]])
+    m, c = mean_msg(mean), covariance_msg(cov)
+    assert [(d.label, d.size, d.stride) for d in m.layout.dim] == [("support", 2, 2)]
+    assert [(d.label, d.size, d.stride) for d in c.layout.dim] == [("row", 2, 4), ("col", 2, 2)]
+    back_m, _ = array_from_msg(m)
+    back_c, labels = array_from_msg(c)
+    np.testing.assert_array_equal(back_m, mean)
+    np.testing.assert_array_equal(back_c, cov)  # row-major
+    assert labels == ("row", "col")
+
+
+def test_wrench_msg_stamp_and_force() -> None:
+    msg = wrench_msg(1_647_212_400_123_456_789, "frc_02", 2.34e5)
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1_647_212_400, 123_456_789)
+    assert msg.header.frame_id == "frc_02"
+    assert msg.wrench.force.z == 2.34e5
+
+
+def test_decode_drops_and_counts_malformed() -> None:
+    stamps = np.array([1, 2, 3], dtype=np.int64) * 1_000_000_000
+    values = np.zeros((3, 6))
+    values[:, 2] = [2.6e5, np.nan, 2.2e5]
+    raws = encode_stamped_floats(stamps, "frc_01", values)
+    stamp, force, frame, bad = decode_forces([raws[0], raws[1][:20], raws[2]])
+    assert bad == 1
+    np.testing.assert_array_equal(stamp, stamps[[0, 2]])
+    np.testing.assert_array_equal(force, [2.6e5, 2.2e5])
+    assert list(frame) == ["frc_01", "frc_01"]
+    temp = encode_stamped_floats(stamps, "air_temperature", np.array([[5.0, 0.0], [6.5, 0.1], [7.0, 0.0]]))
+    _, t_c, _, bad = decode_temperatures(temp)
+    assert bad == 0
+    np.testing.assert_array_equal(t_c, [5.0, 6.5, 7.0])
+
+
+@pytest.fixture(scope="module")
+def diag(root: Path) -> dict:
+    shadow = Shadow(load_config(None, {"window_min_samples": 2}))
+    shadow.run(read_monitoring(root / "bags" / "baseline_1d"))
+    return shadow.diagnostics()
+
+
+def test_statuses_carry_posterior_in_mm_and_counts(diag: dict) -> None:
+    ages = {"frc_01": 0.1, "frc_02": 0.1, "air_temperature": 0.5}
+    est, inputs, comp = statuses(diag, ages, malformed=3, timeout_s=60.0)
+    mean, sigma = np.array(diag["mean_m"]), np.array(diag["sigma_m"])
+    assert est.values["south settlement [mm]"] == f"{1e3 * mean[0]:+.4f}"
+    assert est.values["north sigma [mm]"] == f"{1e3 * sigma[1]:.4f}"
+    assert est.level == {"OK": 0, "WARN": 1, "ERROR": 2}[diag["level"]]
+    assert inputs.level == 0
+    assert inputs.values["rejected nonfinite"] == str(diag["rejected"]["nonfinite"]) != "0"
+    assert inputs.values["rejected malformed"] == "3"
+    assert comp.values["frc_02 lambda"] == f"{diag['spline']['frc_02']['lambda']:.4g}"
+    msg = diagnostic_array([est, inputs, comp], 5_000_000_001)
+    assert [s.level for s in msg.status] == [bytes([est.level]), b"\x00", bytes([comp.level])]
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (5, 1)
+
+
+def test_input_levels_follow_arrival_age(diag: dict) -> None:
+    quiet_one = {"frc_01": 0.1, "frc_02": None, "air_temperature": 0.1}
+    assert statuses(diag, quiet_one, timeout_s=60.0)[1].level == 1
+    stale_all = {"frc_01": 61.0, "frc_02": 120.0, "air_temperature": 61.0}
+    inputs = statuses(diag, stale_all, timeout_s=60.0)[1]
+    assert inputs.level == 2
+    assert inputs.message.startswith("no input for 60 s on any topic")
