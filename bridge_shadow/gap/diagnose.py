@@ -29,6 +29,7 @@ from bridge_shadow.gap.fit import (
     chance_threshold_mc,
     cross_validate,
     effective_n,
+    folds_of,
 )
 from bridge_shadow.gap.posterior import posterior, replay_posterior
 from bridge_shadow.gap.where import where
@@ -81,8 +82,7 @@ def baseline_residual(w: Windows, d: Drivers, s: Surrogate) -> np.ndarray:
 
 
 def _folds(d: Drivers, valid: np.ndarray, holdout_days: Sequence[int] | None) -> tuple[np.ndarray, str]:
-    from bridge_shadow.gap.fit import folds_of
-
+    """Folds of the cross-validation: whole days (or blocks), or the days given to hold out."""
     if not holdout_days:
         return folds_of(d.day, valid)
     days = set(np.unique(d.day).tolist())
@@ -96,9 +96,17 @@ def _folds(d: Drivers, valid: np.ndarray, holdout_days: Sequence[int] | None) ->
 
 
 def _cos(a: np.ndarray, b: np.ndarray) -> float:
+    """Absolute cosine between two predictions (n, 2) over the entries finite in both."""
     ok = np.isfinite(a) & np.isfinite(b)
     na, nb = np.linalg.norm(a[ok]), np.linalg.norm(b[ok])
     return float(abs(np.sum(a[ok] * b[ok])) / (na * nb)) if na > 0 and nb > 0 else 0.0
+
+
+def _per_support(x: np.ndarray, total: float | None = None) -> dict[str, float]:
+    out = {SUPPORTS[0]: float(x[0]), SUPPORTS[1]: float(x[1])}
+    if total is not None:
+        out["total"] = float(total)
+    return out
 
 
 def _params(c: Candidate, r: CvResult) -> dict[str, Any]:
@@ -152,18 +160,13 @@ def _forward_selection(
         params: dict[str, Any] = {k: float(v) for k, v in zip(c.params, beta, strict=True)}
         if c.grid_name is not None:
             params[c.grid_name] = c.grid[r.grid_index]
-        red = r.reduction
         out.append(
             {
                 "effect": name,
                 "part": c.part,
                 "partial_heldout_gain": gain,
                 "params": params,
-                "cumulative_heldout_reduction": {
-                    SUPPORTS[0]: float(red[0]),
-                    SUPPORTS[1]: float(red[1]),
-                    "total": r.reduction_total,
-                },
+                "cumulative_heldout_reduction": _per_support(r.reduction, r.reduction_total),
             }
         )
         blocks.append((name, designs[name][r.grid_index]))
@@ -179,6 +182,160 @@ def _forward_selection(
         contributions[name] = x @ beta_all[k : k + p]
         k += p
     return out, contributions
+
+
+@dataclass
+class _Ranking:
+    """Candidates ranked by held-out gain, with the noise level and the partial effects.
+
+    Attributes:
+        ranked: candidates, largest held-out gain first.
+        phi: AR(1) coefficient of what the top candidate leaves.
+        n_eff: effective sample size of the record for that noise.
+        threshold: candidate -> chance level of its held-out gain.
+        chance_level: ``"simulated"`` or ``"large-sample formula"``.
+        ic: candidate -> BIC with the AR(1) effective sample size (relative to no effect).
+        partial: candidate -> held-out gain when added to the top one (the top one: added to the
+            runner-up).
+        top_given: candidate -> held-out gain of the top one when added to that candidate.
+
+    """
+
+    ranked: list[Candidate]
+    phi: float
+    n_eff: float
+    threshold: dict[str, float]
+    chance_level: str
+    ic: dict[str, float]
+    partial: dict[str, float]
+    top_given: dict[str, float]
+
+    @property
+    def top(self) -> Candidate:
+        """The candidate with the largest held-out gain."""
+        return self.ranked[0]
+
+    @property
+    def runner_up(self) -> Candidate:
+        """The second candidate."""
+        return self.ranked[1]
+
+
+def _rank(
+    designs: dict[str, list[np.ndarray]],
+    cv: dict[str, CvResult],
+    resid: np.ndarray,
+    valid: np.ndarray,
+    fold: np.ndarray,
+    z: float,
+) -> _Ranking:
+    """Rank, estimate the noise and the chance levels, and compute the partial effects."""
+    ranked = sorted(CANDIDATES, key=lambda c: -cv[c.name].mse_gain)
+    top = ranked[0]
+    n_folds = len(np.unique(fold[fold >= 0]))
+    # AR(1) noise from what the top candidate leaves; one effective size for every candidate.
+    phi = ar1_phi(resid - cv[top.name].pred_full)
+    n_eff = effective_n(int(valid.sum()), phi)
+    if n_eff >= MC_BELOW_N_EFF:
+        thr = {c.name: chance_threshold(c.n_params, n_eff, n_folds, z) for c in CANDIDATES}
+        chance_level = "large-sample formula"
+    else:
+        thr = chance_threshold_mc(designs, valid, fold, phi)
+        chance_level = "simulated"
+    sse0 = float(np.sum(resid[valid] ** 2))
+    ic = {
+        c.name: float(n_eff * np.log(max(cv[c.name].sse_full, 1e-300) / sse0) + c.penalty(n_eff))
+        for c in CANDIDATES
+    }
+    partial: dict[str, float] = {}
+    top_given: dict[str, float] = {}
+    top_design = designs[top.name][cv[top.name].grid_index]
+    for c in ranked[1:]:
+        joint = [np.concatenate([top_design, x], axis=2) for x in designs[c.name]]
+        sse_joint = cross_validate(joint, resid, valid, fold).sse_after.sum()
+        partial[c.name] = float(1.0 - sse_joint / cv[top.name].sse_after.sum())
+        top_given[c.name] = float(1.0 - sse_joint / cv[c.name].sse_after.sum())
+    partial[top.name] = top_given[ranked[1].name]
+    return _Ranking(ranked, phi, n_eff, thr, chance_level, ic, partial, top_given)
+
+
+def _group(rk: _Ranking, cv: dict[str, CvResult]) -> list[str]:
+    """Return the best effect and those indistinguishable from it (best first); empty for none.
+
+    A candidate joins the top one's group when it also beats its chance level, its all-data fit is
+    nearly collinear with the top one's (``COLLINEAR_COS``) and the top one adds no significant
+    held-out gain to it. The group is ordered by the information criterion.
+    """
+    top = rk.top.name
+    if cv[top].mse_gain < rk.threshold[top]:
+        return []
+    group = [top] + [
+        c.name
+        for c in rk.ranked[1:]
+        if cv[c.name].mse_gain >= rk.threshold[c.name]
+        and _cos(cv[top].pred_full, cv[c.name].pred_full) >= COLLINEAR_COS
+        and rk.top_given[c.name] < rk.threshold[top]
+    ]
+    return sorted(group, key=lambda name: rk.ic[name])
+
+
+def _statement(group: list[str], also: list[dict[str, Any]], rk: _Ranking, cv: dict[str, CvResult]) -> str:
+    """One paragraph for people: the answer, its ambiguity, and what else is present."""
+    top = rk.top.name
+    if not group:
+        return (
+            f"No candidate beats the noise: the largest held-out gain ({top}, "
+            f"{cv[top].mse_gain:.3f} of the squared residual) is below the chance level "
+            f"{rk.threshold[top]:.3f} for AR(1) noise with phi = {rk.phi:.2f}."
+        )
+    best, others = group[0], group[1:]
+    red = cv[best].reduction
+    text = (
+        f"{best} ({EFFECTS[best].part}) explains the gap: held-out RMS down by "
+        f"{100 * red[0]:.0f}% (south) and {100 * red[1]:.0f}% (north)."
+    )
+    if others:
+        text += (
+            f" It cannot be told apart from {', '.join(others)} with two reactions alone: their fitted "
+            "reaction changes are nearly collinear and neither adds a significant held-out gain to "
+            f"the other; {best} is listed first by the information criterion."
+        )
+    if also:
+        listed = ", ".join(
+            f"{a['effect']} ({100 * a['partial_heldout_gain']:.0f}% of what remained)" for a in also
+        )
+        text += f" Also present, each given the ones before: {listed}."
+    return text
+
+
+def _candidate_json(rank: int, c: Candidate, r: CvResult, rk: _Ranking) -> dict[str, Any]:
+    """Return the JSON entry of one ranked candidate."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rms_b = np.sqrt(r.sse_before / r.n_heldout)
+        rms_a = np.sqrt(r.sse_after / r.n_heldout)
+    thr = rk.threshold[c.name]
+    return {
+        "effect": c.name,
+        "part": c.part,
+        "rank": rank,
+        "heldout_reduction": _per_support(r.reduction, r.reduction_total),
+        "heldout_rms_before_n": _per_support(rms_b),
+        "heldout_rms_after_n": _per_support(rms_a),
+        "heldout_gain": r.mse_gain,
+        "chance_threshold": thr,
+        "significant": bool(r.mse_gain >= thr),
+        "params": _params(c, r),
+        "magnitude": {
+            "value": c.magnitude(r.beta, c.grid[r.grid_index]) if c.magnitude else None,
+            "unit": "h" if c.name == "thermal_lag" else EFFECTS[c.name].unit,
+        },
+        "partial_effect": {
+            "given": rk.runner_up.name if c is rk.top else rk.top.name,
+            "heldout_gain": rk.partial[c.name],
+            "significant": bool(rk.partial[c.name] >= thr),
+        },
+        "information_criterion": {"bic_ar1": rk.ic[c.name], "n_params": c.n_params},
+    }
 
 
 def diagnose(
@@ -208,154 +365,70 @@ def diagnose(
     n_folds = len(np.unique(fold[fold >= 0]))
     if n_folds < 1:
         raise GapError("not enough data for a held-out check")
+
+    # Which effect: every candidate cross-validated, ranked, grouped, then further effects.
     ctx = Context(d, s, stiffness_sensitivities(s))
     designs = {c.name: [c.design(ctx, g) for g in c.grid] for c in CANDIDATES}
     cv = {c.name: cross_validate(designs[c.name], resid, valid, fold) for c in CANDIDATES}
-    by_name = {c.name: c for c in CANDIDATES}
-    ranked = sorted(CANDIDATES, key=lambda c: -cv[c.name].mse_gain)
-    top = ranked[0]
-
-    # AR(1) noise from what the top candidate leaves; common effective size for every candidate.
-    phi = ar1_phi(resid - cv[top.name].pred_full)
-    n_obs = int(valid.sum())
-    n_eff = effective_n(n_obs, phi)
-    if n_eff >= MC_BELOW_N_EFF:
-        thr = {c.name: chance_threshold(c.n_params, n_eff, n_folds, z) for c in CANDIDATES}
-    else:
-        thr = chance_threshold_mc(designs, valid, fold, phi)
-    sse0 = float(np.sum(resid[valid] ** 2))
-
-    def ic(c: Candidate) -> float:
-        sse = max(cv[c.name].sse_full, 1e-300)
-        return float(n_eff * np.log(sse / sse0) + c.penalty(n_eff))
-
-    # Partial effects: each candidate added to the top one (and the top one added to each).
-    partial: dict[str, float] = {}
-    top_given: dict[str, float] = {}
-    top_alts = designs[top.name][cv[top.name].grid_index]
-    for c in ranked[1:]:
-        joint = [np.concatenate([top_alts, x], axis=2) for x in designs[c.name]]
-        j = cross_validate(joint, resid, valid, fold)
-        sse_j = j.sse_after.sum()
-        partial[c.name] = float(1.0 - sse_j / cv[top.name].sse_after.sum())
-        top_given[c.name] = float(1.0 - sse_j / cv[c.name].sse_after.sum())
-    runner = ranked[1].name
-    partial[top.name] = top_given[runner]
-
-    detected = cv[top.name].mse_gain >= thr[top.name]
-    group: list[str] = []
-    if detected:
-        group = [top.name] + [
-            c.name
-            for c in ranked[1:]
-            if cv[c.name].mse_gain >= thr[c.name]
-            and _cos(cv[top.name].pred_full, cv[c.name].pred_full) >= COLLINEAR_COS
-            and top_given[c.name] < thr[top.name]
-        ]
-        group.sort(key=lambda name: ic(by_name[name]))
+    rk = _rank(designs, cv, resid, valid, fold, z)
+    group = _group(rk, cv)
     best = group[0] if group else "none"
-    others = group[1:]
     also, contributions = (
-        _forward_selection(best, group, designs, cv, resid, valid, fold, thr) if group else ([], {})
+        _forward_selection(best, group, designs, cv, resid, valid, fold, rk.threshold) if group else ([], {})
     )
 
-    if best == "none":
-        statement = (
-            f"No candidate beats the noise: the largest held-out gain ({top.name}, "
-            f"{cv[top.name].mse_gain:.3f} of the squared residual) is below the chance level "
-            f"{thr[top.name]:.3f} for AR(1) noise with phi = {phi:.2f}."
-        )
-    else:
-        r = cv[best]
-        statement = (
-            f"{best} ({EFFECTS[best].part}) explains the gap: held-out RMS down by "
-            f"{100 * r.reduction[0]:.0f}% (south) and {100 * r.reduction[1]:.0f}% (north)."
-        )
-        if others:
-            statement += (
-                f" It cannot be told apart from {', '.join(others)} with two reactions alone: their fitted "
-                "reaction changes are nearly collinear and neither adds a significant held-out gain to "
-                f"the other; {best} is listed first by the information criterion."
-            )
-        if also:
-            statement += (
-                " Also present, each given the ones before: "
-                + ", ".join(
-                    f"{a['effect']} ({100 * a['partial_heldout_gain']:.0f}% of what remained)" for a in also
-                )
-                + "."
-            )
-
-    candidates_json = []
-    for rank, c in enumerate(ranked, start=1):
-        r = cv[c.name]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rms_b = np.sqrt(r.sse_before / r.n_heldout)
-            rms_a = np.sqrt(r.sse_after / r.n_heldout)
-        red = r.reduction
-        candidates_json.append(
-            {
-                "effect": c.name,
-                "part": c.part,
-                "rank": rank,
-                "heldout_reduction": {
-                    SUPPORTS[0]: float(red[0]),
-                    SUPPORTS[1]: float(red[1]),
-                    "total": r.reduction_total,
-                },
-                "heldout_rms_before_n": {SUPPORTS[0]: float(rms_b[0]), SUPPORTS[1]: float(rms_b[1])},
-                "heldout_rms_after_n": {SUPPORTS[0]: float(rms_a[0]), SUPPORTS[1]: float(rms_a[1])},
-                "heldout_gain": r.mse_gain,
-                "chance_threshold": thr[c.name],
-                "significant": bool(r.mse_gain >= thr[c.name]),
-                "params": _params(c, r),
-                "magnitude": {
-                    "value": c.magnitude(r.beta, c.grid[r.grid_index]) if c.magnitude else None,
-                    "unit": "h" if c.name == "thermal_lag" else EFFECTS[c.name].unit,
-                },
-                "partial_effect": {
-                    "given": runner if c.name == top.name else top.name,
-                    "heldout_gain": partial[c.name],
-                    "significant": bool(partial[c.name] >= thr[c.name]),
-                },
-                "information_criterion": {"bic_ar1": ic(c), "n_params": c.n_params},
-                "collinearity_with_top": _cos(cv[top.name].pred_full, r.pred_full),
-            }
-        )
-
-    contribution = np.nan_to_num(cv[best].pred_full) if best != "none" else np.zeros_like(resid)
+    # How far: the shadow's posterior before and after adding the effect(s) to the model.
+    contribution = np.nan_to_num(cv[best].pred_full) if group else np.zeros_like(resid)
     post_before = posterior(w.mean_n, d.dtemp_k, s)
     post_after = posterior(w.mean_n - contribution, d.dtemp_k, s)
+    post: dict[str, Any] = {
+        "before": post_before,
+        "after": post_after,
+        "change_m": (np.array(post_after["mean_m"]) - np.array(post_before["mean_m"])).tolist(),
+        "method": "shadow batch update (estimate.kalman.batch_posterior) on the window means",
+    }
+    if contributions:
+        # Every effect found except settlements goes into the model; settlements stay the shadow's.
+        added = [k for k in contributions if k not in ("settlement_offset", "settlement_drift")]
+        total = sum((np.nan_to_num(contributions[k]) for k in added), np.zeros_like(resid))
+        post["after_all_but_settlement"] = {
+            **posterior(w.mean_n - total, d.dtemp_k, s),
+            "effects_added": added,
+        }
+    if replay:
+        per_window = int(np.median(w.count[w.count.min(axis=1) > 0].min(axis=1)))
+        post["shadow_replay"] = replay_posterior(data, s, w.t_ns, contribution, min(10, per_window))
+
+    # Where: the residual's breakdown, plus the model part of the held-out gains.
     parts: dict[str, float] = {}
     for c in CANDIDATES:
         parts[c.part] = max(parts.get(c.part, 0.0), max(0.0, cv[c.name].mse_gain))
     where_json = where(w, d, resid)
     where_json["model_part"] = {
         "heldout_gain_by_part": parts,
-        "part": EFFECTS[best].part if best != "none" else "none",
+        "part": EFFECTS[best].part if group else "none",
     }
-    if replay:
-        per_window = int(np.median(w.count[w.count.min(axis=1) > 0].min(axis=1)))
-        post_replay = replay_posterior(data, s, w.t_ns, contribution, min(10, per_window))
+
+    top_pred = cv[rk.top.name].pred_full
+    candidates_json = []
+    for rank, c in enumerate(rk.ranked, start=1):
+        entry = _candidate_json(rank, c, cv[c.name], rk)
+        entry["collinearity_with_top"] = _cos(top_pred, cv[c.name].pred_full)
+        candidates_json.append(entry)
     summary: dict[str, Any] = {
         "best": best,
-        "indistinguishable_from": others,
+        "indistinguishable_from": group[1:],
         "also_present": also,
-        "statement": statement,
+        "statement": _statement(group, also, rk, cv),
         "where": where_json,
         "candidates": candidates_json,
-        "posterior": {
-            "before": post_before,
-            "after": post_after,
-            "change_m": (np.array(post_after["mean_m"]) - np.array(post_before["mean_m"])).tolist(),
-            "method": "shadow batch update (estimate.kalman.batch_posterior) on the window means",
-        },
+        "posterior": post,
         "noise": {
-            "ar1_phi": phi,
-            "n_windows": n_obs,
-            "n_eff": n_eff,
+            "ar1_phi": rk.phi,
+            "n_windows": int(valid.sum()),
+            "n_eff": rk.n_eff,
             "z": z,
-            "chance_level": "simulated" if n_eff < MC_BELOW_N_EFF else "large-sample formula",
+            "chance_level": rk.chance_level,
         },
         "validation": {"kind": cv_kind, "folds": n_folds},
         "baseline": {
@@ -372,14 +445,5 @@ def diagnose(
         },
         "seconds": time.perf_counter() - t0,
     }
-    if contributions:
-        # Every effect found except settlements goes into the model; settlements stay the shadow's.
-        added = [k for k in contributions if k not in ("settlement_offset", "settlement_drift")]
-        total = sum((np.nan_to_num(contributions[k]) for k in added), np.zeros_like(resid))
-        post_all = posterior(w.mean_n - total, d.dtemp_k, s)
-        post_all["effects_added"] = added
-        summary["posterior"]["after_all_but_settlement"] = post_all
-    if replay:
-        summary["posterior"]["shadow_replay"] = post_replay
     joint = sum(contributions.values()) if contributions else None
     return Diagnosis(summary, w, d, resid, fold, cv, best, joint)
