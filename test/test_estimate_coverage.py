@@ -10,8 +10,8 @@ from bridge_shadow.estimate import Shadow, ShadowConfig
 from bridge_shadow.model.surrogate_file import placeholder_surrogate
 from bridge_shadow.series import MonitoringData
 
-SEEDS = 150
-WINDOWS = 240  # 4 h of 60 s windows; the first 30 are the noise warm-up
+SEEDS = 250
+WINDOWS = 160  # 2 h 40 min of 60 s windows; the first 30 are the noise warm-up
 
 
 def _ar1(rng: np.random.Generator, phi: float, shape: tuple[int, ...]) -> np.ndarray:

@@ -68,7 +68,10 @@ def test_chunking_does_not_change_the_posterior(smoothing: str) -> None:
 
 def test_resume_from_checkpoint_equals_an_uninterrupted_run(tmp_path: Path) -> None:
     data = synthetic(minutes=60, rate=2, seed=3)
-    cfg = small_config(checkpoint_path=str(tmp_path / "shadow.npz"), checkpoint_period_s=300.0)
+    # a short refilter log, so that the folded base state crosses the checkpoint too
+    cfg = small_config(
+        checkpoint_path=str(tmp_path / "shadow.npz"), checkpoint_period_s=300.0, noise_refilter_max_windows=8
+    )
     whole = Shadow(cfg, placeholder_surrogate()).run(data)
     half = 60 * 60  # messages of the first ~15 min of 2 x 2 Hz forces + 1 Hz temperature
     first = _slice(data, 0, half)
@@ -216,3 +219,14 @@ def test_compensated_settlement_recovers_the_truth() -> None:
     assert np.all(np.abs(res.mean_m - x_true) < 4 * sd), (res.mean_m, sd)
     assert np.all(sd < 3e-5)  # data, not the 0.3 mm prior, decide
     assert 2.0 <= res.spline["frc_01"]["edf"] < 10.0
+
+
+def test_refilter_log_stays_bounded_and_close_to_the_full_log() -> None:
+    data = synthetic(minutes=120, rate=2)
+    full = Shadow(small_config(), placeholder_surrogate()).run(data)
+    short = Shadow(small_config(noise_refilter_max_windows=20), placeholder_surrogate())
+    res = short.run(data)
+    assert len(short._zlog) <= 20 and short.n_refilters > 0
+    sd = np.sqrt(np.diag(full.covariance_m2))
+    assert np.all(np.abs(res.mean_m - full.mean_m) < 0.1 * sd)
+    assert np.allclose(np.sqrt(np.diag(res.covariance_m2)), sd, rtol=0.1)

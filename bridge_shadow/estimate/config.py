@@ -57,6 +57,7 @@ class ShadowConfig:
     noise_phi_max: float = 0.999
     noise_floor: bool = True
     noise_refilter_tolerance: float = 0.1
+    noise_refilter_max_windows: int = 20000
     # gating
     force_min_n: float = 1.0
     force_max_n: float = 5.0e6
@@ -108,6 +109,7 @@ class ShadowConfig:
         need(0.0 < self.mahalanobis_probability <= 1.0, "mahalanobis_probability must be in (0, 1]")
         need(self.force_max_n > self.force_min_n, "force_max_n must exceed force_min_n")
         need(self.clock_jump_s > 0, "clock_jump_s must be > 0")
+        need(self.noise_refilter_max_windows >= 2, "noise_refilter_max_windows must be >= 2")
         need(self.gate_max_consecutive >= 1, "gate_max_consecutive must be >= 1")
         need(self.clock_jump_confirm >= 1, "clock_jump_confirm must be >= 1")
         need(self.temperature_stale_s > 0 and self.topic_timeout_s >= 0, "timeouts must be positive")

@@ -10,8 +10,7 @@ compensation curve) and their lag-1 autocorrelation ``phi`` between adjacent win
 
 with ``C`` the residual correlation between channels: the long-run variance of an AR(1) mean,
 so that a run of ``N`` windows carries ``N (1 - phi) / (1 + phi)`` windows' worth of
-information, times ``nu / (nu - 2)`` (Student t, ``nu`` = effective windows - 1) for the
-uncertainty of the estimate itself. With ``noise_floor`` the diagonal never drops below the
+information. With ``noise_floor`` the diagonal never drops below the
 paper's ``Sigma_E / m``.
 """
 
@@ -89,10 +88,6 @@ class WindowNoise:
         cov = self.sample_cov()
         phi = self.phi
         var = np.diag(cov) * (1.0 + phi) / (1.0 - phi) / m
-        # the variance is itself estimated from n (1 - phi) / (1 + phi) effective windows: use the
-        # variance of a Student t with that many degrees of freedom (>= 3), not of a normal
-        dof = np.maximum(self.n * (1.0 - phi) / (1.0 + phi) - 1.0, 3.0)
-        var = var * dof / (dof - 2.0)
         if self.floor:
             var = np.maximum(var, paper)
         sd = np.sqrt(var)

@@ -267,6 +267,7 @@ class Shadow:
         self._zlog: list[tuple[int, np.ndarray, np.ndarray]] = []  # kept windows: end, z (N), m
         self._r1_ref: np.ndarray | None = None  # per-sample R of the last (re)filter, N^2
         self.n_refilters = 0
+        self._base: dict[str, Any] | None = None  # filter state of the folded, oldest windows
         self.gate_resets = 0  # outlier runs accepted as a real change
 
     # -- input ------------------------------------------------------------------------------
@@ -467,6 +468,16 @@ class Shadow:
                 return
         self._r1_ref = r1
         self.n_refilters += 1
+        filt, last = self._replay_log(self._zlog, r1)
+        if last is not None and self._pred_ns is not None and self._pred_ns > last:
+            filt.predict((self._pred_ns - last) / _NS)
+        self.filter = filt
+        out.mean_m, out.covariance_m2 = filt.x, filt.P
+
+    def _replay_log(
+        self, log: list[tuple[int, np.ndarray, np.ndarray]], r1: np.ndarray
+    ) -> tuple[SettlementFilter, int | None]:
+        """Filter ``log`` from the folded base state (or the prior) with ``R(m) = R(1) / sqrt(m m')``."""
         cfg = self.config
         filt = SettlementFilter(
             self.surrogate.A,
@@ -475,15 +486,26 @@ class Shadow:
             cfg.mahalanobis_probability,
         )
         last = None
-        for end, z, m in self._zlog:
+        if self._base is not None:
+            filt.load_state_dict(self._base)
+            last = int(self._base["end"])
+        for end, z, m in log:
             if last is not None:
                 filt.predict((end - last) / _NS)
             last = end
-            filt.update(z, r1 / np.sqrt(np.outer(m, m)), gate=False)  # R(m) = R(1) / sqrt(m_i m_j)
-        if last is not None and self._pred_ns is not None and self._pred_ns > last:
-            filt.predict((self._pred_ns - last) / _NS)
-        self.filter = filt
-        out.mean_m, out.covariance_m2 = filt.x, filt.P
+            filt.update(z, r1 / np.sqrt(np.outer(m, m)), gate=False)
+        return filt, last
+
+    def _fold_log(self) -> None:
+        """Keep memory flat: fold the older half of the kept-window log into the base state."""
+        cap = self.config.noise_refilter_max_windows
+        if len(self._zlog) <= cap:
+            return
+        half = len(self._zlog) // 2
+        r1 = self._r1_ref if self._r1_ref is not None else self.noise.R(np.ones(2))
+        filt, last = self._replay_log(self._zlog[:half], r1)
+        self._base = {**filt.state_dict(), "end": last}
+        del self._zlog[:half]
 
     def _apply_online(self, rec: dict[str, Any]) -> WindowOutput:
         """Compensate with the fit so far, gate and update; a kept window then joins the fit.
@@ -522,6 +544,7 @@ class Shadow:
             self.counts[res.reason] += 1
         else:
             self._zlog.append((end, compensated - self.surrogate.u0, np.asarray(m, float)))
+            self._fold_log()
         out = self._output(k, m, rec["temp_c"], rec["force_n"], compensated, res.accepted, res.reason)
         return out, res.accepted
 
@@ -673,6 +696,10 @@ class Shadow:
                 "m": np.array([m for _, _, m in self._zlog], dtype=float).reshape(-1, 2),
             },
             "r1_ref": np.full((2, 2), np.nan) if self._r1_ref is None else self._r1_ref,
+            "base": {
+                "has": self._base is not None,
+                **(self._base or {"x": np.zeros(2), "P": np.eye(2), "n_updates": 0, "end": 0}),
+            },
             "held": {
                 "k": np.array([h["k"] for h in held], dtype=np.int64),
                 "samples": np.array([h["samples"] for h in held], dtype=np.int64).reshape(-1, 2),
@@ -728,6 +755,17 @@ class Shadow:
                 strict=True,
             )
         ]
+        base = state["base"]
+        shadow._base = (
+            {
+                "x": np.asarray(base["x"], float),
+                "P": np.asarray(base["P"], float),
+                "n_updates": int(base["n_updates"]),
+                "end": int(base["end"]),
+            }
+            if bool(base["has"])
+            else None
+        )
         r1 = np.asarray(state["r1_ref"], float)
         shadow._r1_ref = None if np.isnan(r1).any() else r1
         h = state["held"]
