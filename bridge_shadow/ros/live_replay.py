@@ -137,17 +137,20 @@ class Player:
         while not self._stop.is_set() and self.context.ok():
             self.executor.spin_once(timeout_sec=0.05)
 
-    def graph_ready(self) -> bool:
-        """Return True once the node's input subscriptions, output publishers and service are matched."""
+    def graph_ready(self, outputs: bool = True) -> bool:
+        """Return True once the node's input subscriptions, services and (optionally) outputs match."""
         subs_ok = all(p.get_subscription_count() > 0 for p in self.publishers)
-        pubs_ok = all(s.get_publisher_count() > 0 for s in self._subs if s.topic_name != DIAGNOSTICS_TOPIC)
+        pubs_ok = not outputs or all(
+            s.get_publisher_count() > 0 for s in self._subs if s.topic_name != DIAGNOSTICS_TOPIC
+        )
         services_ok = self.flush_client.service_is_ready() and self.status_client.service_is_ready()
         return subs_ok and pubs_ok and services_ok
 
-    def wait_for_node(self, node: NodeProcess | None, timeout_s: float = 20.0) -> float:
+    def wait_for_node(self, node: NodeProcess | None, timeout_s: float = 20.0, outputs: bool = True) -> float:
         """Wait for discovery (no fixed sleep); return the seconds it took."""
         alive = node.check_alive if node is not None else None
-        return wait_until(self.graph_ready, timeout_s, "the bridge_shadow node to appear", alive)
+        ready = lambda: self.graph_ready(outputs)  # noqa: E731
+        return wait_until(ready, timeout_s, "the bridge_shadow node to appear", alive)
 
     def publish(
         self,

@@ -1,0 +1,79 @@
+"""Live throughput: bridge_shadow_node against bare EventsExecutor subscribers, measured in one run.
+
+Synthetic contract messages (forces at 10 Hz on both channels, air temperature at 1 Hz, 60 s
+windows) are played over loopback DDS by the same ``Player`` to three receivers in turn, each in its
+own process: a bare subscriber taking raw CDR bytes, a bare subscriber taking typed messages (what a
+plain rclpy node does), and the node (raw CDR, decode, shadow pipeline, outputs). The rate is
+messages / (first publish -> the receiver has taken everything and answered flush). Goal: the node
+>= 0.9x the bare subscriber and >= 10k msg/s.
+
+Run: ``.venv/bin/python benchmarks/live_throughput.py [N_MESSAGES]`` (default 120000).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from bridge_shadow.bagio import encode_stamped_floats
+from bridge_shadow.ros.launcher import NodeProcess, wait_until
+from bridge_shadow.ros.live_replay import Player, merge_log_order
+from bridge_shadow.ros.netenv import confine_to_loopback
+
+T0_NS = 1_647_212_400 * 1_000_000_000  # 2022-03-13 23:00 UTC
+
+
+def synthetic(n_total: int, force_hz: float = 10.0, temp_hz: float = 1.0, seed: int = 0):
+    """Raw CDR per topic and their log times: forces about 260/221 kN, daily temperature swing."""
+    rng = np.random.default_rng(seed)
+    n_f = int(n_total * force_hz / (2 * force_hz + temp_hz))
+    n_t = n_total - 2 * n_f
+    t_f = T0_NS + np.arange(n_f, dtype=np.int64) * round(1e9 / force_hz)
+    t_t = T0_NS + np.arange(n_t, dtype=np.int64) * round(1e9 / temp_hz)
+    temp = 8.0 + 8.0 * np.sin(2 * np.pi * (t_t - T0_NS) / 86.4e12)
+    raws, logs = [], []
+    for ch, (base, frame) in enumerate(((2.60e5, "frc_01"), (2.21e5, "frc_02"))):
+        values = np.zeros((n_f, 6))
+        values[:, 2] = base + 60.0 * rng.standard_normal(n_f) + 300.0 * ch
+        raws.append(encode_stamped_floats(t_f, frame, values))
+        logs.append(t_f)
+    raws.append(encode_stamped_floats(t_t, "air_temperature", np.column_stack([temp, np.zeros(n_t)])))
+    logs.append(t_t)
+    return raws, logs
+
+
+def play(module: str, args: list[str], raws, topic, pos, outputs: bool) -> float:
+    """Messages per second from first publish to the receiver's flush answer."""
+    with Player() as player, NodeProcess(args, module=module) as node:
+        player.wait_for_node(node, 30.0, outputs=outputs)
+        t0 = time.perf_counter()
+        player.publish(topic, pos, raws, in_flight=500, node=node)
+        wait_until(lambda: player.taken(node) >= len(topic), 120.0, "all messages", node.check_alive)
+        player.flush(node, 60.0)
+        seconds = time.perf_counter() - t0
+    return len(topic) / seconds
+
+
+def main() -> None:
+    confine_to_loopback()
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 120_000
+    raws, logs = synthetic(n)
+    topic, pos, _ = merge_log_order(logs)
+    print(f"{len(topic)} messages (forces 10 Hz x 2, temperature 1 Hz), loopback DDS, 2 processes")
+    bare_raw = play("bridge_shadow.ros.bare", [], raws, topic, pos, outputs=False)
+    bare_typed = play("bridge_shadow.ros.bare", ["--typed"], raws, topic, pos, outputs=False)
+    node = play("bridge_shadow.ros.node", [], raws, topic, pos, outputs=True)
+    print(f"bare subscriber, raw CDR      : {bare_raw:9.0f} msg/s  (baseline)")
+    print(f"bare subscriber, typed msgs   : {bare_typed:9.0f} msg/s  ({bare_typed / bare_raw:.2f}x raw)")
+    print(
+        f"bridge_shadow_node            : {node:9.0f} msg/s  ({node / bare_raw:.2f}x raw, "
+        f"{node / bare_typed:.2f}x typed)"
+    )
+    met = node >= 0.9 * bare_raw and node >= 1e4
+    print(f"goal >= 0.9x bare (raw CDR) and >= 10k msg/s: {'met' if met else 'NOT met'}")
+
+
+if __name__ == "__main__":
+    main()
