@@ -21,7 +21,7 @@ venv: $(STAMP)
 $(STAMP): setup.py setup.cfg pyproject.toml package.xml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[ros,test]"
+	$(PY) -m pip install --quiet -e ".[ros,test,fast]"
 	touch $(STAMP)
 
 demo: $(STAMP)
