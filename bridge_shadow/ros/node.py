@@ -16,9 +16,9 @@ Wiring (topics and types from ``bridge_shadow.contract``)::
         (the live replay's flow control).
 
 Subscriptions take raw CDR (no Python message object per sample) and the buffers are decoded in
-blocks: when one holds ``BATCH`` messages, when a message's stamp reaches the end of the open
-window (so a window's outputs leave within a millisecond of the message that closes it), and every
-``DRAIN_PERIOD_S``. The shadow's result does not depend on that chunking, but its missing-topic
+blocks: when one holds ``BATCH`` messages, when a message brings the last topic past the end of
+the open window (so a window's outputs leave within a millisecond of the message that closes it),
+and every ``DRAIN_PERIOD_S``. The shadow's result does not depend on that chunking, but its missing-topic
 timeout reads the data clock (the newest stamp of any topic), so topics must be ingested in step:
 DDS keeps the order within a topic, not across topics, and in a fast replay a few milliseconds of
 transport skew are hours of stamp time. A decoded message therefore waits until every other topic
@@ -109,9 +109,9 @@ STATUS_SERVICE = f"/{NODE_NAME}/status"
 BATCH = 1024
 #: Period of the timer that ingests whatever is buffered [s].
 DRAIN_PERIOD_S = 0.05
-#: A message reaching the open window's end triggers a drain unless one ran this recently [s]
-#: (live, windows end minutes apart; in a fast replay the batch and the timer take over).
-MIN_DRAIN_GAP_S = 0.005
+#: A message that brings the last topic past the open window's end triggers a drain unless one ran
+#: this recently [s] (live, windows end minutes apart; in a fast replay the batch and timer take over).
+MIN_DRAIN_GAP_S = 0.002
 #: Longest wall time a message waits for the other topics to catch up with its stamp [s].
 REORDER_HOLD_S = 2.0
 _NS = 1_000_000_000
@@ -169,6 +169,7 @@ class ShadowNode(Node):
         self._arrival: list[float | None] = [None, None, None]
         self._latest: list[int | None] = [None, None, None]
         self._last_drain = 0.0
+        self._peek = [-(2**62)] * 3  # stamp of the last raw message per topic (undecoded)
         self._pending: list[tuple[np.ndarray, ...] | None] = [None, None, None]
         self._next_end_ns = self._window_end()
         self._timeout_s = max(cfg.topic_timeout_s, cfg.window_s)
@@ -215,13 +216,18 @@ class ShadowNode(Node):
         unpack = struct.Struct("<iI").unpack_from
         clock = time.monotonic
 
+        peek = self._peek
+
         def callback(raw: bytes) -> None:
             append(raw)
             if len(buf) >= BATCH:
                 self.drain()
             elif len(raw) >= 12:
                 sec, nsec = unpack(raw, 4)
-                if sec * _NS + nsec >= self._next_end_ns and clock() - self._last_drain >= MIN_DRAIN_GAP_S:
+                stamp = peek[i] = sec * _NS + nsec
+                # every topic past the open window's end: this message may close it
+                end = self._next_end_ns
+                if stamp >= end and min(peek) >= end and clock() - self._last_drain >= MIN_DRAIN_GAP_S:
                     self.drain()
 
         return callback
