@@ -93,11 +93,13 @@ class SettlementFilter:
         R = np.asarray(R, dtype=float).reshape(2, 2)
         if not (np.all(np.isfinite(z)) and np.all(np.isfinite(R))):
             return UpdateResult(False, "nonfinite")
-        d2 = self.mahalanobis2(z, R)
-        if not np.isfinite(d2):
-            return UpdateResult(False, "nonfinite")
-        if gate and d2 > self.gate2:
-            return UpdateResult(False, "outlier", d2)
+        d2 = float("nan")
+        if gate and np.isfinite(self.gate2):
+            d2 = self.mahalanobis2(z, R)
+            if not np.isfinite(d2):
+                return UpdateResult(False, "nonfinite")
+            if d2 > self.gate2:
+                return UpdateResult(False, "outlier", d2)
         # y = z - Hx; S = HPH' + R; K = PH'inv(S); x = x + Ky; P = (I-KH)P(I-KH)' + KRK' (Joseph)
         self.kf.update(z.reshape(2, 1), R=R, H=self.A)
         self.kf.P = 0.5 * (self.kf.P + self.kf.P.T)

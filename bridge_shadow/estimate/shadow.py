@@ -489,6 +489,22 @@ class Shadow:
         if self._base is not None:
             filt.load_state_dict(self._base)
             last = int(self._base["end"])
+        if log and not np.any(filt.q_rate > 0):
+            # Q = 0: the sequential updates equal the information-form batch (DESIGN 2), in one shot
+            z = np.array([z for _, z, _ in log])
+            sm = np.sqrt(np.array([m for _, _, m in log]))
+            r1_inv = np.linalg.inv(r1)
+            w = (
+                r1_inv[None, :, :] * sm[:, :, None] * sm[:, None, :]
+            )  # R_w^-1 = diag(sqrt m) R1^-1 diag(sqrt m)
+            a = self.surrogate.A
+            p_inv = np.linalg.inv(filt.P) + a.T @ w.sum(axis=0) @ a
+            info = np.linalg.solve(filt.P, filt.x) + a.T @ np.einsum("wij,wj->i", w, z)
+            cov = np.linalg.inv(p_inv)
+            filt.load_state_dict(
+                {"x": cov @ info, "P": 0.5 * (cov + cov.T), "n_updates": filt.n_updates + len(log)}
+            )
+            return filt, int(log[-1][0])
         for end, z, m in log:
             if last is not None:
                 filt.predict((end - last) / _NS)
