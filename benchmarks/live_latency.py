@@ -5,21 +5,25 @@ The player publishes at 1 kHz per force channel (and temperature at 100 Hz) in r
 publishing the frc_02 message whose stamp is the window's end (the message that closes it: the
 temperature and frc_01 messages of that stamp go out just before) to the arrival of window k's
 posterior mean at the player. Both clocks are the player's. The warm-up windows (held, then
-released together) are left out. Baseline in the same run: a bare EventsExecutor subscriber's
-round trip is not measured here; compare with DESIGN 7 (0.3 ms p50, 0.5-1 ms p99 at 1 kHz).
+released together) are left out. Baseline in the same run: a bare EventsExecutor node that publishes
+each frc_02 message straight back (``bridge_shadow.ros.bare --echo``): the same closing messages,
+publish -> echo arrival, i.e. the transport round trip the node cannot beat.
 
 Run: ``.venv/bin/python benchmarks/live_latency.py [SECONDS]`` (default 20).
 """
 
 from __future__ import annotations
 
+import struct
 import sys
 import time
 
 import numpy as np
+from geometry_msgs.msg import WrenchStamped
 
 from bridge_shadow.bagio import encode_stamped_floats
 from bridge_shadow.contract import MEAN_TOPIC
+from bridge_shadow.ros.bare import ECHO_TOPIC
 from bridge_shadow.ros.launcher import NodeProcess, wait_until
 from bridge_shadow.ros.live_replay import Player
 from bridge_shadow.ros.netenv import confine_to_loopback
@@ -37,9 +41,8 @@ PARAMS = [
 ]
 
 
-def main() -> None:
-    confine_to_loopback()
-    seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 20.0
+def run(module: str, args: list[str], seconds: float, echo: bool) -> np.ndarray:
+    """Play ``seconds`` at 1 kHz to one receiver; return the latency (ms) of each window after warm-up."""
     n = int(seconds * 1e9 / TICK_NS)
     stamps = T0_NS + np.arange(n + 1, dtype=np.int64) * TICK_NS
     rng = np.random.default_rng(1)
@@ -50,10 +53,10 @@ def main() -> None:
         forces.append(encode_stamped_floats(stamps, frame, values))
     temp_c = 8.0 + 0.5 * np.sin(np.arange(n + 1) / 3000.0)
     temps = encode_stamped_floats(stamps, "air_temperature", np.column_stack([temp_c, np.zeros(n + 1)]))
-    args = ["--ros-args", *[x for p in PARAMS for x in ("-p", p)]]
     closing: dict[int, int] = {}  # window index -> time.time_ns() when its closing message left
-    with Player(record_diagnostics=False) as player, NodeProcess(args) as node:
-        player.wait_for_node(node, 30.0)
+    extra = {ECHO_TOPIC: WrenchStamped} if echo else None
+    with Player(record_diagnostics=False, extra=extra) as player, NodeProcess(args, module=module) as node:
+        player.wait_for_node(node, 30.0, outputs=not echo)
         pub_f1, pub_f2, pub_t = (p.publish for p in player.publishers)
         t_start = time.perf_counter()
         for j in range(n + 1):
@@ -66,19 +69,38 @@ def main() -> None:
             pub_f2(forces[1][j])
             if j % 100 == 0 and j > 0:
                 closing[j // 100 - 1] = time.time_ns()
+        behind_ms = 1e3 * (time.perf_counter() - t_start - n * 1e-3)
         n_windows = len(closing)
-        wait_until(lambda: player.received(MEAN_TOPIC) >= n_windows, 30.0, "the posteriors", node.check_alive)
-        arrivals = [t for t, _ in player.records[MEAN_TOPIC]]
-    lat_ms = np.array([(arrivals[k] - closing[k]) / 1e6 for k in range(2 * WARMUP, n_windows)])
-    p50, p99 = np.percentile(lat_ms, [50, 99])
-    print(f"{n} ticks at 1 kHz (2 force + 0.1 temperature messages each), {n_windows} windows of 0.1 s")
+        if echo:
+            wait_until(lambda: player.received(ECHO_TOPIC) >= n + 1, 30.0, "every echo", node.check_alive)
+            arrivals = {}
+            for t, raw in player.records[ECHO_TOPIC]:
+                sec, nsec = struct.unpack_from("<iI", raw, 4)
+                j = (sec * 1_000_000_000 + nsec - T0_NS) // TICK_NS
+                if j % 100 == 0 and j > 0:
+                    arrivals[j // 100 - 1] = t
+        else:
+            wait_until(
+                lambda: player.received(MEAN_TOPIC) >= n_windows, 30.0, "the posteriors", node.check_alive
+            )
+            arrivals = dict(enumerate(t for t, _ in player.records[MEAN_TOPIC]))
+    print(f"  {module}: {n_windows} windows, player {behind_ms:.0f} ms behind 1 kHz pacing at the end")
+    return np.array([(arrivals[k] - closing[k]) / 1e6 for k in range(2 * WARMUP, n_windows)])
+
+
+def main() -> None:
+    confine_to_loopback()
+    seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 20.0
+    args = ["--ros-args", *[x for p in PARAMS for x in ("-p", p)]]
+    print(f"{seconds:g} s at 1 kHz per force channel (temperature 100 Hz), 0.1 s windows, loopback DDS")
+    bare = run("bridge_shadow.ros.bare", ["--echo"], seconds, echo=True)
+    node = run("bridge_shadow.ros.node", args, seconds, echo=False)
+    b50, b99 = np.percentile(bare, [50, 99])
+    n50, n99 = np.percentile(node, [50, 99])
+    print(f"bare echo (frc_02 -> echo)       : p50 {b50:6.2f} ms  p99 {b99:6.2f} ms  (baseline)")
     print(
-        f"force -> posterior latency over {len(lat_ms)} windows: p50 {p50:.2f} ms, p99 {p99:.2f} ms, "
-        f"max {lat_ms.max():.2f} ms"
-    )
-    print(
-        f"pacing: the player kept 1 kHz to within {1e3 * (time.perf_counter() - t_start - seconds):.0f} ms "
-        "over the run (wall minus nominal)"
+        f"bridge_shadow_node (-> posterior): p50 {n50:6.2f} ms  p99 {n99:6.2f} ms  "
+        f"({n50 / b50:.1f}x, {n99 / b99:.1f}x baseline; {len(node)} windows)"
     )
 
 

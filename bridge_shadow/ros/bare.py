@@ -3,7 +3,9 @@
 It does what any rclpy node must do to receive the inputs and nothing else: an
 ``EventsExecutor``, one subscription per topic (raw CDR bytes by default, typed messages with
 ``--typed``) whose callback appends the message to a list, and the node's status and flush services
-(``std_srvs/Trigger``) so the same ``Player`` drives it. Run: ``python -m bridge_shadow.ros.bare``.
+(``std_srvs/Trigger``) so the same ``Player`` drives it. With ``--echo`` it also publishes every
+frc_02 message back on ``ECHO_TOPIC`` (the transport round trip of the latency benchmark). Run:
+``python -m bridge_shadow.ros.bare [--typed] [--echo]``.
 """
 
 from __future__ import annotations
@@ -25,13 +27,16 @@ from bridge_shadow.ros.live_replay import INPUT_ORDER
 from bridge_shadow.ros.netenv import confine_to_loopback
 from bridge_shadow.ros.node import FLUSH_SERVICE, STATUS_SERVICE, input_qos
 
-__all__ = ["BareSubscriber", "main"]
+__all__ = ["ECHO_TOPIC", "BareSubscriber", "main"]
+
+#: With ``--echo`` every frc_02 message is published back here as it came (latency baseline).
+ECHO_TOPIC = "/bridge_shadow_bench/echo"
 
 
 class BareSubscriber(Node):
     """Count the input messages; answer status and flush with the counts."""
 
-    def __init__(self, typed: bool = False, depth: int = 1000) -> None:
+    def __init__(self, typed: bool = False, depth: int = 1000, echo: bool = False) -> None:
         super().__init__(NODE_NAME)
         self.buffers: list[list[object]] = [[], [], []]
         types = (WrenchStamped, WrenchStamped, Temperature)
@@ -39,9 +44,13 @@ class BareSubscriber(Node):
             self.create_subscription(t, topic, buf.append, input_qos(depth), raw=not typed)
             for t, topic, buf in zip(types, INPUT_ORDER, self.buffers, strict=True)
         ]
-        self._srv = [
-            self.create_service(Trigger, name, self._answer) for name in (STATUS_SERVICE, FLUSH_SERVICE)
-        ]
+        names = (STATUS_SERVICE, FLUSH_SERVICE)
+        self._srv = [self.create_service(Trigger, name, self._answer) for name in names]
+        if echo:
+            pub = self.create_publisher(WrenchStamped, ECHO_TOPIC, input_qos(depth))
+            self._subs.append(
+                self.create_subscription(WrenchStamped, INPUT_ORDER[1], pub.publish, input_qos(0), raw=True)
+            )
 
     def _answer(self, request: object, response: Trigger.Response) -> Trigger.Response:
         taken = [len(b) for b in self.buffers]
@@ -59,7 +68,7 @@ def main(args: list[str] | None = None) -> int:
         signal.signal(sig, lambda signum, frame: stop.append(signum))
     rclpy.init(args=[sys.argv[0], *argv], signal_handler_options=SignalHandlerOptions.NO)
     try:
-        node = BareSubscriber(typed="--typed" in argv)
+        node = BareSubscriber(typed="--typed" in argv, echo="--echo" in argv)
         executor = EventsExecutor()
         executor.add_node(node)
         while not stop and rclpy.ok():

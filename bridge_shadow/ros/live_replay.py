@@ -95,11 +95,18 @@ class Player:
     receive time (wall ns), and calls the node's flush service.
 
     Attributes:
-        records: output topic -> list of ``(receive_ns, raw_cdr)``, in arrival order.
+        records: output topic (and each ``extra`` topic) -> list of ``(receive_ns, raw_cdr)``, in
+            arrival order; ``receive_ns`` is ``time.time_ns()``.
 
     """
 
-    def __init__(self, name: str = "bridge_shadow_player", *, record_diagnostics: bool = True) -> None:
+    def __init__(
+        self,
+        name: str = "bridge_shadow_player",
+        *,
+        record_diagnostics: bool = True,
+        extra: dict[str, Any] | None = None,
+    ) -> None:
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node(name, context=self.context)
@@ -116,6 +123,11 @@ class Player:
             )
             for t in topics
         ]
+        self._extra = []
+        for topic, msg_type in (extra or {}).items():
+            self.records[topic] = []
+            sub = self.node.create_subscription(msg_type, topic, self._recorder(topic), qos, raw=True)
+            self._extra.append(sub)
         self.flush_client = self.node.create_client(Trigger, FLUSH_SERVICE)
         self.status_client = self.node.create_client(Trigger, STATUS_SERVICE)
         self.executor = EventsExecutor(context=self.context)
@@ -144,7 +156,8 @@ class Player:
             s.get_publisher_count() > 0 for s in self._subs if s.topic_name != DIAGNOSTICS_TOPIC
         )
         services_ok = self.flush_client.service_is_ready() and self.status_client.service_is_ready()
-        return subs_ok and pubs_ok and services_ok
+        extra_ok = all(s.get_publisher_count() > 0 for s in self._extra)
+        return subs_ok and pubs_ok and services_ok and extra_ok
 
     def wait_for_node(self, node: NodeProcess | None, timeout_s: float = 20.0, outputs: bool = True) -> float:
         """Wait for discovery (no fixed sleep); return the seconds it took."""
