@@ -3,15 +3,18 @@
 The paper's ``Sigma_E`` is a per-sample covariance; for a window mean of ``m`` i.i.d. samples it
 is ``Sigma_E / m`` (``fixed`` mode). Real residuals are strongly autocorrelated, so the window
 means scatter far more than that. The ``adaptive`` mode estimates online, per channel, the
-second moments of the scaled window residuals ``e_w sqrt(m_w)`` (``e_w`` = window mean minus
-compensation curve) and their lag-1 autocorrelation ``phi`` between adjacent windows, and uses
+second moments of the scaled window residuals ``e_w sqrt(m_w)`` and their lag-1
+autocorrelation ``phi`` between adjacent windows, and uses
 
     R_w = D C D / sqrt(m_i m_j),  D = diag(sqrt(s_ii (1 + phi_i) / (1 - phi_i)))
 
 with ``C`` the residual correlation between channels: the long-run variance of an AR(1) mean,
 so that a run of ``N`` windows carries ``N (1 - phi) / (1 + phi)`` windows' worth of
-information. With ``noise_floor`` the diagonal never drops below the
-paper's ``Sigma_E / m``.
+information. With ``noise_floor`` the diagonal never drops below the paper's ``Sigma_E / m``.
+
+The residuals ``e_w`` come from the shadow: leave-one-out residuals of the spline fit for the
+warm-up windows, then the innovation ``z_w - A x`` of each kept window (so a settlement change
+that the filter tracks with ``Q > 0`` does not count as noise).
 """
 
 from __future__ import annotations

@@ -533,11 +533,14 @@ class Shadow:
         resid = rec["force_n"] - self._curve(rec["temp_c"], rec["force_n"])
         force = self._outlier_run >= self.config.gate_max_consecutive
         level = self._level() if self.n_good else rec["force_n"]  # no fit yet: compensated = y
+        # innovation of the compensated window against the prediction A x + u0 (x before update):
+        # settlement changes the filter tracks (Q > 0) do not count as noise
+        innovation = resid + level - self.surrogate.u0 - self.surrogate.A @ self.filter.x
         out, accepted = self._update(rec, resid + level, gate=not force)
         if accepted:
             self._outlier_run = 0
             self.gate_resets += int(force)
-            self.noise.add(resid, rec["samples"], rec["k"])
+            self.noise.add(innovation, rec["samples"], rec["k"])
             self._fit_window(rec)
             self._maybe_refilter(out)
         else:
