@@ -231,3 +231,21 @@ def test_refilter_log_stays_bounded_and_close_to_the_full_log() -> None:
     # folded windows keep the R of their fold time, so the two differ, but little
     assert np.all(np.abs(res.mean_m - full.mean_m) < 0.3 * sd)
     assert np.allclose(np.sqrt(np.diag(res.covariance_m2)), sd, rtol=0.15)
+
+
+@pytest.mark.slow
+def test_process_noise_tracks_the_sinking_support_of_the_scour_bag(root: Path) -> None:
+    import yaml
+
+    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    bag = root / "bags" / "scour_3d"
+    truth = yaml.safe_load((bag / "truth.yaml").read_text())  # scoring only
+    end_m = -truth["effects"]["settlement_drift"] * truth["days"]  # the south support sinks
+    data = read_monitoring(bag)
+    static = Shadow(ShadowConfig(), load_surrogate()).run(data)
+    moving = Shadow(ShadowConfig(process_noise_m2_per_s=[1e-13, 1e-13]), load_surrogate()).run(data)
+    assert abs(moving.mean_m[0] - end_m) < 0.1e-3  # tracks the end value
+    assert abs(static.mean_m[0] - end_m) > 0.3e-3  # Q = 0 averages over the three days
+    assert abs(moving.mean_m[1]) < 0.05e-3  # north stays put
