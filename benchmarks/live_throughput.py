@@ -19,7 +19,7 @@ import numpy as np
 
 from bridge_shadow.bagio import encode_stamped_floats
 from bridge_shadow.ros.launcher import NodeProcess, wait_until
-from bridge_shadow.ros.live_replay import Player, merge_log_order
+from bridge_shadow.ros.live_replay import MAX_IN_FLIGHT, Player, merge_log_order
 from bridge_shadow.ros.netenv import confine_to_loopback
 
 T0_NS = 1_647_212_400 * 1_000_000_000  # 2022-03-13 23:00 UTC
@@ -49,7 +49,7 @@ def play(module: str, args: list[str], raws, topic, pos, outputs: bool) -> float
     with Player() as player, NodeProcess(args, module=module) as node:
         player.wait_for_node(node, 30.0, outputs=outputs)
         t0 = time.perf_counter()
-        player.publish(topic, pos, raws, in_flight=500, node=node)
+        player.publish(topic, pos, raws, in_flight=MAX_IN_FLIGHT, node=node)
         wait_until(lambda: player.taken(node) >= len(topic), 120.0, "all messages", node.check_alive)
         player.flush(node, 60.0)
         seconds = time.perf_counter() - t0

@@ -19,6 +19,7 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
 from sensor_msgs.msg import Temperature
 from std_srvs.srv import Trigger
 
@@ -71,8 +72,9 @@ def main(args: list[str] | None = None) -> int:
         node = BareSubscriber(typed="--typed" in argv, echo="--echo" in argv)
         executor = EventsExecutor()
         executor.add_node(node)
+        never = Future()  # the node's own loop (see bridge_shadow.ros.node)
         while not stop and rclpy.ok():
-            executor.spin_once(timeout_sec=0.2)
+            executor.spin_until_future_complete(never, timeout_sec=0.2)
         node.destroy_node()
     finally:
         rclpy.try_shutdown()

@@ -26,6 +26,7 @@ import json
 import tempfile
 import threading
 import time
+from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -60,8 +61,11 @@ from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
 from bridge_shadow.ros.node import FLUSH_SERVICE, STATUS_SERVICE, input_qos
 
-__all__ = ["INPUT_ORDER", "Player", "merge_log_order", "run_live", "write_params_file"]
+__all__ = ["INPUT_ORDER", "MAX_IN_FLIGHT", "Player", "merge_log_order", "run_live", "write_params_file"]
 
+#: Messages in flight at most: below the history depth, and below Fast DDS's shared-memory port
+#: queue (512 messages per participant by default), whose overflow also costs a heartbeat stall.
+MAX_IN_FLIGHT = 400
 #: Input topics in the node's index order (frc_01, frc_02, air temperature).
 INPUT_ORDER: tuple[str, str, str] = (*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC)
 _OUTPUT_TYPES = {
@@ -179,9 +183,10 @@ class Player:
 
         With ``rate`` (a speed factor of log time, 1.0 = real time) the player sleeps to keep pace.
         With ``in_flight`` it keeps at most that many messages published but not yet taken by the
-        node (asked through its status service), so the node's reliable readers never overflow:
-        an overflowing reader drops samples for the writer to resend at its next heartbeat, which
-        stalls the stream for seconds and lets topics drift apart.
+        node (asked through its status service after each chunk of ``in_flight / 2``; the answers
+        are awaited one chunk late, so publishing and the node's work overlap), so the node's
+        reliable readers never overflow: an overflowing reader drops samples for the writer to
+        resend at its next heartbeat, which stalls the stream for seconds and lets topics drift.
         """
         pubs = [p.publish for p in self.publishers]
         n = len(topic)
@@ -190,9 +195,16 @@ class Player:
         if rate is not None and log_ns is not None:
             due = ((np.asarray(log_ns, np.int64) - int(log_ns[0])) / (1e9 * float(rate))).tolist()
         topics, positions = topic.tolist(), pos.tolist()
+        asked: deque[Any] = deque()  # status requests in flight, one sent after each chunk
+        taken = 0
         t_first = time.perf_counter()
         for start in range(0, n, step):
             stop = min(start + step, n)
+            # the answer to the request sent after chunk k-2 is usually there by now: pipelined
+            while in_flight and stop - taken > in_flight:
+                if not asked:
+                    asked.append(self.status_client.call_async(Trigger.Request()))
+                taken = max(taken, self._answer(asked.popleft(), node)["taken_total"])
             if due is None:
                 for i, j in zip(topics[start:stop], positions[start:stop], strict=True):
                     pubs[i](raws[i][j])
@@ -203,18 +215,23 @@ class Player:
                         time.sleep(lag)
                     pubs[topics[k]](raws[topics[k]][positions[k]])
             if in_flight and stop < n:
-                while stop - self.taken(node) > step:
-                    pass
+                asked.append(self.status_client.call_async(Trigger.Request()))
         return t_first, time.perf_counter()
 
-    def _call(self, client: Any, node: NodeProcess | None, timeout_s: float) -> Any:
-        future = client.call_async(Trigger.Request())
+    def _answer(self, future: Any, node: NodeProcess | None, timeout_s: float = 30.0) -> dict[str, Any]:
+        """Wait for a Trigger answer and parse its JSON (``taken_total`` added when ``taken`` is there)."""
         alive = node.check_alive if node is not None else None
-        wait_until(future.done, timeout_s, f"an answer from {client.srv_name}", alive, period_s=0.0002)
+        wait_until(future.done, timeout_s, "an answer from the node", alive, period_s=0.0002)
         response = future.result()
         if response is None or not response.success:
-            raise NodeError(f"{client.srv_name} failed: {getattr(response, 'message', 'no answer')}")
-        return json.loads(response.message)
+            raise NodeError(f"the node's service failed: {getattr(response, 'message', 'no answer')}")
+        answer = json.loads(response.message)
+        if "taken" in answer:
+            answer["taken_total"] = int(sum(answer["taken"]))
+        return answer
+
+    def _call(self, client: Any, node: NodeProcess | None, timeout_s: float) -> Any:
+        return self._answer(client.call_async(Trigger.Request()), node, timeout_s)
 
     def taken(self, node: NodeProcess | None = None, timeout_s: float = 30.0) -> int:
         """Ask the node how many input messages it has taken in total."""
@@ -326,7 +343,7 @@ def run_live(
             node.start()
             player = Player()
             discovery_s = player.wait_for_node(node, timeout_s)
-            in_flight = config.qos_depth // 2 if config.qos_depth > 0 else 128
+            in_flight = min(config.qos_depth if config.qos_depth > 0 else MAX_IN_FLIGHT, MAX_IN_FLIGHT)
             t_first, t_last = player.publish(topic, pos, raws, merged, rate, in_flight, node)
             wait_until(lambda: player.taken(node) >= total, timeout_s, f"the node to take {total} messages")
             report = player.flush(node, timeout_s)
