@@ -136,3 +136,24 @@ def test_bad_parameter_exits_2_with_one_line() -> None:
         out = node.output()
     assert "window_s must be > 0" in out
     assert "Traceback" not in out
+
+
+def test_parameters_default_to_shadow_yaml_and_override() -> None:
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from bridge_shadow.ros.node import ShadowNode
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        overrides = [Parameter("window_s", value=30), Parameter("prior_sigma_m", value=[4.0e-4, 5.0e-4])]
+        node = ShadowNode(context=context, parameter_overrides=overrides)
+        try:
+            expected = load_config().replace(window_s=30.0, prior_sigma_m=[4.0e-4, 5.0e-4])
+            assert node.config == expected  # an int for a float parameter is accepted (dynamic typing)
+            assert node.get_name() == "bridge_shadow"
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
