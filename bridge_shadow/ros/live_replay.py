@@ -39,6 +39,7 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.duration import Duration
 from rclpy.experimental import EventsExecutor
 from rclpy.serialization import deserialize_message
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
@@ -112,7 +113,9 @@ class Player:
         extra: dict[str, Any] | None = None,
     ) -> None:
         self.context = rclpy.Context()
-        rclpy.init(context=self.context)
+        # no rclpy signal handlers: Ctrl-C stays a KeyboardInterrupt, and callers' finally blocks
+        # stop the node subprocess and this executor thread
+        rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node(name, context=self.context)
         qos = input_qos(0)
         types = (WrenchStamped, WrenchStamped, Temperature)
