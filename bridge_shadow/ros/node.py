@@ -116,7 +116,7 @@ DRAIN_PERIOD_S = 0.05
 #: this recently [s] (live, windows end minutes apart; in a fast replay the batch and timer take over).
 MIN_DRAIN_GAP_S = 0.002
 #: Longest wall time a message waits for the other topics to catch up with its stamp [s].
-REORDER_HOLD_S = 2.0
+REORDER_HOLD_S = 5.0
 _NS = 1_000_000_000
 _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _TOPICS = (*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC)
