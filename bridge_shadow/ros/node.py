@@ -172,6 +172,7 @@ class ShadowNode(Node):
         self._arrival: list[float | None] = [None, None, None]
         self._latest: list[int | None] = [None, None, None]
         self._last_drain = 0.0
+        self._started: float | None = None  # wall time of the first message (monotonic)
         self._peek = [-(2**62)] * 3  # stamp of the last raw message per topic (undecoded)
         self._pending: list[tuple[np.ndarray, ...] | None] = [None, None, None]
         self._next_end_ns = self._window_end()
@@ -248,6 +249,8 @@ class ShadowNode(Node):
             buf.clear()
             self.received[i] += len(raws)
             self._arrival[i] = now
+            if self._started is None:
+                self._started = now
             decode = convert.decode_forces if i < 2 else convert.decode_temperatures
             stamp, value, frame, bad = decode(raws)
             self.malformed += bad
@@ -266,19 +269,25 @@ class ShadowNode(Node):
 
         A message waits while its stamp is ahead of the newest stamp some other topic has
         delivered (that topic may still be in flight: DDS keeps order within a topic, not across
-        topics), unless that topic is quiet or the message has waited ``REORDER_HOLD_S``.
+        topics), or while some topic has delivered nothing yet, unless that topic is quiet (or
+        absent) for ``REORDER_HOLD_S`` or the message has waited that long.
         """
         stamp, _, _, t_dec = self._pending[i]
-        others = [
-            self._latest[j]
-            for j in range(3)
-            if j != i and self._latest[j] is not None and now - self._arrival[j] < REORDER_HOLD_S
-        ]
-        if not others:
-            return len(stamp)
-        ahead = np.flatnonzero(stamp > min(others))
-        n_horizon = int(ahead[0]) if len(ahead) else len(stamp)
         n_aged = int(np.searchsorted(t_dec, now - REORDER_HOLD_S, side="right"))
+        horizon = None
+        for j in range(3):
+            if j == i:
+                continue
+            if self._latest[j] is None:
+                if now - self._started < REORDER_HOLD_S:
+                    return n_aged  # topic j may be about to deliver its first messages
+                continue
+            if now - self._arrival[j] < REORDER_HOLD_S:
+                horizon = self._latest[j] if horizon is None else min(horizon, self._latest[j])
+        if horizon is None:
+            return len(stamp)
+        ahead = np.flatnonzero(stamp > horizon)
+        n_horizon = int(ahead[0]) if len(ahead) else len(stamp)
         return max(n_horizon, n_aged)
 
     def ingest_pending(self, everything: bool = False) -> None:
