@@ -8,12 +8,13 @@ from scipy.signal import lfilter
 
 from bridge_shadow.gap.candidates import CANDIDATES, stiffness_sensitivities
 from bridge_shadow.gap.diagnose import diagnose
-from bridge_shadow.gap.drivers import clear_sky_fallback, lowpass
+from bridge_shadow.gap.drivers import lowpass
 from bridge_shadow.gap.errors import GapError
 from bridge_shadow.gap.fit import ar1_phi, cross_validate, folds_of
 from bridge_shadow.gap.windows import aggregate
 from bridge_shadow.model.surrogate_file import placeholder_surrogate
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+from bridge_shadow.sun import clear_sky
 
 NS = 10**9
 T0 = 1_649_635_200 * NS  # 2022-04-11 00:00 UTC
@@ -71,10 +72,10 @@ def test_lowpass_step_response_is_first_order():
     np.testing.assert_allclose(y[10:], 1.0 - np.exp(-(k + 1) * dt / tau), atol=1e-12)
 
 
-def test_fallback_sun_is_zero_at_night_and_peaks_at_solar_noon():
+def test_gap_sun_covariate_is_zero_at_night_and_peaks_at_solar_noon():
     day = T0 + 71 * 86400 * NS  # 2022-06-21
     t = day + np.arange(0, 86400, 60, dtype=np.int64) * NS
-    sun = clear_sky_fallback(t)
+    sun = clear_sky(t)
     assert sun[:60].max() == 0.0  # 00:00-01:00 UTC
     noon_utc_h = (t[np.argmax(sun)] - day) / NS / 3600
     # Solar noon at 11.64 E: 12 h - 11.64/15 h - equation of time (about +1.7 min in late June).

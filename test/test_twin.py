@@ -13,10 +13,10 @@ from scipy.signal import lfilter
 from bridge_shadow.effects import EFFECT_NAMES, EFFECTS
 from bridge_shadow.errors import InputError
 from bridge_shadow.model.surrogate_file import placeholder_surrogate
+from bridge_shadow.sun import LAT_DEG, clear_sky, solar_elevation_deg
 from bridge_shadow.twin.config import TwinConfig, ou_time_constant_for_window_phi, window_phi
 from bridge_shadow.twin.response import two_span_mid_influence
 from bridge_shadow.twin.simulate import parse_effects, simulate
-from bridge_shadow.twin.sun import LAT_DEG, clear_sky, solar_elevation_deg
 
 NS = 1_000_000_000
 BERLIN = ZoneInfo("Europe/Berlin")

@@ -13,47 +13,15 @@ import numpy as np
 from scipy.signal import lfilter
 
 from bridge_shadow.gap.windows import NS, Windows
+from bridge_shadow.sun import LON_DEG, clear_sky
 
-__all__ = ["Drivers", "clear_sky_fallback", "compute_drivers", "lowpass"]
+__all__ = ["Drivers", "compute_drivers", "lowpass"]
 
 DAY_S = 86400.0
-#: Neubiberg (UniBw Munich), DESIGN section 6.
-LAT_DEG, LON_DEG = 48.08, 11.64
 #: Daily air-temperature swing at the bridge on an overcast and on a clear day, K: the smallest and
 #: largest daily ranges of March 2022 (``Weather/TemperatureComparisonMUC.csv``: 3.7 and 23.6 K,
 #: DESIGN section 3), less about 1 K of irregular weather in each.
 OVERCAST_SWING_K, CLEAR_SWING_K = 3.0, 22.5
-
-
-def clear_sky_fallback(t_ns: np.ndarray) -> np.ndarray:
-    """Clear-sky sun covariate 0..1: sine of the solar elevation at Neubiberg, clipped at 0.
-
-    A standard low-precision solar position (declination and equation of time, about 0.5 degree);
-    used only when ``bridge_shadow.twin.sun`` is not available. Normalized by the sine of the noon
-    elevation at the June solstice so that 1 is the yearly peak.
-    """
-    t = np.asarray(t_ns, dtype=np.int64)
-    days = (t - 946_728_000 * NS) / (DAY_S * NS)  # since J2000.0 (2000-01-01 12:00 UTC)
-    g = np.radians((357.529 + 0.98560028 * days) % 360.0)
-    q = (280.459 + 0.98564736 * days) % 360.0
-    lam = np.radians(q + 1.915 * np.sin(g) + 0.020 * np.sin(2 * g))
-    eps = np.radians(23.439 - 3.6e-7 * days)
-    dec = np.arcsin(np.sin(eps) * np.sin(lam))
-    ra = np.arctan2(np.cos(eps) * np.sin(lam), np.cos(lam))
-    gmst_h = (18.697374558 + 24.06570982441908 * days) % 24.0
-    hour_angle = np.radians(gmst_h * 15.0 + LON_DEG) - ra
-    lat = np.radians(LAT_DEG)
-    sin_el = np.sin(lat) * np.sin(dec) + np.cos(lat) * np.cos(dec) * np.cos(hour_angle)
-    peak = np.sin(np.radians(90.0 - LAT_DEG + 23.439))
-    return np.clip(sin_el / peak, 0.0, 1.0)
-
-
-def _clear_sky(t_ns: np.ndarray) -> np.ndarray:
-    try:
-        from bridge_shadow.twin.sun import clear_sky
-    except ImportError:
-        return clear_sky_fallback(t_ns)
-    return np.asarray(clear_sky(np.asarray(t_ns, dtype=np.int64)), dtype=float)
 
 
 def lowpass(x: np.ndarray, tau_s: float, dt_s: float) -> np.ndarray:
@@ -161,7 +129,7 @@ def compute_drivers(w: Windows) -> Drivers:
         # No air temperature: temperature-driven candidates get a zero driver, the sun one a
         # clear sky every day.
         temp = np.zeros(len(w))
-    sun = _clear_sky(w.t_ns)
+    sun = np.asarray(clear_sky(np.asarray(w.t_ns, dtype=np.int64)), dtype=float)
     clearness = _clearness(w.t_ns, temp) if has_temp else np.ones(len(w))
     smooth = lowpass(temp, 1800.0, w.width_s)
     warming = np.gradient(smooth) > 0

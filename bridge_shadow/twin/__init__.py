@@ -1,8 +1,8 @@
 """The synthetic truth twin: weather, sun, structure temperature, traffic, sensors, known effects.
 
 ``simulate`` returns ``MonitoringData`` (the three contract topics) and the truth; ``write_truth``
-puts the truth next to a bag. ``clear_sky`` (``twin.sun``) is the sun covariate the gap diagnosis
-uses too. No ROS import. Names are imported lazily so that ``twin.sun`` stays light.
+puts the truth next to a bag. ``clear_sky`` (re-exported from ``bridge_shadow.sun``) is the sun
+covariate the gap diagnosis uses too. No ROS import. Names are imported lazily.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ _WHERE = {
     "parse_effects": "simulate",
     "simulate": "simulate",
     "validate_effects": "simulate",
-    "clear_sky": "sun",
-    "solar_elevation_deg": "sun",
+    "clear_sky": "bridge_shadow.sun",
+    "solar_elevation_deg": "bridge_shadow.sun",
     "TRUTH_FILE": "truth",
     "read_truth": "truth",
     "write_truth": "truth",
@@ -42,4 +42,6 @@ _WHERE = {
 def __getattr__(name: str) -> Any:
     if name not in _WHERE:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
+    where = _WHERE[name]
+    module = where if "." in where else f"{__name__}.{where}"
+    return getattr(importlib.import_module(module), name)

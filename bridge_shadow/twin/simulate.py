@@ -34,10 +34,10 @@ from bridge_shadow.effects import EFFECT_NAMES, EFFECTS
 from bridge_shadow.errors import InputError
 from bridge_shadow.model.surrogate_file import Surrogate
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+from bridge_shadow.sun import clear_sky
 from bridge_shadow.twin.config import DEFAULT_START, TwinConfig
 from bridge_shadow.twin.response import apply_stiffness, load_twin_surrogate, stiffness_sensitivities
 from bridge_shadow.twin.sensors import dropout_mask, load_cell_noise, nan_positions
-from bridge_shadow.twin.sun import clear_sky
 from bridge_shadow.twin.traffic import draw_crossings, traffic_reactions
 from bridge_shadow.twin.weather import Weather
 

@@ -18,8 +18,8 @@ import numpy as np
 from scipy.signal import lfilter
 from scipy.stats import beta, norm
 
+from bridge_shadow.sun import LON_DEG
 from bridge_shadow.twin.config import TwinConfig
-from bridge_shadow.twin.sun import LON_DEG
 
 __all__ = ["Weather", "ar1", "first_order_lag"]
 
