@@ -110,6 +110,9 @@ class _Buffer:
     def first_ns(self) -> int | None:
         return int(self.stamps[0][0]) if self.stamps else None
 
+    def last_ns(self) -> int | None:
+        return int(self.stamps[-1][-1]) if self.stamps else None
+
 
 @dataclass
 class ReplayResult:
@@ -335,10 +338,27 @@ class Shadow:
         return n
 
     # -- windows ----------------------------------------------------------------------------
+    def _temperature_horizon_ns(self) -> int:
+        """How long past a window's end its temperature may still arrive (ns).
+
+        A window waits for an accepted reading at or past its end (a rejected NaN there cannot
+        bracket the last forces), at most ``max(topic_timeout_s, temperature_stale_s)``: beyond
+        that every force of the window would be stale anyway. Closing looks only at readings
+        stamped before this horizon, so the result does not depend on how much later data happened
+        to be ingested before the poll (chunking).
+        """
+        cfg = self.config
+        return round(max(cfg.topic_timeout_s, cfg.temperature_stale_s) * _NS)
+
     def _due(self, k: int, clock: int) -> bool:
+        """Whether window ``k`` is complete on the data clock (see ``_temperature_horizon_ns``)."""
         end = (k + 1) * self._w_ns
-        late_ok = clock >= end + round(self.config.topic_timeout_s * _NS)
-        return all((g.last_ns is not None and g.last_ns >= end) or late_ok for g in self.gates)
+        forces_timeout = clock >= end + round(self.config.topic_timeout_s * _NS)
+        forces_past = all(g.last_ns is not None and g.last_ns >= end for g in self.gates[:2])
+        temp_last = self._temp.last_ns()
+        temp_past = temp_last is not None and temp_last >= end
+        temp_timeout = clock >= end + self._temperature_horizon_ns()
+        return (forces_past or forces_timeout) and (temp_past or temp_timeout)
 
     def poll(self, now_ns: int | None = None) -> list[WindowOutput]:
         """Close every due window and return its outputs, in window order.
@@ -384,6 +404,8 @@ class Shadow:
             return []
         self.n_windows += 1
         ts, tv = self._temp.arrays()
+        horizon = int(np.searchsorted(ts, end + self._temperature_horizon_ns(), side="left"))
+        ts, tv = ts[:horizon], tv[:horizon]
         cfg = self.config
         wm = window_means(
             [s for s, _ in taken],
