@@ -16,13 +16,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from bridge_shadow.effects import EFFECTS
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.gap.drivers import Drivers
+from bridge_shadow.model.sensitivities import StiffnessSensitivity, read_sensitivities_block
+from bridge_shadow.model.sensitivities import stiffness_sensitivities as _stiffness_sensitivities
 from bridge_shadow.model.surrogate_file import Surrogate
-from bridge_shadow.paths import config_file
 
 __all__ = [
     "CANDIDATES",
@@ -36,86 +36,24 @@ __all__ = [
 LAG_GRID_H: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0)
 
 
-@dataclass(frozen=True)
-class Sensitivity:
-    """Change of the surrogate per unit relative stiffness change ``r`` (``k -> (1 + r) k``).
-
-    Attributes:
-        dA: (2, 2) N/m.
-        du0: (2,) N.
-        dthermal: case -> (2,) N/K.
-        source: where the numbers come from.
-
-    """
-
-    dA: np.ndarray
-    du0: np.ndarray
-    dthermal: dict[str, np.ndarray]
-    source: str
-
-
-def _placeholder_sensitivities(s: Surrogate) -> dict[str, Sensitivity]:
-    """Closed-form stand-in for the FE sensitivities (used when the surrogate has none).
-
-    Bearings: each central bearing is a spring ``k_b = 2e9 N/m`` (a stiff pot bearing with load
-    cell, assumption) in series with the beam: ``A_eff = (A^-1 + I/k_b)^-1``, and every reaction
-    to an imposed deformation scales by ``A_eff A^-1``; hence ``dA/dr = A_eff A_eff / k_b`` and
-    ``du0/dr = dA/dr A^-1 u0`` (likewise the thermal cases). Connectors: the composite bending
-    stiffness scales by ``1 + 0.3 r`` (about half of ``EI`` comes from composite action; a
-    partially flexible connection passes on about 0.6 of a connector stiffness change), so ``A``
-    and the gradient cases scale by 0.3 per unit ``r``; ``u0`` of a uniform two-span beam does not
-    depend on ``EI``.
-    """
-    k_b, kappa = 2.0e9, 0.3
-    a_inv = np.linalg.inv(s.A)
-    a_eff = np.linalg.inv(a_inv + np.eye(2) / k_b)
-    da = a_eff @ a_eff / k_b
-    bearing = Sensitivity(
-        da, da @ a_inv @ s.u0, {k: da @ a_inv @ v for k, v in s.thermal.items()}, "closed-form placeholder"
-    )
-    connector = Sensitivity(
-        kappa * s.A, np.zeros(2), {k: kappa * v for k, v in s.thermal.items()}, "closed-form placeholder"
-    )
-    return {"bearing_stiffness": bearing, "connector_stiffness": connector}
+#: The stiffness sensitivity type (one implementation in :mod:`bridge_shadow.model.sensitivities`).
+Sensitivity = StiffnessSensitivity
 
 
 def stiffness_sensitivities(s: Surrogate, path: str | Path | None = None) -> dict[str, Sensitivity]:
     """Stiffness sensitivities from the surrogate's ``sensitivities`` block, else the placeholder.
 
-    The block (written by ``bridge-shadow surrogate``) maps ``bearing_stiffness`` and
-    ``connector_stiffness`` to ``{dA, du0, dthermal}`` (or ``{A, u0, thermal}``). It is read from
-    the ``Surrogate`` attribute ``sensitivities`` when present, or else from the YAML file.
+    The block (written by ``bridge-shadow surrogate``, see :mod:`bridge_shadow.model.sensitivities`)
+    is read from the ``Surrogate`` attribute ``sensitivities`` when present, or else from the YAML
+    file ``path`` (default ``config/surrogate.yaml``); an unreadable file counts as no block.
     """
     block: Any = getattr(s, "sensitivities", None)
     if block is None:
-        file = Path(path) if path is not None else config_file("surrogate.yaml")
-        if file.is_file():
-            try:
-                block = (yaml.safe_load(file.read_text()) or {}).get("sensitivities")
-            except yaml.YAMLError:
-                block = None
-    out = _placeholder_sensitivities(s)
-    if isinstance(block, dict):
-        for name in out:
-            b = block.get(name)
-            if not isinstance(b, dict):
-                continue
-            # Either spelling: {dA, du0, dthermal} or {A, u0, thermal} (per unit r).
-            du0 = b.get("du0", b.get("u0"))
-            if du0 is None:
-                continue
-            da = b.get("dA", b.get("A", np.zeros((2, 2))))
-            dth = b.get("dthermal", b.get("thermal")) or {}
-            try:
-                out[name] = Sensitivity(
-                    np.asarray(da, float).reshape(2, 2),
-                    np.asarray(du0, float).reshape(2),
-                    {k: np.asarray(v, float).reshape(2) for k, v in dth.items()},
-                    "surrogate sensitivities",
-                )
-            except (TypeError, ValueError) as err:
-                raise ConfigError(f"surrogate sensitivities for {name} are malformed ({err})") from err
-    return out
+        try:
+            block = read_sensitivities_block(path)
+        except ConfigError:
+            block = None
+    return _stiffness_sensitivities(s, block if isinstance(block, dict) else None)
 
 
 @dataclass

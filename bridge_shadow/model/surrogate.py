@@ -265,22 +265,20 @@ def load_sensitivities(path: str | Path | None = None) -> dict[str, Any]:
 
     Maps parameter name -> ``{"value": float, "A": (2, 2), "u0": (2,), "thermal": {case: (2,)}}``
     (numpy arrays, per unit relative change of the parameter around ``value``); empty when the file
-    has no such block.
+    has no such block. Read and parsed by :mod:`bridge_shadow.model.sensitivities`.
     """
-    from bridge_shadow.paths import config_file
+    from bridge_shadow.model.sensitivities import parse_sensitivity, read_sensitivities_block
 
-    file = Path(path) if path is not None else config_file("surrogate.yaml")
-    try:
-        data = yaml.safe_load(file.read_text()) or {}
-    except (OSError, yaml.YAMLError) as err:
-        raise ConfigError(f"{file}: cannot read surrogate sensitivities ({err})") from err
     out: dict[str, Any] = {}
-    for name, block in (data.get("sensitivities") or {}).items():
+    for name, block in (read_sensitivities_block(path, required=True) or {}).items():
         if isinstance(block, dict) and "A" in block:
+            sens = parse_sensitivity(name, block)
+            if sens is None:
+                raise ConfigError(f"surrogate sensitivities for {name} have no u0")
             out[name] = {
                 "value": float(block.get("value", np.nan)),
-                "A": np.asarray(block["A"], float).reshape(2, 2),
-                "u0": np.asarray(block["u0"], float).reshape(2),
-                "thermal": {k: np.asarray(v, float).reshape(2) for k, v in block["thermal"].items()},
+                "A": sens.dA,
+                "u0": sens.du0,
+                "thermal": sens.dthermal,
             }
     return out
