@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import argparse
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+from _common import best_of, rosbags_raw
 
 from bridge_shadow.bagio import get_typestore, read_monitoring, write_monitoring
 from bridge_shadow.series import MonitoringData
@@ -34,26 +34,6 @@ def make_data(n_messages: int, seed: int = 0) -> MonitoringData:
     stamp = 1_646_667_315_601_000_000 + np.arange(n, dtype=np.int64) * 10_000_000
     force = np.column_stack([rng.normal(2.6e5, 20, n), rng.normal(2.2e5, 20, n)])
     return MonitoringData.from_arrays(stamp, force, stamp[::100], rng.normal(5, 3, len(stamp[::100])))
-
-
-def best_of(repeat: int, fn) -> tuple[float, object]:
-    """Return the shortest wall time of ``repeat`` calls and the last result."""
-    best, result = float("inf"), None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        result = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, result
-
-
-def rosbags_raw(path: Path) -> int:
-    from rosbags.rosbag2 import Reader
-
-    n = 0
-    with Reader(path) as reader:
-        for _conn, _t, _raw in reader.messages():
-            n += 1
-    return n
 
 
 def rosbags_deserialize(path: Path) -> int:

@@ -20,11 +20,11 @@ from __future__ import annotations
 
 import argparse
 import tempfile
-import time
 import tracemalloc
 from pathlib import Path
 
 import numpy as np
+from _common import best_of, rosbags_raw
 
 from bridge_shadow.bagio import get_typestore, read_monitoring, write_monitoring
 from bridge_shadow.estimate import Shadow, ShadowConfig
@@ -45,26 +45,6 @@ def make_data(n_messages: int, seed: int = 0) -> MonitoringData:
     sur = load_surrogate()
     force = sur.reactions(np.array([7e-4, -7e-4])) + np.c_[300 * t_at, 80 * t_at] + rng.normal(0, 60, (n, 2))
     return MonitoringData.from_arrays(stamp, force, t_stamp, temp)
-
-
-def best_of(repeat: int, fn) -> tuple[float, object]:
-    """Shortest wall time of ``repeat`` calls and the last result."""
-    best, result = float("inf"), None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        result = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, result
-
-
-def rosbags_raw(path: Path) -> int:
-    from rosbags.rosbag2 import Reader
-
-    n = 0
-    with Reader(path) as reader:
-        for _ in reader.messages():
-            n += 1
-    return n
 
 
 def rosbags_deserialize(path: Path) -> int:

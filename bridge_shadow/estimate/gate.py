@@ -23,10 +23,10 @@ from collections import Counter
 
 import numpy as np
 
-__all__ = ["REASONS", "TopicGate"]
+__all__ = ["MESSAGE_REASONS", "REASONS", "TopicGate"]
 
-#: Every rejection reason the shadow counts (message and window level), in report order.
-REASONS: tuple[str, ...] = (
+#: The rejection reasons of single messages (the gate's and the late-arrival check), in report order.
+MESSAGE_REASONS: tuple[str, ...] = (
     "nonfinite",
     "out_of_range",
     "frame_id",
@@ -34,6 +34,10 @@ REASONS: tuple[str, ...] = (
     "out_of_order",
     "clock_jump",
     "late",
+)
+#: Every rejection reason the shadow counts (message and window level), in report order.
+REASONS: tuple[str, ...] = (
+    *MESSAGE_REASONS,
     "stale_temperature",
     "missing_topic",
     "sparse_window",

@@ -31,7 +31,7 @@ import numpy as np
 from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, SUPPORTS, TEMPERATURE_FRAME
 from bridge_shadow.estimate.align import window_means
 from bridge_shadow.estimate.config import ShadowConfig
-from bridge_shadow.estimate.gate import REASONS, TopicGate
+from bridge_shadow.estimate.gate import MESSAGE_REASONS, REASONS, TopicGate
 from bridge_shadow.estimate.kalman import SettlementFilter
 from bridge_shadow.estimate.noise import WindowNoise
 from bridge_shadow.estimate.spline import OnlinePSpline
@@ -162,7 +162,7 @@ class ReplayResult:
                 "total": self.messages,
                 "used": int(sum(self.used.values())),
                 "used_by_topic": dict(self.used),
-                "rejected": int(sum(v for k, v in self.rejected.items() if k in _MESSAGE_REASONS)),
+                "rejected": int(sum(v for k, v in self.rejected.items() if k in MESSAGE_REASONS)),
             },
             "rejected": dict(self.rejected),
             "messages_per_s": self.messages_per_s,
@@ -171,17 +171,6 @@ class ReplayResult:
             "spline": self.spline,
             "noise": self.noise,
         }
-
-
-_MESSAGE_REASONS = (
-    "nonfinite",
-    "out_of_range",
-    "frame_id",
-    "duplicate",
-    "out_of_order",
-    "clock_jump",
-    "late",
-)
 
 
 class Shadow:
