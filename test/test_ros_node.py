@@ -8,6 +8,7 @@ to loopback). The bundled bag has 3 force samples per 60 s window, so the tests 
 from __future__ import annotations
 
 import signal
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -53,7 +54,15 @@ def direct(bag: Path):
 
 
 def test_live_replay_equals_direct_replay(bag: Path, direct, tmp_path: Path) -> None:
-    live = run_live(bag, overrides=OVERRIDES, out=tmp_path / "out", timeout_s=TIMEOUT_S)
+    shown: list[float] = []
+    live = run_live(
+        bag,
+        overrides=OVERRIDES,
+        out=tmp_path / "out",
+        plots=tmp_path / "plots",
+        timeout_s=TIMEOUT_S,
+        progress=shown.append,
+    )
     ref = direct.to_json()
     assert ref["windows"]["updates"] > 1000  # a real comparison, not two priors
     assert live["messages"] == ref["messages"]
@@ -73,6 +82,44 @@ def test_live_replay_equals_direct_replay(bag: Path, direct, tmp_path: Path) -> 
     last, labels = array_from_msg(deserialize_message(raw[-1], Float64MultiArray))
     assert labels == ("support",)
     np.testing.assert_array_equal(last, live["posterior"]["mean_m"])
+    # --plots: the same four PNGs as the direct replay, drawn from the node's own state
+    assert sorted(Path(p).name for p in live["plots"]) == [
+        "compensation_curve.png",
+        "credible_ellipse.png",
+        "posterior.png",
+        "raw_vs_compensated.png",
+    ]
+    assert all(Path(p).stat().st_size > 10_000 for p in live["plots"])
+    # the progress callback saw the publishing advance to the end
+    assert shown and shown[-1] == 1.0 and shown == sorted(shown)
+
+
+def test_history_service_returns_the_window_outputs(bag: Path, direct) -> None:
+    """The node's history service gives every window output the offline replay produced, exactly."""
+    params = load_config(None, OVERRIDES)
+    data = read_raw_topics(bag, INPUT_TOPICS)
+    raws = [data[t][1] for t in INPUT_ORDER]
+    topic, pos, _ = merge_log_order([data[t][0] for t in INPUT_ORDER])
+    with tempfile.TemporaryDirectory() as tmp:
+        args = ["--ros-args", "--params-file", str(write_params_file(params.to_params(), Path(tmp)))]
+        with Player() as player, NodeProcess(args) as node:
+            player.wait_for_node(node, TIMEOUT_S)
+            player.publish(topic, pos, raws, in_flight=200, node=node)
+            wait_until(lambda: player.taken(node) >= len(topic), TIMEOUT_S, "every message", node.check_alive)
+            player.flush(node, TIMEOUT_S)
+            history = player.history(node, TIMEOUT_S)
+    assert len(history) == len(direct.outputs) > 1000
+    got, ref = direct.history(), _history_arrays(history)
+    for key, value in ref.items():
+        np.testing.assert_array_equal(got[key], value, err_msg=key)
+    assert [o.reason for o in history] == [o.reason for o in direct.outputs]
+
+
+def _history_arrays(outputs: list) -> dict[str, np.ndarray]:
+    from bridge_shadow.estimate import ReplayResult
+
+    empty = {"used": {}, "rejected": {}, "spline": {}, "noise": {}}
+    return ReplayResult(np.zeros(2), np.eye(2), 0, windows=0, updates=0, outputs=outputs, **empty).history()
 
 
 def _diagnostic_values(raw: bytes) -> dict[str, tuple[int, dict[str, str]]]:

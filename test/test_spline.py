@@ -146,3 +146,18 @@ def test_leverage_gives_leave_one_out_residuals() -> None:
     drop = OnlinePSpline.uniform(-10.0, 30.0, 8, mode="fixed", lam=20.0)
     drop.add(np.delete(t, 7), np.delete(y, 7))
     assert loo == pytest.approx(y[7] - drop.predict(t[7])[0], rel=1e-9)
+
+
+def test_few_point_basis_equals_vectorized_basis() -> None:
+    """The plain-float path for a handful of points is the same recursion as the vectorized one."""
+    from bridge_shadow.estimate.spline import _SCALAR_PATH_MAX, _basis
+
+    sp = OnlinePSpline(np.array([-20.0, -7.0, -1.0, 0.0, 4.5, 12.0, 30.0, 45.0]))
+    x = np.concatenate([np.linspace(-20.0, 45.0, 97), [-7.0, 45.0, 30.0 - 1e-12]])
+    many = _basis(sp.knots, x)
+    assert len(x) > _SCALAR_PATH_MAX
+    step = _SCALAR_PATH_MAX
+    few = np.vstack([_basis(sp.knots, x[i : i + step]) for i in range(0, len(x), step)])
+    np.testing.assert_allclose(few, many, rtol=0.0, atol=1e-15)
+    # clamping on the few-point path: outside the range equals the end values
+    np.testing.assert_array_equal(sp.basis([-50.0, 99.0]), sp.basis([-20.0, 45.0]))

@@ -135,10 +135,11 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.estimate import Shadow, load_config
     from bridge_shadow.model.surrogate_file import load_surrogate
 
+    show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "replay"))
     if args.live:
         from bridge_shadow.ros.live_replay import run_live
 
-        js = run_live(args.bag, args.params, out=args.out, plots=args.plots)
+        js = run_live(args.bag, args.params, out=args.out, plots=args.plots, progress=show)
         if args.json:
             emit_json(js)
         else:
@@ -151,7 +152,6 @@ def run(args: argparse.Namespace) -> int:
     surrogate = load_surrogate(config.surrogate_path or None)
     data = read_monitoring(args.bag)
     shadow = Shadow(config, surrogate)
-    show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "replay"))
     result = shadow.run(data, progress=show)
     js = result.to_json()
     js["bag"] = str(args.bag)

@@ -114,6 +114,51 @@ class _Buffer:
         return int(self.stamps[-1][-1]) if self.stamps else None
 
 
+class _WindowLog:
+    """Kept windows for the filter re-run: end stamps, ``z`` (N) and sample counts, as arrays.
+
+    Stored in amortized-doubling arrays, so the Q = 0 re-run is one vectorized batch formula with
+    no per-window Python (it runs whenever the noise model moves, often in the first days).
+    """
+
+    def __init__(
+        self, end: np.ndarray | None = None, z: np.ndarray | None = None, m: np.ndarray | None = None
+    ) -> None:
+        self._set(np.zeros(0, np.int64) if end is None else end, z, m)
+
+    def _set(self, end: np.ndarray, z: np.ndarray | None, m: np.ndarray | None) -> None:
+        n = len(end)
+        cap = max(64, 2 * n)
+        self._end = np.zeros(cap, np.int64)
+        self._z = np.zeros((cap, 2))
+        self._m = np.zeros((cap, 2))
+        self._n = n
+        if n:
+            self._end[:n], self._z[:n], self._m[:n] = end, np.reshape(z, (n, 2)), np.reshape(m, (n, 2))
+
+    def __len__(self) -> int:
+        return self._n
+
+    def append(self, end: int, z: np.ndarray, m: np.ndarray) -> None:
+        if self._n == len(self._end):
+            cap = 2 * len(self._end)
+            self._end = np.resize(self._end, cap)
+            self._z = np.resize(self._z, (cap, 2))
+            self._m = np.resize(self._m, (cap, 2))
+        self._end[self._n], self._z[self._n], self._m[self._n] = end, z, m
+        self._n += 1
+
+    def arrays(self, stop: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return views of the first ``stop`` (default all) entries: end (n,), z (n, 2), m (n, 2)."""
+        n = self._n if stop is None else min(stop, self._n)
+        return self._end[:n], self._z[:n], self._m[:n]
+
+    def drop_first(self, k: int) -> None:
+        """Forget the oldest ``k`` entries."""
+        end, z, m = (a[k:].copy() for a in self.arrays())
+        self._set(end, z, m)
+
+
 @dataclass
 class ReplayResult:
     """Result of an offline run (``Shadow.run``); ``to_json`` gives the replay JSON (SI units)."""
@@ -256,7 +301,7 @@ class Shadow:
         self._first_ns: int | None = None  # earliest accepted stamp of any topic
         self._t_ref: np.ndarray | None = None  # frozen reference temperature (warmup_mean), C
         self._outlier_run = 0  # consecutive Mahalanobis outliers
-        self._zlog: list[tuple[int, np.ndarray, np.ndarray]] = []  # kept windows: end, z (N), m
+        self._zlog = _WindowLog()  # kept windows: end, z (N), m
         self._r1_ref: np.ndarray | None = None  # per-sample R of the last (re)filter, N^2
         self.n_refilters = 0
         self._base: dict[str, Any] | None = None  # filter state of the folded, oldest windows
@@ -479,16 +524,16 @@ class Shadow:
                 return
         self._r1_ref = r1
         self.n_refilters += 1
-        filt, last = self._replay_log(self._zlog, r1)
+        filt, last = self._replay_log(self._zlog.arrays(), r1)
         if last is not None and self._pred_ns is not None and self._pred_ns > last:
             filt.predict((self._pred_ns - last) / _NS)
         self.filter = filt
         out.mean_m, out.covariance_m2 = filt.x, filt.P
 
     def _replay_log(
-        self, log: list[tuple[int, np.ndarray, np.ndarray]], r1: np.ndarray
+        self, log: tuple[np.ndarray, np.ndarray, np.ndarray], r1: np.ndarray
     ) -> tuple[SettlementFilter, int | None]:
-        """Filter ``log`` from the folded base state (or the prior) with ``R(m) = R(1) / sqrt(m m')``."""
+        """Filter ``log`` (end, z, m) from the folded base state (or prior), ``R(m) = R(1) / sqrt(m m')``."""
         cfg = self.config
         filt = SettlementFilter(
             self.surrogate.A,
@@ -500,10 +545,10 @@ class Shadow:
         if self._base is not None:
             filt.load_state_dict(self._base)
             last = int(self._base["end"])
-        if log and not np.any(filt.q_rate > 0):
+        ends, z, m = log
+        if len(ends) and not np.any(filt.q_rate > 0):
             # Q = 0: the sequential updates equal the information-form batch (DESIGN 2), in one shot
-            z = np.array([z for _, z, _ in log])
-            sm = np.sqrt(np.array([m for _, _, m in log]))
+            sm = np.sqrt(m)
             r1_inv = np.linalg.inv(r1)
             w = (
                 r1_inv[None, :, :] * sm[:, :, None] * sm[:, None, :]
@@ -513,14 +558,14 @@ class Shadow:
             info = np.linalg.solve(filt.P, filt.x) + a.T @ np.einsum("wij,wj->i", w, z)
             cov = np.linalg.inv(p_inv)
             filt.load_state_dict(
-                {"x": cov @ info, "P": 0.5 * (cov + cov.T), "n_updates": filt.n_updates + len(log)}
+                {"x": cov @ info, "P": 0.5 * (cov + cov.T), "n_updates": filt.n_updates + len(ends)}
             )
-            return filt, int(log[-1][0])
-        for end, z, m in log:
+            return filt, int(ends[-1])
+        for end, zi, mi in zip(ends.tolist(), z, m, strict=True):
             if last is not None:
                 filt.predict((end - last) / _NS)
             last = end
-            filt.update(z, r1 / np.sqrt(np.outer(m, m)), gate=False)
+            filt.update(zi, r1 / np.sqrt(np.outer(mi, mi)), gate=False)
         return filt, last
 
     def _fold_log(self) -> None:
@@ -530,9 +575,9 @@ class Shadow:
             return
         half = len(self._zlog) // 2
         r1 = self._r1_ref if self._r1_ref is not None else self.noise.R(np.ones(2))
-        filt, last = self._replay_log(self._zlog[:half], r1)
+        filt, last = self._replay_log(self._zlog.arrays(half), r1)
         self._base = {**filt.state_dict(), "end": last}
-        del self._zlog[:half]
+        self._zlog.drop_first(half)
 
     def _apply_online(self, rec: dict[str, Any]) -> WindowOutput:
         """Compensate with the fit so far, gate and update; a kept window then joins the fit.
@@ -573,7 +618,7 @@ class Shadow:
         if not res.accepted:
             self.counts[res.reason] += 1
         else:
-            self._zlog.append((end, compensated - self.surrogate.u0, np.asarray(m, float)))
+            self._zlog.append(end, compensated - self.surrogate.u0, np.asarray(m, float))
             self._fold_log()
         out = self._output(k, m, rec["temp_c"], rec["force_n"], compensated, res.accepted, res.reason)
         return out, res.accepted
@@ -720,11 +765,7 @@ class Shadow:
             "splines": [sp.state_dict() for sp in self.splines],
             "noise": self.noise.state_dict(),
             "filter": self.filter.state_dict(),
-            "zlog": {
-                "end": np.array([e for e, _, _ in self._zlog], dtype=np.int64),
-                "z": np.array([z for _, z, _ in self._zlog], dtype=float).reshape(-1, 2),
-                "m": np.array([m for _, _, m in self._zlog], dtype=float).reshape(-1, 2),
-            },
+            "zlog": dict(zip(("end", "z", "m"), (a.copy() for a in self._zlog.arrays()), strict=True)),
             "r1_ref": np.full((2, 2), np.nan) if self._r1_ref is None else self._r1_ref,
             "base": {
                 "has": self._base is not None,
@@ -776,15 +817,9 @@ class Shadow:
         shadow.noise.load_state_dict(state["noise"])
         shadow.filter.load_state_dict(state["filter"])
         zl = state["zlog"]
-        shadow._zlog = [
-            (int(e), np.asarray(z, float), np.asarray(m, float))
-            for e, z, m in zip(
-                np.asarray(zl["end"]),
-                np.asarray(zl["z"]).reshape(-1, 2),
-                np.asarray(zl["m"]).reshape(-1, 2),
-                strict=True,
-            )
-        ]
+        shadow._zlog = _WindowLog(
+            np.asarray(zl["end"], np.int64), np.asarray(zl["z"], float), np.asarray(zl["m"], float)
+        )
         base = state["base"]
         shadow._base = (
             {

@@ -17,6 +17,7 @@ goes through numpy/LAPACK calls that do not start BLAS threads: on a busy 2-core
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,8 @@ def _basis(knots: np.ndarray, x: np.ndarray, nu: int = 0) -> np.ndarray:
     if nu:
         return BSpline(knots, np.eye(q), _DEGREE).derivative(nu)(x)
     x = np.asarray(x, dtype=float)
+    if x.size <= _SCALAR_PATH_MAX:
+        return _basis_few(knots, x.tolist(), q)
     # interval i with t_i <= x < t_{i+1}; the right end belongs to the last non-empty interval
     i = np.clip(np.searchsorted(knots, x, side="right") - 1, _DEGREE, q - 1)
     n = np.ones((len(x), _DEGREE + 1))
@@ -66,6 +69,33 @@ def _basis(knots: np.ndarray, x: np.ndarray, nu: int = 0) -> np.ndarray:
     return out
 
 
+#: Up to this many points the basis is evaluated point by point in plain floats: a window adds one
+#: temperature per channel, and numpy's per-call overhead made the vectorized recursion 10x slower.
+_SCALAR_PATH_MAX = 4
+
+
+def _basis_few(knots: np.ndarray, xs: list[float], q: int) -> np.ndarray:
+    """``_basis`` for a few points: the same Cox-de Boor recursion on Python floats."""
+    t = knots.tolist()
+    out = np.zeros((len(xs), q))
+    for row, x in enumerate(xs):
+        i = min(max(int(np.searchsorted(knots, x, side="right")) - 1, _DEGREE), q - 1)
+        n = [1.0, 0.0, 0.0, 0.0]
+        left = [0.0] * (_DEGREE + 1)
+        right = [0.0] * (_DEGREE + 1)
+        for j in range(1, _DEGREE + 1):
+            left[j] = x - t[i + 1 - j]
+            right[j] = t[i + j] - x
+            saved = 0.0
+            for r in range(j):
+                temp = n[r] / (right[r + 1] + left[j - r])
+                n[r] = saved + right[r + 1] * temp
+                saved = left[j - r] * temp
+            n[j] = saved
+        out[row, i - _DEGREE : i + 1] = n
+    return out
+
+
 def gram_penalty(knots: np.ndarray) -> np.ndarray:
     """``Omega_kl = int b_k'' b_l''`` over the knot range, exact (2-point Gauss-Legendre), (q, q)."""
     edges = np.unique(knots)
@@ -77,6 +107,21 @@ def gram_penalty(knots: np.ndarray) -> np.ndarray:
     d2 = _basis(knots, xq, nu=2)
     omega = (d2 * wq[:, None]).T @ d2
     return 0.5 * (omega + omega.T)
+
+
+def _solve(lhs: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve the symmetric ``lhs x = rhs``; the minimum-norm least squares when it is (near) singular.
+
+    A Cholesky factor with a diagonal spread under 1e-6 (condition under about 1e12) takes the
+    plain solve; otherwise (data at one temperature leave the slope unidentified) ``lstsq``.
+    """
+    try:
+        diag = np.diagonal(np.linalg.cholesky(lhs))
+        if diag.min() > 1e-6 * diag.max():
+            return np.linalg.solve(lhs, rhs)
+    except np.linalg.LinAlgError:
+        pass
+    return np.linalg.lstsq(lhs, rhs, rcond=1e-13)[0]
 
 
 @dataclass
@@ -136,7 +181,11 @@ class OnlinePSpline:
 
     def basis(self, temp_c: np.ndarray) -> np.ndarray:
         """Basis at temperatures clamped into the knot range: (n, q)."""
-        t = np.clip(np.asarray(temp_c, dtype=float), self.t_min, self.t_max)
+        t = np.asarray(temp_c, dtype=float)
+        if t.size <= _SCALAR_PATH_MAX:
+            t = np.array([min(max(v, self.t_min), self.t_max) for v in t.ravel().tolist()])
+        else:
+            t = np.clip(t, self.t_min, self.t_max)
         return _basis(self.knots, t)
 
     def add(self, temp_c: np.ndarray, y: np.ndarray, w: np.ndarray | float = 1.0, decay: float = 1.0) -> None:
@@ -185,24 +234,35 @@ class OnlinePSpline:
         return g, d, vecs.T @ (linv @ self.r)
 
     def _criterion(
-        self, log_lam: np.ndarray | float, g: np.ndarray, d: np.ndarray, vt: np.ndarray, p0: int
-    ) -> np.ndarray:
-        """REML or GCV score at ``log10 lambda`` (vectorized over trial values)."""
-        lam = 10.0 ** np.asarray(log_lam, dtype=float)[..., None]
-        a = g + lam * d
+        self, g: np.ndarray, d: np.ndarray, vt: np.ndarray, p0: int
+    ) -> Callable[[np.ndarray], np.ndarray]:
+        """REML or GCV score as a function of trial ``log10 lambda`` values (vectorized)."""
         v2 = vt * vt
-        if self.mode == "reml":
-            fit_ss = self.yy - np.sum(v2 / a, axis=-1)
-            pos = d > 0
-            n_pen = int(np.count_nonzero(pos))
-            log_det = np.sum(np.log(a[..., pos]), axis=-1)
-            return (self.sw - p0) * np.log(np.maximum(fit_ss, 1e-300)) + log_det - n_pen * np.log(lam[..., 0])
-        rss = self.yy - np.sum(v2 * (2.0 / a - g / a**2), axis=-1)
-        edf = np.sum(g / a, axis=-1)
-        return self.sw * np.maximum(rss, 1e-300) / np.maximum(self.sw - edf, 1e-12) ** 2
+        pos = d > 0
+        g_pen, d_pen = g[pos], d[pos]
+        n_pen = len(d_pen)
+        yy, sw = self.yy, self.sw
+
+        def reml(log_lam: np.ndarray) -> np.ndarray:
+            lam = (10.0**log_lam)[:, None]
+            fit_ss = yy - np.sum(v2 / (g + lam * d), axis=1)
+            log_det = np.sum(np.log(g_pen + lam * d_pen), axis=1)
+            return (sw - p0) * np.log(np.maximum(fit_ss, 1e-300)) + log_det - n_pen * np.log(lam[:, 0])
+
+        def gcv(log_lam: np.ndarray) -> np.ndarray:
+            a = g + (10.0**log_lam)[:, None] * d
+            rss = yy - np.sum(v2 * (2.0 / a - g / a**2), axis=1)
+            edf = np.sum(g / a, axis=1)
+            return sw * np.maximum(rss, 1e-300) / np.maximum(sw - edf, 1e-12) ** 2
+
+        return reml if self.mode == "reml" else gcv
 
     def select_lambda(self) -> float:
-        """Smoothing parameter of the current mode (REML/GCV minimized over log10 lambda)."""
+        """Smoothing parameter of the current mode (REML/GCV minimized over log10 lambda).
+
+        A 0.25-decade grid over 16 decades, a 0.005-decade grid around its best point, and the
+        vertex of the parabola through the best fine point and its neighbours.
+        """
         if self.mode == "fixed":
             return self.lam_fixed
         g, d, vt = self._eigen()
@@ -210,15 +270,19 @@ class OnlinePSpline:
         pos = d > 1e-9 * dmax
         d = np.where(pos, d, 0.0)
         p0 = int(np.count_nonzero(~pos))
+        score = self._criterion(g, d, vt, p0)
         # lambda d ~ 1 at the balance point: search 8 decades either side of 1 / median(d).
         center = -np.log10(np.median(d[pos])) if pos.any() else 0.0
-        grid = center + np.linspace(-8.0, 8.0, 65)
-        for _ in range(3):  # 0.25 decade, then two 40-fold refinements around the best point
-            values = self._criterion(grid, g, d, vt, p0)
-            i = int(np.argmin(values))
-            step = grid[1] - grid[0]
-            best = float(grid[i])
-            grid = best + np.linspace(-step, step, 81)
+        coarse = center + np.linspace(-8.0, 8.0, 65)
+        fine = coarse[int(np.argmin(score(coarse)))] + np.linspace(-0.25, 0.25, 101)
+        values = score(fine)
+        j = int(np.argmin(values))
+        best = float(fine[j])
+        if 0 < j < len(fine) - 1:
+            lo, mid, hi = values[j - 1], values[j], values[j + 1]
+            curvature = hi - 2.0 * mid + lo
+            if curvature > 0:
+                best -= 0.5 * (fine[1] - fine[0]) * (hi - lo) / curvature
         return 10.0**best
 
     def fit(self) -> SplineFit:
@@ -234,8 +298,7 @@ class OnlinePSpline:
             return self._fit
         lam = self.select_lambda()
         lhs = self.G + lam * self.omega
-        # least squares = solve for a regular system; minimum norm when the slope is unidentified
-        sol = np.linalg.lstsq(lhs, np.column_stack([self.r, self.G]), rcond=1e-13)[0]
+        sol = _solve(lhs, np.column_stack([self.r, self.G]))
         beta, edf = sol[:, 0], float(np.trace(sol[:, 1:]))
         self._fit = SplineFit(beta, float(lam), edf, mean_y)
         return self._fit
@@ -256,7 +319,7 @@ class OnlinePSpline:
         fit = self.fit()
         b = self.basis(np.atleast_1d(temp_c))
         lhs = self.G + fit.lam * self.omega
-        return np.einsum("ij,ji->i", b, np.linalg.lstsq(lhs, b.T, rcond=1e-13)[0])
+        return np.einsum("ij,ji->i", b, _solve(lhs, b.T))
 
     def compensate(self, temp_c: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Compensated values ``y - g(T) + mean(y)``."""

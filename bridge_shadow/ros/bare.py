@@ -2,7 +2,7 @@
 
 It does what any rclpy node must do to receive the inputs and nothing else: an
 ``EventsExecutor``, one subscription per topic (raw CDR bytes by default, typed messages with
-``--typed``) whose callback appends the message to a list, and the node's status and flush services
+``--typed``) whose callback appends the message to a list, and the node's status, flush and history services
 (``std_srvs/Trigger``) so the same ``Player`` drives it. With ``--echo`` it also publishes every
 frc_02 message back on ``ECHO_TOPIC`` (the transport round trip of the latency benchmark). Run:
 ``python -m bridge_shadow.ros.bare [--typed] [--echo]``.
@@ -26,7 +26,7 @@ from std_srvs.srv import Trigger
 from bridge_shadow.contract import NODE_NAME
 from bridge_shadow.ros.live_replay import INPUT_ORDER
 from bridge_shadow.ros.netenv import confine_to_loopback
-from bridge_shadow.ros.node import FLUSH_SERVICE, STATUS_SERVICE, input_qos
+from bridge_shadow.ros.node import FLUSH_SERVICE, HISTORY_SERVICE, STATUS_SERVICE, input_qos
 
 __all__ = ["ECHO_TOPIC", "BareSubscriber", "main"]
 
@@ -45,7 +45,7 @@ class BareSubscriber(Node):
             self.create_subscription(t, topic, buf.append, input_qos(depth), raw=not typed)
             for t, topic, buf in zip(types, INPUT_ORDER, self.buffers, strict=True)
         ]
-        names = (STATUS_SERVICE, FLUSH_SERVICE)
+        names = (STATUS_SERVICE, FLUSH_SERVICE, HISTORY_SERVICE)
         self._srv = [self.create_service(Trigger, name, self._answer) for name in names]
         if echo:
             pub = self.create_publisher(WrenchStamped, ECHO_TOPIC, input_qos(depth))

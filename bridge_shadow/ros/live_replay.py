@@ -27,7 +27,7 @@ import tempfile
 import threading
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -60,7 +60,13 @@ from bridge_shadow.contract import (
 from bridge_shadow.errors import InputError
 from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
-from bridge_shadow.ros.node import FLUSH_SERVICE, STATUS_SERVICE, input_qos
+from bridge_shadow.ros.node import (
+    FLUSH_SERVICE,
+    HISTORY_SERVICE,
+    STATUS_SERVICE,
+    input_qos,
+    outputs_from_history,
+)
 
 __all__ = ["INPUT_ORDER", "MAX_IN_FLIGHT", "Player", "merge_log_order", "run_live", "write_params_file"]
 
@@ -137,6 +143,7 @@ class Player:
             self._extra.append(sub)
         self.flush_client = self.node.create_client(Trigger, FLUSH_SERVICE)
         self.status_client = self.node.create_client(Trigger, STATUS_SERVICE)
+        self.history_client = self.node.create_client(Trigger, HISTORY_SERVICE)
         self.executor = EventsExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._stop = threading.Event()
@@ -162,7 +169,8 @@ class Player:
         pubs_ok = not outputs or all(
             s.get_publisher_count() > 0 for s in self._subs if s.topic_name != DIAGNOSTICS_TOPIC
         )
-        services_ok = self.flush_client.service_is_ready() and self.status_client.service_is_ready()
+        clients = (self.flush_client, self.status_client, self.history_client)
+        services_ok = all(c.service_is_ready() for c in clients)
         extra_ok = all(s.get_publisher_count() > 0 for s in self._extra)
         return subs_ok and pubs_ok and services_ok and extra_ok
 
@@ -181,6 +189,7 @@ class Player:
         rate: float | None = None,
         in_flight: int | None = None,
         node: NodeProcess | None = None,
+        progress: Callable[[float], None] | None = None,
     ) -> tuple[float, float]:
         """Publish ``raws[topic[j]][pos[j]]`` for j in order; return (first, last) perf_counter times.
 
@@ -190,6 +199,7 @@ class Player:
         are awaited one chunk late, so publishing and the node's work overlap), so the node's
         reliable readers never overflow: an overflowing reader drops samples for the writer to
         resend at its next heartbeat, which stalls the stream for seconds and lets topics drift.
+        ``progress`` is called with the fraction published, at most every 0.2 s and at the end.
         """
         pubs = [p.publish for p in self.publishers]
         n = len(topic)
@@ -200,7 +210,7 @@ class Player:
         topics, positions = topic.tolist(), pos.tolist()
         asked: deque[Any] = deque()  # status requests in flight, one sent after each chunk
         taken = 0
-        t_first = time.perf_counter()
+        t_first = t_shown = time.perf_counter()
         for start in range(0, n, step):
             stop = min(start + step, n)
             # the answer to the request sent after chunk k-2 is usually there by now: pipelined
@@ -219,6 +229,9 @@ class Player:
                     pubs[topics[k]](raws[topics[k]][positions[k]])
             if in_flight and stop < n:
                 asked.append(self.status_client.call_async(Trigger.Request()))
+            if progress is not None and (stop == n or time.perf_counter() - t_shown >= 0.2):
+                t_shown = time.perf_counter()
+                progress(stop / max(n, 1))
         return t_first, time.perf_counter()
 
     def _answer(self, future: Any, node: NodeProcess | None, timeout_s: float = 30.0) -> dict[str, Any]:
@@ -235,6 +248,10 @@ class Player:
 
     def _call(self, client: Any, node: NodeProcess | None, timeout_s: float) -> Any:
         return self._answer(client.call_async(Trigger.Request()), node, timeout_s)
+
+    def history(self, node: NodeProcess | None = None, timeout_s: float = 30.0) -> list[Any]:
+        """Return the node's kept window outputs (``WindowOutput``, oldest first), via its history service."""
+        return outputs_from_history(self._call(self.history_client, node, timeout_s)["windows"])
 
     def taken(self, node: NodeProcess | None = None, timeout_s: float = 30.0) -> int:
         """Ask the node how many input messages it has taken in total."""
@@ -301,6 +318,7 @@ def run_live(
     rate: float | None = None,
     overrides: dict[str, Any] | None = None,
     timeout_s: float = 60.0,
+    progress: Callable[[float], None] | None = None,
 ) -> dict[str, Any]:
     """Replay ``bag`` through ``bridge_shadow_node`` over loopback DDS; return the replay JSON.
 
@@ -308,10 +326,12 @@ def run_live(
         bag: rosbag2 directory with the contract input topics.
         params_path: shadow parameter file (default ``config/shadow.yaml``).
         out: record the node's output topics into this bag (log time = receive time).
-        plots: not available live (the window history is not published): InputError.
+        plots: write the replay PNGs into this directory, from the node's own state: its window
+            outputs (history service) and its final spline fit (the checkpoint it writes at flush).
         rate: speed factor of log time (1.0 = real time); None = as fast as the node takes it.
         overrides: parameter overrides applied after the file (as ``-p name:=value``).
         timeout_s: limit for discovery, acknowledgement, flush and outputs, each.
+        progress: called with the fraction of the bag published (a progress bar).
 
     Returns:
         The direct replay's JSON keys (``posterior``, ``messages``, ``rejected``, ``messages_per_s``,
@@ -322,10 +342,6 @@ def run_live(
     from bridge_shadow.estimate import load_config
     from bridge_shadow.model.surrogate_file import load_surrogate
 
-    if plots is not None:
-        raise InputError(
-            "--plots needs the direct replay (the live node does not publish its window history)"
-        )
     config = load_config(params_path, overrides)
     surrogate = load_surrogate(config.surrogate_path or None)
     data = read_raw_topics(bag, INPUT_TOPICS)
@@ -347,7 +363,7 @@ def run_live(
             player = Player()
             discovery_s = player.wait_for_node(node, timeout_s)
             in_flight = min(config.qos_depth if config.qos_depth > 0 else MAX_IN_FLIGHT, MAX_IN_FLIGHT)
-            t_first, t_last = player.publish(topic, pos, raws, merged, rate, in_flight, node)
+            t_first, t_last = player.publish(topic, pos, raws, merged, rate, in_flight, node, progress)
             wait_until(lambda: player.taken(node) >= total, timeout_s, f"the node to take {total} messages")
             report = player.flush(node, timeout_s)
             t_done = time.perf_counter()
@@ -367,6 +383,11 @@ def run_live(
                 cov, _ = array_from_msg(player.last(COVARIANCE_TOPIC))
             else:
                 mean, cov = np.asarray(report["mean_m"]), np.asarray(report["covariance_m2"])
+            plot_paths = (
+                _plot_live(plots, player.history(node, timeout_s), report, params, surrogate)
+                if plots is not None
+                else []
+            )
             code = node.stop()
             if code != 0:
                 raise NodeError(f"bridge_shadow_node exited with code {code}: {node.output().strip()[-300:]}")
@@ -414,4 +435,38 @@ def run_live(
     }
     if out is not None:
         js["out"] = str(_write_outputs(out, records))
+    if plots is not None:
+        js["plots"] = [str(p) for p in plot_paths]
     return js
+
+
+def _plot_live(
+    directory: str | Path, outputs: list[Any], report: dict[str, Any], params: dict[str, Any], surrogate: Any
+) -> list[Path]:
+    """Draw the direct replay's PNGs from what the node kept: its outputs and final checkpoint.
+
+    The node keeps its last ``HISTORY_WINDOWS`` outputs, so on longer bags the time plots show that
+    last stretch; the compensation curve and the ellipse are the final state either way.
+    """
+    from bridge_shadow.estimate import Shadow, ShadowConfig
+    from bridge_shadow.estimate.plots import write_plots
+    from bridge_shadow.estimate.shadow import ReplayResult
+
+    config = ShadowConfig.from_params(params)
+    ckpt = Path(config.checkpoint_path)
+    if not ckpt.is_file():
+        raise NodeError(f"the node wrote no checkpoint at flush ({ckpt}): cannot draw its compensation curve")
+    shadow = Shadow.resume(ckpt, config, surrogate)
+    result = ReplayResult(
+        mean_m=np.asarray(report["mean_m"], float),
+        covariance_m2=np.asarray(report["covariance_m2"], float),
+        messages=int(sum(report["node"]["received"].values())),
+        used=report["used"],
+        rejected=report["rejected"],
+        windows=int(report["windows"]["closed"]),
+        updates=int(report["windows"]["updates"]),
+        spline=report["spline"],
+        noise=report["noise"],
+        outputs=outputs,
+    )
+    return write_plots(directory, result, shadow)

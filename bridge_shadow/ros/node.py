@@ -14,6 +14,8 @@ Wiring (topics and types from ``bridge_shadow.contract``)::
         ``flush`` does; ``bridge-shadow replay --live`` calls it after the last message).
     service /bridge_shadow/status (std_srvs/Trigger): raw messages taken per input topic, as JSON
         (the live replay's flow control).
+    service /bridge_shadow/history (std_srvs/Trigger): the last ``HISTORY_WINDOWS`` window outputs
+        as JSON (SI units): what a late-joining viewer, or ``replay --live --plots``, draws.
 
 Subscriptions take raw CDR (no Python message object per sample) and the buffers are decoded in
 blocks: when one holds ``BATCH`` messages, when a message brings the last topic past the end of
@@ -55,6 +57,7 @@ import signal
 import struct
 import sys
 import time
+from collections import deque
 from pathlib import Path
 from typing import Any
 
@@ -86,7 +89,7 @@ from bridge_shadow.contract import (
     TEMPERATURE_TOPIC,
 )
 from bridge_shadow.errors import BridgeShadowError
-from bridge_shadow.estimate import Shadow, ShadowConfig, load_config
+from bridge_shadow.estimate import Shadow, ShadowConfig, WindowOutput, load_config
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.ros import convert
 from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
@@ -96,18 +99,26 @@ __all__ = [
     "BATCH",
     "DRAIN_PERIOD_S",
     "FLUSH_SERVICE",
+    "HISTORY_SERVICE",
+    "HISTORY_WINDOWS",
     "MIN_DRAIN_GAP_S",
     "REORDER_HOLD_S",
     "STATUS_SERVICE",
     "ShadowNode",
     "input_qos",
     "main",
+    "outputs_from_history",
+    "window_history",
 ]
 
 #: Service that closes every window holding data (end of a replay).
 FLUSH_SERVICE = f"/{NODE_NAME}/flush"
 #: Service answering with the raw messages taken per input topic (flow control of a replay).
 STATUS_SERVICE = f"/{NODE_NAME}/status"
+#: Service answering with the recent window outputs (``window_history``) as JSON.
+HISTORY_SERVICE = f"/{NODE_NAME}/history"
+#: Window outputs the node keeps for the history service: one week of 60 s windows (about 1 MB).
+HISTORY_WINDOWS = 10_080
 #: Buffered messages per topic that trigger a decode-and-ingest.
 BATCH = 1024
 #: Period of the timer that ingests whatever is buffered [s].
@@ -168,6 +179,7 @@ class ShadowNode(Node):
         self.received = [0, 0, 0]
         self.malformed = 0
         self.windows_published = 0
+        self.history: deque[Any] = deque(maxlen=HISTORY_WINDOWS)
         self._raw: list[list[bytes]] = [[], [], []]
         self._arrival: list[float | None] = [None, None, None]
         self._latest: list[int | None] = [None, None, None]
@@ -194,6 +206,7 @@ class ShadowNode(Node):
         self._diag_timer = self.create_timer(cfg.diagnostics_period_s, self.publish_diagnostics)
         self._flush_srv = self.create_service(Trigger, FLUSH_SERVICE, self._on_flush)
         self._status_srv = self.create_service(Trigger, STATUS_SERVICE, self._on_status)
+        self._history_srv = self.create_service(Trigger, HISTORY_SERVICE, self._on_history)
 
     # -- parameters ------------------------------------------------------------------------
     def _read_parameters(self) -> ShadowConfig:
@@ -329,6 +342,7 @@ class ShadowNode(Node):
                         convert.wrench_msg(out.end_ns, FORCE_FRAMES[ch], out.compensated_n[c])
                     )
             self.windows_published += 1
+            self.history.append(out)
 
     def report(self) -> dict[str, Any]:
         """``Shadow.diagnostics()`` plus the node's counters (SI units, plain data)."""
@@ -360,6 +374,14 @@ class ShadowNode(Node):
         response.message = json.dumps({"taken": taken})
         return response
 
+    def _on_history(self, request: Any, response: Any) -> Any:
+        """Answer ``{"windows": [...], "published": n}``: the kept window outputs, oldest first."""
+        response.success = True
+        response.message = json.dumps(
+            {"windows": window_history(self.history), "published": self.windows_published}
+        )
+        return response
+
     def _on_flush(self, request: Any, response: Any) -> Any:
         """Close every window holding data, publish, checkpoint; answer with the report as JSON."""
         self.drain(everything=True)
@@ -375,6 +397,35 @@ class ShadowNode(Node):
         """Ingest what is buffered and write the checkpoint (if configured); return its path."""
         self.ingest_pending(everything=True)
         return self.shadow.save_checkpoint() if self.config.checkpoint_path else None
+
+
+def window_history(outputs: Any) -> list[dict[str, Any]]:
+    """``WindowOutput``s as plain JSON data (SI units; NaN, e.g. an uncompensated window, as null)."""
+    fields = [f.name for f in dataclasses.fields(WindowOutput)]
+    return [jsonable({name: getattr(out, name) for name in fields}) for out in outputs]
+
+
+def outputs_from_history(windows: list[dict[str, Any]]) -> list[WindowOutput]:
+    """Rebuild ``WindowOutput``s from ``window_history`` data (null back to NaN)."""
+
+    def arr(v: Any) -> np.ndarray:
+        return np.array(v, dtype=float)  # None -> nan
+
+    return [
+        WindowOutput(
+            index=int(w["index"]),
+            end_ns=int(w["end_ns"]),
+            samples=np.array(w["samples"], dtype=np.int64),
+            temp_c=arr(w["temp_c"]),
+            force_n=arr(w["force_n"]),
+            compensated_n=arr(w["compensated_n"]),
+            mean_m=arr(w["mean_m"]),
+            covariance_m2=arr(w["covariance_m2"]),
+            updated=bool(w["updated"]),
+            reason=str(w["reason"]),
+        )
+        for w in windows
+    ]
 
 
 def main(args: list[str] | None = None) -> int:
