@@ -204,3 +204,56 @@ def test_parameters_default_to_shadow_yaml_and_override() -> None:
             node.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
+    """When every input stops, the window holding the last data is closed and published anyway.
+
+    Short windows so that the quiet limit, max(topic_timeout_s, window_s), is half a second of wall
+    time. The posterior the node publishes without any flush call equals the offline replay of the
+    same data (which closes the last window at its end).
+    """
+    from bridge_shadow.bagio import encode_stamped_floats
+    from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, TEMPERATURE_FRAME
+    from bridge_shadow.series import MonitoringData
+
+    t0 = 1_646_667_300 * 10**9
+    stamp = t0 + np.arange(1025, dtype=np.int64) * 10_000_000  # 100 Hz, ends 0.24 s into a window
+    t_stamp = stamp[::10]
+    rng = np.random.default_rng(3)
+    temp = 8.0 + 0.2 * np.sin(np.arange(len(t_stamp)) / 10.0)
+    force = np.c_[2.6e5 + 300 * np.interp(stamp, t_stamp, temp), 2.2e5 + 0 * stamp] + rng.normal(
+        0, 60, (1025, 2)
+    )
+    data = MonitoringData.from_arrays(stamp, force, t_stamp, temp)
+    overrides = {
+        "window_s": 0.5,
+        "topic_timeout_s": 0.2,
+        "temperature_stale_s": 0.5,
+        "window_min_samples": 10,
+        "spline_warmup_windows": 5,
+        "noise_warmup_windows": 5,
+    }
+    config = load_config(None, overrides)
+    ref = Shadow(config).run(data)
+    assert len(ref.outputs) == 21 and ref.updates > 10
+    wrench = np.zeros((len(stamp), 6))
+    raws = []
+    for c, ch in enumerate(CHANNELS):
+        wrench[:, 2] = force[:, c]
+        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
+    raws.append(encode_stamped_floats(t_stamp, TEMPERATURE_FRAME, np.c_[temp, np.zeros(len(temp))]))
+    topic, pos, _ = merge_log_order([stamp, stamp, t_stamp])
+    with tempfile.TemporaryDirectory() as tmp:
+        args = ["--ros-args", "--params-file", str(write_params_file(config.to_params(), Path(tmp)))]
+        with Player() as player, NodeProcess(args) as node:
+            player.wait_for_node(node, TIMEOUT_S)
+            player.publish(topic, pos, raws, in_flight=200, node=node)
+            n = len(ref.outputs)
+            wait_until(
+                lambda: player.received(MEAN_TOPIC) >= n, TIMEOUT_S, f"{n} posteriors", node.check_alive
+            )
+            mean, _ = array_from_msg(player.last(MEAN_TOPIC))
+            logged = lambda: "closed 1 open window" in node.output()  # noqa: E731
+            wait_until(logged, TIMEOUT_S, "the node to log the quiet-input close", node.check_alive)
+    np.testing.assert_allclose(mean, ref.mean_m, rtol=1e-12, atol=0)

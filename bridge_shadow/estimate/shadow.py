@@ -412,10 +412,15 @@ class Shadow:
         self._maybe_checkpoint()
         return outputs
 
+    @property
+    def holds_data(self) -> bool:
+        """Whether forces are buffered in windows not yet closed (what ``flush`` would close)."""
+        return any(b.first_ns() is not None for b in self._force)
+
     def flush(self) -> list[WindowOutput]:
         """Close every window that holds data (end of a replay); later data will be ``late``."""
         outputs: list[WindowOutput] = []
-        while self.next_k is not None and any(b.first_ns() is not None for b in self._force):
+        while self.next_k is not None and self.holds_data:
             outputs.extend(self._close(self.next_k))
             self.next_k = self._next_window(self.next_k + 1)
         if self._held:

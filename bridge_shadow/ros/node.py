@@ -33,6 +33,12 @@ depth (RELIABLE, KEEP_LAST; 0 means KEEP_ALL). Note that a full reliable reader 
 the writer to resend at its next heartbeat (seconds later, in Fast DDS), so a fast replay keeps
 fewer than ``qos_depth`` messages in flight using the status service instead.
 
+Quiet inputs (wall clock): windows close on stamp time, so when every input stops the window holding
+the last data would wait for the next message. Once no input has arrived for
+``max(topic_timeout_s, window_s)`` of wall time (what /diagnostics reports as an ERROR), the node closes
+the windows holding data as the replay's end does (``Shadow.flush``) and publishes them; a message
+for such a window that arrives later still is counted ``late``. Data after the gap is unaffected.
+
 Checkpoint: with ``checkpoint_path`` set, the node resumes from that file when it exists, the shadow
 saves it every ``checkpoint_period_s`` of stamp time, and the node saves it on SIGINT/SIGTERM
 after ingesting what it has buffered.
@@ -202,7 +208,8 @@ class ShadowNode(Node):
             self.create_publisher(WrenchStamped, COMPENSATED_TOPICS[ch], out_qos) for ch in CHANNELS
         ]
         self._pub_diag = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
-        self._drain_timer = self.create_timer(DRAIN_PERIOD_S, self.drain)
+        self._drain_timer = self.create_timer(DRAIN_PERIOD_S, self._on_drain_timer)
+        self.quiet_flushes = 0
         self._diag_timer = self.create_timer(cfg.diagnostics_period_s, self.publish_diagnostics)
         self._flush_srv = self.create_service(Trigger, FLUSH_SERVICE, self._on_flush)
         self._status_srv = self.create_service(Trigger, STATUS_SERVICE, self._on_status)
@@ -331,6 +338,22 @@ class ShadowNode(Node):
         self._publish(self.shadow.poll())
         self._next_end_ns = self._window_end()
 
+    def _on_drain_timer(self) -> None:
+        """Ingest what is buffered; close the open windows when every input has been quiet too long."""
+        self.drain()
+        arrivals = [t for t in self._arrival if t is not None]
+        if not arrivals or time.monotonic() - max(arrivals) <= self._timeout_s:
+            return
+        if any(self._raw) or any(p is not None for p in self._pending) or self.shadow.holds_data:
+            self.ingest_pending(everything=True)
+            outputs = self.shadow.flush()
+            self._publish(outputs)
+            self._next_end_ns = self._window_end()
+            self.quiet_flushes += 1
+            self.get_logger().warning(
+                f"no input for {self._timeout_s:g} s: closed {len(outputs)} open window(s) with the data held"
+            )
+
     # -- output ----------------------------------------------------------------------------
     def _publish(self, outputs: list[Any]) -> None:
         for out in outputs:
@@ -352,6 +375,7 @@ class ShadowNode(Node):
             "received": dict(zip(keys, self.received, strict=True)),
             "malformed": self.malformed,
             "windows_published": self.windows_published,
+            "quiet_flushes": self.quiet_flushes,
             "arrival_age_s": self._ages(),
         }
         return diag
