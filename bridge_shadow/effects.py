@@ -2,7 +2,7 @@
 
 The twin (``bridge_shadow.twin``) injects an effect with ``--effect NAME=MAGNITUDE`` using the
 generative meaning below; the gap diagnosis (``bridge_shadow.gap``) must find it from the data with
-candidate models of its own, never reading the twin's ``truth.yaml``. Both read this table for the
+candidate models of its own, never reading the twin's ground-truth file. Both read this table for the
 names, the unit of the magnitude, and the magnitudes used in tests: ``realistic`` (a clear case) and
 ``edge`` (about the edge of detectability in three days of 60 s windows).
 

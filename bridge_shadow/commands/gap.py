@@ -17,7 +17,7 @@ the measured central reactions of a monitoring bag:
          and after adding the best effect
 
 `best` is `none` when no candidate beats the chance level of AR(1) noise. The diagnosis never
-reads a twin's truth.yaml. JSON output is SI (N, m, s, C)."""
+reads a twin's ground-truth file. JSON output is SI (N, m, s, C)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -2,7 +2,7 @@
 
 ``diagnose(MonitoringData) -> Diagnosis`` is the entry point; ``write_report`` (in
 ``bridge_shadow.gap.report``, imports matplotlib) writes the Markdown report. No ROS import, and
-nothing here reads a truth twin's ``truth.yaml``.
+nothing here reads a truth twin's ground-truth file.
 
 Modules: ``windows`` (60 s window statistics), ``drivers`` (time, temperature, lag, sun,
 clearness, traffic events), ``candidates`` (the effect library: spatial signature x driver),

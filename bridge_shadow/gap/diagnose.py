@@ -5,7 +5,7 @@ baseline model (``bridge_shadow.effects``: ``u0`` plus the FE uniform thermal ca
 temperature change), fits every candidate of the vocabulary with whole-day cross-validation, ranks
 them by held-out improvement, groups candidates the two reactions cannot tell apart, and compares
 the shadow's posterior settlements before and after adding the best effect. It never reads the
-truth twin's ``truth.yaml``.
+truth twin's ground-truth file.
 """
 
 from __future__ import annotations

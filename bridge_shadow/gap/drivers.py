@@ -1,6 +1,6 @@
 """Temporal drivers of the candidate effects, computed on the window grid from the data alone.
 
-Nothing here reads the truth twin's ``truth.yaml``: the drivers are time, air temperature (raw and
+Nothing here reads the truth twin's ground-truth file: the drivers are time, air temperature (raw and
 first-order lagged), the clear-sky sun covariate at Neubiberg times a daily clearness estimated
 from the daily air-temperature range, and traffic events detected from the within-window spread.
 """
