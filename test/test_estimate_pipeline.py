@@ -270,3 +270,18 @@ def test_nan_temperature_at_a_window_end_does_not_make_chunking_matter(root: Pat
     assert small.updates == big.updates > 1000
     np.testing.assert_allclose(small.mean_m, big.mean_m, rtol=1e-12, atol=0)
     np.testing.assert_allclose(small.covariance_m2, big.covariance_m2, rtol=1e-12, atol=0)
+
+
+def test_diagnostics_warn_until_the_noise_model_has_seen_a_day() -> None:
+    """Intervals from less than a day of residuals are flagged; after a whole day the level is OK."""
+    short = Shadow(small_config(), placeholder_surrogate())
+    short.run(synthetic(minutes=240, rate=1))
+    diag = short.diagnostics()
+    assert diag["windows"]["warm"] and diag["level"] == "WARN"
+    assert "optimistic" in diag["message"] and "4.0 h" in diag["message"]
+    day = Shadow(small_config(), placeholder_surrogate())
+    day.run(synthetic(minutes=24 * 60 + 30, rate=1))
+    assert day.diagnostics()["level"] == "OK"
+    fixed = Shadow(small_config(noise_mode="fixed"), placeholder_surrogate())
+    fixed.run(synthetic(minutes=240, rate=1))
+    assert fixed.diagnostics()["level"] == "OK"  # a fixed noise model does not learn from residuals

@@ -38,8 +38,12 @@ from bridge_shadow.estimate.spline import OnlinePSpline
 from bridge_shadow.model.surrogate_file import Surrogate, load_surrogate
 from bridge_shadow.series import MonitoringData
 
-__all__ = ["TOPIC_KEYS", "ReplayResult", "Shadow", "WindowOutput"]
+__all__ = ["NOISE_FULL_DAY_S", "TOPIC_KEYS", "ReplayResult", "Shadow", "WindowOutput"]
 
+#: Residual history the adaptive noise model needs before the diagnostics call its intervals
+#: calibrated: one whole day. Before that, a quiet night can give intervals that widen many times
+#: once the sun-driven residuals arrive (bags/demo_3d: 0.0013 mm after 7 h, 0.18 mm after a day).
+NOISE_FULL_DAY_S = 86_400.0
 #: Keys of the three input topics in counters and diagnostics.
 TOPIC_KEYS: tuple[str, str, str] = (*CHANNELS, "air_temperature")
 _NS = 1_000_000_000
@@ -712,6 +716,13 @@ class Shadow:
             level, message = "WARN", f"stale or missing topic(s): {', '.join(stale)}"
         elif not warm:
             level, message = "WARN", f"warming up ({self.n_good}/{self._warmup} windows)"
+        elif self.noise.adaptive and self.noise.n * self.config.window_s < NOISE_FULL_DAY_S:
+            hours = self.noise.n * self.config.window_s / 3600.0
+            level, message = (
+                "WARN",
+                f"noise model has seen {hours:.1f} h (< 24 h): intervals may be optimistic until a "
+                "whole day of sun and traffic is in the residuals",
+            )
         else:
             level, message = "OK", "tracking"
         sigma = np.sqrt(np.diag(cov))
