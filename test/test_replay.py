@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from renamed_topics import RENAMED, renamed_bag
 
 from bridge_shadow.cli import main
 from bridge_shadow.contract import COVARIANCE_TOPIC, MEAN_TOPIC
@@ -106,3 +107,38 @@ def test_replay_on_the_real_records(
     assert np.all(sd > 0) and np.all(sd < 3e-4)  # the data narrowed the 0.3 mm prior
     assert js["windows"]["updates"] >= 10
     assert js["messages"]["used"] > 100_000
+
+
+def test_topic_parameters_rename_what_replay_reads_and_writes(
+    root: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A bag with other topic names replays with topic_* parameters and gives the same posterior."""
+    import yaml
+
+    from bridge_shadow.bagio import read_raw_topics
+    from bridge_shadow.contract import FLOAT_ARRAY_TYPE
+
+    src = root / "bags" / "baseline_1d"
+    bag = renamed_bag(src, tmp_path / "renamed")
+    params = tmp_path / "params.yaml"
+    params.write_text(yaml.safe_dump({"bridge_shadow": {"ros__parameters": RENAMED}}))
+    ref = _replay_json(capsys, str(src))
+    got = _replay_json(capsys, str(bag), "--params", str(params), "--out", str(tmp_path / "out"))
+    assert got["posterior"] == ref["posterior"] and got["messages"] == ref["messages"]
+    out = read_raw_topics(
+        tmp_path / "out", {RENAMED["topic_mean"]: FLOAT_ARRAY_TYPE, MEAN_TOPIC: FLOAT_ARRAY_TYPE}
+    )
+    assert MEAN_TOPIC not in out and len(out[RENAMED["topic_mean"]][1]) == ref["windows"]["closed"]
+    # without the parameters the renamed bag lacks the contract topics: one line, exit 2
+    assert main(["replay", str(bag)]) == 2
+    assert "missing topic(s) /bridge/air_temperature" in capsys.readouterr().err
+
+
+def test_topic_parameters_are_validated() -> None:
+    from bridge_shadow.errors import ConfigError
+    from bridge_shadow.estimate import ShadowConfig
+
+    with pytest.raises(ConfigError, match="not a valid ROS topic name"):
+        ShadowConfig(topic_mean="/bridge shadow/mean")
+    with pytest.raises(ConfigError, match="must all be different"):
+        ShadowConfig(topic_covariance=ShadowConfig().topic_mean)

@@ -257,3 +257,18 @@ def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
             logged = lambda: "closed 1 open window" in node.output()  # noqa: E731
             wait_until(logged, TIMEOUT_S, "the node to log the quiet-input close", node.check_alive)
     np.testing.assert_allclose(mean, ref.mean_m, rtol=1e-12, atol=0)
+
+
+def test_topic_parameters_rename_the_node_graph(bag: Path, direct, tmp_path: Path) -> None:
+    """The node subscribes and publishes under the topic_* parameters; the posterior is unchanged."""
+    from renamed_topics import RENAMED, renamed_bag
+
+    from bridge_shadow.contract import FLOAT_ARRAY_TYPE
+
+    renamed = renamed_bag(bag, tmp_path / "renamed")
+    live = run_live(renamed, overrides={**OVERRIDES, **RENAMED}, out=tmp_path / "out", timeout_s=TIMEOUT_S)
+    np.testing.assert_allclose(live["posterior"]["mean_m"], direct.mean_m, rtol=1e-12, atol=0)
+    assert live["messages"]["used_by_topic"] == direct.used
+    wanted = {RENAMED["topic_mean"]: FLOAT_ARRAY_TYPE, MEAN_TOPIC: FLOAT_ARRAY_TYPE}
+    out = read_raw_topics(tmp_path / "out", wanted)
+    assert MEAN_TOPIC not in out and len(out[RENAMED["topic_mean"]][1]) == len(direct.outputs)

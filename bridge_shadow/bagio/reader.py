@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import sqlite3
 import struct
-from collections.abc import Collection, Iterator
+from collections.abc import Collection, Iterator, Sequence
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from operator import attrgetter, itemgetter
@@ -264,13 +264,20 @@ def _required_topics(required: bool | Collection[str]) -> set[str]:
     return set(required)
 
 
-def read_monitoring(path: str | Path, *, required: bool | Collection[str] = True) -> MonitoringData:
+def read_monitoring(
+    path: str | Path,
+    *,
+    required: bool | Collection[str] = True,
+    topics: Sequence[str] | None = None,
+) -> MonitoringData:
     """Read the three contract input topics, decoding their CDR vectorized.
 
     Args:
         path: bag directory (sqlite3 or MCAP) or a bare ``.db3``/``.mcap`` file.
-        required: True (all three topics must be present), False (none), or the topic names
-            that must be present. An absent optional topic gives an empty series.
+        required: True (all three topics must be present), False (none), or the contract topic
+            names that must be present. An absent optional topic gives an empty series.
+        topics: the names the bag uses for frc_01, frc_02 and the air temperature (default: the
+            contract's); the message types stay the contract's.
 
     Returns:
         ``MonitoringData`` with stamps from ``header.stamp``, ``log_ns`` from the bag's log time
@@ -281,11 +288,13 @@ def read_monitoring(path: str | Path, *, required: bool | Collection[str] = True
 
     """
     path = Path(path)
-    must = _required_topics(required)
-    raw = read_blocks(path, INPUT_TOPICS)
+    contract = [*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC]
+    names = dict(zip(contract, contract if topics is None else list(topics), strict=True))
+    must = {names[t] for t in _required_topics(required)}
+    raw = read_blocks(path, {names[t]: msgtype for t, msgtype in INPUT_TOPICS.items()})
     missing = sorted(must - set(raw))
     if missing:
-        has = ", ".join(sorted(raw)) or "none of the contract topics"
+        has = ", ".join(sorted(raw)) or "none of the input topics"
         raise MissingTopicError(f"{path}: missing topic(s) {', '.join(missing)} (bag has {has})")
 
     def decode(topic: str, msgtype: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -300,8 +309,8 @@ def read_monitoring(path: str | Path, *, required: bool | Collection[str] = True
 
     forces = {}
     for ch in CHANNELS:
-        stamp_ns, frames, values, log_ns = decode(FORCE_TOPICS[ch], FORCE_TYPE)
+        stamp_ns, frames, values, log_ns = decode(names[FORCE_TOPICS[ch]], FORCE_TYPE)
         forces[ch] = ForceSeries(stamp_ns, values[:, 2], frames, log_ns)
-    stamp_ns, frames, values, log_ns = decode(TEMPERATURE_TOPIC, TEMPERATURE_TYPE)
+    stamp_ns, frames, values, log_ns = decode(names[TEMPERATURE_TOPIC], TEMPERATURE_TYPE)
     temperature = TemperatureSeries(stamp_ns, values[:, 0], values[:, 1], frames, log_ns)
     return MonitoringData(forces, temperature)

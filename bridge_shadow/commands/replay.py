@@ -31,7 +31,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def write_outputs(path: str | Path, result: Any, shadow: Any) -> Path:
-    """Write window outputs as a bag: mean, covariance, compensated forces and diagnostics."""
+    """Write window outputs as a bag: mean, covariance, compensated forces and diagnostics.
+
+    Topic names are the shadow's ``topic_*`` parameters (the contract's by default).
+    """
     import numpy as np
 
     from bridge_shadow.bagio import BagOutputWriter
@@ -49,14 +52,19 @@ def write_outputs(path: str | Path, result: Any, shadow: Any) -> Path:
 
     levels = {"OK": 0, "WARN": 1, "ERROR": 2}
     diag = shadow.diagnostics()
+    names = shadow.config.output_topics()
     with BagOutputWriter(path) as writer:
         for out in result.outputs:
             t = int(out.end_ns)
-            writer.write_float64_array(MEAN_TOPIC, t, out.mean_m, [MEAN_LAYOUT_LABEL])
-            writer.write_float64_array(COVARIANCE_TOPIC, t, out.covariance_m2, list(COVARIANCE_LAYOUT_LABELS))
+            writer.write_float64_array(names[MEAN_TOPIC], t, out.mean_m, [MEAN_LAYOUT_LABEL])
+            writer.write_float64_array(
+                names[COVARIANCE_TOPIC], t, out.covariance_m2, list(COVARIANCE_LAYOUT_LABELS)
+            )
             if np.all(np.isfinite(out.compensated_n)):
                 for c, ch in enumerate(CHANNELS):
-                    writer.write_wrench(COMPENSATED_TOPICS[ch], t, t, FORCE_FRAMES[ch], out.compensated_n[c])
+                    writer.write_wrench(
+                        names[COMPENSATED_TOPICS[ch]], t, t, FORCE_FRAMES[ch], out.compensated_n[c]
+                    )
             values = {
                 "window_end_ns": t,
                 "updated": out.updated,
@@ -150,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = load_config(args.params)
     surrogate = load_surrogate(config.surrogate_path or None)
-    data = read_monitoring(args.bag)
+    data = read_monitoring(args.bag, topics=config.input_topics())
     shadow = Shadow(config, surrogate)
     result = shadow.run(data, progress=show)
     js = result.to_json()

@@ -9,13 +9,23 @@ the same values, so an empty file gives the paper's set-up.
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from bridge_shadow.contract import NODE_NAME
+from bridge_shadow.contract import (
+    CHANNELS,
+    COMPENSATED_TOPICS,
+    COVARIANCE_TOPIC,
+    DIAGNOSTICS_TOPIC,
+    FORCE_TOPICS,
+    MEAN_TOPIC,
+    NODE_NAME,
+    TEMPERATURE_TOPIC,
+)
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.paths import config_file
 
@@ -25,6 +35,17 @@ _MATCH_MODES = ("hold", "linear")
 _SMOOTHING_MODES = ("reml", "gcv", "fixed", "none")
 _NOISE_MODES = ("adaptive", "fixed")
 _LEVELS = ("warmup_mean", "mean", "reference")
+#: A ROS topic name: absolute or relative, tokens of letters, digits and underscores.
+_TOPIC_FIELDS = (
+    "topic_frc_01",
+    "topic_frc_02",
+    "topic_air_temperature",
+    "topic_mean",
+    "topic_covariance",
+    "topic_compensated_frc_01",
+    "topic_compensated_frc_02",
+)
+_TOPIC_NAME = re.compile(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$")
 
 
 @dataclass
@@ -77,6 +98,14 @@ class ShadowConfig:
     # node-only parameters (used by bridge_shadow.ros)
     qos_depth: int = 1000
     diagnostics_period_s: float = 1.0
+    # topics (defaults: the contract); replay reads a bag's inputs under the same names
+    topic_frc_01: str = FORCE_TOPICS["frc_01"]
+    topic_frc_02: str = FORCE_TOPICS["frc_02"]
+    topic_air_temperature: str = TEMPERATURE_TOPIC
+    topic_mean: str = MEAN_TOPIC
+    topic_covariance: str = COVARIANCE_TOPIC
+    topic_compensated_frc_01: str = COMPENSATED_TOPICS["frc_01"]
+    topic_compensated_frc_02: str = COMPENSATED_TOPICS["frc_02"]
 
     def __post_init__(self) -> None:
         self.validate()
@@ -113,6 +142,24 @@ class ShadowConfig:
         need(self.gate_max_consecutive >= 1, "gate_max_consecutive must be >= 1")
         need(self.clock_jump_confirm >= 1, "clock_jump_confirm must be >= 1")
         need(self.temperature_stale_s > 0 and self.topic_timeout_s >= 0, "timeouts must be positive")
+        topics = [*self.input_topics(), *self.output_topics().values()]
+        for name in _TOPIC_FIELDS:
+            value = getattr(self, name)
+            need(bool(_TOPIC_NAME.match(value)), f"{name}: {value!r} is not a valid ROS topic name")
+        need(len(set(topics)) == len(topics), "the input and output topics must all be different")
+
+    def input_topics(self) -> tuple[str, str, str]:
+        """Input topic names in the node's order: frc_01, frc_02, air temperature."""
+        return (self.topic_frc_01, self.topic_frc_02, self.topic_air_temperature)
+
+    def output_topics(self) -> dict[str, str]:
+        """Contract output topic -> the name used here (``/diagnostics`` is fixed by ROS convention)."""
+        return {
+            MEAN_TOPIC: self.topic_mean,
+            COVARIANCE_TOPIC: self.topic_covariance,
+            **{COMPENSATED_TOPICS[ch]: getattr(self, f"topic_compensated_{ch}") for ch in CHANNELS},
+            DIAGNOSTICS_TOPIC: DIAGNOSTICS_TOPIC,
+        }
 
     @classmethod
     def from_params(cls, params: dict[str, Any], *, strict: bool = True) -> ShadowConfig:

@@ -103,11 +103,13 @@ class Player:
     """The far end of the node's graph, in its own rclpy context and executor thread.
 
     Publishes raw input messages (RELIABLE, KEEP_ALL), records every output message raw with its
-    receive time (wall ns), and calls the node's flush service.
+    receive time (wall ns), and calls the node's flush service. ``inputs`` (frc_01, frc_02, air
+    temperature) and ``outputs`` (contract output topic -> name in the graph) follow the node's
+    ``topic_*`` parameters; the defaults are the contract's names.
 
     Attributes:
-        records: output topic (and each ``extra`` topic) -> list of ``(receive_ns, raw_cdr)``, in
-            arrival order; ``receive_ns`` is ``time.time_ns()``.
+        records: contract output topic (and each ``extra`` topic) -> list of
+            ``(receive_ns, raw_cdr)``, in arrival order; ``receive_ns`` is ``time.time_ns()``.
 
     """
 
@@ -117,6 +119,8 @@ class Player:
         *,
         record_diagnostics: bool = True,
         extra: dict[str, Any] | None = None,
+        inputs: Sequence[str] = INPUT_ORDER,
+        outputs: dict[str, str] | None = None,
     ) -> None:
         self.context = rclpy.Context()
         # no rclpy signal handlers: Ctrl-C stays a KeyboardInterrupt, and callers' finally blocks
@@ -126,13 +130,14 @@ class Player:
         qos = input_qos(0)
         types = (WrenchStamped, WrenchStamped, Temperature)
         self.publishers = [
-            self.node.create_publisher(t, topic, qos) for t, topic in zip(types, INPUT_ORDER, strict=True)
+            self.node.create_publisher(t, topic, qos) for t, topic in zip(types, inputs, strict=True)
         ]
+        names = {t: t for t in _OUTPUT_TYPES} | dict(outputs or {})
         self.records: dict[str, list[tuple[int, bytes]]] = {topic: [] for topic in _OUTPUT_TYPES}
         topics = [t for t in _OUTPUT_TYPES if record_diagnostics or t != DIAGNOSTICS_TOPIC]
         self._subs = [
             self.node.create_subscription(
-                _OUTPUT_TYPES[t], t, self._recorder(t), 10 if t == DIAGNOSTICS_TOPIC else qos, raw=True
+                _OUTPUT_TYPES[t], names[t], self._recorder(t), 10 if t == DIAGNOSTICS_TOPIC else qos, raw=True
             )
             for t in topics
         ]
@@ -297,15 +302,17 @@ def write_params_file(params: dict[str, Any], directory: Path) -> Path:
     return path
 
 
-def _write_outputs(path: str | Path, records: dict[str, list[tuple[int, bytes]]]) -> Path:
-    """Record the node's outputs as a bag, log time = receive time (what ``ros2 bag record`` does)."""
+def _write_outputs(
+    path: str | Path, records: dict[str, list[tuple[int, bytes]]], names: dict[str, str]
+) -> Path:
+    """Record the node's outputs under their graph ``names``, log time = receive time (as a recorder)."""
     from bridge_shadow.bagio import BagOutputWriter
 
     with BagOutputWriter(path) as writer:
         for topic, items in records.items():
             if items:
                 stamps, raws = zip(*items, strict=True)
-                writer.write_many_raw(topic, OUTPUT_TOPICS[topic], stamps, raws)
+                writer.write_many_raw(names.get(topic, topic), OUTPUT_TOPICS[topic], stamps, raws)
     return Path(path)
 
 
@@ -344,12 +351,13 @@ def run_live(
 
     config = load_config(params_path, overrides)
     surrogate = load_surrogate(config.surrogate_path or None)
-    data = read_raw_topics(bag, INPUT_TOPICS)
-    missing = [t for t in INPUT_ORDER if t not in data]
+    inputs = config.input_topics()
+    data = read_raw_topics(bag, dict(zip(inputs, INPUT_TOPICS.values(), strict=True)))
+    missing = [t for t in inputs if t not in data]
     if missing:
         raise InputError(f"{bag}: missing topic(s) {', '.join(missing)}")
-    log_ns = [data[t][0] for t in INPUT_ORDER]
-    raws = [data[t][1] for t in INPUT_ORDER]
+    log_ns = [data[t][0] for t in inputs]
+    raws = [data[t][1] for t in inputs]
     topic, pos, merged = merge_log_order(log_ns)
     total = len(topic)
     with tempfile.TemporaryDirectory(prefix="bridge_shadow_live_") as tmp:
@@ -360,7 +368,7 @@ def run_live(
         try:
             t0 = time.perf_counter()
             node.start()
-            player = Player()
+            player = Player(inputs=inputs, outputs=config.output_topics())
             discovery_s = player.wait_for_node(node, timeout_s)
             in_flight = min(config.qos_depth if config.qos_depth > 0 else MAX_IN_FLIGHT, MAX_IN_FLIGHT)
             t_first, t_last = player.publish(topic, pos, raws, merged, rate, in_flight, node, progress)
@@ -434,7 +442,7 @@ def run_live(
         },
     }
     if out is not None:
-        js["out"] = str(_write_outputs(out, records))
+        js["out"] = str(_write_outputs(out, records, config.output_topics()))
     if plots is not None:
         js["plots"] = [str(p) for p in plot_paths]
     return js

@@ -1,6 +1,7 @@
 """``bridge_shadow_node``: the live shadow, a thin rclpy shell over ``bridge_shadow.estimate.Shadow``.
 
-Wiring (topics and types from ``bridge_shadow.contract``)::
+Wiring (types from ``bridge_shadow.contract``; topic names are the ``topic_*`` parameters, whose
+defaults are the contract's)::
 
     /bridge/frc_01/force, /bridge/frc_02/force   WrenchStamped  --raw CDR-->  buffer per topic
     /bridge/air_temperature                      Temperature    --raw CDR-->  buffer per topic
@@ -89,10 +90,8 @@ from bridge_shadow.contract import (
     COVARIANCE_TOPIC,
     DIAGNOSTICS_TOPIC,
     FORCE_FRAMES,
-    FORCE_TOPICS,
     MEAN_TOPIC,
     NODE_NAME,
-    TEMPERATURE_TOPIC,
 )
 from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.estimate import Shadow, ShadowConfig, WindowOutput, load_config
@@ -136,7 +135,6 @@ MIN_DRAIN_GAP_S = 0.002
 REORDER_HOLD_S = 5.0
 _NS = 1_000_000_000
 _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-_TOPICS = (*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC)
 
 _USAGE = """\
 usage: bridge_shadow_node [--ros-args [-p NAME:=VALUE ...] [--params-file FILE]]
@@ -200,12 +198,13 @@ class ShadowNode(Node):
         types = (WrenchStamped, WrenchStamped, Temperature)
         self._subs = [
             self.create_subscription(t, topic, self._callback(i), in_qos, raw=True)
-            for i, (t, topic) in enumerate(zip(types, _TOPICS, strict=True))
+            for i, (t, topic) in enumerate(zip(types, cfg.input_topics(), strict=True))
         ]
-        self._pub_mean = self.create_publisher(Float64MultiArray, MEAN_TOPIC, out_qos)
-        self._pub_cov = self.create_publisher(Float64MultiArray, COVARIANCE_TOPIC, out_qos)
+        outs = cfg.output_topics()
+        self._pub_mean = self.create_publisher(Float64MultiArray, outs[MEAN_TOPIC], out_qos)
+        self._pub_cov = self.create_publisher(Float64MultiArray, outs[COVARIANCE_TOPIC], out_qos)
         self._pub_comp = [
-            self.create_publisher(WrenchStamped, COMPENSATED_TOPICS[ch], out_qos) for ch in CHANNELS
+            self.create_publisher(WrenchStamped, outs[COMPENSATED_TOPICS[ch]], out_qos) for ch in CHANNELS
         ]
         self._pub_diag = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
         self._drain_timer = self.create_timer(DRAIN_PERIOD_S, self._on_drain_timer)
