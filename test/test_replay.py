@@ -82,6 +82,9 @@ def test_replay_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert main(["replay", str(tmp_path / "nope"), "--params", str(bad)]) == 2
     err = capsys.readouterr().err
     assert "window_s" in err and err.count("\n") == 1
+    assert main(["replay", str(tmp_path / "nope"), "--rate", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "--rate needs --live" in err and err.count("\n") == 1
 
 
 @pytest.mark.realdata

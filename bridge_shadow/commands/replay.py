@@ -8,23 +8,31 @@ from typing import Any
 
 HELP = "replay a monitoring bag through the shadow: posterior settlements, compensation, gating"
 DESCRIPTION = """\
-Replay a rosbag2 bag with the contract input topics (/bridge/frc_01/force, /bridge/frc_02/force,
-/bridge/air_temperature) through the online shadow: gate -> 60 s windows -> P-spline temperature
-compensation -> Kalman update of the two central-support settlements over u = A x + u0.
+Replay a rosbag2 bag with the input topics (the contract's /bridge/frc_01/force,
+/bridge/frc_02/force and /bridge/air_temperature, or the topic_* parameters) through the online
+shadow: gate -> 60 s windows -> P-spline temperature compensation -> Kalman update of the two
+central-support settlements over u = A x + u0.
 
 By default the bag is decoded vectorized and fed to the pipeline directly; --live plays it through
 the rclpy node in a loopback DDS graph (same pipeline, same posterior). Parameters come from
 config/shadow.yaml or --params. --json prints one object: posterior.mean_m [south, north] (m),
 posterior.covariance_m2 (m^2), messages used and rejected by reason, messages_per_s, spline edf
-and lambda per channel.
+and lambda per channel. --out and --plots work in both modes (live: drawn from the node's history
+service and final checkpoint). A progress bar shows on a terminal unless --json.
 """
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add BAG, --params, --live, --out, --plots, --json."""
+    """Add BAG, --params, --live, --rate, --out, --plots, --json."""
     parser.add_argument("bag", metavar="BAG", help="rosbag2 directory (sqlite3 or MCAP)")
     parser.add_argument("--params", metavar="YAML", help="shadow parameter file (default config/shadow.yaml)")
     parser.add_argument("--live", action="store_true", help="play through the rclpy node over DDS (loopback)")
+    parser.add_argument(
+        "--rate",
+        type=float,
+        metavar="X",
+        help="with --live: publish at X times the bag's pace (1 = real time; default: as fast as taken)",
+    )
     parser.add_argument("--out", metavar="OUTBAG", help="write the outputs (mean, covariance, ...) as a bag")
     parser.add_argument("--plots", metavar="DIR", help="write PNG plots (compensation, posterior, ellipse)")
     parser.add_argument("--json", action="store_true", help="print one JSON object (SI units)")
@@ -144,10 +152,14 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.model.surrogate_file import load_surrogate
 
     show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "replay"))
+    if args.rate is not None and (not args.live or not args.rate > 0):
+        from bridge_shadow.errors import InputError
+
+        raise InputError("--rate needs --live and a positive speed factor")
     if args.live:
         from bridge_shadow.ros.live_replay import run_live
 
-        js = run_live(args.bag, args.params, out=args.out, plots=args.plots, progress=show)
+        js = run_live(args.bag, args.params, out=args.out, plots=args.plots, rate=args.rate, progress=show)
         if args.json:
             emit_json(js)
         else:
