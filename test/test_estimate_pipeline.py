@@ -285,3 +285,38 @@ def test_diagnostics_warn_until_the_noise_model_has_seen_a_day() -> None:
     fixed = Shadow(small_config(noise_mode="fixed"), placeholder_surrogate())
     fixed.run(synthetic(minutes=240, rate=1))
     assert fixed.diagnostics()["level"] == "OK"  # a fixed noise model does not learn from residuals
+
+
+def test_systematic_term_widens_the_published_covariance_only(root: Path) -> None:
+    """A^-1 diag(s^2) A^-T joins every published covariance; means and filter are untouched.
+
+    On bags/baseline_1d (no settlement in the truth) the paper's posterior (s = 0) is far too sure
+    of itself: the compensation level sits at the warm-up temperature, not at the unknown
+    stress-free one, a bias of about 0.02 mm that no averaging removes. With s = 100 N (5 K of
+    reference temperature times the uniform-temperature coefficient) the truth is inside the
+    95 % region.
+    """
+    import yaml
+
+    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    bag = root / "bags" / "baseline_1d"
+    truth = yaml.safe_load((bag / "truth.yaml").read_text())  # scoring only
+    x_true = np.asarray(truth["settlement"]["mean_m"], float)
+    data = read_monitoring(bag)
+    sur = load_surrogate()
+    paper = Shadow(ShadowConfig(), sur).run(data)
+    wide = Shadow(ShadowConfig(systematic_sigma_n=[100.0, 100.0]), sur).run(data)
+    a_inv = np.linalg.inv(sur.A)
+    term = a_inv @ np.diag([1e4, 1e4]) @ a_inv.T
+    assert np.array_equal(wide.mean_m, paper.mean_m)
+    np.testing.assert_allclose(wide.covariance_m2, paper.covariance_m2 + term, rtol=1e-12)
+    np.testing.assert_allclose(
+        wide.outputs[-1].covariance_m2, paper.outputs[-1].covariance_m2 + term, rtol=1e-12
+    )
+    err = paper.mean_m - x_true
+    assert err @ np.linalg.solve(paper.covariance_m2, err) > 5.991  # overconfident
+    assert err @ np.linalg.solve(wide.covariance_m2, err) <= 5.991  # covered
+    with pytest.raises(ConfigError):
+        ShadowConfig(systematic_sigma_n=[-1.0, 0.0])

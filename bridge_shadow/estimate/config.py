@@ -72,6 +72,7 @@ class ShadowConfig:
     prior_sigma_m: list[float] = field(default_factory=lambda: [3.0e-4, 3.0e-4])
     process_noise_m2_per_s: list[float] = field(default_factory=lambda: [0.0, 0.0])
     noise_sigma_n: list[float] = field(default_factory=lambda: [60.4, 82.7])
+    systematic_sigma_n: list[float] = field(default_factory=lambda: [0.0, 0.0])
     # honest uncertainty (noise model)
     noise_mode: str = "adaptive"
     noise_warmup_windows: int = 30
@@ -127,13 +128,14 @@ class ShadowConfig:
         need(self.spline_segments >= 1, "spline_segments must be >= 1")
         need(self.spline_lambda >= 0, "spline_lambda must be >= 0")
         need(self.spline_forgetting_s >= 0, "spline_forgetting_s must be >= 0 (0 = off)")
-        for name in ("prior_sigma_m", "process_noise_m2_per_s", "noise_sigma_n"):
+        for name in ("prior_sigma_m", "process_noise_m2_per_s", "noise_sigma_n", "systematic_sigma_n"):
             value = getattr(self, name)
             need(len(value) == 2, f"{name} must have two values [south, north]")
             setattr(self, name, [float(v) for v in value])
         need(min(self.prior_sigma_m) > 0, "prior_sigma_m must be > 0")
         need(min(self.noise_sigma_n) > 0, "noise_sigma_n must be > 0")
         need(min(self.process_noise_m2_per_s) >= 0, "process_noise_m2_per_s must be >= 0")
+        need(min(self.systematic_sigma_n) >= 0, "systematic_sigma_n must be >= 0")
         need(0.0 <= self.noise_phi_max < 1.0, "noise_phi_max must be in [0, 1)")
         need(0.0 < self.mahalanobis_probability <= 1.0, "mahalanobis_probability must be in (0, 1]")
         need(self.force_max_n > self.force_min_n, "force_max_n must exceed force_min_n")

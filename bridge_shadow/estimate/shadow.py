@@ -289,6 +289,12 @@ class Shadow:
             np.asarray(config.process_noise_m2_per_s),
             config.mahalanobis_probability,
         )
+        sys_sd = np.asarray(config.systematic_sigma_n, float)
+        self._systematic: np.ndarray | None = None
+        if np.any(sys_sd > 0):
+            a_inv = np.linalg.inv(surrogate.A)
+            cov = a_inv @ np.diag(sys_sd**2) @ a_inv.T
+            self._systematic = 0.5 * (cov + cov.T)
         warm = [config.spline_warmup_windows if config.smoothing != "none" else 0]
         warm.append(config.noise_warmup_windows if config.noise_mode == "adaptive" else 0)
         # a spline needs one window before it can compensate, the noise model two
@@ -537,7 +543,7 @@ class Shadow:
         if last is not None and self._pred_ns is not None and self._pred_ns > last:
             filt.predict((self._pred_ns - last) / _NS)
         self.filter = filt
-        out.mean_m, out.covariance_m2 = filt.x, filt.P
+        out.mean_m, out.covariance_m2 = filt.x, self._published_cov(filt.P)
 
     def _replay_log(
         self, log: tuple[np.ndarray, np.ndarray, np.ndarray], r1: np.ndarray
@@ -663,7 +669,7 @@ class Shadow:
             np.asarray(force).copy(),
             np.asarray(comp).copy(),
             self.filter.x,
-            self.filter.P,
+            self._published_cov(self.filter.P),
             updated,
             reason,
         )
@@ -671,8 +677,12 @@ class Shadow:
     # -- reporting ----------------------------------------------------------------------------
     @property
     def posterior(self) -> tuple[np.ndarray, np.ndarray]:
-        """Posterior mean (2,) m and covariance (2, 2) m^2."""
-        return self.filter.x, self.filter.P
+        """Posterior mean (2,) m and covariance (2, 2) m^2 (the filter's plus the systematic term)."""
+        return self.filter.x, self._published_cov(self.filter.P)
+
+    def _published_cov(self, P: np.ndarray) -> np.ndarray:
+        """Return the filter covariance plus ``A^-1 diag(systematic_sigma_n^2) A^-T`` (0 by default)."""
+        return P + self._systematic if self._systematic is not None else P
 
     @property
     def rejected(self) -> dict[str, int]:
