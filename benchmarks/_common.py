@@ -7,7 +7,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["best_of", "rosbags_raw"]
+__all__ = ["DEMO_EFFECTS", "best_of", "rosbags_raw"]
+
+#: The effects of bags/demo_3d (see bags/README.md): the paper-like offset, sun-driven gradients, test car.
+DEMO_EFFECTS: dict[str, float] = {
+    "settlement_offset": 7e-4,
+    "vertical_gradient": 4.0,
+    "transverse_gradient": 3.0,
+    "traffic": 2.5e4,
+}
 
 
 def best_of(repeat: int, fn: Callable[[], Any]) -> tuple[float, Any]:

@@ -20,6 +20,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from _common import DEMO_EFFECTS
 
 from bridge_shadow.bagio import read_monitoring
 from bridge_shadow.estimate import Shadow, ShadowConfig
@@ -29,12 +30,7 @@ from bridge_shadow.twin.bag import write_twin_bag
 HOURS = (6, 12, 24, 48, 72)
 SCENES = {
     "plain": {"settlement_offset": 7e-4},
-    "demo": {
-        "settlement_offset": 7e-4,
-        "vertical_gradient": 4.0,
-        "transverse_gradient": 3.0,
-        "traffic": 2.5e4,
-    },
+    "demo": DEMO_EFFECTS,
 }
 
 

@@ -23,6 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from _common import DEMO_EFFECTS
+
 from bridge_shadow.bagio import read_monitoring, write_monitoring
 from bridge_shadow.cli import main as cli_main
 from bridge_shadow.gap.diagnose import diagnose
@@ -47,12 +49,7 @@ def main() -> None:
     args = parser.parse_args()
     cases = {
         "one effect (settlement_drift)": {"settlement_drift": 2e-4},
-        "four effects (demo-like; simulated chance level)": {
-            "settlement_offset": 7e-4,
-            "vertical_gradient": 4.0,
-            "transverse_gradient": 3.0,
-            "traffic": 2.5e4,
-        },
+        "four effects (demo-like; simulated chance level)": DEMO_EFFECTS,
     }
     for label, effects in cases.items():
         data, _ = simulate(args.days, args.rate, 5, effects)
