@@ -41,9 +41,35 @@ def config_file(name: str) -> Path:
 
 
 def shared_data_dir() -> Path:
-    """Return ``../shared/data/munich-bridge-data`` beside the checkout (or $BRIDGE_SHADOW_DATA)."""
+    """Return ``../shared/data/munich-bridge-data`` beside the checkout (or $BRIDGE_SHADOW_DATA).
+
+    A clone made from a local checkout (``git clone /path/to/checkout``) that has no ``../shared``
+    of its own uses the one beside the checkout it was cloned from.
+    """
     env = os.environ.get("BRIDGE_SHADOW_DATA")
     if env:
         return Path(env)
     root = repo_root() or Path.cwd()
+    bases = [root, *filter(None, [_local_origin(root)])]
+    for base in bases:
+        path = base.parent / "shared" / "data" / "munich-bridge-data"
+        if path.is_dir():
+            return path
     return root.parent / "shared" / "data" / "munich-bridge-data"
+
+
+def _local_origin(root: Path) -> Path | None:
+    """Return the directory named by ``remote.origin.url`` in ``root/.git/config``, if it is local."""
+    config = root / ".git" / "config"
+    if not config.is_file():
+        return None
+    section = ""
+    for line in config.read_text(errors="replace").splitlines():
+        line = line.strip()
+        if line.startswith("["):
+            section = line
+        elif section == '[remote "origin"]' and line.partition("=")[0].strip() == "url":
+            url = line.partition("=")[2].strip().removeprefix("file://")
+            path = (root / url).resolve()
+            return path if path.is_dir() else None
+    return None

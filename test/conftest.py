@@ -22,7 +22,10 @@ os.environ.setdefault("AMENT_PREFIX_PATH", os.sys.prefix)
 def munich_data() -> Path:
     """The real munich-bridge-data records in ../shared (read in place, never copied)."""
     path = shared_data_dir()
-    assert path.is_dir(), f"real data not found at {path}: clone beside ../shared"
+    assert path.is_dir(), (
+        f"real data not found at {path}: clone beside ../shared (or from a checkout that is), "
+        "or set BRIDGE_SHADOW_DATA"
+    )
     return path
 
 

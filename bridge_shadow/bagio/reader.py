@@ -288,8 +288,7 @@ def read_monitoring(
 
     """
     path = Path(path)
-    contract = [*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC]
-    names = dict(zip(contract, contract if topics is None else list(topics), strict=True))
+    names = dict(zip(INPUT_TOPICS, INPUT_TOPICS if topics is None else topics, strict=True))
     must = {names[t] for t in _required_topics(required)}
     raw = read_blocks(path, {names[t]: msgtype for t, msgtype in INPUT_TOPICS.items()})
     missing = sorted(must - set(raw))

@@ -35,7 +35,7 @@ _MATCH_MODES = ("hold", "linear")
 _SMOOTHING_MODES = ("reml", "gcv", "fixed", "none")
 _NOISE_MODES = ("adaptive", "fixed")
 _LEVELS = ("warmup_mean", "mean", "reference")
-#: A ROS topic name: absolute or relative, tokens of letters, digits and underscores.
+#: The topic parameters (validated together in ``ShadowConfig.validate``).
 _TOPIC_FIELDS = (
     "topic_frc_01",
     "topic_frc_02",
@@ -45,6 +45,7 @@ _TOPIC_FIELDS = (
     "topic_compensated_frc_01",
     "topic_compensated_frc_02",
 )
+#: A ROS topic name: absolute or relative, tokens of letters, digits and underscores.
 _TOPIC_NAME = re.compile(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$")
 
 

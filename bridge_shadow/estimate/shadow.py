@@ -726,12 +726,11 @@ class Shadow:
             level, message = "WARN", f"stale or missing topic(s): {', '.join(stale)}"
         elif not warm:
             level, message = "WARN", f"warming up ({self.n_good}/{self._warmup} windows)"
-        elif self.noise.adaptive and self.noise.n * self.config.window_s < NOISE_FULL_DAY_S:
-            hours = self.noise.n * self.config.window_s / 3600.0
+        elif self.noise.adaptive and (seen_s := self.noise.n * self.config.window_s) < NOISE_FULL_DAY_S:
             level, message = (
                 "WARN",
-                f"noise model has seen {hours:.1f} h (< 24 h): intervals may be optimistic until a "
-                "whole day of sun and traffic is in the residuals",
+                f"noise model has seen {seen_s / 3600.0:.1f} h (< 24 h): intervals may be optimistic "
+                "until a whole day of sun and traffic is in the residuals",
             )
         else:
             level, message = "OK", "tracking"

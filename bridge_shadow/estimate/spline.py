@@ -17,6 +17,7 @@ goes through numpy/LAPACK calls that do not start BLAS threads: on a busy 2-core
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -79,7 +80,7 @@ def _basis_few(knots: np.ndarray, xs: list[float], q: int) -> np.ndarray:
     t = knots.tolist()
     out = np.zeros((len(xs), q))
     for row, x in enumerate(xs):
-        i = min(max(int(np.searchsorted(knots, x, side="right")) - 1, _DEGREE), q - 1)
+        i = min(max(bisect_right(t, x) - 1, _DEGREE), q - 1)
         n = [1.0, 0.0, 0.0, 0.0]
         left = [0.0] * (_DEGREE + 1)
         right = [0.0] * (_DEGREE + 1)
@@ -112,15 +113,19 @@ def gram_penalty(knots: np.ndarray) -> np.ndarray:
 def _solve(lhs: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """Solve the symmetric ``lhs x = rhs``; the minimum-norm least squares when it is (near) singular.
 
-    A Cholesky factor with a diagonal spread under 1e-6 (condition under about 1e12) takes the
-    plain solve; otherwise (data at one temperature leave the slope unidentified) ``lstsq``.
+    A Cholesky factor with a diagonal spread under 1e-6 (condition under about 1e12) solves it;
+    otherwise (data at one temperature leave the slope unidentified) ``lstsq``.
     """
     try:
-        diag = np.diagonal(np.linalg.cholesky(lhs))
-        if diag.min() > 1e-6 * diag.max():
-            return np.linalg.solve(lhs, rhs)
+        chol = np.linalg.cholesky(lhs)
     except np.linalg.LinAlgError:
-        pass
+        chol = None
+    if chol is not None:
+        diag = np.diagonal(chol)
+        if diag.min() > 1e-6 * diag.max():
+            x, info = linalg.lapack.dpotrs(chol, rhs, lower=1)
+            if info == 0:
+                return x
     return np.linalg.lstsq(lhs, rhs, rcond=1e-13)[0]
 
 

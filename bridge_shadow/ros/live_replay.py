@@ -362,8 +362,9 @@ def run_live(
     total = len(topic)
     with tempfile.TemporaryDirectory(prefix="bridge_shadow_live_") as tmp:
         # a fresh checkpoint: the replay must not resume an earlier run (the direct mode does not)
-        params = config.replace(checkpoint_path=str(Path(tmp) / "checkpoint.npz")).to_params()
-        node = NodeProcess(["--ros-args", "--params-file", str(write_params_file(params, Path(tmp)))])
+        node_config = config.replace(checkpoint_path=str(Path(tmp) / "checkpoint.npz"))
+        params_file = write_params_file(node_config.to_params(), Path(tmp))
+        node = NodeProcess(["--ros-args", "--params-file", str(params_file)])
         player = None
         try:
             t0 = time.perf_counter()
@@ -392,7 +393,7 @@ def run_live(
             else:
                 mean, cov = np.asarray(report["mean_m"]), np.asarray(report["covariance_m2"])
             plot_paths = (
-                _plot_live(plots, player.history(node, timeout_s), report, params, surrogate)
+                _plot_live(plots, player.history(node, timeout_s), report, node_config, surrogate)
                 if plots is not None
                 else []
             )
@@ -449,18 +450,16 @@ def run_live(
 
 
 def _plot_live(
-    directory: str | Path, outputs: list[Any], report: dict[str, Any], params: dict[str, Any], surrogate: Any
+    directory: str | Path, outputs: list[Any], report: dict[str, Any], config: Any, surrogate: Any
 ) -> list[Path]:
     """Draw the direct replay's PNGs from what the node kept: its outputs and final checkpoint.
 
     The node keeps its last ``HISTORY_WINDOWS`` outputs, so on longer bags the time plots show that
     last stretch; the compensation curve and the ellipse are the final state either way.
     """
-    from bridge_shadow.estimate import Shadow, ShadowConfig
+    from bridge_shadow.estimate import ReplayResult, Shadow
     from bridge_shadow.estimate.plots import write_plots
-    from bridge_shadow.estimate.shadow import ReplayResult
 
-    config = ShadowConfig.from_params(params)
     ckpt = Path(config.checkpoint_path)
     if not ckpt.is_file():
         raise NodeError(f"the node wrote no checkpoint at flush ({ckpt}): cannot draw its compensation curve")

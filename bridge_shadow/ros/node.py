@@ -183,6 +183,7 @@ class ShadowNode(Node):
         self.received = [0, 0, 0]
         self.malformed = 0
         self.windows_published = 0
+        self.quiet_flushes = 0
         self.history: deque[Any] = deque(maxlen=HISTORY_WINDOWS)
         self._raw: list[list[bytes]] = [[], [], []]
         self._arrival: list[float | None] = [None, None, None]
@@ -208,7 +209,6 @@ class ShadowNode(Node):
         ]
         self._pub_diag = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
         self._drain_timer = self.create_timer(DRAIN_PERIOD_S, self._on_drain_timer)
-        self.quiet_flushes = 0
         self._diag_timer = self.create_timer(cfg.diagnostics_period_s, self.publish_diagnostics)
         self._flush_srv = self.create_service(Trigger, FLUSH_SERVICE, self._on_flush)
         self._status_srv = self.create_service(Trigger, STATUS_SERVICE, self._on_status)
@@ -343,15 +343,20 @@ class ShadowNode(Node):
         arrivals = [t for t in self._arrival if t is not None]
         if not arrivals or time.monotonic() - max(arrivals) <= self._timeout_s:
             return
-        if any(self._raw) or any(p is not None for p in self._pending) or self.shadow.holds_data:
-            self.ingest_pending(everything=True)
-            outputs = self.shadow.flush()
-            self._publish(outputs)
-            self._next_end_ns = self._window_end()
+        if any(p is not None for p in self._pending) or self.shadow.holds_data:
+            n = self.close_open_windows()
             self.quiet_flushes += 1
             self.get_logger().warning(
-                f"no input for {self._timeout_s:g} s: closed {len(outputs)} open window(s) with the data held"
+                f"no input for {self._timeout_s:g} s: closed {n} open window(s) with the data held"
             )
+
+    def close_open_windows(self) -> int:
+        """Ingest everything buffered, close every window holding data, publish; return how many."""
+        self.drain(everything=True)
+        outputs = self.shadow.flush()
+        self._publish(outputs)
+        self._next_end_ns = self._window_end()
+        return len(outputs)
 
     # -- output ----------------------------------------------------------------------------
     def _publish(self, outputs: list[Any]) -> None:
@@ -407,9 +412,7 @@ class ShadowNode(Node):
 
     def _on_flush(self, request: Any, response: Any) -> Any:
         """Close every window holding data, publish, checkpoint; answer with the report as JSON."""
-        self.drain(everything=True)
-        self._publish(self.shadow.flush())
-        self._next_end_ns = self._window_end()
+        self.close_open_windows()
         if self.config.checkpoint_path:
             self.shadow.save_checkpoint()
         response.success = True
@@ -430,20 +433,16 @@ def window_history(outputs: Any) -> list[dict[str, Any]]:
 
 def outputs_from_history(windows: list[dict[str, Any]]) -> list[WindowOutput]:
     """Rebuild ``WindowOutput``s from ``window_history`` data (null back to NaN)."""
-
-    def arr(v: Any) -> np.ndarray:
-        return np.array(v, dtype=float)  # None -> nan
-
     return [
         WindowOutput(
             index=int(w["index"]),
             end_ns=int(w["end_ns"]),
             samples=np.array(w["samples"], dtype=np.int64),
-            temp_c=arr(w["temp_c"]),
-            force_n=arr(w["force_n"]),
-            compensated_n=arr(w["compensated_n"]),
-            mean_m=arr(w["mean_m"]),
-            covariance_m2=arr(w["covariance_m2"]),
+            temp_c=np.array(w["temp_c"], dtype=float),  # null -> nan
+            force_n=np.array(w["force_n"], dtype=float),
+            compensated_n=np.array(w["compensated_n"], dtype=float),
+            mean_m=np.array(w["mean_m"], dtype=float),
+            covariance_m2=np.array(w["covariance_m2"], dtype=float),
             updated=bool(w["updated"]),
             reason=str(w["reason"]),
         )
