@@ -6,7 +6,9 @@ composite beam per girder), flagged in ``provenance.solver == "closed-form place
 
 Keys (DESIGN section 4): ``A`` 2x2 N/m, rows/cols [south, north]; ``u0`` [south, north] N;
 ``thermal`` map ``uniform``/``vertical_gradient``/``transverse_gradient`` -> [south, north] N/K;
-``provenance`` dict.
+``provenance`` dict. A calibrated surrogate also carries ``model_uncertainty``: the covariance
+(6x6) of ``[A11, A12, A21, A22, u0_south, u0_north]`` implied by the parameter posterior (N/m, N),
+which the shadow adds to its settlement covariance (``Surrogate.model_covariance``).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from bridge_shadow.errors import ConfigError
 from bridge_shadow.paths import config_file
 
 __all__ = [
+    "MODEL_UNCERTAINTY_ORDER",
     "THERMAL_CASES",
     "Surrogate",
     "load_surrogate",
@@ -30,6 +33,8 @@ __all__ = [
 ]
 
 THERMAL_CASES: tuple[str, str, str] = ("uniform", "vertical_gradient", "transverse_gradient")
+#: Order of the entries of ``Surrogate.model_cov`` (A row-major, then u0).
+MODEL_UNCERTAINTY_ORDER: tuple[str, ...] = ("A11", "A12", "A21", "A22", "u0_south", "u0_north")
 
 
 @dataclass
@@ -42,6 +47,8 @@ class Surrogate:
         u0: (2,) N, reactions at zero settlement (self-weight + superimposed load).
         thermal: case -> (2,) N/K, reaction change per kelvin of the thermal load case.
         provenance: where the numbers come from (model hash, mesh, solver, seconds, ...).
+        model_cov: (6, 6) covariance of ``[A11, A12, A21, A22, u0_south, u0_north]`` (N/m, N) from
+            a calibration's parameter posterior, or None (the model taken as exact).
 
     """
 
@@ -49,11 +56,35 @@ class Surrogate:
     u0: np.ndarray
     thermal: dict[str, np.ndarray] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict)
+    model_cov: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.A = np.asarray(self.A, dtype=float).reshape(2, 2)
         self.u0 = np.asarray(self.u0, dtype=float).reshape(2)
         self.thermal = {k: np.asarray(v, dtype=float).reshape(2) for k, v in self.thermal.items()}
+        if self.model_cov is not None:
+            cov = np.asarray(self.model_cov, dtype=float).reshape(6, 6)
+            if not np.all(np.isfinite(cov)) or np.linalg.eigvalsh(0.5 * (cov + cov.T)).min() < -1e-9 * max(
+                float(np.abs(cov).max()), 1e-300
+            ):
+                raise ConfigError("surrogate model_uncertainty: covariance must be finite and PSD")
+            self.model_cov = 0.5 * (cov + cov.T)
+
+    def model_covariance(self, x_m: np.ndarray) -> np.ndarray:
+        """Settlement covariance (2, 2) m^2 from the model's own uncertainty at settlement ``x_m``.
+
+        Linearized: ``x = A^-1 (y - u0)``, so ``dx = -A^-1 (dA x + du0) = -A^-1 J dtheta`` with
+        ``J = [kron(I2, x^T), I2]`` (2 x 6) and ``dtheta`` the perturbation of
+        ``[A11, A12, A21, A22, u0_south, u0_north]``; the result is ``A^-1 J C J^T A^-T``.
+        Zero when the surrogate carries no ``model_cov``.
+        """
+        if self.model_cov is None:
+            return np.zeros((2, 2))
+        x = np.asarray(x_m, dtype=float).reshape(2)
+        jac = np.hstack([np.kron(np.eye(2), x[None, :]), np.eye(2)])  # (2, 6)
+        g = np.linalg.solve(self.A, jac)  # A^-1 J
+        cov = g @ self.model_cov @ g.T
+        return 0.5 * (cov + cov.T)
 
     def reactions(self, x_m: np.ndarray) -> np.ndarray:
         """Return ``A x + u0`` for settlements ``x_m`` of shape (..., 2) in m; N."""
@@ -61,12 +92,18 @@ class Surrogate:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form with the contract keys (lists, SI units)."""
-        return {
+        out = {
             "A": self.A.tolist(),
             "u0": self.u0.tolist(),
             "thermal": {k: v.tolist() for k, v in self.thermal.items()},
             "provenance": dict(self.provenance),
         }
+        if self.model_cov is not None:
+            out["model_uncertainty"] = {
+                "order": list(MODEL_UNCERTAINTY_ORDER),
+                "covariance": self.model_cov.tolist(),
+            }
+        return out
 
 
 def placeholder_surrogate() -> Surrogate:
@@ -116,13 +153,17 @@ def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = 
         return placeholder_surrogate()
     try:
         data = yaml.safe_load(file.read_text())
+        unc = data.get("model_uncertainty") or {}
+        if unc and list(unc.get("order", [])) != list(MODEL_UNCERTAINTY_ORDER):
+            raise ValueError(f"model_uncertainty.order must be {list(MODEL_UNCERTAINTY_ORDER)}")
         return Surrogate(
             A=data["A"],
             u0=data["u0"],
             thermal=data.get("thermal", {}),
             provenance=data.get("provenance", {}),
+            model_cov=unc.get("covariance") if unc else None,
         )
-    except (yaml.YAMLError, KeyError, TypeError, ValueError) as err:
+    except (yaml.YAMLError, KeyError, TypeError, ValueError, AttributeError) as err:
         raise ConfigError(f"{file}: not a valid surrogate file ({err})") from err
 
 
