@@ -23,10 +23,10 @@ Example (a 2 x 10 m continuous beam, settle the middle support by 1 mm)::
     settle.reaction("mid", "uz")                            # N, = -6 EI delta / L^3
     A = solver.support_stiffness(["mid"], "uz")             # Schur complement, N/m
 
-Modules: ``model`` (data), ``elements/`` (shell MITC4+QM6+drilling, beam, spring), ``assembly``,
-``loads``, ``constraints`` (rigid links, prescribed DOFs), ``solve`` (factorize once, many cases,
-reactions by support name), ``condense`` (Schur complement), ``vtk`` (.vtu export), ``verify``
-(benchmark cases behind ``bridge-shadow verify``).
+Modules: ``model`` (data), ``elements/`` (shell: MITC4 bending + GCMQ drilling membrane; beam;
+spring), ``assembly``, ``loads``, ``constraints`` (rigid links, prescribed DOFs), ``solve`` (factorize
+once, many cases, reactions by support name), ``condense`` (Schur complement), ``vtk`` (.vtu export),
+``verify/`` (benchmark cases and sweeps behind ``bridge-shadow verify``).
 """
 
 from bridge_shadow.fe.condense import schur_complement

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from bridge_shadow.fe.elements.shell import DRILL_FACTOR
 from bridge_shadow.fe.errors import ModelError
 
 __all__ = [
@@ -50,7 +51,7 @@ def _conn(conn: Any, nodes_per_el: int, name: str) -> np.ndarray:
 
 @dataclass
 class ShellSet:
-    """Flat 4-node shells (MITC4 bending + QM6 membrane with drilling), 6 DOF per node.
+    """Flat 4-node shells (MITC4 bending + GCMQ drilling membrane), 6 DOF per node.
 
     Attributes:
         conn: (n_el, 4) int node indices, counter-clockwise about the element normal
@@ -58,6 +59,8 @@ class ShellSet:
         thickness: m, scalar or (n_el,).
         E: Pa; nu: Poisson's ratio; rho: kg/m^3; alpha: 1/K (scalars or (n_el,)).
         tag: name used by load cases to address the set.
+        drill_factor: drilling penalty over the shear modulus (default
+            :data:`~bridge_shadow.fe.elements.shell.DRILL_FACTOR`; ``verify`` sweeps it).
 
     """
 
@@ -68,11 +71,14 @@ class ShellSet:
     rho: Any = 0.0
     alpha: Any = 1.2e-5
     tag: str = "shell"
+    drill_factor: Any = None
 
     def __post_init__(self) -> None:
         self.conn = _conn(self.conn, 4, f"shell set {self.tag!r}")
         n = len(self.conn)
-        for name in ("thickness", "E", "nu", "rho", "alpha"):
+        if self.drill_factor is None:
+            self.drill_factor = DRILL_FACTOR
+        for name in ("thickness", "E", "nu", "rho", "alpha", "drill_factor"):
             setattr(self, name, per_element(getattr(self, name), n, f"{self.tag}.{name}"))
 
     @property

@@ -33,7 +33,8 @@ def assemble_stiffness(model: Model) -> tuple[sp.csr_matrix, list[ShellKinematic
     for s in model.shells:
         kin = shell_kinematics(model.nodes[s.conn])
         kins.append(kin)
-        coo.add_elements(element_dofs(s.conn), shell_stiffness(None, s.thickness, s.E, s.nu, kin=kin))
+        ke = shell_stiffness(None, s.thickness, s.E, s.nu, kin, s.drill_factor)
+        coo.add_elements(element_dofs(s.conn), ke)
     for b in model.beams:
         geo = beam_geometry(
             model.nodes[b.conn[:, 0]], model.nodes[b.conn[:, 1]], b.orientation, b.offset_i, b.offset_j
