@@ -118,11 +118,11 @@ def _operators(xy: np.ndarray, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
         ],
         axis=1,
     )
-    h = np.zeros((n_el, 11, 11))
-    nmat = np.zeros((n_el, 11, 12))
-    m = np.zeros((n_el, 11, 1))
+    n_q = len(_IRONS)
+    ps = np.zeros((n_el, n_q, 3, 11))  # stress modes, then weighted by w det J
+    bs = np.zeros((n_el, n_q, 3, 13))  # strain of the 12 DOFs and of the enhanced mode
     points = []
-    for xi, eta, w in _IRONS:
+    for q, (xi, eta, w) in enumerate(_IRONS):
         n = 0.25 * (1 + _XI * xi) * (1 + _ETA * eta)
         dnat = np.stack([0.25 * _XI * (1 + _ETA * eta), 0.25 * _ETA * (1 + _XI * xi)])  # (2, 4)
         jac = np.einsum("ak,ekj->eaj", dnat, xy)
@@ -131,22 +131,25 @@ def _operators(xy: np.ndarray, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
         dn = inv @ dnat  # (n_el, 2, 4): d/dx, d/dy
         bub = np.array([[-2 * xi, -2 * xi * eta, 0.0, 1 - eta**2], [0.0, 1 - xi**2, -2 * eta, -2 * xi * eta]])
         db = inv @ bub  # (n_el, 2, 4)
-        b = np.zeros((n_el, 3, 12))
-        b[:, 0, 0::3], b[:, 1, 1::3] = dn[:, 0], dn[:, 1]
-        b[:, 2, 0::3], b[:, 2, 1::3] = dn[:, 1], dn[:, 0]
+        b = bs[:, q]
+        b[:, 0, 0:12:3], b[:, 1, 1:12:3] = dn[:, 0], dn[:, 1]
+        b[:, 2, 0:12:3], b[:, 2, 1:12:3] = dn[:, 1], dn[:, 0]
         bd = np.zeros((n_el, 3, 8))  # strains of the bubbles, d ordered (dx1, dy1, dx2, ...)
         bd[:, 0, 0::2], bd[:, 1, 1::2] = db[:, 0], db[:, 1]
         bd[:, 2, 0::2], bd[:, 2, 1::2] = db[:, 1], db[:, 0]
-        b[:, :, 2::3] = bd @ td
+        b[:, :, 2:12:3] = bd @ td
+        b[:, :, 12] = f0 @ np.array([3 * xi**2 - 1, 3 * eta**2 - 1, 0.0])
         pos = n @ xy / scale
         p = _stress_modes(pos[:, 0], pos[:, 1])
         wd = w * det
-        enh = f0 @ np.array([3 * xi**2 - 1, 3 * eta**2 - 1, 0.0])
-        pt = np.swapaxes(p, 1, 2) * wd[:, None, None]
-        h += pt @ comp @ p
-        nmat += pt @ b
-        m += pt @ enh[:, :, None]
+        ps[:, q] = p * wd[:, None, None]
         points.append((n, p, wd))
+    # sum over points and stress components in one product: (n_el, 11, 3 q) @ (n_el, 3 q, .)
+    left = np.swapaxes(ps, 2, 3).swapaxes(1, 2).reshape(n_el, 11, 3 * n_q)
+    modes = np.stack([p for _, p, _ in points], axis=1)  # unweighted (n_el, q, 3, 11)
+    h = left @ (comp[:, None] @ modes).reshape(n_el, 3 * n_q, 11)
+    nm = left @ bs.reshape(n_el, 3 * n_q, 13)
+    nmat, m = nm[:, :, :12], nm[:, :, 12:]
     return h, nmat, m, points
 
 

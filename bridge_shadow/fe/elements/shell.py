@@ -78,24 +78,27 @@ class ShellKinematics:
     dA: np.ndarray
     jac: np.ndarray
 
-    def to_global(self, kf: np.ndarray) -> np.ndarray:
-        """``T^T kf T`` for flat local matrices ``kf (n_el, 24, 24)``; T = warping offset, then rotation.
+    def node_transforms(self) -> np.ndarray:
+        """``T (n_el, 4, 6, 6)``: flat local DOFs of each node from its global DOFs (offset, then rotation).
 
         Flat DOFs follow the real nodes through rigid offsets to the mean plane
-        (``u_flat = u - z ry``, ``v_flat = v + z rx``, local axes), then each 3-vector is rotated.
+        (``u_flat = u - z ry``, ``v_flat = v + z rx``, local axes); each 3-vector is rotated by ``frame``.
         """
-        k = kf.copy()
-        z = self.warp
-        for a in range(4):  # k <- k W (columns), then W^T k (rows)
-            k[:, :, 6 * a + 4] -= z[:, a, None] * k[:, :, 6 * a]
-            k[:, :, 6 * a + 3] += z[:, a, None] * k[:, :, 6 * a + 1]
-        for a in range(4):
-            k[:, 6 * a + 4, :] -= z[:, a, None] * k[:, 6 * a, :]
-            k[:, 6 * a + 3, :] += z[:, a, None] * k[:, 6 * a + 1, :]
-        n_el, rot = len(k), self.frame[:, None, :, :]
-        k = (k.reshape(n_el, 24, 8, 3) @ rot).reshape(n_el, 24, 24)  # K R, block by block
-        k = (np.swapaxes(k, 1, 2).reshape(n_el, 24, 8, 3) @ rot).reshape(n_el, 24, 24)  # (R^T K R)^T
-        return np.swapaxes(k, 1, 2)
+        n_el = len(self.frame)
+        t = np.zeros((n_el, 4, 6, 6))
+        t[:, :, 0:3, 0:3] = self.frame[:, None]
+        t[:, :, 3:6, 3:6] = self.frame[:, None]
+        t[:, :, 0, 3:6] = -self.warp[:, :, None] * self.frame[:, None, 1, :]
+        t[:, :, 1, 3:6] = self.warp[:, :, None] * self.frame[:, None, 0, :]
+        return t
+
+    def to_global(self, kf: np.ndarray) -> np.ndarray:
+        """``T^T kf T`` for flat local matrices ``kf (n_el, 24, 24)``, node block by node block."""
+        n_el = len(kf)
+        t = self.node_transforms()
+        k = kf.reshape(n_el, 24, 4, 6).transpose(0, 2, 1, 3) @ t  # K T, column block b: (n_el, 4, 24, 6)
+        k = k.transpose(0, 2, 1, 3).reshape(n_el, 4, 6, 24)
+        return (np.swapaxes(t, 2, 3) @ k).reshape(n_el, 24, 24)  # T^T (K T), row block a
 
     def vector_to_global(self, ff: np.ndarray) -> np.ndarray:
         """``T^T ff`` for flat local load vectors ``ff (n_el, 24)``."""
