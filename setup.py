@@ -33,6 +33,10 @@ setup(
         # METIS nested-dissection ordering: about 1.6x faster factorization (fe/solve.py uses it
         # when importable and falls back to SuperLU's own ordering otherwise).
         "fast": ["pymetis>=2023.1"],
+        # Optional, never installed by `make`: CHOLMOD factorization (GPL; builds on Debian's
+        # libsuitesparse-dev) and OpenSeesPy for benchmarks/fe_scaling.py (needs libblas3, liblapack3).
+        "cholmod": ["scikit-sparse==0.4.16"],  # newer releases do not build on Debian 12's SuiteSparse 5
+        "opensees": ["openseespy>=3.5"],
     },
     zip_safe=True,
     maintainer="bridge_shadow developers",
