@@ -87,22 +87,32 @@ def test_beam_with_offsets_symmetric_and_rigid_body_free() -> None:
     assert np.abs(ke @ _rigid_modes(np.stack([xi, xj], axis=1))).max() < 1e-9 * scale
 
 
-@pytest.mark.parametrize("kind", ["membrane", "bending"])
-def test_patch_test_random_distortion(kind: str) -> None:
-    for _ in range(5):
+def _random_patch_inner() -> np.ndarray:
+    """Random interior nodes (4, 2) of the MacNeal-Harder patch, redrawn until all five quads are convex."""
+    from bridge_shadow.fe.verify.shells import _patch_mesh
+
+    nodes, conn = _patch_mesh()
+    while True:
         inner = np.array([[0.06, 0.03], [0.18, 0.03], [0.18, 0.09], [0.06, 0.09]]) + RNG.uniform(
             -0.025, 0.025, (4, 2)
         )
-        assert patch_test(kind, inner=inner).value < 1e-8
+        xy = np.vstack([nodes[:4, :2], inner])[conn]  # (5, 4, 2)
+        edge = np.roll(xy, -1, axis=1) - xy
+        nxt = np.roll(edge, -1, axis=1)
+        if np.all(edge[:, :, 0] * nxt[:, :, 1] - edge[:, :, 1] * nxt[:, :, 0] > 0):
+            return inner
+
+
+@pytest.mark.parametrize("kind", ["membrane", "bending"])
+def test_patch_test_random_distortion(kind: str) -> None:
+    for _ in range(5):
+        assert patch_test(kind, inner=_random_patch_inner()).value < 1e-8
 
 
 def test_membrane_patch_test_with_rigid_spin() -> None:
     """A constant strain plus a rigid in-plane rotation is exact too; the drilling DOFs follow the spin."""
     for _ in range(3):
-        inner = np.array([[0.06, 0.03], [0.18, 0.03], [0.18, 0.09], [0.06, 0.09]]) + RNG.uniform(
-            -0.025, 0.025, (4, 2)
-        )
-        assert patch_test("membrane", inner=inner, spin=2e-3).value < 1e-8
+        assert patch_test("membrane", inner=_random_patch_inner(), spin=2e-3).value < 1e-8
 
 
 def _plane_quads(n: int) -> np.ndarray:
@@ -346,6 +356,15 @@ def test_shell_girder_linear_temperature_is_stress_free_bending() -> None:
     assert res.u[mid, 2] == pytest.approx(alpha * dT / h * span**2 / 8, rel=1e-4)
     restrained = 2.1e11 * (0.019 + 2 * 0.3 * tf) * alpha * dT  # N, force a full restraint would take
     assert abs(res.reaction("west", "uz")) < 1e-9 * restrained
+
+
+def test_concave_quad_is_refused() -> None:
+    """A quad whose Jacobian vanishes at an edge midpoint, where the membrane samples it, is a ModelError."""
+    from bridge_shadow.fe.elements.shell import shell_kinematics
+
+    dart = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.2, 0.2, 0.0], [0.0, 1.0, 0.0]]])
+    with pytest.raises(ModelError, match="concave"):
+        shell_kinematics(dart)
 
 
 def test_cholmod_backend_equals_superlu() -> None:

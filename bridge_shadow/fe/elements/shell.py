@@ -133,6 +133,12 @@ def shell_kinematics(xyz: np.ndarray) -> ShellKinematics:
     rel = xyz - c[:, None, :]
     local = np.einsum("eij,ekj->eki", frame, rel)
     xy, warp = local[:, :, :2], local[:, :, 2]
+    # the membrane samples the Jacobian at the edge midpoints too (Irons' rule)
+    for xi, eta in ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)):
+        _, dxi, deta = _shape(xi, eta)
+        jx, jy = np.einsum("k,ekj->ej", dxi, xy), np.einsum("k,ekj->ej", deta, xy)
+        if np.any(jx[:, 0] * jy[:, 1] - jx[:, 1] * jy[:, 0] <= 0):
+            raise ModelError("shell element with non-positive Jacobian (node order or a concave quad)")
 
     ns, dndx, dA, jacs = [], [], [], []
     for xi, eta in _GP:
