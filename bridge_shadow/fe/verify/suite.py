@@ -45,7 +45,7 @@ def _scordelis(quick: bool) -> list[Case]:
     out.append(
         make_case(
             f"scordelis_lo_{n}x{n}_deep_shell", s.value, 0.3086, None, s.mesh, s.dofs, s.seconds, "SL64",
-            "reported: a different theory (deep shell); flat facets converge to MH85-SL's 0.3024",
+            "a different theory (deep shell); flat facets converge to MH85-SL's 0.3024",
         )
     )  # fmt: skip
     return out

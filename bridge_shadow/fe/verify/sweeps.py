@@ -209,7 +209,7 @@ def drill_sweep(quick: bool = False) -> tuple[list[DrillRow], list[Case]]:
             0,
             0.0,
             "SWEEP",
-            f"reported: largest change over {min(factors):g}..{max(factors):g} is {worst.case} at "
+            f"largest change over {min(factors):g}..{max(factors):g} is {worst.case} at "
             f"{worst.drill_factor:g}; with almost no penalty the drilling rotation of warped quads is "
             "held only by the small angles between neighbours, so the twisted beam softens",
         ),
