@@ -42,8 +42,8 @@ def _cli_json(argv: list[str]) -> dict[str, Any]:
     return json.loads(out.getvalue())
 
 
-def _synth(out: Path, effect: str | None) -> Path:
-    argv = ["synth", "--out", str(out), "--days", str(DAYS), "--rate", str(RATE), "--seed", str(SEED)]
+def _synth(out: Path, effect: str | None, days: float = DAYS) -> Path:
+    argv = ["synth", "--out", str(out), "--days", str(days), "--rate", str(RATE), "--seed", str(SEED)]
     if effect:
         argv += ["--effect", f"{effect}={EFFECTS[effect].realistic}"]
     with contextlib.redirect_stdout(io.StringIO()):
@@ -132,12 +132,12 @@ def _within(name: str, params: dict[str, Any], bounds: list[list[float]] | None 
     """Whether fitted linear parameters lie in their plausible range (the spring: k at least its low)."""
     if name == "support_spring":
         lo = plausible_range(name)[0]
-        return all(params[k] is None or params[k] >= lo * (1 - 1e-6) for k in ("k_south [N/m]", "k_north [N/m]"))
+        ks = (params["k_south [N/m]"], params["k_north [N/m]"])
+        return all(k is None or k >= lo * (1 - 1e-6) for k in ks)
     cand = next(c for c in CANDIDATES if c.name == name)
     rng = bounds or [list(plausible_range(name))] * len(cand.params)
-    return all(
-        lo - 1e-9 * abs(lo) <= params[k] <= hi + 1e-9 * abs(hi) for k, (lo, hi) in zip(cand.params, rng, strict=True)
-    )
+    pairs = zip(cand.params, rng, strict=True)
+    return all(lo - 1e-9 * abs(lo) <= params[k] <= hi + 1e-9 * abs(hi) for k, (lo, hi) in pairs)
 
 
 def test_every_named_effect_carries_its_group_and_a_plausible_fit(diagnoses):
@@ -196,7 +196,7 @@ def test_settlement_effects_say_how_their_size_depends_on_the_model(diagnoses):
 
 @pytest.fixture(scope="module")
 def drift_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return _synth(tmp_path_factory.mktemp("gap_twin") / "drift", "settlement_drift")
+    return _synth(tmp_path_factory.mktemp("gap_twin") / "drift", "settlement_drift", days=2.0)
 
 
 def test_diagnosis_never_opens_truth_yaml(drift_bag: Path, tmp_path: Path, monkeypatch):
@@ -211,7 +211,7 @@ def test_diagnosis_never_opens_truth_yaml(drift_bag: Path, tmp_path: Path, monke
 
     monkeypatch.setattr(builtins, "open", guarded)
     monkeypatch.setattr(io, "open", guarded)
-    s = _cli_json(["gap", str(bag), "--json", "--holdout-days", "2"])
+    s = _cli_json(["gap", str(bag), "--json", "--holdout-days", "1"])
     assert s["best"] == "settlement_drift"
     assert s["validation"] == {"kind": "holdout", "folds": 1}
     # a settlement only: nothing is added to the model, so the shadow runs once and after = before

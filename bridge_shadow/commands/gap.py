@@ -99,6 +99,11 @@ def _fmt_params(params: dict[str, Any]) -> str:
             parts.append(f"{k.split(' ')[0]} {v:.4g}")
         elif v is None:
             parts.append(f"{k.split(' ')[0]} rigid")
+        elif k == "at [ns]":
+            import datetime as dt
+
+            stamp = dt.datetime.fromtimestamp(int(v) / 1e9, dt.timezone.utc)
+            parts.append(f"at {stamp:%Y-%m-%d %H:%M} UTC")
         else:
             parts.append(f"{k.split(' ')[0]} {v}")
     return ", ".join(parts)
@@ -118,9 +123,12 @@ def _human(summary: dict) -> str:
                 lines.append(f"    or {g['effect']:<18} {_fmt_params(g['params'])}")
             soft = e.get("size_if_model_softer")
             if soft:
+                k = soft["with_support_springs_n_per_m"]
+                xs, xn = (1e3 * v for v in soft["value"])
+                unit = "mm" if soft["unit"] == "m" else "mm/day"
                 lines.append(
-                    f"    size depends on A: read with support springs of {soft['with_support_springs_n_per_m']:.3g} "
-                    f"N/m it is {_fmt_params(dict(zip(('south', 'north'), soft['value'], strict=True)))} {soft['unit']}"
+                    f"    its size depends on A: with support springs of {k:.3g} N/m (the soft end of their "
+                    f"plausible range) the same reactions mean {xs:+.3f} / {xn:+.3f} {unit}"
                 )
     if summary["rejected_implausible"]:
         lines += ["", "rejected as implausible (the data would take them only outside the plausible range):"]
@@ -150,14 +158,11 @@ def _human(summary: dict) -> str:
     post = summary["posterior"]
     if post.get("computed"):
         b, a = post["before"], post["after"]
-        lines += [
-            "",
-            "posterior settlements [mm], south / north, positive upward (95 % half-width):",
-            f"  before  {_mm(b['mean_m'])}  (+-{1.96e3 * b['sigma_m'][0]:.3f} / {1.96e3 * b['sigma_m'][1]:.3f})"
-            f"  {b['what']}",
-            f"  after   {_mm(a['mean_m'])}  (+-{1.96e3 * a['sigma_m'][0]:.3f} / {1.96e3 * a['sigma_m'][1]:.3f})"
-            f"  {a['what']}",
-        ]
+        lines += ["", "posterior settlements [mm], south / north, positive upward (95 % half-width):"]
+        rows = [("before", b), ("after", a), *(("or", alt) for alt in post.get("alternatives", {}).values())]
+        for label, p in rows:
+            half = f"+-{1.96e3 * p['sigma_m'][0]:.3f} / {1.96e3 * p['sigma_m'][1]:.3f}"
+            lines.append(f"  {label:<7} {_mm(p['mean_m'])}  ({half})  {p['what']}")
     return "\n".join(lines)
 
 

@@ -24,7 +24,8 @@ settlement path: mean, start and end in m) goes to BAG/truth.yaml; nothing that 
 diagnoses reads it.
 
 Effects (--effect NAME=VALUE, repeatable; SI units; see bridge_shadow/effects.py):
-""" + "\n".join(f"  {e.name:<20} [{e.unit}] e.g. {e.realistic:g} (edge {e.edge:g})" for e in EFFECTS.values()) + """
+""" + "\n".join(f"  {e.name:<20} [{e.unit}] e.g. {e.realistic:g} (edge {e.edge:g})" for e in EFFECTS.values())
+DESCRIPTION += """
 
 support_spring takes K (N/m, a spring under both central bearings), south:K, north:K or KS,KN;
 slab_joint_opening is the fraction of slab-joint stiffness kept over the hogging zone (1 = closed)."""

@@ -188,7 +188,7 @@ class Candidate:
     data_grid: bool = False
 
     def grid_of(self, ctx: Context) -> tuple[Any, ...]:
-        """The grid of the nonlinear parameter for this record."""
+        """Return the grid of the nonlinear parameter for this record."""
         if self.data_grid:
             return ctx.step_times or (None,)
         return self.grid
@@ -336,7 +336,7 @@ def spring_load(ctx: Context, choice: str) -> np.ndarray:
 
 
 def spring_bearings(choice: str) -> list[int]:
-    """Indices of the bearings on a spring for a choice of ``SPRING_CHOICES``."""
+    """Return the indices of the bearings on a spring for a choice of ``SPRING_CHOICES``."""
     side = choice.split()[0]
     return [0] if side == "south" else [1] if side == "north" else [0, 1]
 

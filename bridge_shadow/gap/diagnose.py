@@ -128,13 +128,13 @@ def _folds(d: Drivers, valid: np.ndarray, holdout_days: Sequence[int] | None) ->
 
 
 def _beats(gain: float, threshold: float) -> bool:
-    """A held-out gain is significant: positive and at least its chance level."""
+    """Return whether a held-out gain is significant: positive and at least its chance level."""
     return gain > 0.0 and gain >= threshold
 
 
-def _cos(a: np.ndarray, b: np.ndarray) -> float:
-    """Absolute cosine between two predictions (n, 2) over the entries finite in both."""
-    ok = np.isfinite(a) & np.isfinite(b)
+def _cos(a: np.ndarray, b: np.ndarray, valid: np.ndarray) -> float:
+    """Absolute cosine between two predictions (n, 2) over the entries with data (``valid``)."""
+    ok = valid & np.isfinite(a) & np.isfinite(b)
     na, nb = np.linalg.norm(a[ok]), np.linalg.norm(b[ok])
     return float(abs(np.sum(a[ok] * b[ok])) / (na * nb)) if na > 0 and nb > 0 else 0.0
 
@@ -186,7 +186,7 @@ class _Fitter:
         return _params(_BY_NAME[name], beta, self.grids[name][grid_index])
 
     def magnitude(self, name: str, beta: np.ndarray, grid_index: int) -> float | None:
-        """The fitted value in the vocabulary's magnitude unit (None when not finite)."""
+        """Return the fitted value in the vocabulary's magnitude unit (None when not finite)."""
         c = _BY_NAME[name]
         if c.magnitude is None:
             return None
@@ -198,12 +198,15 @@ class _Fitter:
         c = _BY_NAME[name]
         if c.nonlinear:
             c_max = self.c_plausible if bounded else self.c_search
-            r, _ = cross_validate_spring(self.spring, self.spring_alts, self.resid, self.valid, self.fold, c_max, fixed)
+            r, _ = cross_validate_spring(
+                self.spring, self.spring_alts, self.resid, self.valid, self.fold, c_max, fixed
+            )
             return r
         alts = self.designs[name]
         if fixed is not None:
             alts = [np.concatenate([fixed, x], axis=2) for x in alts]
-        return cross_validate(alts, self.resid, self.valid, self.fold, c.plausible_bounds(self.ctx) if bounded else None)
+        bounds = c.plausible_bounds(self.ctx) if bounded else None
+        return cross_validate(alts, self.resid, self.valid, self.fold, bounds)
 
     def block(self, name: str, r: CvResult) -> np.ndarray:
         """Design block of a named effect for later joint fits (n, 2, p).
@@ -257,7 +260,7 @@ class _Fitter:
         return {
             "params": self.params(name, beta, i),
             "plausible_range": [list(b) for b in bounds],
-            "reason": "the data ask for " + "; ".join(out) + f" ({EFFECTS[name].plausible_source or 'prior range'})",
+            "reason": "the data ask for " + "; ".join(out) + f" ({EFFECTS[name].plausible_source})",
         }
 
 
@@ -278,6 +281,7 @@ class _Ranking:
             runner-up).
         top_given: candidate -> held-out gain of the top one when added to that candidate.
         runner_up: the candidate the top one's partial effect is given.
+        valid: (n, 2) the entries with data.
 
     """
 
@@ -292,6 +296,7 @@ class _Ranking:
     partial: dict[str, float]
     top_given: dict[str, float]
     runner_up: Candidate
+    valid: np.ndarray
 
 
 def _rank(fitter: _Fitter, cv: dict[str, CvResult], eligible: set[str], z: float) -> _Ranking:
@@ -331,7 +336,9 @@ def _rank(fitter: _Fitter, cv: dict[str, CvResult], eligible: set[str], z: float
         top_given[c.name] = float(1.0 - sse_joint / cv[c.name].sse_after.sum())
     runner_up = next(c for c in ranked if c is not top)
     partial[top.name] = top_given[runner_up.name]
-    return _Ranking(ranked, eligible, top, phi, n_eff, thr, chance_level, ic, partial, top_given, runner_up)
+    return _Ranking(
+        ranked, eligible, top, phi, n_eff, thr, chance_level, ic, partial, top_given, runner_up, valid
+    )
 
 
 def _group(rk: _Ranking, cv: dict[str, CvResult]) -> list[str]:
@@ -350,7 +357,7 @@ def _group(rk: _Ranking, cv: dict[str, CvResult]) -> list[str]:
         if c is not rk.top
         and c.name in rk.eligible
         and _beats(cv[c.name].mse_gain, rk.threshold[c.name])
-        and _cos(cv[top].pred_full, cv[c.name].pred_full) >= COLLINEAR_COS
+        and _cos(cv[top].pred_full, cv[c.name].pred_full, rk.valid) >= COLLINEAR_COS
         and rk.top_given[c.name] < rk.threshold[top]
     ]
     return sorted(group, key=lambda name: rk.ic[name])
@@ -368,6 +375,7 @@ class _Named:
         params: its fitted parameters (the joint all-data fit), by name.
         group_params: member -> its fitted parameters in the same place.
         contribution: (n, 2) N, its all-data contribution in the final joint fit.
+        group_cv: member -> its cross-validated fit in the same place.
 
     """
 
@@ -378,6 +386,7 @@ class _Named:
     params: dict[str, Any]
     group_params: dict[str, dict[str, Any]]
     contribution: np.ndarray | None = None
+    group_cv: dict[str, CvResult] = field(default_factory=dict)
 
 
 def _own_beta(name: str, r: CvResult) -> np.ndarray:
@@ -428,9 +437,8 @@ def _forward_selection(
             if why is None:
                 chosen = name
                 break
-            rejected.append(
-                {"effect": name, "given": [b for b, _ in blocks], **why, "heldout_gain_if_allowed": gains[name]}
-            )
+            given = [b for b, _ in blocks]
+            rejected.append({"effect": name, "given": given, **why, "heldout_gain_if_allowed": gains[name]})
             remaining.remove(name)
         if chosen is None:
             break
@@ -444,7 +452,7 @@ def _forward_selection(
                 continue
             # what each adds to the joint prediction (its own part is not identifiable where it is
             # collinear with a fixed block, as a stiffness's u0 change with the offset)
-            if _cos(r.pred_full - pred_now, trials[other].pred_full - pred_now) < COLLINEAR_COS:
+            if _cos(r.pred_full - pred_now, trials[other].pred_full - pred_now, fitter.valid) < COLLINEAR_COS:
                 continue
             both = np.concatenate([fixed, fitter.block(other, trials[other])], axis=2)
             given = fitter.cv(chosen, fixed=both).sse_after.sum()
@@ -452,7 +460,8 @@ def _forward_selection(
                 members.append(other)
                 t = trials[other]
                 params[other] = fitter.params(other, _own_beta(other, t), t.grid_index)
-        out.append(_Named(chosen, members, gains[chosen], r, params[chosen], params))
+        group_cv = {m: trials[m] for m in members}
+        out.append(_Named(chosen, members, gains[chosen], r, params[chosen], params, None, group_cv))
         taken.update(members)
         blocks.append((chosen, fitter.block(chosen, r)))
         fixed = np.concatenate([fixed, blocks[-1][1]], axis=2)
@@ -475,28 +484,22 @@ def _forward_selection(
     return out, rejected
 
 
-def _model_change(
-    best_cv: CvResult,
-    best: str,
-    named: list[_Named],
-    rejected_names: set[str],
-) -> ModelChange:
-    """What the named effects add to the model (settlements excluded)."""
+def _model_change(entries: list[_Named]) -> ModelChange:
+    """Return what the named effects add to the model (not settlements: the shadow estimates them)."""
     change = ModelChange()
     additive = None
-    entries = named or [_Named(best, [], best_cv.mse_gain, best_cv, {}, {}, best_cv.pred_full)]
     for e in entries:
-        if e.name in SETTLEMENT_EFFECTS or e.name in rejected_names:
+        if e.name in SETTLEMENT_EFFECTS:
             continue
         change.effects.append(e.name)
         c = _BY_NAME[e.name]
         if c.nonlinear:
             springs = [np.inf if v <= 0 else 1.0 / v for v in e.cv.beta]
             change.springs_n_per_m = (float(springs[0]), float(springs[1]))
+            change.springs_levelled = str(c.grid[e.cv.grid_index]).endswith("levelled")
         elif e.name in MODEL_FORM_EFFECTS:
             # the joint fit's own r when the effect was added later, else its own fit
-            beta = _own_beta(e.name, e.cv)
-            change.ratios[e.name] = float(beta[0])
+            change.ratios[e.name] = float(_own_beta(e.name, e.cv)[0])
         else:
             contrib = np.nan_to_num(e.contribution if e.contribution is not None else e.cv.pred_full)
             additive = contrib if additive is None else additive + contrib
@@ -504,8 +507,28 @@ def _model_change(
     return change
 
 
+def _alternatives(entries: list[_Named], max_runs: int = 2) -> dict[str, ModelChange]:
+    """Model changes where a model-form member of a group stands in for the effect named there.
+
+    The data cannot tell such a member from the named effect, but the shadow's settlements
+    differ between them (a support spring rescales A): each alternative is run too.
+    """
+    out: dict[str, ModelChange] = {}
+    for k, e in enumerate(entries):
+        for g in e.group[1:]:
+            if g not in MODEL_FORM_EFFECTS or g in out or len(out) >= max_runs:
+                continue
+            stand_in = _Named(g, [g], e.gain, e.group_cv[g], {}, {}, None)
+            out[g] = _model_change([*entries[:k], stand_in, *entries[k + 1 :]])
+    return out
+
+
 def _statement(
-    group: list[str], also: list[_Named], rk: _Ranking, cv: dict[str, CvResult], rejected: list[dict[str, Any]]
+    group: list[str],
+    also: list[_Named],
+    rk: _Ranking,
+    cv: dict[str, CvResult],
+    rejected: list[dict[str, Any]],
 ) -> str:
     """One paragraph for people: the answer, its ambiguity, what else is present, what was rejected."""
     top = rk.top.name
@@ -588,7 +611,7 @@ def _candidate_json(
 
 
 def _settlement_if_softer(name: str, params: dict[str, Any], s: Surrogate) -> dict[str, Any] | None:
-    """The same reaction change read with support springs at the soft end of their plausible range.
+    """Read the same reaction change with support springs at the soft end of their plausible range.
 
     Without a known settlement, the size of a settlement effect depends on ``A``: a model with a
     spring ``k`` under each bearing reads the reactions ``A x`` as ``x' = A'^-1 A x``.
@@ -691,12 +714,16 @@ def diagnose(
 
     # How far: the shadow's posterior before and after adding the named effects to the model.
     post: dict[str, Any] = {"computed": False, "why": "run with shadow=True (the CLI always does)"}
-    change = _model_change(cv[best], best, named, set()) if group else ModelChange()
+    if group and not named:  # the best one alone
+        named = [_Named(best, group, cv[best].mse_gain, cv[best], {}, {}, cv[best].pred_full)]
+    if named:
+        named[0].group_cv = {g: cv[g] for g in group}
+    change = _model_change(named)
     if shadow:
         from bridge_shadow.gap.posterior import shadow_config as default_config
 
         cfg = shadow_config if shadow_config is not None else default_config()
-        post = shadow_posteriors(data, s, cfg, change, w.t_ns, sens)
+        post = shadow_posteriors(data, s, cfg, change, w.t_ns, sens, _alternatives(named))
         post["computed"] = True
 
     # Where: the residual's breakdown, plus the model part of the held-out gains.
@@ -714,7 +741,7 @@ def diagnose(
     candidates_json = []
     for rank, c in enumerate(rk.ranked, start=1):
         entry = _candidate_json(rank, c, cv[c.name], rk, why[c.name], fitter)
-        entry["collinearity_with_top"] = _cos(top_pred, cv[c.name].pred_full)
+        entry["collinearity_with_top"] = _cos(top_pred, cv[c.name].pred_full, valid)
         candidates_json.append(entry)
     by_cand = {e["effect"]: e for e in candidates_json}
 

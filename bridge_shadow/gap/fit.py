@@ -67,7 +67,9 @@ def lstsq_scaled(x: np.ndarray, y: np.ndarray, box: Box = None) -> np.ndarray:
             sol = _box_solve(g, xty, lo, hi)
     beta[live] = sol / norm[live]
     if box is not None:
-        beta[~live] = np.clip(0.0, np.asarray(box[0], float)[~live], np.asarray(box[1], float)[~live])
+        # exactly inside (the scaling may round a bound by an ulp); dead columns at 0 if allowed
+        beta[~live] = 0.0
+        beta = np.clip(beta, np.asarray(box[0], float), np.asarray(box[1], float))
     return beta
 
 
@@ -318,7 +320,8 @@ def chance_threshold_mc(
                 # columns dropped through the diagonal of R).
                 q, r = np.linalg.qr(xt[:, live] / norm[live])
                 keep = np.abs(np.diag(r)) > 1e-10 * np.abs(np.diag(r)).max()
-                parts.append((name, q[:, keep], r[np.ix_(keep, keep)], norm[live][keep], x[hold][:, live][:, keep]))
+                xh = x[hold][:, live][:, keep]
+                parts.append((name, q[:, keep], r[np.ix_(keep, keep)], norm[live][keep], xh))
         live_parts = [pt for pt in parts if pt[1] is not None]
         if live_parts:
             qty_all = np.concatenate([pt[1] for pt in live_parts], axis=1).T @ y_tr

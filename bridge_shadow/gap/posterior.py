@@ -37,6 +37,7 @@ class ModelChange:
         effects: names of the effects added (vocabulary order of naming).
         ratios: first-order parameter name -> relative change ``r``.
         springs_n_per_m: support springs [south, north] in N/m (``inf``: none).
+        springs_levelled: the supports were levelled under the dead load (``u0`` kept).
         additive_n: (n, 2) N on the window grid, the summed additive contributions.
 
     """
@@ -44,6 +45,7 @@ class ModelChange:
     effects: list[str] = field(default_factory=list)
     ratios: dict[str, float] = field(default_factory=dict)
     springs_n_per_m: tuple[float, float] = (np.inf, np.inf)
+    springs_levelled: bool = False
     additive_n: np.ndarray | None = None
 
     @property
@@ -53,7 +55,7 @@ class ModelChange:
 
 
 def shadow_config(params_path: str | None = None, surrogate_path: str | None = None) -> Any:
-    """The shadow's parameters as replay loads them, with checkpoints off (the gap writes no state)."""
+    """Load the shadow's parameters as replay does, with checkpoints off (the gap writes no state)."""
     from bridge_shadow.estimate import load_config
 
     overrides: dict[str, Any] = {"checkpoint_path": ""}
@@ -62,8 +64,10 @@ def shadow_config(params_path: str | None = None, surrogate_path: str | None = N
     return load_config(params_path, overrides=overrides)
 
 
-def subtract_contribution(data: MonitoringData, t_ns: np.ndarray, contribution_n: np.ndarray) -> MonitoringData:
-    """Forces with ``contribution_n`` (n, 2) N at window centres ``t_ns`` taken off each sample."""
+def subtract_contribution(
+    data: MonitoringData, t_ns: np.ndarray, contribution_n: np.ndarray
+) -> MonitoringData:
+    """Take ``contribution_n`` (n, 2) N at window centres ``t_ns`` off each force sample."""
     forces = {}
     for i, ch in enumerate(CHANNELS):
         f = data.forces[ch]
@@ -82,7 +86,7 @@ def _posterior_json(result: Any) -> dict[str, Any]:
     }
 
 
-def shadow_posteriors(
+def _after(
     data: MonitoringData,
     surrogate: Surrogate,
     config: Any,
@@ -90,7 +94,50 @@ def shadow_posteriors(
     t_ns: np.ndarray,
     sensitivities: Mapping[str, StiffnessSensitivity],
 ) -> dict[str, Any]:
-    """Run the shadow before and after ``change``; return the ``posterior`` JSON of the diagnosis."""
+    """Run the shadow with ``change`` added to the model."""
+    from bridge_shadow.estimate import Shadow
+
+    changed, _ = change_surrogate(
+        surrogate,
+        dict(sensitivities),
+        change.ratios,
+        change.springs_n_per_m,
+        levelled=change.springs_levelled,
+    )
+    run_data = data
+    if change.additive_n is not None and np.any(change.additive_n):
+        run_data = subtract_contribution(data, t_ns, change.additive_n)
+    after = _posterior_json(Shadow(config, changed).run(run_data))
+    after["what"] = (
+        f"the shadow with {', '.join(change.effects)} added to the model (settlements stay the "
+        "shadow's to estimate)"
+    )
+    after["effects_added"] = list(change.effects)
+    model: dict[str, Any] = {k: float(v) for k, v in change.ratios.items()}
+    if np.any(np.isfinite(change.springs_n_per_m)):
+        model["support_spring_n_per_m"] = [None if np.isinf(k) else float(k) for k in change.springs_n_per_m]
+        model["support_spring_levelled"] = change.springs_levelled
+    if model:
+        after["model_change"] = model
+        after["surrogate_A"] = changed.A.tolist()
+        after["surrogate_u0"] = changed.u0.tolist()
+    return after
+
+
+def shadow_posteriors(
+    data: MonitoringData,
+    surrogate: Surrogate,
+    config: Any,
+    change: ModelChange,
+    t_ns: np.ndarray,
+    sensitivities: Mapping[str, StiffnessSensitivity],
+    alternatives: Mapping[str, ModelChange] | None = None,
+) -> dict[str, Any]:
+    """Run the shadow before and after ``change``; return the ``posterior`` JSON of the diagnosis.
+
+    ``alternatives``: model-form effects the data cannot tell from a named one -> the model change
+    with that effect standing in; each is run too (``posterior.alternatives``).
+    """
     from bridge_shadow.estimate import Shadow
 
     before = _posterior_json(Shadow(config, surrogate).run(data))
@@ -103,26 +150,18 @@ def shadow_posteriors(
         )
         after["effects_added"] = []
     else:
-        changed, _ = change_surrogate(surrogate, dict(sensitivities), change.ratios, change.springs_n_per_m)
-        run_data = data
-        if change.additive_n is not None and np.any(change.additive_n):
-            run_data = subtract_contribution(data, t_ns, change.additive_n)
-        after = _posterior_json(Shadow(config, changed).run(run_data))
-        after["what"] = (
-            f"the shadow with {', '.join(change.effects)} added to the model (settlements stay the "
-            "shadow's to estimate)"
-        )
-        after["effects_added"] = list(change.effects)
-        model: dict[str, Any] = {k: float(v) for k, v in change.ratios.items()}
-        if np.any(np.isfinite(change.springs_n_per_m)):
-            model["support_spring_n_per_m"] = [None if np.isinf(k) else float(k) for k in change.springs_n_per_m]
-        if model:
-            after["model_change"] = model
-            after["surrogate_A"] = changed.A.tolist()
-            after["surrogate_u0"] = changed.u0.tolist()
-    return {
+        after = _after(data, surrogate, config, change, t_ns, sensitivities)
+    out = {
         "before": before,
         "after": after,
         "change_m": (np.array(after["mean_m"]) - np.array(before["mean_m"])).tolist(),
         "method": "online Shadow (bridge_shadow.estimate), run as `bridge-shadow replay` runs it",
     }
+    if alternatives:
+        alt = {}
+        for name, ch in alternatives.items():
+            alt[name] = _after(data, surrogate, config, ch, t_ns, sensitivities)
+            why = "which the data cannot tell from the named effect"
+            alt[name]["what"] = f"if {name} ({why}) is the cause: {alt[name]['what']}"
+        out["alternatives"] = alt
+    return out

@@ -67,14 +67,14 @@ class SpringModel:
         c = np.asarray(c, float)
         a = self.a
         # M = (I + A C)^-1 in closed form for every c at once.
-        p = np.empty(c.shape[:-1] + (2, 2))
+        p = np.empty((*c.shape[:-1], 2, 2))
         p[..., 0, 0] = 1.0 + a[0, 0] * c[..., 0]
         p[..., 0, 1] = a[0, 1] * c[..., 1]
         p[..., 1, 0] = a[1, 0] * c[..., 0]
         p[..., 1, 1] = 1.0 + a[1, 1] * c[..., 1]
         m = np.linalg.inv(p) - np.eye(2)
         rows = [
-            (m @ self.u0) if loaded else np.zeros(c.shape[:-1] + (2,)),
+            (m @ self.u0) if loaded else np.zeros((*c.shape[:-1], 2)),
             m @ a[:, 0],
             m @ a[:, 1],
             m @ self.thermal_uniform,
@@ -131,7 +131,7 @@ class _Grams:
         return out
 
     def beta(self, u: np.ndarray) -> np.ndarray:
-        """The jointly fitted linear parameters for the coefficient vector ``u`` (8,)."""
+        """Return the jointly fitted linear parameters for the coefficient vector ``u`` (8,)."""
         if not len(self.fr):
             return np.zeros(0)
         return self.pinv_ff @ (self.fr - self.fv @ u)
@@ -161,7 +161,7 @@ class SpringFit:
 
 def _vec(u: np.ndarray) -> np.ndarray:
     """(..., 4, 2) -> (..., 8) channel-major."""
-    return np.swapaxes(u, -1, -2).reshape(u.shape[:-2] + (8,))
+    return np.swapaxes(u, -1, -2).reshape((*u.shape[:-2], 8))
 
 
 def fit_spring(

@@ -173,15 +173,18 @@ def hogging_stiffness_factors(
     return d_closed / d_open, (w_open / d_open) / (w_closed / d_closed)
 
 
-def support_spring_change(surrogate: Surrogate, springs_n_per_m: Any) -> tuple[Surrogate, np.ndarray]:
+def support_spring_change(
+    surrogate: Surrogate, springs_n_per_m: Any, *, levelled: bool = False
+) -> tuple[Surrogate, np.ndarray]:
     """Surrogate with a support spring in series with each central bearing (exact).
 
     The bearing sits on a spring ``k`` (a trestle, jack or foundation; ``inf`` = rigid) whose
     ground point moves by ``x``; the spring shortens by ``R / k`` under the reaction ``R``, so
     ``R = A (x - C R) + u0`` with ``C = diag(1 / k_s, 1 / k_n)``, hence
     ``R = A' x + M u0`` with ``A' = (A^-1 + C)^-1`` and ``M = (I + A C)^-1 = A' A^-1``. Every load
-    (dead load, thermal cases, traffic) maps through ``M``. Returns the changed surrogate and
-    ``M`` (2, 2).
+    (dead load, thermal cases, traffic) maps through ``M``. ``levelled``: the support was set to
+    the design level under the dead load (``x`` measured from there), so ``u0`` stays and only
+    the changes map. Returns the changed surrogate and ``M`` (2, 2).
     """
     k = np.asarray(springs_n_per_m, float).reshape(2)
     if np.any(~(k > 0)):
@@ -193,7 +196,8 @@ def support_spring_change(surrogate: Surrogate, springs_n_per_m: Any) -> tuple[S
     a_new = m @ a
     a_new = 0.5 * (a_new + a_new.T)
     thermal = {name: m @ v for name, v in surrogate.thermal.items()}
-    return Surrogate(a_new, m @ surrogate.u0, thermal, dict(surrogate.provenance)), m
+    u0 = surrogate.u0.copy() if levelled else m @ surrogate.u0
+    return Surrogate(a_new, u0, thermal, dict(surrogate.provenance)), m
 
 
 def change_surrogate(
@@ -201,6 +205,8 @@ def change_surrogate(
     sens: dict[str, StiffnessSensitivity] | None = None,
     ratios: dict[str, float] | None = None,
     springs_n_per_m: Any = (math.inf, math.inf),
+    *,
+    levelled: bool = False,
 ) -> tuple[Surrogate, np.ndarray]:
     """Surrogate after model-form changes: first-order parameter changes, then support springs.
 
@@ -211,6 +217,7 @@ def change_surrogate(
             thermal cases alike.
         springs_n_per_m: support-spring stiffness [south, north] in N/m (``inf``: none), applied
             after the first-order changes (``support_spring_change``).
+        levelled: the supports were levelled under the dead load (``u0`` kept by the springs).
 
     Returns:
         ``(changed surrogate, load map (2, 2))``; the load map takes the central reactions to a
@@ -234,12 +241,13 @@ def change_surrogate(
     changed = Surrogate(a, u0, thermal, dict(surrogate.provenance))
     k = np.asarray(springs_n_per_m, float).reshape(2)
     if np.any(np.isfinite(k)):
-        changed, m = support_spring_change(changed, k)
+        changed, m = support_spring_change(changed, k, levelled=levelled)
         load_map = m @ load_map
     provenance = dict(surrogate.provenance)
     change: dict[str, Any] = {name: float(r) for name, r in (ratios or {}).items() if r}
     if np.any(np.isfinite(k)):
         change["support_spring_n_per_m"] = [float(v) for v in k]
+        change["support_spring_levelled"] = bool(levelled)
     if change:
         provenance["model_form_change"] = change
     changed.provenance = provenance

@@ -92,7 +92,7 @@ def validate_effects(effects: Mapping[str, Any] | None) -> dict[str, Any]:
         if name in ("bearing_stiffness", "connector_stiffness") and value <= -1.0:
             raise InputError(f"effect {name}: the relative change must be greater than -1")
         if name == "slab_joint_opening" and not 0.0 <= value <= 1.0:
-            raise InputError("effect slab_joint_opening: the fraction of joint stiffness kept must lie in [0, 1]")
+            raise InputError("effect slab_joint_opening: the fraction of joint stiffness kept is in [0, 1]")
         out[name] = value
     return out
 
