@@ -92,7 +92,7 @@ def lowering(lowering_bag: Path):
     data = read_monitoring(lowering_bag)
     first = min(int(s.stamp_ns.min()) for s in data.forces.values())
     imposed = parse_imposed(["2022-04-11T09:00=-0.01,-0.01"], first)
-    return diagnose(data), diagnose(data, imposed=imposed)
+    return diagnose(data), diagnose(data, imposed=imposed, shadow=True, alternatives=True)
 
 
 def _stiffness_fits_bounded(s: dict[str, Any]) -> None:
@@ -145,3 +145,9 @@ def test_known_lowering_puts_a_support_spring_beside_the_step(lowering):
     k = spring["k_south [N/m]"], spring["k_north [N/m]"]
     soft, _ = support_spring_change(load_surrogate(), k, levelled=True)
     np.testing.assert_allclose(soft.A @ [LOWERING_M, LOWERING_M], measured, rtol=0.1)
+    # the step is a settlement (after = before); the shadow is also run with the springs instead
+    post = s["posterior"]
+    assert post["after"]["effects_added"] == []
+    alt = post["alternatives"]["support_spring"]
+    assert alt["model_change"]["support_spring_levelled"] is True
+    assert alt["effects_added"] == ["support_spring"]

@@ -54,6 +54,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a known imposed settlement step in m (positive upward) at WHEN: ISO 8601 (Europe/Berlin "
         "unless it has an offset) or +DAYS after the first sample; repeatable",
     )
+    parser.add_argument(
+        "--alternatives",
+        action="store_true",
+        help="also run the shadow with each model-form effect the data cannot tell from a named one "
+        "standing in for it (one more replay each, at most two)",
+    )
     parser.add_argument("--window", type=float, default=60.0, metavar="S", help="window length in s (60)")
 
 
@@ -194,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
         imposed=imposed,
         shadow=True,
         shadow_config=config,
+        alternatives=args.alternatives,
     )
     summary = dict(dg.summary)
     summary["bag"] = str(args.bag)

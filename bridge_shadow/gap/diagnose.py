@@ -154,11 +154,13 @@ def _k_of(c: float) -> float | None:
 def _params(c: Candidate, beta: np.ndarray, grid_value: Any) -> dict[str, Any]:
     """Fitted parameters by name (SI); the support spring as stiffness per bearing."""
     if c.nonlinear:
-        return {
-            "bearing": grid_value,
-            "k_south [N/m]": _k_of(float(beta[0])),
-            "k_north [N/m]": _k_of(float(beta[1])),
-        }
+        # stiffer than the plausible high end is the rigid support of the as-built model
+        k_high = plausible_range("support_spring")[1]
+        ks = [_k_of(float(b)) for b in beta]
+        ks = [None if k is None or k > k_high else k for k in ks]
+        side = "both" if all(ks) else "south" if ks[0] else "north" if ks[1] else "none"
+        level = " levelled" if str(grid_value).endswith("levelled") else ""
+        return {"bearing": side + level, "k_south [N/m]": ks[0], "k_north [N/m]": ks[1]}
     out: dict[str, Any] = {name: float(v) for name, v in zip(c.params, beta, strict=True)}
     if c.grid_name is not None:
         out[c.grid_name] = grid_value
@@ -480,7 +482,12 @@ def _forward_selection(
             k += p
         for named in out:
             named.contribution = contributions[named.name]
-        out.insert(0, _Named(best, group, cv[best].mse_gain, cv[best], {}, {}, contributions[best]))
+        first = _Named(best, group, cv[best].mse_gain, cv[best], {}, {}, contributions[best])
+        if not _BY_NAME[best].nonlinear:
+            # the best one's parameters in the final joint model (alone, they absorb the others)
+            p = blocks[0][1].shape[2]
+            first.params = fitter.params(best, beta_all[:p], cv[best].grid_index)
+        out.insert(0, first)
     return out, rejected
 
 
@@ -507,18 +514,22 @@ def _model_change(entries: list[_Named]) -> ModelChange:
     return change
 
 
-def _alternatives(entries: list[_Named], max_runs: int = 2) -> dict[str, ModelChange]:
+def _alternatives(fitter: _Fitter, entries: list[_Named], max_runs: int = 2) -> dict[str, ModelChange]:
     """Model changes where a model-form member of a group stands in for the effect named there.
 
-    The data cannot tell such a member from the named effect, but the shadow's settlements
-    differ between them (a support spring rescales A): each alternative is run too.
+    The data cannot tell such a member from the named effect, but the shadow's settlements differ
+    between them (a support spring rescales A): each alternative is refitted beside the other
+    named effects (inside its plausible range) and run too.
     """
     out: dict[str, ModelChange] = {}
     for k, e in enumerate(entries):
         for g in e.group[1:]:
             if g not in MODEL_FORM_EFFECTS or g in out or len(out) >= max_runs:
                 continue
-            stand_in = _Named(g, [g], e.gain, e.group_cv[g], {}, {}, None)
+            others = [fitter.block(o.name, o.cv) for j, o in enumerate(entries) if j != k]
+            fixed = np.concatenate(others, axis=2) if others else None
+            r = fitter.cv(g, fixed=fixed)
+            stand_in = _Named(g, [g], e.gain, r, {}, {}, None)
             out[g] = _model_change([*entries[:k], stand_in, *entries[k + 1 :]])
     return out
 
@@ -651,6 +662,7 @@ def diagnose(
     imposed: Sequence[tuple[int, float, float]] = (),
     shadow: bool = False,
     shadow_config: Any = None,
+    alternatives: bool = False,
 ) -> Diagnosis:
     """Diagnose the sim-to-real gap of a monitoring record (see the module docstring).
 
@@ -666,6 +678,8 @@ def diagnose(
         shadow: also run the shadow (as ``replay`` does) before and after adding the named effects
             to the model, for ``posterior``; a few seconds for three days of 60 s windows.
         shadow_config: the shadow's parameters (``gap.posterior.shadow_config()`` by default).
+        alternatives: with ``shadow``, also run the shadow with each model-form effect that the
+            data cannot tell from a named one standing in for it (``posterior.alternatives``).
 
     """
     t0 = time.perf_counter()
@@ -723,7 +737,8 @@ def diagnose(
         from bridge_shadow.gap.posterior import shadow_config as default_config
 
         cfg = shadow_config if shadow_config is not None else default_config()
-        post = shadow_posteriors(data, s, cfg, change, w.t_ns, sens, _alternatives(named))
+        alts = _alternatives(fitter, named) if alternatives else None
+        post = shadow_posteriors(data, s, cfg, change, w.t_ns, sens, alts)
         post["computed"] = True
 
     # Where: the residual's breakdown, plus the model part of the held-out gains.
@@ -746,7 +761,7 @@ def diagnose(
     by_cand = {e["effect"]: e for e in candidates_json}
 
     def named_json(e: _Named, first: bool) -> dict[str, Any]:
-        params = by_cand[e.name]["params"] if first else e.params
+        params = (e.params or by_cand[e.name]["params"]) if first else e.params
         out: dict[str, Any] = {
             "effect": e.name,
             "part": EFFECTS[e.name].part,
@@ -761,7 +776,9 @@ def diagnose(
             out["size_if_model_softer"] = _settlement_if_softer(e.name, params, s)
         return out
 
-    best_json = named_json(_Named(best, group, 0.0, cv[best], {}, {}), True) if group else None
+    best_json = named_json(named[0], True) if group else None
+    if best_json is not None and also:
+        best_json["params_alone"] = by_cand[best]["params"]
     also_json = []
     for a in also:
         entry = named_json(a, False)
