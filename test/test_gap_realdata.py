@@ -151,3 +151,27 @@ def test_known_lowering_puts_a_support_spring_beside_the_step(lowering):
     alt = post["alternatives"]["support_spring"]
     assert alt["model_change"]["support_spring_levelled"] is True
     assert alt["effects_added"] == ["support_spring"]
+
+
+def test_gap_reads_the_surrogate_it_is_given(lowering_bag: Path, tmp_path: Path):
+    # A stand-in for the calibrated surrogate: A softened by the measured ratio of the 1 cm pair
+    # (67 kN against the model's 112.8 kN, DESIGN 3), with a sensitivities block of its own.
+    import yaml
+
+    from bridge_shadow.model.surrogate_file import Surrogate, save_surrogate
+
+    s = load_surrogate()
+    soft = Surrogate((67.0 / 112.8) * s.A, s.u0, s.thermal, {"note": "test"})
+    file = save_surrogate(soft, tmp_path / "s.yaml")
+    data = yaml.safe_load(file.read_text())
+    slab = {"value": 1.0, "A": (0.4 * s.A).tolist(), "u0": [5e3, 5e3]}
+    data["sensitivities"] = {"slab_joint_opening": slab}
+    file.write_text(yaml.safe_dump(data))
+    out = _run(["gap", str(lowering_bag), "--json", "--surrogate", str(file)])
+    assert out["surrogate_file"] == str(file)
+    assert out["baseline"]["sensitivities"]["slab_joint_opening"] == "surrogate sensitivities"
+    assert out["baseline"]["sensitivities"]["bearing_stiffness"] == "closed-form placeholder"
+    # the softened model reads the lowering as the 10 mm it was (common mode, 10 %)
+    step = out["best_effect"]["params"]
+    assert out["best"] == "settlement_step"
+    assert 0.5 * (step["dx_south [m]"] + step["dx_north [m]"]) == pytest.approx(LOWERING_M, rel=0.1)

@@ -201,6 +201,7 @@ def run(args: argparse.Namespace) -> int:
         shadow=True,
         shadow_config=config,
         alternatives=args.alternatives,
+        surrogate_path=config.surrogate_path or None,
     )
     summary = dict(dg.summary)
     summary["bag"] = str(args.bag)

@@ -663,6 +663,7 @@ def diagnose(
     shadow: bool = False,
     shadow_config: Any = None,
     alternatives: bool = False,
+    surrogate_path: str | None = None,
 ) -> Diagnosis:
     """Diagnose the sim-to-real gap of a monitoring record (see the module docstring).
 
@@ -680,6 +681,8 @@ def diagnose(
         shadow_config: the shadow's parameters (``gap.posterior.shadow_config()`` by default).
         alternatives: with ``shadow``, also run the shadow with each model-form effect that the
             data cannot tell from a named one standing in for it (``posterior.alternatives``).
+        surrogate_path: the file ``surrogate`` came from, whose ``sensitivities`` block is read
+            (default ``config/surrogate.yaml``).
 
     """
     t0 = time.perf_counter()
@@ -687,7 +690,7 @@ def diagnose(
     w = aggregate(data, width_s)
     d = compute_drivers(w)
     x_known = imposed_path(w.t_ns, width_s, imposed)
-    sens = stiffness_sensitivities(s)
+    sens = stiffness_sensitivities(s, surrogate_path)
     ctx = Context.build(d, s, sens, x_known, w.t_ns, width_s)
     resid = w.mean_n - ctx.baseline
     valid = np.isfinite(resid)
