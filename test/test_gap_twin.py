@@ -222,3 +222,20 @@ def test_bad_holdout_day_is_one_line_error(drift_bag: Path, capsys):
     assert main(["gap", str(drift_bag), "--holdout-days", "9"]) == 2
     err = capsys.readouterr().err
     assert "holdout" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("extra", "word"),
+    [
+        (["--imposed", "yesterday=-0.01"], "--imposed"),
+        (["--imposed", "2022-03-14T12:00=-3,-3"], "metre"),
+        (["--report", "FILE"], "--report"),
+    ],
+)
+def test_bad_gap_arguments_are_one_line_errors(drift_bag: Path, tmp_path: Path, capsys, extra, word):
+    if "FILE" in extra:
+        (tmp_path / "f").write_text("not a directory")
+        extra = [e.replace("FILE", str(tmp_path / "f")) for e in extra]
+    assert main(["gap", str(drift_bag), *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert word in err and "Traceback" not in err and len(err.splitlines()) == 1
