@@ -6,8 +6,10 @@ which takes the simulated chance level), writes each as a bag, then times in the
 - baseline ``read``: ``bagio.read_monitoring`` of the bag (what any consumer of the bag pays);
 - ``aggregate``: the 60 s window statistics (mean, spread, max, median) of the record;
 - ``diagnose``: the whole diagnosis in memory (windows, drivers, every candidate with whole-day
-  cross-validation and grids, partial effects, where, posterior before/after);
-- ``bridge-shadow gap --json``: the command end to end (read + diagnose + JSON).
+  cross-validation and grids, the support spring's nonlinear fits, partial effects, groups, where),
+  without the shadow's posteriors;
+- ``bridge-shadow gap --json``: the command end to end (read + diagnose + the shadow run before and
+  after adding the named effects, as ``replay`` runs it + JSON).
 
 Prints seconds and the ratio to the read baseline. Usage::
 

@@ -148,11 +148,28 @@ def test_single_channel_drift_and_settlement_drift_are_reported_together():
     assert drift["params"]["d [N/day]"] == pytest.approx(300.0, rel=0.15)
 
 
-def test_posterior_after_removing_a_fitted_offset_returns_to_the_prior_mean():
+def test_without_the_shadow_the_posterior_says_it_was_not_computed():
+    # The posteriors come from the Shadow pipeline only (one estimator): diagnose() without it
+    # must not fall back to a formula of its own.
     dg = diagnose(_record({"settlement_offset": 7e-4}), placeholder_surrogate())
+    assert dg.summary["posterior"]["computed"] is False
+    assert "before" not in dg.summary["posterior"]
+
+
+def test_settlement_only_adds_nothing_to_the_model_so_after_equals_before():
+    # Settlements are what the shadow estimates: with only an offset named, "after" is "before"
+    # (the shadow run once), and both are the shadow's answer, near the true offset.
+    from bridge_shadow.estimate import load_config
+
+    data = _record({"settlement_offset": 7e-4}, days=1)
+    # one sample per window here, so the shadow must accept windows of one sample
+    cfg = load_config(overrides={"window_min_samples": 1, "checkpoint_path": ""})
+    dg = diagnose(data, placeholder_surrogate(), shadow=True, shadow_config=cfg)
     post = dg.summary["posterior"]
-    np.testing.assert_allclose(post["before"]["mean_m"], [7e-4, -7e-4], atol=2e-5)
-    np.testing.assert_allclose(post["after"]["mean_m"], [0.0, 0.0], atol=2e-6)
+    assert dg.summary["best"] == "settlement_offset"
+    assert post["after"]["effects_added"] == []
+    assert post["after"]["mean_m"] == post["before"]["mean_m"]
+    np.testing.assert_allclose(post["before"]["mean_m"], [7e-4, -7e-4], atol=5e-5)
 
 
 def test_too_short_record_is_a_typed_error():

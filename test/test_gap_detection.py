@@ -1,17 +1,12 @@
-"""Detection rates of the gap diagnosis over several twin seeds, at realistic and edge magnitudes.
+"""Detection over more twin seeds than ``test_gap_twin``: no false alarm, and every effect found.
 
-A slow check and the measurement behind the detection table: run with ``-s`` to see the table,
-``GAP_DETECTION_SEEDS=10`` for more seeds. An effect counts as found when ``best`` is the
-injected effect or a reported indistinguishable group contains it; the clean record counts as
-right when ``best`` is ``none``.
+A short check: the clean record at three seeds must give ``none``, and every effect at its
+``realistic`` magnitude must be found (``best`` or its indistinguishable group) at one more seed.
+The full table at realistic and edge magnitudes is ``benchmarks/gap_detection.py``.
 """
 
 from __future__ import annotations
 
-import os
-from collections import Counter
-
-import numpy as np
 import pytest
 
 from bridge_shadow.effects import EFFECT_NAMES, EFFECTS
@@ -19,38 +14,20 @@ from bridge_shadow.gap.diagnose import diagnose
 
 twin = pytest.importorskip("bridge_shadow.twin.simulate")
 
-SEEDS = range(200, 200 + int(os.environ.get("GAP_DETECTION_SEEDS", "3")))
-RATE_HZ = float(os.environ.get("GAP_DETECTION_RATE_HZ", "0.1"))
 
-
-def _rates(level: str) -> dict[str, tuple[float, float, Counter]]:
-    out = {}
-    for name in ("none", *EFFECT_NAMES):
-        found, reductions, bests = 0, [], Counter()
-        for seed in SEEDS:
-            eff = {} if name == "none" else {name: getattr(EFFECTS[name], level)}
-            data, _ = twin.simulate(3.0, RATE_HZ, seed, eff)
-            s = diagnose(data).summary
-            group = [s["best"], *s["indistinguishable_from"]]
-            found += (s["best"] == "none") if name == "none" else (name in group)
-            bests[s["best"] if len(group) == 1 else "+".join(sorted(group))] += 1
-            if name != "none":
-                reductions.append(
-                    next(c for c in s["candidates"] if c["effect"] == name)["heldout_reduction"]["total"]
-                )
-        out[name] = (found / len(SEEDS), float(np.median(reductions)) if reductions else float("nan"), bests)
-    return out
+@pytest.mark.parametrize("seed", [200, 201, 202])
+def test_clean_records_give_none(seed: int):
+    data, _ = twin.simulate(3.0, 0.1, seed, {})
+    s = diagnose(data).summary
+    assert s["best"] == "none", s["statement"]
 
 
 @pytest.mark.slow
-def test_detection_rates():
-    table = {level: _rates(level) for level in ("realistic", "edge")}
-    print(f"\nseeds {list(SEEDS)}, 3 days, forces at {RATE_HZ:g} Hz")
-    print(f"{'effect':<21}{'realistic':>10}{'red.':>6}{'edge':>7}{'red.':>6}  answers at edge")
-    for name in ("none", *EFFECT_NAMES):
-        r, e = table["realistic"][name], table["edge"][name]
-        print(f"{name:<21}{r[0]:>10.2f}{r[1]:>6.2f}{e[0]:>7.2f}{e[1]:>6.2f}  {dict(e[2])}")
-    realistic = table["realistic"]
-    assert realistic["none"][0] == 1.0
+def test_every_effect_is_found_at_another_seed():
+    missed = {}
     for name in EFFECT_NAMES:
-        assert realistic[name][0] >= 2 / 3, (name, realistic[name])
+        data, _ = twin.simulate(3.0, 0.1, 201, {name: EFFECTS[name].realistic})
+        s = diagnose(data).summary
+        if name not in [s["best"], *s["indistinguishable_from"]]:
+            missed[name] = s["statement"]
+    assert not missed, missed

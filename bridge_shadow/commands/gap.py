@@ -3,18 +3,26 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 HELP = "diagnose the sim-to-real gap: where it lies, which effect causes it, how far it shrinks"
 DESCRIPTION = """\
-Diagnose the gap between the baseline model (FE surrogate u0 plus its uniform thermal case) and
-the measured central reactions of a monitoring bag:
+Diagnose the gap between the baseline model (FE surrogate u0, plus A x for a known imposed
+settlement, plus its uniform thermal case) and the measured central reactions of a monitoring bag:
 
   where  share per channel, time of day, warming/cooling, sunny/overcast, frequency band, model part
-  which  every effect of the vocabulary fitted on training days and ranked by the held-out
-         improvement (leave-one-day-out), with an AR(1) information criterion and partial effects;
-         effects the two reactions cannot tell apart are reported together
-  how far  held-out residual RMS before/after per channel, and the posterior settlements before
-         and after adding the best effect
+  which  every effect of the vocabulary fitted on training days inside its plausible range and
+         ranked by the held-out improvement (leave-one-day-out), with an AR(1) information
+         criterion and partial effects; a fit that needs an implausible value is rejected and
+         said so; every named effect comes with the effects the two reactions cannot tell from it
+  how far  held-out residual RMS before/after per channel, and the shadow's posterior settlements
+         before (the model as built: the answer of `bridge-shadow replay BAG`) and after adding
+         the named effects to the model
+
+Model-form effects (bearing_stiffness, connector_stiffness, support_spring, slab_joint_opening)
+change A as well as u0 and the thermal response. Without a known settlement only their u0 and
+thermal parts show: the reactions fix A x, not x. Give a known imposed settlement (a lowering of
+the supports) with --imposed to let them act on A x.
 
 `best` is `none` when no candidate beats the chance level of AR(1) noise. The diagnosis never
 reads a twin's ground-truth file. JSON output is SI (N, m, s, C)."""
@@ -32,59 +40,172 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         help="hold out these whole days (0 = first 24 h of the record) instead of leave-one-day-out",
     )
-    parser.add_argument("--surrogate", metavar="YAML", help="surrogate file (default config/surrogate.yaml)")
     parser.add_argument(
-        "--replay",
+        "--surrogate",
+        metavar="YAML",
+        help="surrogate file (default: surrogate_path of the parameters, else config/surrogate.yaml)",
+    )
+    parser.add_argument("--params", metavar="YAML", help="shadow parameter file (default config/shadow.yaml)")
+    parser.add_argument(
+        "--imposed",
+        action="append",
+        default=[],
+        metavar="WHEN=SOUTH,NORTH",
+        help="a known imposed settlement step in m (positive upward) at WHEN: ISO 8601 (Europe/Berlin "
+        "unless it has an offset) or +DAYS after the first sample; repeatable",
+    )
+    parser.add_argument(
+        "--alternatives",
         action="store_true",
-        help="also replay the whole online shadow before/after adding the best effect (slower)",
+        help="also run the shadow with each model-form effect the data cannot tell from a named one "
+        "standing in for it (one more replay each, at most two)",
     )
     parser.add_argument("--window", type=float, default=60.0, metavar="S", help="window length in s (60)")
 
 
+def parse_imposed(items: list[str], first_ns: int) -> list[tuple[int, float, float]]:
+    """``WHEN=SOUTH,NORTH`` strings -> ``(t_ns, dx_south_m, dx_north_m)``; InputError when malformed."""
+    import datetime as dt
+    from zoneinfo import ZoneInfo
+
+    from bridge_shadow.errors import InputError
+
+    out = []
+    for item in items:
+        when, sep, values = item.rpartition("=")
+        try:
+            if not sep:
+                raise ValueError
+            south, north = (float(v) for v in values.split(","))
+            if when.startswith("+"):
+                t_ns = first_ns + round(float(when[1:]) * 86400e9)
+            else:
+                stamp = dt.datetime.fromisoformat(when)
+                if stamp.tzinfo is None:
+                    stamp = stamp.replace(tzinfo=ZoneInfo("Europe/Berlin"))
+                t_ns = round(stamp.timestamp()) * 1_000_000_000 + stamp.microsecond * 1000
+        except ValueError:
+            raise InputError(
+                f"--imposed {item!r}: expected WHEN=SOUTH,NORTH (ISO time or +DAYS; metres, positive upward)"
+            ) from None
+        if not all(abs(v) < 1.0 for v in (south, north)):
+            raise InputError(f"--imposed {item!r}: a settlement of a metre or more is not a settlement (m)")
+        out.append((t_ns, south, north))
+    return out
+
+
+def _mm(x: list[float]) -> str:
+    return f"{1e3 * x[0]:+.3f} / {1e3 * x[1]:+.3f}"
+
+
+def _fmt_params(params: dict[str, Any]) -> str:
+    parts = []
+    for k, v in params.items():
+        if isinstance(v, float):
+            parts.append(f"{k.split(' ')[0]} {v:.4g}")
+        elif v is None:
+            parts.append(f"{k.split(' ')[0]} rigid")
+        elif k == "at [ns]":
+            import datetime as dt
+
+            stamp = dt.datetime.fromtimestamp(int(v) / 1e9, dt.timezone.utc)
+            parts.append(f"at {stamp:%Y-%m-%d %H:%M} UTC")
+        else:
+            parts.append(f"{k.split(' ')[0]} {v}")
+    return ", ".join(parts)
+
+
 def _human(summary: dict) -> str:
-    lines = [
-        f"best: {summary['best']}",
-        summary["statement"],
-        "",
-        "rank  effect                held-out RMS reduction S/N/total",
-    ]
+    lines = [f"best: {summary['best']}"]
+    if summary["indistinguishable_from"]:
+        lines[0] += f"  (cannot be told apart from: {', '.join(summary['indistinguishable_from'])})"
+    lines.append(summary["statement"])
+    named = ([summary["best_effect"]] if summary.get("best_effect") else []) + summary["also_present"]
+    if named:
+        lines += ["", "named effects (fitted values in SI; group = what the reactions cannot tell apart):"]
+        for e in named:
+            lines.append(f"  {e['effect']:<21} {_fmt_params(e['params'])}")
+            for g in e["group"][1:]:
+                lines.append(f"    or {g['effect']:<18} {_fmt_params(g['params'])}")
+            soft = e.get("size_if_model_softer")
+            if soft:
+                k = soft["with_support_springs_n_per_m"]
+                xs, xn = (1e3 * v for v in soft["value"])
+                unit = "mm" if soft["unit"] == "m" else "mm/day"
+                lines.append(
+                    f"    its size depends on A: with support springs of {k:.3g} N/m (the soft end of their "
+                    f"plausible range) the same reactions mean {xs:+.3f} / {xn:+.3f} {unit}"
+                )
+    if summary["rejected_implausible"]:
+        lines += ["", "rejected as implausible (the data would take them only outside the plausible range):"]
+        for r in summary["rejected_implausible"]:
+            given = f" given {', '.join(r['given'])}" if r.get("given") else ""
+            lines.append(f"  {r['effect']}{given}: {r['reason']}")
+    lines += ["", "rank  effect                held-out RMS reduction S/N/total   fit"]
     for c in summary["candidates"]:
         r = c["heldout_reduction"]
         mark = "*" if c["significant"] else " "
+        note = "" if c["plausible"] else "  [implausible]"
         lines.append(
             f"{c['rank']:>4}{mark} {c['effect']:<21} {100 * r['south']:6.1f}% {100 * r['north']:6.1f}% "
-            f"{100 * r['total']:6.1f}%"
+            f"{100 * r['total']:6.1f}%   {_fmt_params(c['params'])}{note}"
         )
+    lines.append("  (* significant: beats the chance level of AR(1) noise with a plausible fit)")
     w = summary["where"]
     lines.append("")
     lines.append(
         f"residual RMS: south {w['rms_n']['south'] / 1e3:.3f} kN, north {w['rms_n']['north'] / 1e3:.3f} kN; "
         f"share south {100 * w['channel_share']['south']:.0f}%"
     )
-    pb, pa = summary["posterior"]["before"]["mean_m"], summary["posterior"]["after"]["mean_m"]
-    lines.append(
-        f"posterior settlements [mm]: before {1e3 * pb[0]:+.3f} / {1e3 * pb[1]:+.3f}, "
-        f"after {1e3 * pa[0]:+.3f} / {1e3 * pa[1]:+.3f}"
-    )
+    imposed = summary["baseline"]["imposed"]
+    if imposed:
+        steps = ", ".join(f"{_mm(s['settlement_m'])} mm" for s in imposed)
+        lines.append(f"imposed settlement in the baseline: {steps}")
+    post = summary["posterior"]
+    if post.get("computed"):
+        b, a = post["before"], post["after"]
+        lines += ["", "posterior settlements [mm], south / north, positive upward (95 % half-width):"]
+        rows = [("before", b), ("after", a), *(("or", alt) for alt in post.get("alternatives", {}).values())]
+        for label, p in rows:
+            half = f"+-{1.96e3 * p['sigma_m'][0]:.3f} / {1.96e3 * p['sigma_m'][1]:.3f}"
+            lines.append(f"  {label:<7} {_mm(p['mean_m'])}  ({half})  {p['what']}")
     return "\n".join(lines)
 
 
 def run(args: argparse.Namespace) -> int:
     """Read the bag, diagnose, print, and write the report."""
+    from pathlib import Path
+
     from bridge_shadow.bagio import read_monitoring
     from bridge_shadow.commands.output import emit_json
+    from bridge_shadow.errors import InputError
     from bridge_shadow.gap.diagnose import diagnose
+    from bridge_shadow.gap.posterior import shadow_config
     from bridge_shadow.model.surrogate_file import load_surrogate
 
-    if args.window <= 0:
-        from bridge_shadow.errors import InputError
-
+    if not args.window > 0:
         raise InputError("--window must be positive")
-    data = read_monitoring(args.bag)
-    surrogate = load_surrogate(args.surrogate) if args.surrogate else None
-    dg = diagnose(data, surrogate, width_s=args.window, holdout_days=args.holdout_days, replay=args.replay)
+    if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
+        raise InputError(f"--report {args.report}: exists and is not a directory")
+    config = shadow_config(args.params, args.surrogate)
+    surrogate = load_surrogate(config.surrogate_path or None)
+    data = read_monitoring(args.bag, topics=config.input_topics())
+    first = min(int(s.stamp_ns.min()) for s in data.forces.values() if len(s))
+    imposed = parse_imposed(args.imposed, first)
+    dg = diagnose(
+        data,
+        surrogate,
+        width_s=args.window,
+        holdout_days=args.holdout_days,
+        imposed=imposed,
+        shadow=True,
+        shadow_config=config,
+        alternatives=args.alternatives,
+        surrogate_path=config.surrogate_path or None,
+    )
     summary = dict(dg.summary)
     summary["bag"] = str(args.bag)
+    summary["surrogate_file"] = config.surrogate_path or "config/surrogate.yaml"
     if args.report:
         from bridge_shadow.gap.report import write_report
 

@@ -25,6 +25,10 @@ diagnoses reads it.
 
 Effects (--effect NAME=VALUE, repeatable; SI units; see bridge_shadow/effects.py):
 """ + "\n".join(f"  {e.name:<20} [{e.unit}] e.g. {e.realistic:g} (edge {e.edge:g})" for e in EFFECTS.values())
+DESCRIPTION += """
+
+support_spring takes K (N/m, a spring under both central bearings), south:K, north:K or KS,KN;
+slab_joint_opening is the fraction of slab-joint stiffness kept over the hogging zone (1 = closed)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -135,7 +139,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         emit_json(summary)
         return 0
-    eff = ", ".join(f"{k}={v:g}" for k, v in truth["effects"].items()) or "none (baseline)"
+    eff = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in truth["effects"].items())
+    eff = eff or "none (baseline)"
     m = summary["messages"]
     print(
         f"wrote {out} ({args.storage}, {summary['bytes'] / 1e6:.2f} MB): {truth['days']:g} days from "

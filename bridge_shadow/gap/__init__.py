@@ -5,9 +5,12 @@
 nothing here reads a truth twin's ground-truth file.
 
 Modules: ``windows`` (60 s window statistics), ``drivers`` (time, temperature, lag, sun,
-clearness, traffic events), ``candidates`` (the effect library: spatial signature x driver),
-``fit`` (least squares, whole-day cross-validation, AR(1) noise, chance level), ``where`` (the
-breakdown of the residual), ``posterior`` (the shadow's settlements before/after), ``diagnose``.
+clearness, traffic events), ``candidates`` (the effect library: spatial signature x driver, with
+plausible ranges; model-form effects act on the whole response), ``spring`` (the support spring:
+exact closed form, bounded nonlinear fit), ``fit`` (bounded least squares, whole-day
+cross-validation, AR(1) noise, chance level), ``where`` (the breakdown of the residual),
+``posterior`` (the shadow's settlements before/after adding the named effects, from the same
+``Shadow`` pipeline as ``replay``), ``diagnose``.
 """
 
 from bridge_shadow.gap.candidates import CANDIDATES, Candidate

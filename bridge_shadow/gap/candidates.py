@@ -3,9 +3,32 @@
 Each candidate maps its linear parameters to a reaction change ``(n, 2)`` N through a design
 array ``X: (n, 2, p)`` (the change per unit of each parameter), optionally for each value of one
 nonlinear parameter on a grid (the thermal lag, the drifting channel). Signatures come from the
-surrogate: the columns of ``A`` (settlements), the thermal load cases, and the stiffness
-sensitivities (``dA``, ``du0``, ``dthermal`` per unit relative stiffness change); sensor effects
-act on one channel only.
+surrogate: the columns of ``A`` (settlements), the thermal load cases, and the model-form changes
+of :mod:`bridge_shadow.model.sensitivities`.
+
+Model-form candidates change the whole response of the baseline model
+``B(t) = u0 + A x_k(t) + thermal_uniform dT(t)``, where ``x_k`` is the settlement known
+independently of the reactions (an imposed one, ``gap --imposed``; zero otherwise):
+
+- ``bearing_stiffness``, ``connector_stiffness``, ``slab_joint_opening``: first order in the
+  relative change ``r``, ``dA x_k + du0 + dthermal_uniform dT`` per unit ``r`` (FE sensitivities of
+  the surrogate file, else the closed-form placeholder);
+- ``support_spring``: exact, ``(M(C) - I) B(t)`` with ``M = (I + A C)^-1`` and
+  ``C = diag(1/k_s, 1/k_n)``, a discrete choice of the bearing (south, north or both) and of the
+  support's dead-load state (``loaded``: the spring carries the dead load from the nominal level,
+  so ``u0`` maps through ``M`` too, as the twin injects it; ``levelled``: the support was set to
+  the design level under the dead load, so ``u0`` stays and only changes map, ``(M - I)(B - u0)``),
+  and the compliances fitted by bounded nonlinear least squares (:mod:`bridge_shadow.gap.spring`).
+  Its ``design`` gives the linearization at ``C = 0``, used for the chance level.
+
+``settlement_step`` is a step of the settlements at one of a few times found from the data
+(``step_times``: the gaps between records and the strongest change points of the residual).
+
+Why not the shadow's own settlement for ``x_k``: the shadow computes ``x`` from the same two
+reactions through the as-built ``A``, so for any stiffness change ``A'`` the settlement
+``A'^-1 A x`` reproduces the reactions exactly; ``dA x`` with that ``x`` only rescales the
+settlement and cannot be told from it. A stiffness change shows where the settlement is known
+(an imposed lowering) or through ``u0`` and the thermal response.
 """
 
 from __future__ import annotations
@@ -17,23 +40,47 @@ from typing import Any
 
 import numpy as np
 
-from bridge_shadow.effects import EFFECTS
+from bridge_shadow.effects import EFFECTS, plausible_range
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.gap.drivers import Drivers
+from bridge_shadow.model.parameters import PARAMETERS
 from bridge_shadow.model.sensitivities import StiffnessSensitivity, read_sensitivities_block
 from bridge_shadow.model.sensitivities import stiffness_sensitivities as _stiffness_sensitivities
 from bridge_shadow.model.surrogate_file import Surrogate
 
 __all__ = [
     "CANDIDATES",
+    "SPRING_CHOICES",
     "Candidate",
+    "Context",
     "Sensitivity",
+    "spring_bearings",
+    "spring_load",
+    "step_times",
     "stiffness_sensitivities",
 ]
 
 #: Thermal-lag grid in hours (0.25 h to 8 h, about geometric). Longer lags are left out on purpose:
 #: ``T - lag(T)`` with a lag of days becomes ``T - mean(T)``, the uniform-temperature driver.
 LAG_GRID_H: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0)
+#: Which central bearing stands on a support spring, and whether the spring carries the dead load
+#: from the nominal level (loaded) or was levelled under it (the discrete choice of ``support_spring``).
+SPRING_CHOICES: tuple[str, ...] = (
+    "south",
+    "north",
+    "both",
+    "south levelled",
+    "north levelled",
+    "both levelled",
+)
+#: Change points of the residual tried as step times, besides the gaps between records.
+STEP_CHANGE_POINTS = 3
+#: A gap of more windows than this between two windows with data is a gap between records.
+STEP_GAP_WINDOWS = 5
+#: Step times closer than this many windows, or than ``STEP_MIN_SHARE`` of the record, to another
+#: or to the ends are not tried (a step near an end is an offset).
+STEP_MIN_WINDOWS = 10
+STEP_MIN_SHARE = 0.05
 
 
 #: The stiffness sensitivity type (one implementation in :mod:`bridge_shadow.model.sensitivities`).
@@ -41,7 +88,7 @@ Sensitivity = StiffnessSensitivity
 
 
 def stiffness_sensitivities(s: Surrogate, path: str | Path | None = None) -> dict[str, Sensitivity]:
-    """Stiffness sensitivities from the surrogate's ``sensitivities`` block, else the placeholder.
+    """First-order sensitivities from the surrogate's ``sensitivities`` block, else the placeholder.
 
     The block (written by ``bridge-shadow surrogate``, see :mod:`bridge_shadow.model.sensitivities`)
     is read from the ``Surrogate`` attribute ``sensitivities`` when present, or else from the YAML
@@ -58,14 +105,56 @@ def stiffness_sensitivities(s: Surrogate, path: str | Path | None = None) -> dic
 
 @dataclass
 class Context:
-    """What a candidate's design needs: the drivers, the surrogate and the sensitivities."""
+    """What a candidate's design needs.
+
+    Attributes:
+        drivers: the temporal drivers (n windows).
+        surrogate: the model as built.
+        sensitivities: first-order sensitivities by parameter name.
+        x_known: (n, 2) m, settlement known independently of the reactions (imposed), else 0.
+        baseline: (n, 2) N, ``u0 + A x_known + thermal_uniform dT``.
+        t_ns: (n,) window centres, ns.
+        width_s: window length, s.
+        step_times: window-boundary times (ns) tried by ``settlement_step``.
+
+    """
 
     drivers: Drivers
     surrogate: Surrogate
     sensitivities: dict[str, Sensitivity]
+    x_known: np.ndarray
+    baseline: np.ndarray
+    t_ns: np.ndarray | None = None
+    width_s: float = 60.0
+    step_times: tuple[int, ...] = ()
+
+    @classmethod
+    def build(
+        cls,
+        drivers: Drivers,
+        surrogate: Surrogate,
+        sensitivities: dict[str, Sensitivity],
+        x_known: np.ndarray | None = None,
+        t_ns: np.ndarray | None = None,
+        width_s: float = 60.0,
+    ) -> Context:
+        """Context with the baseline computed from the surrogate and ``x_known`` (default 0)."""
+        n = len(drivers)
+        x = np.zeros((n, 2)) if x_known is None else np.asarray(x_known, float).reshape(n, 2)
+        uniform = surrogate.thermal.get("uniform", np.zeros(2))
+        baseline = surrogate.u0[None, :] + x @ surrogate.A.T + drivers.dtemp_k[:, None] * uniform[None, :]
+        return cls(drivers, surrogate, sensitivities, x, baseline, t_ns, width_s)
+
+    def step_share(self, when_ns: int) -> np.ndarray:
+        """(n,) share of each window after a step at ``when_ns`` (0 before, 1 after)."""
+        if self.t_ns is None:
+            raise ValueError("the context has no window times")
+        half = 0.5 * self.width_s * 1e9
+        return np.clip((self.t_ns + half - when_ns) / (2.0 * half), 0.0, 1.0)
 
 
 Design = Callable[[Context, Any], np.ndarray]
+Bounds = Callable[[Context], list[tuple[float, float]]]
 
 
 @dataclass(frozen=True)
@@ -75,10 +164,15 @@ class Candidate:
     Attributes:
         name: vocabulary name (``bridge_shadow.effects``).
         params: names of the linear parameters, with their SI unit in brackets.
-        design: ``(ctx, g) -> X (n, 2, p)``, the reaction change in N per unit of each parameter.
+        design: ``(ctx, g) -> X (n, 2, p)``, the reaction change in N per unit of each parameter
+            (for ``nonlinear`` candidates: its linearization at no change).
         grid: values of the nonlinear parameter (``(None,)`` when there is none).
         grid_name: name of the nonlinear parameter.
         magnitude: ``(params, g) -> float``, the fitted value in the vocabulary's magnitude unit.
+        discrete: the grid is a discrete choice (penalized by ``2 log K``).
+        bounds: ``ctx -> [(low, high)]`` per linear parameter: its plausible range.
+        nonlinear: fitted by :mod:`bridge_shadow.gap.spring` instead of linear least squares.
+        data_grid: the grid comes from the record (``ctx.step_times``), not ``grid``.
 
     """
 
@@ -89,6 +183,15 @@ class Candidate:
     grid_name: str | None = None
     magnitude: Callable[[np.ndarray, Any], float] | None = None
     discrete: bool = False
+    bounds: Bounds | None = None
+    nonlinear: bool = False
+    data_grid: bool = False
+
+    def grid_of(self, ctx: Context) -> tuple[Any, ...]:
+        """Return the grid of the nonlinear parameter for this record."""
+        if self.data_grid:
+            return ctx.step_times or (None,)
+        return self.grid
 
     @property
     def part(self) -> str:
@@ -100,16 +203,23 @@ class Candidate:
         """Number of fitted parameters (linear ones plus the grid parameter)."""
         return len(self.params) + (self.grid_name is not None)
 
-    def penalty(self, n_eff: float) -> float:
+    def penalty(self, n_eff: float, n_grid: int | None = None) -> float:
         """BIC penalty in ``-2 log L`` units.
 
         ``log n_eff`` per continuous parameter, ``2 log K`` for a choice among ``K`` discrete
-        alternatives (the drifting channel).
+        alternatives (the drifting channel, the bearing on a spring, the step time).
         """
         pen = len(self.params) * np.log(n_eff)
         if self.grid_name is not None:
-            pen += 2.0 * np.log(len(self.grid)) if self.discrete else np.log(n_eff)
+            k = len(self.grid) if n_grid is None else n_grid
+            pen += 2.0 * np.log(max(k, 1)) if self.discrete else np.log(n_eff)
         return float(pen)
+
+    def plausible_bounds(self, ctx: Context) -> list[tuple[float, float]]:
+        """Plausible range per linear parameter (SI); unbounded when the candidate states none."""
+        if self.bounds is not None:
+            return self.bounds(ctx)
+        return [(-np.inf, np.inf)] * len(self.params)
 
 
 def _const(ctx: Context, vec: np.ndarray, driver: np.ndarray) -> np.ndarray:
@@ -119,6 +229,47 @@ def _const(ctx: Context, vec: np.ndarray, driver: np.ndarray) -> np.ndarray:
 def _settle_offset(ctx: Context, _: Any) -> np.ndarray:
     n = len(ctx.drivers)
     return np.broadcast_to(ctx.surrogate.A[None, :, :], (n, 2, 2)).copy()
+
+
+def _settle_step(ctx: Context, when_ns: Any) -> np.ndarray:
+    if when_ns is None:
+        return np.zeros((len(ctx.drivers), 2, 2))
+    return ctx.step_share(int(when_ns))[:, None, None] * ctx.surrogate.A[None, :, :]
+
+
+def step_times(t_ns: np.ndarray, resid: np.ndarray, valid: np.ndarray, width_s: float) -> tuple[int, ...]:
+    """Window-boundary times (ns) where a settlement step is tried.
+
+    The start of the first window after every gap of more than ``STEP_GAP_WINDOWS`` windows
+    without data (a gap between records), and the ``STEP_CHANGE_POINTS`` strongest change points
+    of the residual: the splits into two constant levels, both channels together, that remove the
+    most squared residual (``n1 n2 / n (mean1 - mean2)^2`` summed over the channels), at least
+    ``STEP_MIN_WINDOWS`` windows from each other and from the ends. The change points are chosen
+    on the whole record (the held-out check then fits the step on the training days only).
+    """
+    half = round(0.5 * width_s * 1e9)
+    have = np.flatnonzero(valid.all(axis=1))
+    n = len(have)
+    sep = max(STEP_MIN_WINDOWS, int(STEP_MIN_SHARE * n))
+    if n < 2 * sep:
+        return ()
+    # split after position i of the windows with data (i = 0 .. n - 2)
+    gaps = [int(j) for j in np.flatnonzero(np.diff(have) > STEP_GAP_WINDOWS + 1)]
+    r = resid[have]
+    k = np.arange(1, n)
+    c = np.cumsum(r, axis=0)[:-1]
+    total = r.sum(axis=0)
+    gain = np.sum((c - k[:, None] * total / n) ** 2, axis=1) * n / (k * (n - k))
+    inside = (k >= sep) & (k <= n - sep)
+    picked = [j for j in gaps if inside[j]]
+    gain[~inside] = 0.0
+    changes: list[int] = []
+    for i in np.argsort(gain)[::-1]:
+        if len(changes) == STEP_CHANGE_POINTS or gain[i] <= 0:
+            break
+        if all(abs(int(i) - j) >= sep for j in changes + picked):
+            changes.append(int(i))
+    return tuple(sorted({int(t_ns[have[i + 1]] - half) for i in picked + changes}))
 
 
 def _settle_drift(ctx: Context, _: Any) -> np.ndarray:
@@ -143,13 +294,57 @@ def _thermal_lag(ctx: Context, tau_h: float) -> np.ndarray:
 
 
 def _stiffness(name: str) -> Design:
+    """Whole-response change per unit ``r``: ``dA x_known + du0 + dthermal_uniform dT``."""
+
     def design(ctx: Context, _: Any) -> np.ndarray:
         sens = ctx.sensitivities[name]
         uniform = sens.dthermal.get("uniform", np.zeros(2))
-        x = sens.du0[None, :] + ctx.drivers.dtemp_k[:, None] * uniform[None, :]
+        x = (
+            ctx.x_known @ sens.dA.T
+            + sens.du0[None, :]
+            + ctx.drivers.dtemp_k[:, None] * uniform[None, :]
+        )
         return x[:, :, None]
 
     return design
+
+
+def _relative_bounds(name: str) -> Bounds:
+    """Prior range of the FE parameter as ``r`` around the value the surrogate was built with."""
+
+    def bounds(ctx: Context) -> list[tuple[float, float]]:
+        value = ctx.sensitivities[name].value
+        if value is None:
+            return [plausible_range(name)]
+        return [PARAMETERS[name].relative_bounds(value)]
+
+    return bounds
+
+
+def _fixed_bounds(name: str, p: int) -> Bounds:
+    def bounds(ctx: Context) -> list[tuple[float, float]]:
+        return [plausible_range(name)] * p
+
+    return bounds
+
+
+def spring_load(ctx: Context, choice: str) -> np.ndarray:
+    """(n, 2) N, the reactions a support spring maps: ``B`` (loaded) or ``B - u0`` (levelled)."""
+    if choice.endswith("levelled"):
+        return ctx.baseline - ctx.surrogate.u0[None, :]
+    return ctx.baseline
+
+
+def spring_bearings(choice: str) -> list[int]:
+    """Return the indices of the bearings on a spring for a choice of ``SPRING_CHOICES``."""
+    side = choice.split()[0]
+    return [0] if side == "south" else [1] if side == "north" else [0, 1]
+
+
+def _spring_linearized(ctx: Context, choice: str) -> np.ndarray:
+    """Reaction change per unit compliance (m/N) at no spring: ``-A E_j L`` for each bearing ``j``."""
+    a, b = ctx.surrogate.A, spring_load(ctx, choice)
+    return np.stack([-b[:, j, None] * a[None, :, j] for j in spring_bearings(choice)], axis=2)
 
 
 def _sensor_drift(ctx: Context, channel: str) -> np.ndarray:
@@ -165,43 +360,97 @@ def _traffic(ctx: Context, _: Any) -> np.ndarray:
     return x
 
 
+def _spring_magnitude(p: np.ndarray, _: Any) -> float:
+    """Stiffness of the softer spring, N/m (inf: no spring)."""
+    c = float(np.max(p)) if len(p) else 0.0
+    return 1.0 / c if c > 0 else float("inf")
+
+
 CANDIDATES: tuple[Candidate, ...] = (
     Candidate(
         "settlement_offset",
         ("x_south [m]", "x_north [m]"),
         _settle_offset,
         magnitude=lambda p, g: float(0.5 * (p[0] - p[1])),
+        bounds=_fixed_bounds("settlement_offset", 2),
     ),
     Candidate(
         "settlement_drift",
         ("v_south [m/day]", "v_north [m/day]"),
         _settle_drift,
         magnitude=lambda p, g: float(-p[0]),
+        bounds=_fixed_bounds("settlement_drift", 2),
     ),
-    Candidate("uniform_temperature", ("c [N/K]",), _uniform, magnitude=lambda p, g: float(p[0])),
+    Candidate(
+        "settlement_step",
+        ("dx_south [m]", "dx_north [m]"),
+        _settle_step,
+        grid_name="at [ns]",
+        magnitude=lambda p, g: float(0.5 * (p[0] + p[1])),
+        discrete=True,
+        bounds=_fixed_bounds("settlement_step", 2),
+        data_grid=True,
+    ),
+    Candidate(
+        "uniform_temperature",
+        ("c [N/K]",),
+        _uniform,
+        magnitude=lambda p, g: float(p[0]),
+        bounds=_fixed_bounds("uniform_temperature", 1),
+    ),
     Candidate(
         "vertical_gradient",
         ("g [K]",),
         _sun_case("vertical_gradient"),
         magnitude=lambda p, g: float(p[0]),
+        bounds=_fixed_bounds("vertical_gradient", 1),
     ),
     Candidate(
         "transverse_gradient",
         ("g [K]",),
         _sun_case("transverse_gradient"),
         magnitude=lambda p, g: float(p[0]),
+        bounds=_fixed_bounds("transverse_gradient", 1),
     ),
     Candidate(
-        "thermal_lag", ("scale [1]",), _thermal_lag, LAG_GRID_H, "tau [h]", magnitude=lambda p, g: float(g)
+        "thermal_lag",
+        ("scale [1]",),
+        _thermal_lag,
+        LAG_GRID_H,
+        "tau [h]",
+        magnitude=lambda p, g: float(g),
+        bounds=_fixed_bounds("thermal_lag", 1),
     ),
     Candidate(
-        "bearing_stiffness", ("r [1]",), _stiffness("bearing_stiffness"), magnitude=lambda p, g: float(p[0])
+        "bearing_stiffness",
+        ("r [1]",),
+        _stiffness("bearing_stiffness"),
+        magnitude=lambda p, g: float(p[0]),
+        bounds=_relative_bounds("bearing_stiffness"),
     ),
     Candidate(
         "connector_stiffness",
         ("r [1]",),
         _stiffness("connector_stiffness"),
         magnitude=lambda p, g: float(p[0]),
+        bounds=_relative_bounds("connector_stiffness"),
+    ),
+    Candidate(
+        "support_spring",
+        ("c_south [m/N]", "c_north [m/N]"),
+        _spring_linearized,
+        SPRING_CHOICES,
+        "bearing",
+        magnitude=_spring_magnitude,
+        discrete=True,
+        nonlinear=True,
+    ),
+    Candidate(
+        "slab_joint_opening",
+        ("r [1]",),
+        _stiffness("slab_joint_opening"),
+        magnitude=lambda p, g: float(1.0 + p[0]),
+        bounds=_relative_bounds("slab_joint_opening"),
     ),
     Candidate(
         "sensor_drift",
@@ -211,6 +460,13 @@ CANDIDATES: tuple[Candidate, ...] = (
         "channel",
         magnitude=lambda p, g: float(p[0]),
         discrete=True,
+        bounds=_fixed_bounds("sensor_drift", 1),
     ),
-    Candidate("traffic", ("b_south [1]", "b_north [1]"), _traffic, magnitude=lambda p, g: float(np.sum(p))),
+    Candidate(
+        "traffic",
+        ("b_south [1]", "b_north [1]"),
+        _traffic,
+        magnitude=lambda p, g: float(np.sum(p)),
+        bounds=_fixed_bounds("traffic", 2),
+    ),
 )

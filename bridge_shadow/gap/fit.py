@@ -22,29 +22,99 @@ __all__ = [
     "effective_n",
     "fit_best",
     "folds_of",
+    "lstsq_scaled",
 ]
 
+#: Bounds of the parameters of one fit: ``(low (p,), high (p,))`` or None (unbounded).
+Box = tuple[np.ndarray, np.ndarray] | None
 
-def _lstsq(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Solve ``min |x b - y|`` with columns scaled to unit norm (columns differ by 1e6 in scale)."""
+
+def _pinv_solve(g: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Minimum-norm solution of ``g beta = b`` for a symmetric PSD ``g`` (eigenvalues < 1e-12 max dropped)."""
+    if not len(b):
+        return np.zeros(0)
+    w, v = np.linalg.eigh(g)
+    keep = w > 1e-12 * max(w.max(), 1e-300)
+    vk = v[:, keep]
+    return vk @ ((vk.T @ b) / w[keep])
+
+
+def lstsq_scaled(x: np.ndarray, y: np.ndarray, box: Box = None) -> np.ndarray:
+    """Solve ``min |x b - y|`` with columns scaled to unit norm (columns differ by 1e6 in scale).
+
+    Through the normal equations of the scaled columns, solved with a pseudo-inverse: the
+    minimum-norm solution, directions with a singular value under 1e-6 of the largest dropped
+    (exactly collinear columns); much faster than an SVD of the tall design, and as accurate for
+    the few scaled columns fitted here. With ``box = (low, high)`` the solution is the exact
+    minimum inside the box: the unconstrained one when it lies inside, else the best of the
+    active sets (each bounded parameter free, at its low or at its high end) whose free part
+    lies inside; there are at most ``3^m`` of them for ``m`` bounded parameters (``m <= 2`` here).
+    A column of zeros gets 0 (clipped into the box).
+    """
     norm = np.linalg.norm(x, axis=0)
     live = norm > 0
     beta = np.zeros(x.shape[1])
-    if live.any():
-        sol, *_ = np.linalg.lstsq(x[:, live] / norm[live], y, rcond=1e-10)
-        beta[live] = sol / norm[live]
+    if not live.any():
+        return beta if box is None else np.clip(beta, *box)
+    xs = x[:, live] / norm[live]
+    g = xs.T @ xs
+    xty = xs.T @ y
+    sol = _pinv_solve(g, xty)
+    if box is not None:
+        lo = np.asarray(box[0], float)[live] * norm[live]
+        hi = np.asarray(box[1], float)[live] * norm[live]
+        if not np.all((sol >= lo) & (sol <= hi)):
+            sol = _box_solve(g, xty, lo, hi)
+    beta[live] = sol / norm[live]
+    if box is not None:
+        # exactly inside (the scaling may round a bound by an ulp); dead columns at 0 if allowed
+        beta[~live] = 0.0
+        beta = np.clip(beta, np.asarray(box[0], float), np.asarray(box[1], float))
     return beta
 
 
+def _box_solve(g: np.ndarray, xty: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Exact box-constrained least squares in normal-equation form by active-set enumeration."""
+    import itertools
+
+    bounded = np.flatnonzero(np.isfinite(lo) | np.isfinite(hi))
+    best, best_val = None, np.inf
+    for states in itertools.product((0, 1, 2), repeat=len(bounded)):
+        beta = np.zeros(len(xty))
+        fixed = np.zeros(len(xty), bool)
+        ok = True
+        for j, st in zip(bounded, states, strict=True):
+            if st == 0:
+                continue
+            v = lo[j] if st == 1 else hi[j]
+            if not np.isfinite(v):
+                ok = False
+                break
+            beta[j], fixed[j] = v, True
+        if not ok:
+            continue
+        free = ~fixed
+        beta[free] = _pinv_solve(g[np.ix_(free, free)], xty[free] - g[np.ix_(free, fixed)] @ beta[fixed])
+        if np.any(beta < lo - 1e-12 * np.abs(lo)) or np.any(beta > hi + 1e-12 * np.abs(hi)):
+            continue
+        val = float(beta @ g @ beta - 2.0 * beta @ xty)
+        if val < best_val:
+            best, best_val = beta, val
+    return best if best is not None else np.clip(np.zeros(len(xty)), lo, hi)
+
+
 def fit_best(
-    alts: Sequence[np.ndarray], resid: np.ndarray, mask: np.ndarray
+    alts: Sequence[np.ndarray], resid: np.ndarray, mask: np.ndarray, box: Box = None
 ) -> tuple[int, np.ndarray, float]:
-    """Fit each alternative design ``(n, 2, p)`` on ``mask`` (n, 2); return (index, beta, SSE) of the best."""
+    """Fit each alternative design ``(n, 2, p)`` on ``mask`` (n, 2); return (index, beta, SSE) of the best.
+
+    ``box``: bounds of the parameters (see ``lstsq_scaled``), the same for every alternative.
+    """
     y = resid[mask]
     best = (0, np.zeros(alts[0].shape[2]), np.inf)
     for i, x in enumerate(alts):
         xm = x[mask]
-        beta = _lstsq(xm, y)
+        beta = lstsq_scaled(xm, y, box)
         sse = float(np.sum((y - xm @ beta) ** 2))
         if sse < best[2]:
             best = (i, beta, sse)
@@ -85,6 +155,8 @@ class CvResult:
         beta: (p,) parameters fitted on all data.
         pred_full: (n, 2) N, prediction of the all-data fit.
         sse_full: in-sample SSE of the all-data fit, N^2.
+        pred_part: (n, 2) N, the all-data contribution of the last ``n_new`` parameters (the
+            candidate added to fixed columns in a joint fit); ``pred_full`` when alone.
 
     """
 
@@ -96,6 +168,11 @@ class CvResult:
     beta: np.ndarray
     pred_full: np.ndarray
     sse_full: float
+    pred_part: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.pred_part is None:
+            self.pred_part = self.pred_full
 
     @property
     def reduction(self) -> np.ndarray:
@@ -115,21 +192,39 @@ class CvResult:
 
 
 def cross_validate(
-    alts: Sequence[np.ndarray], resid: np.ndarray, valid: np.ndarray, fold: np.ndarray
+    alts: Sequence[np.ndarray],
+    resid: np.ndarray,
+    valid: np.ndarray,
+    fold: np.ndarray,
+    bounds: Sequence[tuple[float, float]] | None = None,
 ) -> CvResult:
-    """Fit on all folds but one, predict the left-out one, for every fold; then fit on all data."""
+    """Fit on all folds but one, predict the left-out one, for every fold; then fit on all data.
+
+    ``bounds``: plausible range of the last ``len(bounds)`` parameters (the candidate; earlier
+    columns, fixed effects of a joint fit, stay free); every fit is kept inside it.
+    """
+    p = alts[0].shape[2]
+    box: Box = None
+    n_new = p
+    if bounds is not None:
+        n_new = len(bounds)
+        lo = np.full(p, -np.inf)
+        hi = np.full(p, np.inf)
+        lo[p - n_new :] = [b[0] for b in bounds]
+        hi[p - n_new :] = [b[1] for b in bounds]
+        box = (lo, hi)
     pred = np.full(resid.shape, np.nan)
     for f in np.unique(fold[fold >= 0]):
         hold = fold == f
         train = valid & ~hold[:, None]
         if not train.any():
             continue
-        i, beta, _ = fit_best(alts, resid, train)
+        i, beta, _ = fit_best(alts, resid, train, box)
         pred[hold] = alts[i][hold] @ beta
     held = valid & np.isfinite(pred)
     r0 = np.where(held, resid, 0.0)
     r1 = np.where(held, resid - np.nan_to_num(pred), 0.0)
-    i, beta, sse = fit_best(alts, resid, valid)
+    i, beta, sse = fit_best(alts, resid, valid, box)
     return CvResult(
         pred_cv=pred,
         sse_before=np.sum(r0**2, axis=0),
@@ -139,6 +234,7 @@ def cross_validate(
         beta=beta,
         pred_full=alts[i] @ beta,
         sse_full=sse,
+        pred_part=alts[i][:, :, p - n_new :] @ beta[p - n_new :],
     )
 
 
@@ -201,7 +297,9 @@ def chance_threshold_mc(
     noise = lfilter([1.0], [1.0, -phi], e, axis=0)
     before = {name: np.zeros(draws) for name in designs}
     after = {name: np.zeros(draws) for name in designs}
-    # Every draw at once: the fits are linear in the data (one right-hand side per draw).
+    # Every draw at once: the fits are linear in the data (one right-hand side per draw). The
+    # held-out sum of squares of a fit b is |y_h|^2 - 2 b'X_h'y_h + b'X_h'X_h b, and the products
+    # with the draws of every alternative of every candidate are two matrix products per fold.
     for f in np.unique(fold[fold >= 0]):
         hold = valid & (fold == f)[:, None]
         train = valid & ~(fold == f)[:, None]
@@ -209,30 +307,44 @@ def chance_threshold_mc(
             continue
         y_tr, y_h = noise[train], noise[hold]  # (k, draws), (h, draws)
         ss_tr, ss_h = np.sum(y_tr**2, axis=0), np.sum(y_h**2, axis=0)
+        parts = []  # (name, q (k, p), r (p, p), scale (p,), x_h (h, p)) per alternative
         for name, alts in designs.items():
-            best_sse = np.full(draws, np.inf)
-            pred = np.zeros_like(y_h)
             for x in alts:
                 xt = x[train]
                 norm = np.linalg.norm(xt, axis=0)
                 live = norm > 0
                 if not live.any():
-                    sse, p_h = ss_tr, np.zeros_like(y_h)
-                else:
-                    # x = Q R: b = R^-1 Q'y, SSE = |y|^2 - |Q'y|^2 (scaled columns; dependent
-                    # columns dropped through the diagonal of R).
-                    q, r = np.linalg.qr(xt[:, live] / norm[live])
-                    keep = np.abs(np.diag(r)) > 1e-10 * np.abs(np.diag(r)).max()
-                    q, r = q[:, keep], r[np.ix_(keep, keep)]
-                    qty = q.T @ y_tr
-                    sse = ss_tr - np.sum(qty**2, axis=0)
-                    b = np.linalg.solve(r, qty) / norm[live][keep][:, None]
-                    p_h = x[hold][:, live][:, keep] @ b
-                better = sse < best_sse
-                best_sse = np.where(better, sse, best_sse)
-                pred[:, better] = p_h[:, better]
+                    parts.append((name, None, None, None, None))
+                    continue
+                # x = Q R: b = R^-1 Q'y, SSE = |y|^2 - |Q'y|^2 (scaled columns; dependent
+                # columns dropped through the diagonal of R).
+                q, r = np.linalg.qr(xt[:, live] / norm[live])
+                keep = np.abs(np.diag(r)) > 1e-10 * np.abs(np.diag(r)).max()
+                xh = x[hold][:, live][:, keep]
+                parts.append((name, q[:, keep], r[np.ix_(keep, keep)], norm[live][keep], xh))
+        live_parts = [pt for pt in parts if pt[1] is not None]
+        if live_parts:
+            qty_all = np.concatenate([pt[1] for pt in live_parts], axis=1).T @ y_tr
+            xhy_all = np.concatenate([pt[4] for pt in live_parts], axis=1).T @ y_h
+        best_sse = {name: np.full(draws, np.inf) for name in designs}
+        sse_after = {name: ss_h.copy() for name in designs}
+        k = 0
+        for name, q, r, scale, xh in parts:
+            if q is None:
+                sse, sse_h = ss_tr, ss_h
+            else:
+                p = q.shape[1]
+                qty, xhy = qty_all[k : k + p], xhy_all[k : k + p]
+                k += p
+                sse = ss_tr - np.sum(qty**2, axis=0)
+                b = np.linalg.solve(r, qty) / scale[:, None]
+                sse_h = ss_h - 2.0 * np.sum(b * xhy, axis=0) + np.sum(b * ((xh.T @ xh) @ b), axis=0)
+            better = sse < best_sse[name]
+            best_sse[name] = np.where(better, sse, best_sse[name])
+            sse_after[name] = np.where(better, sse_h, sse_after[name])
+        for name in designs:
             before[name] += ss_h
-            after[name] += np.sum((y_h - pred) ** 2, axis=0)
+            after[name] += sse_after[name]
     return {
         name: float(np.quantile(1.0 - after[name] / np.maximum(before[name], 1e-300), quantile))
         for name in designs

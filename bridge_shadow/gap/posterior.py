@@ -1,61 +1,73 @@
-"""Posterior settlements of the shadow, before and after adding the best effect to the model.
+"""Posterior settlements of the shadow before and after adding the named effects to the model.
 
-Two ways, both through ``bridge_shadow.estimate``:
+One estimator: both come from the online ``Shadow`` pipeline (``bridge_shadow.estimate``; gate,
+60 s windows, P-spline compensation, noise model, Kalman update), run exactly as
+``bridge-shadow replay`` runs it (same parameters, same surrogate, no checkpoint written):
 
-- ``posterior``: the shadow's batch linear Gaussian update (``estimate.kalman.batch_posterior``,
-  the paper's formula, equal to its Kalman filter with ``Q = 0``) on the 60 s window means with the
-  prior and noise of ``config/shadow.yaml``: ``Sigma' = (Sigma_X^-1 + m A^T Sigma_E^-1 A)^-1``,
-  ``mu' = Sigma' A^T Sigma_E^-1 sum_i (y_i - u0 - thermal_uniform dT_i)``. Fast; the default.
-- ``replay_posterior``: the whole online ``Shadow`` (gate, P-spline compensation, adaptive noise,
-  Kalman) replayed on the record, and on the record with the effect's fitted contribution
-  subtracted from every force sample (interpolated between window centres).
+- ``before``: the shadow with the model as built, on the record as it is. It is the answer of
+  ``bridge-shadow replay BAG`` with the same ``--params`` and surrogate.
+- ``after``: the shadow with the named effects added to the model: a model-form effect
+  (stiffness, support spring, slab-joint opening) changes the surrogate the shadow uses
+  (``model.sensitivities.change_surrogate``); an additive effect (thermal, traffic, sensor drift)
+  has its fitted contribution taken off every force sample (interpolated between window centres).
+  Settlement effects are never added: the settlements are what the shadow estimates.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from bridge_shadow.contract import CHANNELS
+from bridge_shadow.model.sensitivities import StiffnessSensitivity, change_surrogate
 from bridge_shadow.model.surrogate_file import Surrogate
 from bridge_shadow.series import ForceSeries, MonitoringData
 
-__all__ = ["posterior", "replay_posterior"]
+__all__ = ["ModelChange", "shadow_config", "shadow_posteriors", "subtract_contribution"]
 
 
-def _prior_and_noise() -> tuple[np.ndarray, np.ndarray]:
-    """Prior covariance (2, 2) m^2 and window noise covariance (2, 2) N^2 from the shadow config."""
-    from bridge_shadow.errors import ConfigError
-    from bridge_shadow.estimate.config import ShadowConfig, load_config
+@dataclass
+class ModelChange:
+    """What the named effects add to the model.
 
-    try:
-        cfg = load_config()
-    except ConfigError:
-        # The diagnosis needs only the paper's prior and noise: do not fail on a parameter file
-        # written for a newer or older node; use the documented defaults instead.
-        cfg = ShadowConfig()
-    return np.diag(np.square(cfg.prior_sigma_m)), np.diag(np.square(cfg.noise_sigma_n))
+    Attributes:
+        effects: names of the effects added (vocabulary order of naming).
+        ratios: first-order parameter name -> relative change ``r``.
+        springs_n_per_m: support springs [south, north] in N/m (``inf``: none).
+        springs_levelled: the supports were levelled under the dead load (``u0`` kept).
+        additive_n: (n, 2) N on the window grid, the summed additive contributions.
 
+    """
 
-def posterior(force_n: np.ndarray, dtemp_k: np.ndarray, s: Surrogate) -> dict[str, Any]:
-    """Return ``{"mean_m": [south, north], "covariance_m2": 2x2, "windows": m}`` from window means."""
-    from bridge_shadow.estimate.kalman import batch_posterior
+    effects: list[str] = field(default_factory=list)
+    ratios: dict[str, float] = field(default_factory=dict)
+    springs_n_per_m: tuple[float, float] = (np.inf, np.inf)
+    springs_levelled: bool = False
+    additive_n: np.ndarray | None = None
 
-    ok = np.isfinite(force_n).all(axis=1)
-    z = force_n[ok] - s.u0 - dtemp_k[ok, None] * s.thermal.get("uniform", np.zeros(2))
-    sigma_x, sigma_e = _prior_and_noise()
-    if not len(z):
-        return {"mean_m": [0.0, 0.0], "covariance_m2": sigma_x.tolist(), "windows": 0}
-    mean, cov = batch_posterior(s.A, sigma_x, sigma_e, z)
-    return {
-        "mean_m": mean.tolist(),
-        "covariance_m2": (0.5 * (cov + cov.T)).tolist(),
-        "windows": int(ok.sum()),
-    }
+    @property
+    def empty(self) -> bool:
+        """Nothing is added."""
+        return not self.effects
 
 
-def _subtract(data: MonitoringData, t_ns: np.ndarray, contribution_n: np.ndarray) -> MonitoringData:
+def shadow_config(params_path: str | None = None, surrogate_path: str | None = None) -> Any:
+    """Load the shadow's parameters as replay does, with checkpoints off (the gap writes no state)."""
+    from bridge_shadow.estimate import load_config
+
+    overrides: dict[str, Any] = {"checkpoint_path": ""}
+    if surrogate_path:
+        overrides["surrogate_path"] = str(surrogate_path)
+    return load_config(params_path, overrides=overrides)
+
+
+def subtract_contribution(
+    data: MonitoringData, t_ns: np.ndarray, contribution_n: np.ndarray
+) -> MonitoringData:
+    """Take ``contribution_n`` (n, 2) N at window centres ``t_ns`` off each force sample."""
     forces = {}
     for i, ch in enumerate(CHANNELS):
         f = data.forces[ch]
@@ -64,21 +76,92 @@ def _subtract(data: MonitoringData, t_ns: np.ndarray, contribution_n: np.ndarray
     return MonitoringData(forces, data.temperature)
 
 
-def replay_posterior(
-    data: MonitoringData, s: Surrogate, t_ns: np.ndarray, contribution_n: np.ndarray, min_samples: int
-) -> dict[str, Any]:
-    """Replay the online shadow before and after subtracting ``contribution_n`` (n, 2) N at ``t_ns``."""
-    from bridge_shadow.estimate import Shadow, load_config
+def _posterior_json(result: Any) -> dict[str, Any]:
+    mean, cov = np.asarray(result.mean_m, float), np.asarray(result.covariance_m2, float)
+    return {
+        "mean_m": mean.tolist(),
+        "covariance_m2": cov.tolist(),
+        "sigma_m": np.sqrt(np.maximum(np.diag(cov), 0.0)).tolist(),
+        "updates": int(result.updates),
+    }
 
-    cfg = load_config(overrides={"window_min_samples": int(max(1, min_samples)), "checkpoint_path": ""})
-    out = {}
-    for key, d in (("before", data), ("after", _subtract(data, t_ns, contribution_n))):
-        r = Shadow(cfg, s).run(d)
-        out[key] = {
-            "mean_m": r.mean_m.tolist(),
-            "covariance_m2": r.covariance_m2.tolist(),
-            "updates": r.updates,
-        }
-    out["change_m"] = (np.array(out["after"]["mean_m"]) - np.array(out["before"]["mean_m"])).tolist()
-    out["method"] = "online Shadow replay (bridge_shadow.estimate), before and after"
+
+def _after(
+    data: MonitoringData,
+    surrogate: Surrogate,
+    config: Any,
+    change: ModelChange,
+    t_ns: np.ndarray,
+    sensitivities: Mapping[str, StiffnessSensitivity],
+) -> dict[str, Any]:
+    """Run the shadow with ``change`` added to the model."""
+    from bridge_shadow.estimate import Shadow
+
+    changed, _ = change_surrogate(
+        surrogate,
+        dict(sensitivities),
+        change.ratios,
+        change.springs_n_per_m,
+        levelled=change.springs_levelled,
+    )
+    run_data = data
+    if change.additive_n is not None and np.any(change.additive_n):
+        run_data = subtract_contribution(data, t_ns, change.additive_n)
+    after = _posterior_json(Shadow(config, changed).run(run_data))
+    after["what"] = (
+        f"the shadow with {', '.join(change.effects)} added to the model (settlements stay the "
+        "shadow's to estimate)"
+    )
+    after["effects_added"] = list(change.effects)
+    model: dict[str, Any] = {k: float(v) for k, v in change.ratios.items()}
+    if np.any(np.isfinite(change.springs_n_per_m)):
+        model["support_spring_n_per_m"] = [None if np.isinf(k) else float(k) for k in change.springs_n_per_m]
+        model["support_spring_levelled"] = change.springs_levelled
+    if model:
+        after["model_change"] = model
+        after["surrogate_A"] = changed.A.tolist()
+        after["surrogate_u0"] = changed.u0.tolist()
+    return after
+
+
+def shadow_posteriors(
+    data: MonitoringData,
+    surrogate: Surrogate,
+    config: Any,
+    change: ModelChange,
+    t_ns: np.ndarray,
+    sensitivities: Mapping[str, StiffnessSensitivity],
+    alternatives: Mapping[str, ModelChange] | None = None,
+) -> dict[str, Any]:
+    """Run the shadow before and after ``change``; return the ``posterior`` JSON of the diagnosis.
+
+    ``alternatives``: model-form effects the data cannot tell from a named one -> the model change
+    with that effect standing in; each is run too (``posterior.alternatives``).
+    """
+    from bridge_shadow.estimate import Shadow
+
+    before = _posterior_json(Shadow(config, surrogate).run(data))
+    before["what"] = "the shadow with the model as built (the answer of `bridge-shadow replay` on this bag)"
+    if change.empty:
+        after = dict(before)
+        after["what"] = (
+            "nothing added: no effect named, or settlements only, which are what the shadow estimates "
+            "(after = before)"
+        )
+        after["effects_added"] = []
+    else:
+        after = _after(data, surrogate, config, change, t_ns, sensitivities)
+    out = {
+        "before": before,
+        "after": after,
+        "change_m": (np.array(after["mean_m"]) - np.array(before["mean_m"])).tolist(),
+        "method": "online Shadow (bridge_shadow.estimate), run as `bridge-shadow replay` runs it",
+    }
+    if alternatives:
+        alt = {}
+        for name, ch in alternatives.items():
+            alt[name] = _after(data, surrogate, config, ch, t_ns, sensitivities)
+            why = "which the data cannot tell from the named effect"
+            alt[name]["what"] = f"if {name} ({why}) is the cause: {alt[name]['what']}"
+        out["alternatives"] = alt
     return out

@@ -147,27 +147,38 @@ def _markdown(summary: dict[str, Any], source: str) -> str:
         lines += ["", "Also present (forward selection, each given the ones before):", ""]
         for a in also:
             red = a["cumulative_heldout_reduction"]
+            group = f"; cannot be told apart from {', '.join(a['indistinguishable_from'])}" if a[
+                "indistinguishable_from"
+            ] else ""
             lines.append(
                 f"- `{a['effect']}` ({a['part']}): removes {_pct(a['partial_heldout_gain'])} of the "
                 f"remaining held-out squared residual; cumulative held-out RMS reduction {_pct(red['total'])}"
+                f"{group}"
             )
-    mb, ma = (np.array(post[k]["mean_m"]) * 1e3 for k in ("before", "after"))
-    lines += [
-        "",
-        "## How far it shrinks",
-        "",
-        "![held-out](heldout.png)",
-        "",
-        f"Posterior settlements [mm] (south, north): before {mb[0]:+.3f}, {mb[1]:+.3f}; "
-        f"after adding `{summary['best']}`: {ma[0]:+.3f}, {ma[1]:+.3f} ({post['method']}).",
-    ]
-    if "after_all_but_settlement" in post:
-        pa = post["after_all_but_settlement"]
-        m = np.array(pa["mean_m"]) * 1e3
-        lines.append(
-            f"With every effect found except settlements added to the model "
-            f"({', '.join(pa['effects_added']) or 'none'}): {m[0]:+.3f}, {m[1]:+.3f}."
-        )
+    rejected = summary.get("rejected_implausible", [])
+    if rejected:
+        lines += ["", "Rejected as implausible (the data would take them only outside their range):", ""]
+        for r in rejected:
+            given = f" (given {', '.join(r['given'])})" if r.get("given") else ""
+            lines.append(f"- `{r['effect']}`{given}: {r['reason']}")
+    lines += ["", "## How far it shrinks", "", "![held-out](heldout.png)", ""]
+    if post.get("computed"):
+        lines += [
+            "Posterior settlements of the shadow [mm], south / north, positive upward:",
+            "",
+            "| | south | north | what |",
+            "|---|---|---|---|",
+        ]
+        rows = [("before", post["before"]), ("after", post["after"])]
+        rows += [(f"or ({k})", v) for k, v in post.get("alternatives", {}).items()]
+        for label, v in rows:
+            m = np.array(v["mean_m"]) * 1e3
+            sd = np.array(v["sigma_m"]) * 1e3
+            south = f"{m[0]:+.3f} +- {1.96 * sd[0]:.3f}"
+            north = f"{m[1]:+.3f} +- {1.96 * sd[1]:.3f}"
+            lines.append(f"| {label} | {south} | {north} | {v['what']} |")
+    else:
+        lines.append("The shadow's posteriors were not computed (`diagnose(..., shadow=True)` does).")
     lines.append("")
     return "\n".join(lines)
 

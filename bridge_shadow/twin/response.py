@@ -1,13 +1,13 @@
-"""The structural response the twin uses: surrogate, stiffness sensitivities, traffic influence line.
+"""The structural response the twin uses: surrogate, model-form changes, traffic influence line.
 
 ``load_twin_surrogate`` gives the FE surrogate (``config/surrogate.yaml``) or its closed-form
 placeholder, and ``stiffness_sensitivities`` the change of that surrogate per unit relative
-stiffness change ``r`` (``k -> (1 + r) k``) of the central bearings and of the girder-slab
-connectors: from the surrogate file's ``sensitivities`` block when the FE model wrote one
-(``{bearing_stiffness: {A, u0, thermal}, connector_stiffness: {...}}``, each the change per
-unit ``r``), else the closed-form placeholder; both come from :mod:`bridge_shadow.model.sensitivities`, the
-one implementation the gap diagnosis uses too, so that a stiffness effect injected here has the
-signature the diagnosis looks for.
+change ``r`` of the central bearings' stiffness, the girder-slab connectors' and the slab joints'
+kept fraction: from the surrogate file's ``sensitivities`` block when the FE model wrote one
+(``{bearing_stiffness: {A, u0, thermal}, ...}``, each the change per unit ``r``), else the
+closed-form placeholder. ``apply_stiffness`` adds support springs by their exact closed form. All of
+it comes from :mod:`bridge_shadow.model.sensitivities`, the one implementation the gap diagnosis
+uses too, so that a model-form effect injected here has the signature the diagnosis looks for.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from bridge_shadow.model.sensitivities import (
     BEARING_STIFFNESS_N_PER_M,
     CONNECTOR_EI_SHARE,
     StiffnessSensitivity,
+    change_surrogate,
     read_sensitivities_block,
     stiffness_sensitivities,
 )
@@ -47,29 +48,21 @@ def load_twin_surrogate(path: str | Path | None = None) -> tuple[Surrogate, dict
 
 
 def apply_stiffness(
-    surrogate: Surrogate, sens: dict[str, StiffnessSensitivity], ratios: dict[str, float]
+    surrogate: Surrogate,
+    sens: dict[str, StiffnessSensitivity],
+    ratios: dict[str, float],
+    springs_n_per_m: Any = (np.inf, np.inf),
 ) -> tuple[Surrogate, np.ndarray]:
-    """Surrogate after relative stiffness changes ``ratios`` (name -> r), first order in ``r``.
+    """Surrogate after relative changes ``ratios`` (name -> r, first order) and support springs.
 
-    Returns the changed surrogate and the factor (2,) on the reactions to live loads (traffic):
-    ``1 + sum r du0 / u0`` per channel (a live load acts like the dead load it is a part of).
+    Returns the changed surrogate and the load map (2, 2) that takes the central reactions to a
+    live load (traffic) of the as-built model to the changed one
+    (``bridge_shadow.model.sensitivities.change_surrogate``).
     """
-    a, u0 = surrogate.A.copy(), surrogate.u0.copy()
-    thermal = {k: v.copy() for k, v in surrogate.thermal.items()}
-    load_factor = np.ones(2)
-    for name, r in ratios.items():
-        if r == 0.0:
-            continue
-        s = sens[name]
-        a += r * s.dA
-        u0 += r * s.du0
-        for k in thermal:
-            thermal[k] = thermal[k] + r * s.dthermal.get(k, np.zeros(2))
-        load_factor += r * s.du0 / surrogate.u0
-    provenance = dict(surrogate.provenance)
-    if any(ratios.values()):
-        provenance["twin_stiffness_change"] = {k: float(v) for k, v in ratios.items() if v}
-    return Surrogate(a, u0, thermal, provenance), load_factor
+    changed, load_map = change_surrogate(surrogate, sens, ratios, springs_n_per_m)
+    if "model_form_change" in changed.provenance:
+        changed.provenance["twin_stiffness_change"] = changed.provenance.pop("model_form_change")
+    return changed, load_map
 
 
 def two_span_mid_influence(position_m: np.ndarray, span_m: float) -> np.ndarray:

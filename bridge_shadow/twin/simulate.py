@@ -11,7 +11,9 @@ from independent random streams of one seed, and maps them to the two central re
          + traffic(t)                                     traffic effect
          + noise(t) + [0, d t_days]                       sensors; sensor_drift effect (north)
 
-with the primed surrogate changed by the stiffness effects, ``T_ref`` the mean noise-free air
+with the primed surrogate changed by the model-form effects (``bearing_stiffness``,
+``connector_stiffness``, ``slab_joint_opening`` first order; ``support_spring`` exact; traffic
+through the same load map), ``T_ref`` the mean noise-free air
 temperature over the record, ``T_struct`` the air temperature through the thermal lag (the air
 itself without the ``thermal_lag`` effect), ``dT_v = g_v sun clearness + (T_air - T_struct)`` and
 ``dT_t = g_t sun clearness``. Every effect's meaning is the one in ``bridge_shadow.effects``. With
@@ -30,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from bridge_shadow.contract import CHANNELS, FORCE_FRAMES
-from bridge_shadow.effects import EFFECT_NAMES, EFFECTS
+from bridge_shadow.effects import EFFECT_NAMES, EFFECTS, format_support_springs, parse_support_springs
 from bridge_shadow.errors import InputError
 from bridge_shadow.model.surrogate_file import Surrogate
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
@@ -57,15 +59,27 @@ def _rng(seed: int, part: str) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([int(seed), _STREAMS[part]]))
 
 
-def validate_effects(effects: Mapping[str, float] | None) -> dict[str, float]:
-    """Check names and values against the vocabulary; return ``{name: float}`` in vocabulary order."""
+def validate_effects(effects: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Check names and values against the vocabulary; return ``{name: value}`` in vocabulary order.
+
+    Every value is a float, except ``support_spring`` whose one-bearing or two-value forms
+    (``south:K``, ``north:K``, ``KS,KN``) stay a canonical string (``format_support_springs``).
+    """
     effects = dict(effects or {})
     unknown = sorted(set(effects) - set(EFFECT_NAMES))
     if unknown:
         raise InputError(f"unknown effect {', '.join(unknown)}; valid effects: {', '.join(EFFECT_NAMES)}")
-    out: dict[str, float] = {}
+    out: dict[str, Any] = {}
     for name in EFFECT_NAMES:
         if name not in effects:
+            continue
+        if name == "support_spring":
+            try:
+                out[name] = format_support_springs(parse_support_springs(effects[name]))
+            except ValueError as err:
+                raise InputError(
+                    f"effect support_spring: {err}; give K (N/m, both bearings), south:K, north:K or KS,KN"
+                ) from None
             continue
         try:
             value = float(effects[name])
@@ -77,11 +91,13 @@ def validate_effects(effects: Mapping[str, float] | None) -> dict[str, float]:
             raise InputError("effect thermal_lag: the time constant (h) must not be negative")
         if name in ("bearing_stiffness", "connector_stiffness") and value <= -1.0:
             raise InputError(f"effect {name}: the relative change must be greater than -1")
+        if name == "slab_joint_opening" and not 0.0 <= value <= 1.0:
+            raise InputError("effect slab_joint_opening: the fraction of joint stiffness kept is in [0, 1]")
         out[name] = value
     return out
 
 
-def parse_effects(items: Iterable[str]) -> dict[str, float]:
+def parse_effects(items: Iterable[str]) -> dict[str, Any]:
     """Parse ``NAME=VALUE`` strings (the ``--effect`` arguments) into a validated dict."""
     raw: dict[str, str] = {}
     for item in items:
@@ -114,13 +130,18 @@ def _start_ns(start: dt.datetime | str | int | None) -> int:
 
 
 def _settlement_path(
-    t_day: np.ndarray, effects: dict[str, float], steps: Sequence[tuple[float, float, float]]
+    t_day: np.ndarray,
+    effects: dict[str, Any],
+    steps: Sequence[tuple[float, float, float]],
+    days: float,
 ) -> np.ndarray:
     """Return the true settlements x (n, 2) in m, positive upward [south, north]."""
     x = np.zeros((len(t_day), 2))
     v = effects.get("settlement_offset", 0.0)
     x += np.array([v, -v])
     x[:, 0] -= effects.get("settlement_drift", 0.0) * t_day
+    if effects.get("settlement_step", 0.0) and len(t_day):
+        x[t_day >= 0.5 * days] += effects["settlement_step"]
     for t_step, dx_south, dx_north in steps:
         x[t_day >= t_step] += np.array([dx_south, dx_north])
     return x
@@ -136,7 +157,7 @@ def simulate(
     days: float = 3.0,
     rate_hz: float = 1.0,
     seed: int = 0,
-    effects: Mapping[str, float] | None = None,
+    effects: Mapping[str, Any] | None = None,
     start: dt.datetime | str | int | None = None,
     *,
     temp_rate_hz: float = DEFAULT_TEMP_RATE_HZ,
@@ -206,12 +227,16 @@ def simulate(
     dtv = eff.get("vertical_gradient", 0.0) * sun * clearness + (t_air - t_struct)
     dtt = eff.get("transverse_gradient", 0.0) * sun * clearness
 
-    # Structure: surrogate changed by the stiffness effects.
+    # Structure: surrogate changed by the model-form effects (first order in r, support springs
+    # exact; slab_joint_opening keeps the fraction f, r = f - 1).
     sens = stiffness_sensitivities(base, block)
-    ratios = {k: eff.get(k, 0.0) for k in ("bearing_stiffness", "connector_stiffness")}
-    sur, load_factor = apply_stiffness(base, sens, ratios)
+    ratios = {k: float(eff.get(k, 0.0)) for k in ("bearing_stiffness", "connector_stiffness")}
+    if "slab_joint_opening" in eff:
+        ratios["slab_joint_opening"] = float(eff["slab_joint_opening"]) - 1.0
+    springs = parse_support_springs(eff["support_spring"]) if "support_spring" in eff else (np.inf, np.inf)
+    sur, load_map = apply_stiffness(base, sens, ratios, springs)
     zero = np.zeros(2)
-    x = _settlement_path(t_day, eff, steps)
+    x = _settlement_path(t_day, eff, steps, days)
     parts = {
         "dead_load": np.broadcast_to(sur.u0, (n, 2)).copy(),
         "settlement": x @ sur.A.T,
@@ -222,7 +247,7 @@ def simulate(
     }
     crossings = draw_crossings(_rng(seed, "traffic"), t0, t1, cfg)
     weight = eff.get("traffic", 0.0)
-    parts["traffic"] = traffic_reactions(t_ns, crossings, weight, cfg.span_m) * load_factor
+    parts["traffic"] = traffic_reactions(t_ns, crossings, weight, cfg.span_m) @ load_map.T
     clean = sum(parts.values())
 
     # Sensors.
@@ -270,7 +295,7 @@ def simulate(
         "surrogate": sur.to_dict(),
         "base_surrogate": base.to_dict(),
         "sensitivities": {k: v.to_dict() for k, v in sens.items()},
-        "traffic_load_factor": load_factor.tolist(),
+        "traffic_load_map": load_map.tolist(),
         "settlement": _summary(x),
         "counts": {
             "force_samples": n,
