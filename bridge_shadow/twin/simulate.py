@@ -144,6 +144,7 @@ def simulate(
     config: TwinConfig | None = None,
     surrogate: Surrogate | None = None,
     sensitivities_block: dict[str, Any] | None = None,
+    reality: dict[str, Any] | None = None,
 ) -> tuple[MonitoringData, dict[str, Any]]:
     """Simulate ``days`` of monitoring; return the data and the truth.
 
@@ -157,8 +158,10 @@ def simulate(
         temp_rate_hz: air-temperature message rate, Hz (default one a minute).
         steps: extra settlement steps ``(t_day, dx_south_m, dx_north_m)`` from ``t_day`` on.
         config: the world's parameters (``TwinConfig()`` by default).
-        surrogate: the structural map; default ``config/surrogate.yaml`` or its placeholder.
+        surrogate: the structural map (the twin's reality); default ``config/surrogate.yaml`` or
+            its placeholder. It may differ from the estimator's (``bridge_shadow.twin.reality``).
         sensitivities_block: stiffness sensitivities in the file format (with ``surrogate``).
+        reality: where ``surrogate`` comes from (recorded as ``truth["reality"]``).
 
     Returns:
         ``(data, truth)``: ``truth`` holds every parameter, the effects, the seed, the surrogate
@@ -267,6 +270,7 @@ def simulate(
         "steps": [list(s) for s in steps],
         "config": cfg.to_dict(),
         "t_ref_c": t_ref,
+        "reality": dict(reality) if reality else {"source": "default" if surrogate is None else "given"},
         "surrogate": sur.to_dict(),
         "base_surrogate": base.to_dict(),
         "sensitivities": {k: v.to_dict() for k, v in sens.items()},
