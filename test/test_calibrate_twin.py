@@ -72,8 +72,11 @@ def calibrated(pair):
 def test_the_twin_reality_differs_from_the_estimators_model(pair, root) -> None:
     truth = read_truth(pair["after"])
     assert truth["reality"]["source"] == "fe" and truth["reality"]["overrides"] == REALITY
-    as_built = load_surrogate(root / "config" / "surrogate_fe.yaml").A.sum(axis=1)
-    assert np.all(np.array(truth["surrogate"]["A"]).sum(axis=1) < 0.8 * as_built)
+    as_built = load_surrogate(root / "config" / "surrogate_fe.yaml").A
+    real = np.array(truth["surrogate"]["A"])
+    assert np.all(np.diag(real) < 0.8 * np.diag(as_built))  # soft supports under both bearings
+    d_r = real @ [-0.01, -0.01]
+    assert d_r[1] < 1.5 * d_r[0]  # and an unequal split of a common lowering (as-built: equal)
 
 
 def test_calibration_recovers_the_support_springs_within_their_intervals(calibrated) -> None:
@@ -95,6 +98,6 @@ def test_calibrated_surrogate_maps_a_withheld_20mm_lowering_within_5_percent(pai
     )
     x = np.linalg.solve(surrogate.A, change.dR_n)
     np.testing.assert_allclose(x, [-0.020, -0.020], rtol=0.05)
-    # the uncalibrated model would say about half of it
+    # the uncalibrated model misses it by far more
     fe = load_surrogate(root / "config" / "surrogate_fe.yaml")
-    assert np.all(np.abs(np.linalg.solve(fe.A, change.dR_n)) < 0.75 * 0.020)
+    assert np.abs(np.linalg.solve(fe.A, change.dR_n) / -0.020 - 1.0).max() > 0.15
