@@ -101,3 +101,17 @@ def test_calibrated_surrogate_maps_a_withheld_20mm_lowering_within_5_percent(pai
     # the uncalibrated model misses it by far more
     fe = load_surrogate(root / "config" / "surrogate_fe.yaml")
     assert np.abs(np.linalg.solve(fe.A, change.dR_n) / -0.020 - 1.0).max() > 0.15
+
+
+def test_synth_reality_from_a_surrogate_file_and_a_bad_calibration_file(root, tmp_path, capsys) -> None:
+    fe = root / "config" / "surrogate_fe.yaml"
+    bag = tmp_path / "bag"
+    argv = ["synth", "--out", str(bag), "--days", "0.01", "--rate", "0.1", "--reality-surrogate", str(fe)]
+    assert main(argv) == 0
+    truth = read_truth(bag)
+    assert truth["reality"] == {"source": "file", "path": str(fe)}
+    np.testing.assert_allclose(truth["surrogate"]["A"], load_surrogate(fe).A, rtol=1e-12)
+    capsys.readouterr()
+    assert main(["calibrate", str(tmp_path / "missing.yaml")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "missing.yaml" in err[0]
