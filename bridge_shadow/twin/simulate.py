@@ -126,6 +126,16 @@ def _settlement_path(
     return x
 
 
+def _brief(surrogate: Surrogate) -> dict[str, Any]:
+    """``surrogate.to_dict()`` with a calibration's provenance cut to its chosen explanation."""
+    out = surrogate.to_dict()
+    cal = out["provenance"].get("calibration")
+    if isinstance(cal, dict):
+        keep = ("chosen_explanation", "file_sha256", "bridge_model_sha256", "mesh")
+        out["provenance"] = {**out["provenance"], "calibration": {k: cal.get(k) for k in keep}}
+    return out
+
+
 def _summary(x: np.ndarray) -> dict[str, list[float]]:
     if not len(x):
         return {"mean_m": [0.0, 0.0], "start_m": [0.0, 0.0], "end_m": [0.0, 0.0]}
@@ -271,8 +281,8 @@ def simulate(
         "config": cfg.to_dict(),
         "t_ref_c": t_ref,
         "reality": dict(reality) if reality else {"source": "default" if surrogate is None else "given"},
-        "surrogate": sur.to_dict(),
-        "base_surrogate": base.to_dict(),
+        "surrogate": _brief(sur),
+        "base_surrogate": _brief(base),
         "sensitivities": {k: v.to_dict() for k, v in sens.items()},
         "traffic_load_factor": load_factor.tolist(),
         "settlement": _summary(x),
