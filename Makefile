@@ -14,7 +14,7 @@ export MPLBACKEND := Agg
 
 DEMO_BAG ?= bags/demo_3d
 
-.PHONY: demo test venv lint bench clean
+.PHONY: demo test venv lint bench clean models bags
 
 venv: $(STAMP)
 
@@ -32,6 +32,19 @@ test: $(STAMP)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check bridge_shadow test benchmarks
+
+# Regenerate the generated model files after config/bridge.yaml, config/calibration.yaml or the FE
+# code change: the uncalibrated FE surrogate, the calibrated default surrogate (with the README's
+# calibration figures) and the bundled bags (made with the default surrogate). Commit the results.
+models: $(STAMP)
+	$(VENV)/bin/bridge-shadow surrogate --out config/surrogate_fe.yaml
+	$(VENV)/bin/bridge-shadow calibrate --out config/surrogate.yaml --report docs
+	$(MAKE) bags
+
+# Rebuild every bag from its command in bags/README.md (the one place the commands are written).
+bags: $(STAMP)
+	grep -o '`bridge-shadow synth [^`]*`' bags/README.md | tr -d '`' | while read -r cmd; do \
+		echo "$$cmd"; $(VENV)/bin/$$cmd || exit 1; done
 
 bench: $(STAMP)
 	for b in benchmarks/[!_]*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

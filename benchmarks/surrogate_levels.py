@@ -2,7 +2,7 @@
 
 Times, in one run, the base solve of the bridge (mesh generation, model, factorization, the six
 load cases) and the independent Schur-complement check at each level, and prints each as a ratio
-of the coarse level's total measured in the same run (the sensitivities cost 4 more base solves).
+of the coarse level's total measured in the same run (the sensitivities are adjoint: no more solves).
 
 Run: ``.venv/bin/python benchmarks/surrogate_levels.py [LEVEL ...]`` (default: coarse default fine).
 """

@@ -23,6 +23,7 @@ COMMANDS: dict[str, str] = {
     "synth": "bridge_shadow.commands.synth",
     "import-csv": "bridge_shadow.commands.import_csv",
     "surrogate": "bridge_shadow.commands.surrogate",
+    "calibrate": "bridge_shadow.commands.calibrate",
     "verify": "bridge_shadow.commands.verify",
     "gap": "bridge_shadow.commands.gap",
 }

@@ -34,8 +34,12 @@ def reference_bag(munich_data: Path, tmp_path_factory: pytest.TempPathFactory) -
 
 
 @pytest.fixture(scope="module")
-def reference_gap(reference_bag: Path) -> dict[str, Any]:
-    return _run(["gap", str(reference_bag), "--json"])
+def reference_gap(reference_bag: Path, root: Path) -> dict[str, Any]:
+    # The as-built FE surrogate: with it a transverse gradient of ~33 K mimics the offset. The
+    # calibrated default (support springs, a six-fold softer differential mode and a weaker
+    # gradient response) would need ~144 K, so there the two are no longer alike.
+    as_built = str(root / "config" / "surrogate_fe.yaml")
+    return _run(["gap", str(reference_bag), "--json", "--surrogate", as_built])
 
 
 def test_reference_reactions_match_the_published_values(reference_bag: Path):

@@ -52,6 +52,9 @@ def test_A_equals_schur_complement(coarse_run):
 
 
 def test_u0_total_matches_measured_central_reaction(coarse):
+    # CIRCULAR: deck_width and slab_thickness were chosen to match this measured reaction
+    # (config/bridge.yaml), so this checks that choice, not the model; the two-span share below and
+    # the symmetry are the independent checks.
     assert coarse.u0.sum() == pytest.approx(MEASURED_TOTAL_N, rel=0.10)
     # symmetric structure and load: both bearings carry the same (the y restraint is horizontal)
     assert coarse.u0[0] == pytest.approx(coarse.u0[1], rel=1e-3)
@@ -100,7 +103,9 @@ def test_bearing_twist_restraint_stiffens_only_the_differential_mode(coarse, cfg
     np.testing.assert_allclose(rocker.A.sum(axis=1), coarse.A.sum(axis=1), rtol=2e-3)
     diff, diff_rocker = coarse.A[0, 0] - coarse.A[0, 1], rocker.A[0, 0] - rocker.A[0, 1]
     assert diff_rocker < 0.8 * diff
-    # the paper's +-0.7 mm for the measured 260 / 221 kN split needs ~28 kN/mm (DESIGN 2, 3)
+    # TUNED TARGET, not evidence: central_bearing_twist_restraint = 1 was chosen so that the paper's
+    # +-0.7 mm for the measured 260 / 221 kN split follows (~28 kN/mm, DESIGN 2, 3); this line checks
+    # the tuning. The calibration (README, Calibration) shows the data cannot fix this mode.
     assert 19.5e3 / 0.7e-3 == pytest.approx(diff, rel=0.15)
 
 
@@ -119,14 +124,22 @@ def test_lowering_both_bearings_unloads_both(coarse, cfg):
 
 
 def test_sensitivities_match_a_direct_perturbation(coarse_run, cfg):
-    """Central difference at +-10 % predicts the response at +5 % (the model is near-linear in k)."""
+    """The derivative per unit relative change predicts the response at -5 % (fractions sit at 1)."""
     sens = coarse_run.sensitivities
     assert set(SENSITIVITY_PARAMETERS) <= set(sens)
     base = coarse_run.base
-    for name in SENSITIVITY_PARAMETERS:
-        plus = solve_bridge(cfg.with_overrides({name: cfg.params[name] * 1.05}), "coarse")
+    for name in ("bearing_stiffness", "connector_stiffness", "slab_joint_opening"):
+        minus = solve_bridge(cfg.with_overrides({name: cfg.params[name] * 0.95}), "coarse")
         d_a = np.asarray(sens[name]["A"])
-        np.testing.assert_allclose(plus.A - base.A, 0.05 * d_a, rtol=0.05, atol=1e-3 * np.abs(d_a).max())
+        np.testing.assert_allclose(base.A - minus.A, 0.05 * d_a, rtol=0.05, atol=1e-3 * np.abs(d_a).max())
+    for name in ("support_spring_south", "support_spring_north"):  # absent as built: no relative change
+        assert np.all(np.asarray(sens[name]["A"]) == 0.0)
+        i = ("support_spring_south", "support_spring_north").index(name)
+        soft = solve_bridge(cfg.with_overrides({name: 1e10}), "coarse")  # compliance 1e-10 m/N
+        d_c = np.asarray(sens[name]["compliance"]["A"])
+        scale = np.abs(d_c).max() * 1e-10
+        np.testing.assert_allclose(soft.A - base.A, 1e-10 * d_c, rtol=0.02, atol=1e-4 * scale)
+        assert d_c[i, i] < 0
     # stiffer bearings and joints make the structure stiffer at the bearings
     assert np.all(np.diag(sens["bearing_stiffness"]["A"]) > 0)
     assert np.all(np.sum(sens["connector_stiffness"]["A"], axis=1) > 0)
@@ -220,10 +233,14 @@ def test_cli_writes_vtk_with_deflected_shapes_and_png(tmp_path, capsys):
     assert (tmp_path / "model.png").stat().st_size > 10_000
 
 
-def test_cli_refuses_to_overwrite_the_shipped_surrogate_with_a_variant(capsys):
-    code = main(["surrogate", "--mesh", "coarse", "--no-sensitivities"])
-    assert code == 2
-    assert "--out" in capsys.readouterr().err
+def test_cli_writes_nothing_without_out(root, capsys):
+    """The README's `surrogate --json` must not touch the committed files (issue 13, item 9)."""
+    before = {p.name: p.read_bytes() for p in (root / "config").glob("surrogate*.yaml")}
+    code = main(["surrogate", "--mesh", "coarse", "--no-sensitivities", "--json"])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["provenance"]["written_to"] is None
+    assert {p.name: p.read_bytes() for p in (root / "config").glob("surrogate*.yaml")} == before
 
 
 def test_cli_bad_parameter_is_one_line_exit_2(tmp_path, capsys):

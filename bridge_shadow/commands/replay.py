@@ -26,6 +26,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add BAG, --params, --live, --rate, --out, --plots, --json."""
     parser.add_argument("bag", metavar="BAG", help="rosbag2 directory (sqlite3 or MCAP)")
     parser.add_argument("--params", metavar="YAML", help="shadow parameter file (default config/shadow.yaml)")
+    parser.add_argument(
+        "--surrogate",
+        metavar="YAML",
+        help="surrogate file (default: the parameter surrogate_path, else config/surrogate.yaml, the "
+        "calibrated model; config/surrogate_fe.yaml is the uncalibrated FE surrogate)",
+    )
     parser.add_argument("--live", action="store_true", help="play through the rclpy node over DDS (loopback)")
     parser.add_argument(
         "--rate",
@@ -156,10 +162,19 @@ def run(args: argparse.Namespace) -> int:
         from bridge_shadow.errors import InputError
 
         raise InputError("--rate needs --live and a positive speed factor")
+    over = {"surrogate_path": str(Path(args.surrogate).resolve())} if args.surrogate else None
     if args.live:
         from bridge_shadow.ros.live_replay import run_live
 
-        js = run_live(args.bag, args.params, out=args.out, plots=args.plots, rate=args.rate, progress=show)
+        js = run_live(
+            args.bag,
+            args.params,
+            out=args.out,
+            plots=args.plots,
+            rate=args.rate,
+            overrides=over,
+            progress=show,
+        )
         if args.json:
             emit_json(js)
         else:
@@ -168,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
 
     from bridge_shadow.bagio import read_monitoring
 
-    config = load_config(args.params)
+    config = load_config(args.params, over)
     surrogate = load_surrogate(config.surrogate_path or None)
     data = read_monitoring(args.bag, topics=config.input_topics())
     shadow = Shadow(config, surrogate)

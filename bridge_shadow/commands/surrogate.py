@@ -1,4 +1,4 @@
-"""``bridge-shadow surrogate``: solve the bridge FE model and write ``config/surrogate.yaml``."""
+"""``bridge-shadow surrogate``: solve the bridge FE model; print the surrogate, write it with ``--out``."""
 
 from __future__ import annotations
 
@@ -13,15 +13,20 @@ Builds the parametric FE model of the test bridge from config/bridge.yaml and co
            Schur complement to 1e-8 relative)
   u0       [south, north] N, reactions under self-weight + superimposed load, zero settlement
   thermal  N/K for uniform, vertical_gradient (top warmer), transverse_gradient (south warmer)
-  sensitivities  change of A, u0, thermal per unit relative change of bearing_stiffness and
-           connector_stiffness (central difference, +-10 %)
-and writes them with provenance (model sha256, overrides, mesh, DOFs, solver, seconds).
+  sensitivities  change of A, u0, thermal per unit relative change of bearing_stiffness,
+           connector_stiffness, support_spring_south/north and slab_joint_opening (adjoint:
+           U^T dK U, no extra solve; a support spring at .inf gets its per-compliance form)
+and prints them with provenance (model sha256, overrides, mesh, DOFs, solver, seconds). Nothing is
+written without --out: config/surrogate.yaml is the calibrated model of the real bridge
+(`bridge-shadow calibrate`), config/surrogate_fe.yaml the uncalibrated FE surrogate of the
+as-built model; regenerate both with `make models`.
 
 examples:
-  bridge-shadow surrogate                          # default mesh -> config/surrogate.yaml
+  bridge-shadow surrogate                          # default mesh, print only
+  bridge-shadow surrogate --out config/surrogate_fe.yaml   # the committed uncalibrated surrogate
   bridge-shadow surrogate --mesh coarse --out /tmp/s.yaml --json
-  bridge-shadow surrogate --set bearing_stiffness=1e9 --set composite_action=0.5 --out /tmp/s.yaml
-  bridge-shadow surrogate --mesh coarse --vtk /tmp/vtk --png docs/model.png --out /tmp/s.yaml
+  bridge-shadow surrogate --set support_spring_south=2e7 --set slab_joint_opening=0.1 --out /tmp/s.yaml
+  bridge-shadow surrogate --mesh coarse --vtk /tmp/vtk --png docs/model.png
 """
 
 
@@ -39,10 +44,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model", type=Path, default=None, help="bridge model YAML (default config/bridge.yaml)"
     )
-    parser.add_argument("--out", type=Path, default=None, help="output YAML (default config/surrogate.yaml)")
+    parser.add_argument(
+        "--out", type=Path, default=None, help="write the surrogate YAML here (default: write nothing)"
+    )
     parser.add_argument("--vtk", type=Path, default=None, metavar="DIR", help="write mesh + deflected shapes")
     parser.add_argument("--png", type=Path, default=None, help="write a 3D view of the model")
-    parser.add_argument("--no-sensitivities", action="store_true", help="skip the +-10 %% stiffness solves")
+    parser.add_argument("--no-sensitivities", action="store_true", help="skip the stiffness sensitivities")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
@@ -67,25 +74,19 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     from bridge_shadow.commands.output import emit_json, progress
-    from bridge_shadow.errors import InputError
     from bridge_shadow.model.config import load_bridge_config, parse_overrides
     from bridge_shadow.model.surrogate import compute_surrogate, write_surrogate
-    from bridge_shadow.paths import config_file
 
     cfg = load_bridge_config(args.model, parse_overrides(args.overrides))
     cfg.mesh(args.mesh)  # fail early on an unknown level
-    if args.out is None and (cfg.overrides or args.mesh != "default" or args.model is not None):
-        raise InputError(
-            "the shipped config/surrogate.yaml is built from the default model and mesh without "
-            "overrides; give --out for this variant"
-        )
     run_ = compute_surrogate(
         cfg, args.mesh, sensitivities=not args.no_sensitivities, report=lambda f, s: progress(f, "surrogate")
     )
-    out = args.out if args.out is not None else config_file("surrogate.yaml")
-    write_surrogate(run_, out)
+    out = args.out
+    if out is not None:
+        write_surrogate(run_, out)
     doc = run_.document()
-    doc["provenance"]["written_to"] = str(out)
+    doc["provenance"]["written_to"] = str(out) if out is not None else None
     if args.vtk is not None:
         from bridge_shadow.fe.vtk import write_vtu
 
@@ -100,5 +101,6 @@ def run(args: argparse.Namespace) -> int:
         emit_json(doc)
     else:
         print(_summary(doc))
-        print(f"wrote {out}", file=sys.stderr)
+        note = f"wrote {out}" if out is not None else "wrote nothing (give --out to write the surrogate)"
+        print(note, file=sys.stderr)
     return 0

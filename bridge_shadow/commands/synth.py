@@ -23,6 +23,18 @@ Forces come at --rate Hz (default 1 Hz) on both channels, the air temperature at
 settlement path: mean, start and end in m) goes to BAG/truth.yaml; nothing that estimates or
 diagnoses reads it.
 
+A reality that differs from the model: by default the twin's reactions come from the same
+surrogate the shadow uses (config/surrogate.yaml). --reality-set NAME=VALUE (repeatable) solves the
+FE model of config/bridge.yaml with those parameters once at synth time (--reality-mesh; e.g.
+support_spring_south=2e7, slab_joint_opening=0.01), --reality-surrogate PATH takes another
+surrogate file (e.g. config/surrogate_fe.yaml). The shadow keeps its own surrogate; the reality is
+recorded in truth.yaml (reality). A before/after pair with a known imposed lowering: two bags, the
+second with --step 0:SOUTH:NORTH (settled from its start), e.g.
+  bridge-shadow synth --out before --start 2022-04-11T08:36 --days 0.01 --rate 2 \\
+      --reality-set support_spring_south=2e7
+  bridge-shadow synth --out after --start 2022-04-11T09:20 --days 0.01 --rate 2 \\
+      --reality-set support_spring_south=2e7 --step 0:-0.01:-0.01
+
 Effects (--effect NAME=VALUE, repeatable; SI units; see bridge_shadow/effects.py):
 """ + "\n".join(f"  {e.name:<20} [{e.unit}] e.g. {e.realistic:g} (edge {e.edge:g})" for e in EFFECTS.values())
 DESCRIPTION += """
@@ -59,6 +71,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="extra settlement step from DAY (days after the start) on, in m, positive upward (repeatable)",
     )
     parser.add_argument(
+        "--reality-set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="the reality's FE parameter (repeatable; one FE solve of config/bridge.yaml at synth time)",
+    )
+    parser.add_argument(
+        "--reality-mesh",
+        default="default",
+        metavar="LEVEL",
+        help="mesh of the reality's FE solve (coarse, default, fine)",
+    )
+    parser.add_argument(
+        "--reality-surrogate",
+        metavar="YAML",
+        help="the reality's surrogate file (instead of config/surrogate.yaml)",
+    )
+    parser.add_argument(
         "--start",
         default=None,
         metavar="ISO",
@@ -85,6 +115,23 @@ def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
     return steps
 
 
+def _reality(args: argparse.Namespace) -> dict[str, Any]:
+    """``simulate`` keyword arguments for the reality asked for (none: the default surrogate)."""
+    from bridge_shadow.errors import InputError
+    from bridge_shadow.model.config import parse_overrides
+    from bridge_shadow.twin.reality import reality_from_file, reality_from_parameters
+
+    if args.reality_set and args.reality_surrogate:
+        raise InputError("give --reality-set or --reality-surrogate, not both")
+    if args.reality_surrogate:
+        reality = reality_from_file(args.reality_surrogate)
+    elif args.reality_set:
+        reality = reality_from_parameters(parse_overrides(args.reality_set), args.reality_mesh)
+    else:
+        return {}
+    return {"surrogate": reality.surrogate, "sensitivities_block": reality.block, "reality": reality.info}
+
+
 def _bag_bytes(path: Any) -> int:
     return sum(f.stat().st_size for f in path.iterdir() if f.is_file())
 
@@ -101,6 +148,7 @@ def run(args: argparse.Namespace) -> int:
 
     if Path(args.out).exists() and not args.overwrite:
         raise InputError(f"{args.out}: exists already (use --overwrite to replace it)")
+    reality_kw = _reality(args)
     out, truth = write_twin_bag(
         args.out,
         storage=args.storage,
@@ -113,6 +161,7 @@ def run(args: argparse.Namespace) -> int:
         start=args.start,
         temp_rate_hz=args.temp_rate,
         steps=_parse_steps(args.step),
+        **reality_kw,
     )
     truth_file = truth_path(out)
     counts = truth["counts"]
@@ -135,6 +184,7 @@ def run(args: argparse.Namespace) -> int:
         },
         "nan": {**counts["force_nan"], "air_temperature": counts["temperature_nan"]},
         "surrogate": truth["surrogate"]["provenance"].get("solver", "unknown"),
+        "reality": truth["reality"],
     }
     if args.json:
         emit_json(summary)

@@ -11,6 +11,13 @@ bearings slide. So the deck expands freely from the central support. The ground 
 displacement is the settlement ``x`` (positive up) and its reaction the load cell force (positive
 in compression).
 
+Support system (``support_spring_south/north``, N/m): with a finite value, a central bearing's
+ground node keeps its horizontal and rotational restraints (support ``"<name> bearing"``) but rests
+vertically on a spring down to the bearing's foundation node, which is the support named after the
+bearing: the settlement is prescribed there, and its reaction (the force through the spring and
+the bearing) is the load cell force. With ``.inf`` (as built) the ground node is the support and
+the foundation node is held in all DOFs, unused. See ``settlement_node``.
+
 Thermal load cases (1 K each):
 
 - ``uniform``: every element +1 K;
@@ -30,9 +37,22 @@ from bridge_shadow.fe import BeamSet, LoadCase, Model, RigidLinks, ShellSet, Spr
 from bridge_shadow.model.config import BridgeConfig
 from bridge_shadow.model.mesh import CENTRAL_BEARINGS, END_BEARINGS, BridgeMesh
 
-__all__ = ["THERMAL_CASE_NAMES", "build_model", "dead_load_case", "settlement_cases", "thermal_cases"]
+__all__ = [
+    "SUPPORT_SPRINGS",
+    "THERMAL_CASE_NAMES",
+    "build_model",
+    "dead_load_case",
+    "has_support_springs",
+    "settlement_cases",
+    "settlement_node",
+    "thermal_cases",
+]
 
 THERMAL_CASE_NAMES: tuple[str, str, str] = ("uniform", "vertical_gradient", "transverse_gradient")
+#: Central bearing -> the parameter naming the stiffness of its support system (N/m, .inf = rigid).
+SUPPORT_SPRINGS: dict[str, str] = dict(
+    zip(CENTRAL_BEARINGS, ("support_spring_south", "support_spring_north"), strict=True)
+)
 
 _GIRDER_STEEL = ("web", "flange", "stiffener")
 
@@ -50,6 +70,20 @@ def _material(cfg: BridgeConfig, name: str) -> dict[str, float]:
             out.update(rho=0.0, alpha=0.0)
     out["G"] = out["E"] / (2.0 * (1.0 + out["nu"]))
     return out
+
+
+def has_support_springs(cfg: BridgeConfig) -> bool:
+    """Whether any central bearing has a finite support-system spring."""
+    return any(np.isfinite(cfg.params[p]) for p in SUPPORT_SPRINGS.values())
+
+
+def settlement_node(cfg: BridgeConfig, mesh: BridgeMesh, name: str) -> int:
+    """Node whose vertical displacement is the settlement of central bearing ``name``.
+
+    The foundation node when the bearing has a finite support spring, else its ground node.
+    """
+    bearing = mesh.bearings[name]
+    return bearing.foundation if np.isfinite(cfg.params[SUPPORT_SPRINGS[name]]) else bearing.ground
 
 
 def build_model(cfg: BridgeConfig, mesh: BridgeMesh, *, free_central_uz: bool = False) -> Model:
@@ -112,7 +146,23 @@ def build_model(cfg: BridgeConfig, mesh: BridgeMesh, *, free_central_uz: bool = 
             )
         )
         free = free_central_uz and name in CENTRAL_BEARINGS
-        supports.append(Support(name, [bearing.ground], dofs=(0, 1, 3, 4, 5) if free else tuple(range(6))))
+        settle_dofs = (0, 1, 3, 4, 5) if free else tuple(range(6))
+        k_support = par[SUPPORT_SPRINGS[name]] if name in CENTRAL_BEARINGS else np.inf
+        if np.isfinite(k_support):  # ground node on a vertical spring to the foundation node
+            supports.append(Support(f"{name} bearing", [bearing.ground], dofs=(0, 1, 3, 4, 5)))
+            springs.append(
+                SpringSet(
+                    bearing.ground,
+                    bearing.foundation,
+                    [0.0, 0.0, k_support, 0.0, 0.0, 0.0],
+                    tag=f"support_{name}",
+                )
+            )
+            supports.append(Support(name, [bearing.foundation], dofs=settle_dofs))
+            continue
+        supports.append(Support(name, [bearing.ground], dofs=settle_dofs))
+        if bearing.foundation >= 0:  # unused foundation node of a rigid support
+            supports.append(Support(f"{name} foundation", [bearing.foundation], dofs=tuple(range(6))))
     links = [RigidLinks(mesh.links[0], mesh.links[1], tag="brace_ends")] if len(mesh.links[0]) else []
     return Model(mesh.nodes, shells=shells, beams=beams, springs=springs, links=links, supports=supports)
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,14 +19,25 @@ import yaml
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.paths import config_file
 
-__all__ = ["MESH_LEVELS", "BridgeConfig", "file_sha256", "load_bridge_config", "parse_overrides"]
+__all__ = [
+    "MAY_BE_INFINITE",
+    "MESH_LEVELS",
+    "BridgeConfig",
+    "file_sha256",
+    "load_bridge_config",
+    "parse_overrides",
+]
 
 #: Mesh levels every bridge.yaml defines, coarse to fine.
 MESH_LEVELS: tuple[str, str, str] = ("coarse", "default", "fine")
 
 _SECTIONS = ("geometry", "sections", "materials", "loads", "parameters", "mesh")
 _MAY_BE_ZERO = ("central_bearing_twist_restraint",)
-_FRACTIONS = ("composite_action", "central_bearing_twist_restraint")
+#: Parameters whose value may be ``.inf`` in bridge.yaml (or ``--set name=inf``): the element is
+#: absent (a rigid connection), as in the as-built model.
+MAY_BE_INFINITE: tuple[str, ...] = ("support_spring_south", "support_spring_north")
+#: Fractions: ``(0, 1]`` (``[0, 1]`` for those in ``_MAY_BE_ZERO``).
+_FRACTIONS = ("composite_action", "central_bearing_twist_restraint", "slab_joint_opening")
 _MESH_KEYS = ("dx", "web", "half_flange", "cantilever", "between", "connector", "brace")
 
 
@@ -113,11 +125,20 @@ def _validate(cfg: BridgeConfig) -> None:
         if not isinstance(m, dict) or any(k not in m for k in _MESH_KEYS):
             raise ConfigError(f"{where}: mesh.{level} must define {', '.join(_MESH_KEYS)}")
     for name, value in d["parameters"].items():
-        if not isinstance(value, float | int) or (not value > 0 and name not in _MAY_BE_ZERO):
+        if not isinstance(value, float | int) or math.isnan(value):
+            raise ConfigError(f"{where}: parameter {name} must be a number, got {value!r}")
+        if math.isinf(value) and not (value > 0 and name in MAY_BE_INFINITE):
+            raise ConfigError(
+                f"{where}: parameter {name} must be finite (only {', '.join(MAY_BE_INFINITE)} may be .inf)"
+            )
+        if not value > 0 and name not in _MAY_BE_ZERO:
             raise ConfigError(f"{where}: parameter {name} must be a positive number, got {value!r}")
     for name in _FRACTIONS:
-        if not 0.0 <= d["parameters"].get(name, 1.0) <= 1.0:
-            raise ConfigError(f"{where}: parameter {name} must lie in [0, 1]")
+        value = d["parameters"].get(name, 1.0)
+        low_ok = value >= 0.0 if name in _MAY_BE_ZERO else value > 0.0
+        if not (low_ok and value <= 1.0):
+            span = "[0, 1]" if name in _MAY_BE_ZERO else "(0, 1]"
+            raise ConfigError(f"{where}: parameter {name} must lie in {span}, got {value!r}")
     geo = d["geometry"]
     if geo["deck_width"] <= geo["girder_spacing"]:
         raise ConfigError(f"{where}: deck_width must exceed girder_spacing")

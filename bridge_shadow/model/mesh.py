@@ -12,7 +12,13 @@ slab segments and connectors stay separate where springs join them):
   the girder's top flange by short vertical beams ("joints");
 - HEB280 / HEB120 cross braces as beams between the webs at mid-height;
 - bearings: springs from the flange nodes over each bearing to a ground node (the support that
-  carries the reaction; for FRC-01/02 the load cell force).
+  carries the reaction; for FRC-01/02 the load cell force). Each central bearing also has a
+  foundation node (drawn ``FOUNDATION_DEPTH`` below it) for the support-system spring in series
+  (``support_spring_south/north``; with ``.inf`` the ground node is the support and the foundation
+  node is unused).
+
+Slab joints over the hogging zone (``hogging_zone``) form their own spring part
+(``slab_joint_hogging``) so that ``slab_joint_opening`` can soften them.
 """
 
 from __future__ import annotations
@@ -27,12 +33,14 @@ from bridge_shadow.model.config import BridgeConfig
 __all__ = [
     "CENTRAL_BEARINGS",
     "END_BEARINGS",
+    "FOUNDATION_DEPTH",
     "BeamPart",
     "Bearing",
     "BridgeMesh",
     "ShellPart",
     "SpringPart",
     "build_mesh",
+    "hogging_zone",
 ]
 
 #: Central bearing names [south, north] (load cells FRC-01 and FRC-02).
@@ -40,7 +48,12 @@ CENTRAL_BEARINGS: tuple[str, str] = ("FRC-01", "FRC-02")
 #: End bearing names: west south, west north, east south, east north.
 END_BEARINGS: tuple[str, str, str, str] = ("end_W_S", "end_W_N", "end_E_S", "end_E_N")
 
+#: Distance (m) below a central bearing's ground node at which its foundation node is drawn (the
+#: support spring's stiffness does not depend on it).
+FOUNDATION_DEPTH = 0.5
+
 _STEEL_KEY, _SLAB_KEY, _CONN_KEY, _BRACE_KEY, _GROUND_KEY = 0, 1_000, 2_000, 5_000, 9_000
+_FOUNDATION_KEY = 9_500
 
 
 @dataclass
@@ -84,13 +97,17 @@ class Bearing:
     Attributes:
         nodes: (3,) flange nodes: south tip, web junction, north tip.
         weights: (3,) fractions of the bearing stiffness carried by each spring (sum 1).
-        ground: the ground node, at the web junction (a rigid support in the FE model).
+        ground: the ground node, at the web junction (a rigid support in the FE model, or the top
+            of the support-system spring).
+        foundation: the foundation node below a central bearing (bottom of the support-system
+            spring), -1 for the end bearings.
 
     """
 
     nodes: np.ndarray
     weights: np.ndarray
     ground: int
+    foundation: int = -1
 
 
 @dataclass
@@ -165,6 +182,20 @@ def _tributary(coord: np.ndarray) -> np.ndarray:
     w[:-1] += d / 2
     w[1:] += d / 2
     return w
+
+
+def hogging_zone(spans: np.ndarray | list[float]) -> tuple[float, float]:
+    """Where a two-span continuous beam under a uniform load ``w`` hogs: ``(x_low, x_high)`` in m.
+
+    The central moment is ``M_c = -w (L1^3 + L2^3) / (8 (L1 + L2))`` and the moment in span 1 is
+    ``M(x) = R1 x - w x^2 / 2`` with ``R1 = w L1 / 2 + M_c / L1``, zero at ``x = 2 R1 / w``; the
+    same from the other end. For two equal spans ``L`` the zone is ``L +- L / 4``.
+    """
+    l1, l2 = (float(v) for v in spans)
+    m_c = -(l1**3 + l2**3) / (8.0 * (l1 + l2))  # per unit w
+    x_low = 2.0 * (l1 / 2.0 + m_c / l1)
+    x_high = l1 + l2 - 2.0 * (l2 / 2.0 + m_c / l2)
+    return x_low, x_high
 
 
 def _on_grid(values: list[float], grid: np.ndarray, what: str) -> np.ndarray:
@@ -310,6 +341,11 @@ def build_mesh(cfg: BridgeConfig, level: str = "default") -> BridgeMesh:
         name: int(pts.add(np.array([[xs[i], y_g[gi], z_bot]]), _GROUND_KEY + n)[0])
         for n, (name, (i, gi)) in enumerate(bearing_at.items())
     }
+    foundation = {
+        name: int(pts.add(np.array([[xs[i], y_g[gi], z_bot - FOUNDATION_DEPTH]]), _FOUNDATION_KEY + n)[0])
+        for n, (name, (i, gi)) in enumerate(bearing_at.items())
+        if name in CENTRAL_BEARINGS
+    }
 
     nodes, keys, remap = pts.merge()
     masters, slaves = [], []
@@ -398,11 +434,20 @@ def build_mesh(cfg: BridgeConfig, level: str = "default") -> BridgeMesh:
     kn, ks = par["slab_joint_normal_stiffness"], par["slab_joint_shear_stiffness"]
     krot = par["slab_joint_rotational_stiffness"]
     per_m = np.array([kn, ks, ks, krot, krot, krot])
-    si = [remap[slab_rows[j][-1]] for j in range(n_seg - 1)]
-    sj = [remap[slab_rows[j + 1][0]] for j in range(n_seg - 1)]
-    if si:
-        mesh.springs["slab_joint"] = SpringPart(
-            np.concatenate(si), np.concatenate(sj), np.tile(ty[:, None] * per_m, (n_seg - 1, 1))
+    # joints over the hogging zone keep the fraction slab_joint_opening of their normal and
+    # rotational stiffness (an opening joint still transfers shear by interlock and friction)
+    x_low, x_high = hogging_zone(spans)
+    opening = par["slab_joint_opening"]
+    kept = {False: np.ones(6), True: np.array([opening, 1.0, 1.0, opening, opening, opening])}
+    for tag, in_zone in (("slab_joint", False), ("slab_joint_hogging", True)):
+        joints = [j for j in range(n_seg - 1) if (x_low - 1e-9 <= seg_x[j + 1] <= x_high + 1e-9) == in_zone]
+        if not joints:
+            continue
+        k = per_m * kept[in_zone]
+        mesh.springs[tag] = SpringPart(
+            np.concatenate([remap[slab_rows[j][-1]] for j in joints]),
+            np.concatenate([remap[slab_rows[j + 1][0]] for j in joints]),
+            np.tile(ty[:, None] * k, (len(joints), 1)),
         )
 
     # bearings: springs at the flange centre and both tips with Simpson weights (1/6, 2/3, 1/6):
@@ -411,7 +456,12 @@ def build_mesh(cfg: BridgeConfig, level: str = "default") -> BridgeMesh:
     cols = [0, n_hf, 2 * n_hf]
     for name, (i, gi) in bearing_at.items():
         nodes3 = remap[bot_idx[gi][i, cols]]
-        mesh.bearings[name] = Bearing(nodes3, np.array([1.0, 4.0, 1.0]) / 6.0, int(remap[ground[name]]))
+        mesh.bearings[name] = Bearing(
+            nodes3,
+            np.array([1.0, 4.0, 1.0]) / 6.0,
+            int(remap[ground[name]]),
+            int(remap[foundation[name]]) if name in foundation else -1,
+        )
 
     mesh.info = {
         "length": length,
@@ -422,5 +472,7 @@ def build_mesh(cfg: BridgeConfig, level: str = "default") -> BridgeMesh:
         "y_south": float(y_g[0]),
         "y_north": float(y_g[1]),
         "n_segments": float(n_seg),
+        "hogging_zone_x_low": x_low,
+        "hogging_zone_x_high": x_high,
     }
     return mesh

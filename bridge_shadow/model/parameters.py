@@ -95,9 +95,10 @@ def _p(*args: object, **kw: object) -> Parameter:
     return Parameter(*args, **kw)  # type: ignore[arg-type]
 
 
-#: The parameter table. Centres of the parameters in ``config/bridge.yaml`` are its values; the
-#: added ones (support springs, slab-joint opening) are absent from the as-built model (rigid
-#: support, closed joints) and have a physically reasoned prior centre here.
+#: The parameter table. Centres of the parameters in ``config/bridge.yaml`` are its values
+#: (``test_model_parameters.py`` checks it), except the support springs: the as-built model has
+#: none (``.inf``, a rigid support), and their prior centre here is the physically reasoned
+#: stiffness of the real support system. ``slab_joint_opening`` is 1 in both (joints closed).
 PARAMETERS: dict[str, Parameter] = {
     p.name: p
     for p in (
@@ -107,14 +108,15 @@ PARAMETERS: dict[str, Parameter] = {
             "range: an elastomeric pad (3e8) to a bare steel load cell (1e10)",
         ),
         _p(
-            "support_spring_south", "N/m", 2.0e8, 5.0e6, 1.0e10,
-            "support system under FRC-01 in series with the bearing (steel trestle, hydraulic jack, "
-            "pad foundation): a jack's oil column ~2e8, a pad footing on medium soil ~1e8; range: "
-            "timber packing on soft soil (5e6) to a rigid steel stack (1e10). Absent (rigid) in "
-            "the as-built FE model",
+            "support_spring_south", "N/m", 5.0e7, 5.0e6, 1.0e9,
+            "support system under FRC-01 in series with the bearing (paper: 'a flexible central "
+            "support system' for imposed settlements; no stiffness published): a jack's oil "
+            "column ~2e8, a 1 m pad footing on medium soil ~1e8, timber/steel packing ~3e8, in "
+            "series ~5e7; range: packing on soft soil (5e6) to a steel stack on concrete (1e9). "
+            "Absent (rigid, .inf) in the as-built FE model",
         ),
         _p(
-            "support_spring_north", "N/m", 2.0e8, 5.0e6, 1.0e10,
+            "support_spring_north", "N/m", 5.0e7, 5.0e6, 1.0e9,
             "support system under FRC-02 in series with the bearing; as support_spring_south",
         ),
         _p(

@@ -4,18 +4,24 @@
   displacement of each central bearing's ground point, from two unit-settlement solves; checked
   against the Schur complement of the stiffness matrix on the two ground DOFs (an independent
   assembly and factorization, see ``provenance.schur_check``).
-- ``u0`` (N): central reactions under self-weight + superimposed load at zero settlement.
+- ``u0`` (N): central reactions under self-weight + superimposed load at zero settlement. With
+  support springs (``support_spring_*``) the height-adjustable supports are set under the dead
+  load: ``u0`` is the reaction with the bearings' tops at rest (superposition of the dead-load
+  solve and the two unit solves, see ``solve_bridge``), so the springs change ``A`` and the
+  thermal response but not ``u0``.
 - ``thermal`` (N/K): reaction change per kelvin of the three thermal cases of :mod:`.build`.
-- ``sensitivities``: for ``bearing_stiffness`` and ``connector_stiffness``, the change of ``A``,
-  ``u0`` and each ``thermal`` vector per unit relative change of that parameter (central difference
-  with a relative step of ``rel_step``); same units as the quantity.
+- ``sensitivities``: for ``SENSITIVITY_PARAMETERS`` (and any names asked for), the change of ``A``,
+  ``u0`` and each ``thermal`` vector per unit relative change of that parameter (``d / d log p``,
+  adjoint: no extra solve, :mod:`.adjoint`); same units as the quantity. A support spring at
+  ``.inf`` (absent) has no relative sensitivity; its entry carries ``compliance``: the change per
+  unit compliance ``c = 1 / k`` (m/N) at ``c = 0`` instead (exact series-spring closed form).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,13 +31,16 @@ import yaml
 
 from bridge_shadow import __version__
 from bridge_shadow.errors import ConfigError
-from bridge_shadow.fe import LinearStaticSolver, Model, Result, assemble_stiffness, schur_complement
+from bridge_shadow.fe import LinearStaticSolver, LoadCase, Model, Result, assemble_stiffness, schur_complement
 from bridge_shadow.fe.constraints import build_constraints
 from bridge_shadow.model.build import (
+    SUPPORT_SPRINGS,
     THERMAL_CASE_NAMES,
     build_model,
     dead_load_case,
+    has_support_springs,
     settlement_cases,
+    settlement_node,
     thermal_cases,
 )
 from bridge_shadow.model.config import BridgeConfig
@@ -44,6 +53,7 @@ __all__ = [
     "SurrogateRun",
     "closed_forms",
     "compute_surrogate",
+    "dead_and_thermal_cases",
     "load_sensitivities",
     "schur_A",
     "solve_bridge",
@@ -51,7 +61,13 @@ __all__ = [
 ]
 
 #: Parameters whose sensitivities the surrogate file carries (gap diagnosis, truth twin).
-SENSITIVITY_PARAMETERS: tuple[str, str] = ("bearing_stiffness", "connector_stiffness")
+SENSITIVITY_PARAMETERS: tuple[str, ...] = (
+    "bearing_stiffness",
+    "connector_stiffness",
+    "support_spring_south",
+    "support_spring_north",
+    "slab_joint_opening",
+)
 
 
 @dataclass
@@ -63,6 +79,12 @@ class BridgeSolution:
         end_reactions: end bearing name -> vertical reaction under dead load, N.
         results: FE results of the settlement, dead and thermal cases (for VTK).
         model, mesh: the FE model and mesh. solver: backend name. seconds: wall time.
+        fields: displacement fields, each ``(n_dofs,)`` m (``(2, n_dofs)`` for the unit cases):
+            ``unit`` (unit settlement of each central bearing at its settlement node),
+            ``unit_top`` (unit displacement of each bearing's top, the supports following),
+            ``dead`` (dead load, bearing tops at rest) and one per thermal case.
+        jack_preset: (2,) m, the settlement-node displacement that puts the bearing tops back at
+            rest under the dead load (0 without support springs).
 
     """
 
@@ -76,6 +98,8 @@ class BridgeSolution:
     solver: str
     seconds: float
     n_free: int
+    fields: dict[str, np.ndarray] = field(default_factory=dict)
+    jack_preset: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
 
 @dataclass
@@ -95,13 +119,25 @@ class SurrogateRun:
         return doc
 
 
+def dead_and_thermal_cases(cfg: BridgeConfig, mesh: BridgeMesh) -> list[LoadCase]:
+    """Return the dead-load case followed by the thermal cases (``THERMAL_CASE_NAMES`` order)."""
+    return [dead_load_case(cfg), *thermal_cases(mesh)]
+
+
 def solve_bridge(cfg: BridgeConfig, level: str) -> BridgeSolution:
-    """Build the mesh and model of ``cfg`` at mesh ``level`` and solve all surrogate load cases."""
+    """Build the mesh and model of ``cfg`` at mesh ``level`` and solve all surrogate load cases.
+
+    One factorization, six right-hand sides (two unit settlements, dead load, three thermal
+    cases). With support springs the dead-load state is superposed with the unit settlements so
+    that the bearing tops are at rest (jacks set under the dead load): with ``W`` (2, 2) the top
+    displacements of the unit cases and ``w`` those of the plain dead-load solve, the jacks preset
+    ``p = -W^-1 w`` and ``u0 = R_dead + A p``.
+    """
     t0 = time.perf_counter()
     mesh = build_mesh(cfg, level)
     model = build_model(cfg, mesh)
     solver = LinearStaticSolver(model)
-    cases = [*settlement_cases(), dead_load_case(cfg), *thermal_cases(mesh)]
+    cases = [*settlement_cases(), *dead_and_thermal_cases(cfg, mesh)]
     results: list[Result] = solver.solve(cases)  # type: ignore[assignment]
     names = CENTRAL_BEARINGS
 
@@ -109,12 +145,28 @@ def solve_bridge(cfg: BridgeConfig, level: str) -> BridgeSolution:
         return np.array([r.reaction(n, "uz") for n in names])
 
     a_matrix = np.column_stack([central(r) for r in results[:2]])
+    unit = np.stack([r.u.ravel() for r in results[:2]])  # (2, n_dofs)
     dead = results[2]
+    preset = np.zeros(2)
+    top = np.array([6 * mesh.bearings[n].ground + 2 for n in names])
+    w_unit = unit[:, top].T  # W_ki: top k in unit case i
+    if has_support_springs(cfg):
+        preset = -np.linalg.solve(w_unit, dead.u.ravel()[top])
+        dead.u = (dead.u.ravel() + preset @ unit).reshape(dead.u.shape)
+        for n in dead.reactions:
+            dead.reactions[n] = dead.reactions[n] + sum(preset[j] * results[j].reactions[n] for j in range(2))
+    u0 = central(dead)
     thermal = {name: central(r) for name, r in zip(THERMAL_CASE_NAMES, results[3:], strict=True)}
     ends = {n: dead.reaction(n, "uz") for n in END_BEARINGS}
+    fields = {
+        "unit": unit,
+        "unit_top": np.linalg.solve(w_unit.T, unit),  # V = U W^-1, rows (V^T) = W^-T U^T
+        "dead": dead.u.ravel(),
+        **{name: r.u.ravel() for name, r in zip(THERMAL_CASE_NAMES, results[3:], strict=True)},
+    }
     return BridgeSolution(
         A=a_matrix,
-        u0=central(dead),
+        u0=u0,
         thermal=thermal,
         end_reactions=ends,
         results=results,
@@ -123,6 +175,8 @@ def solve_bridge(cfg: BridgeConfig, level: str) -> BridgeSolution:
         solver=solver.backend,
         seconds=time.perf_counter() - t0,
         n_free=solver.n_free,
+        fields=fields,
+        jack_preset=preset,
     )
 
 
@@ -130,14 +184,15 @@ def schur_A(cfg: BridgeConfig, mesh: BridgeMesh) -> np.ndarray:
     """Return ``A`` as the Schur complement of K on the two central ground-point uz DOFs (N/m).
 
     Independent of :func:`solve_bridge`: the model is assembled with those DOFs free, the other
-    supports eliminated, and the complement is formed with its own factorization.
+    supports eliminated, and the complement is formed with its own factorization. With support
+    springs the DOFs are the foundation nodes' (the settlement is prescribed below the spring).
     """
     model = build_model(cfg, mesh, free_central_uz=True)
     model.validate()
     k, _, _ = assemble_stiffness(model)
     con = build_constraints(model)
     kf = (con.cf.T @ k @ con.cf).tocsr()
-    ground = np.array([6 * mesh.bearings[n].ground + 2 for n in CENTRAL_BEARINGS])
+    ground = np.array([6 * settlement_node(cfg, mesh, n) + 2 for n in CENTRAL_BEARINGS])
     keep = np.searchsorted(con.free, ground)
     if not np.array_equal(con.free[keep], ground):
         raise ConfigError("central ground DOFs are not free in the condensation model")
@@ -174,13 +229,36 @@ def closed_forms(cfg: BridgeConfig) -> dict[str, float]:
     return out
 
 
-def _delta(plus: BridgeSolution, minus: BridgeSolution, step: float) -> dict[str, Any]:
-    scale = 1.0 / (2.0 * step)
-    return {
-        "A": ((plus.A - minus.A) * scale).tolist(),
-        "u0": ((plus.u0 - minus.u0) * scale).tolist(),
-        "thermal": {k: ((plus.thermal[k] - minus.thermal[k]) * scale).tolist() for k in THERMAL_CASE_NAMES},
+def sensitivity_block(
+    cfg: BridgeConfig, base: BridgeSolution, names: Sequence[str], level: str
+) -> dict[str, Any]:
+    """Return the surrogate file's ``sensitivities`` block for ``names`` at ``cfg`` (adjoint, no solve).
+
+    Each entry ``{value, A, u0, thermal}`` is the change per unit relative change of the
+    parameter. A support spring at ``.inf`` gets zeros and a ``compliance`` entry: the change per
+    unit compliance ``c = 1 / k`` (m/N) at ``c = 0``, from the series closed form
+    ``A_eff = (A^-1 + C)^-1``: ``dA/dc_i = -A e_i e_i^T A``, thermal ``-A e_i e_i^T t``, ``u0`` none.
+    """
+    from bridge_shadow.model.adjoint import parameter_derivatives
+
+    derivs = parameter_derivatives(cfg, base, names, level)
+    block: dict[str, Any] = {
+        "method": "adjoint (U^T dK U, no extra solve), per unit relative change d/dlog(p)",
+        "units": "same as the quantity, per unit relative change",
     }
+    for name in names:
+        entry = derivs[name].to_dict()
+        if not np.isfinite(cfg.params[name]) and name in SUPPORT_SPRINGS.values():
+            i = list(SUPPORT_SPRINGS.values()).index(name)
+            col = base.A[:, i]
+            entry["compliance"] = {
+                "units": "per unit compliance 1/k (m/N) at 1/k = 0",
+                "A": (-np.outer(col, col)).tolist(),
+                "u0": [0.0, 0.0],
+                "thermal": {k: (-col * v[i]).tolist() for k, v in base.thermal.items()},
+            }
+        block[name] = entry
+    return block
 
 
 def compute_surrogate(
@@ -188,12 +266,12 @@ def compute_surrogate(
     level: str = "default",
     *,
     sensitivities: bool = True,
-    rel_step: float = 0.1,
+    names: Sequence[str] = SENSITIVITY_PARAMETERS,
     report: Callable[[float, str], None] | None = None,
 ) -> SurrogateRun:
     """Solve the bridge, check ``A`` against the Schur complement, add sensitivities and provenance."""
     t0 = time.perf_counter()
-    steps = 2 + (2 * len(SENSITIVITY_PARAMETERS) if sensitivities else 0)
+    steps = 3 if sensitivities else 2
     done = 0
 
     def tick(label: str) -> None:
@@ -209,14 +287,8 @@ def compute_surrogate(
     rel = float(np.max(np.abs(a_schur - base.A)) / np.max(np.abs(base.A)))
     sens: dict[str, Any] = {}
     if sensitivities:
-        sens = {"relative_step": rel_step, "units": "same as the quantity, per unit relative change"}
-        for name in SENSITIVITY_PARAMETERS:
-            value = cfg.params[name]
-            plus = solve_bridge(cfg.with_overrides({name: value * (1 + rel_step)}), level)
-            tick(f"{name}+")
-            minus = solve_bridge(cfg.with_overrides({name: value * (1 - rel_step)}), level)
-            tick(f"{name}-")
-            sens[name] = {"value": value, **_delta(plus, minus, rel_step)}
+        sens = sensitivity_block(cfg, base, names, level)
+        tick("sensitivities")
     counts = base.mesh.element_counts()
     dead_total = float(base.u0.sum() + sum(base.end_reactions.values()))
     provenance: dict[str, Any] = {
@@ -239,20 +311,27 @@ def compute_surrogate(
         "total_dead_load_N": dead_total,
         "closed_forms": closed_forms(cfg),
     }
+    if has_support_springs(cfg):
+        provenance["jack_preset_m"] = base.jack_preset.tolist()
     surrogate = Surrogate(base.A, base.u0, base.thermal, provenance)
     return SurrogateRun(surrogate, sens, base, a_schur)
 
 
-def write_surrogate(run: SurrogateRun, path: str | Path) -> Path:
-    """Write the surrogate YAML (contract keys + ``sensitivities``), atomically; return the path."""
+def write_surrogate(run: SurrogateRun, path: str | Path, header: str | None = None) -> Path:
+    """Write the surrogate YAML (contract keys + ``sensitivities``), atomically; return the path.
+
+    ``header``: comment lines (each starting with ``#``) put on top; a default names the command.
+    """
     file = Path(path)
     file.parent.mkdir(parents=True, exist_ok=True)
     prov = run.surrogate.provenance
-    header = (
-        "# Generated by `bridge-shadow surrogate` from config/bridge.yaml; do not edit by hand.\n"
-        f"# mesh {prov['mesh']}, overrides {prov['overrides'] or 'none'}. Units: A N/m, u0 N, thermal N/K,\n"
-        "# sensitivities per unit relative change of the parameter (same units).\n"
-    )
+    if header is None:
+        header = (
+            "# Generated by `bridge-shadow surrogate` from config/bridge.yaml; do not edit by hand.\n"
+            f"# mesh {prov['mesh']}, overrides {prov['overrides'] or 'none'}. "
+            "Units: A N/m, u0 N, thermal N/K,\n"
+            "# sensitivities per unit relative change of the parameter (same units).\n"
+        )
     text = header + yaml.safe_dump(run.document(), sort_keys=False, default_flow_style=None)
     tmp = file.with_name(file.name + ".tmp")
     tmp.write_text(text)

@@ -147,6 +147,16 @@ def _settlement_path(
     return x
 
 
+def _brief(surrogate: Surrogate) -> dict[str, Any]:
+    """``surrogate.to_dict()`` with a calibration's provenance cut to its chosen explanation."""
+    out = surrogate.to_dict()
+    cal = out["provenance"].get("calibration")
+    if isinstance(cal, dict):
+        keep = ("chosen_explanation", "file_sha256", "bridge_model_sha256", "mesh")
+        out["provenance"] = {**out["provenance"], "calibration": {k: cal.get(k) for k in keep}}
+    return out
+
+
 def _summary(x: np.ndarray) -> dict[str, list[float]]:
     if not len(x):
         return {"mean_m": [0.0, 0.0], "start_m": [0.0, 0.0], "end_m": [0.0, 0.0]}
@@ -165,6 +175,7 @@ def simulate(
     config: TwinConfig | None = None,
     surrogate: Surrogate | None = None,
     sensitivities_block: dict[str, Any] | None = None,
+    reality: dict[str, Any] | None = None,
 ) -> tuple[MonitoringData, dict[str, Any]]:
     """Simulate ``days`` of monitoring; return the data and the truth.
 
@@ -178,8 +189,10 @@ def simulate(
         temp_rate_hz: air-temperature message rate, Hz (default one a minute).
         steps: extra settlement steps ``(t_day, dx_south_m, dx_north_m)`` from ``t_day`` on.
         config: the world's parameters (``TwinConfig()`` by default).
-        surrogate: the structural map; default ``config/surrogate.yaml`` or its placeholder.
+        surrogate: the structural map (the twin's reality); default ``config/surrogate.yaml`` or
+            its placeholder. It may differ from the estimator's (``bridge_shadow.twin.reality``).
         sensitivities_block: stiffness sensitivities in the file format (with ``surrogate``).
+        reality: where ``surrogate`` comes from (recorded as ``truth["reality"]``).
 
     Returns:
         ``(data, truth)``: ``truth`` holds every parameter, the effects, the seed, the surrogate
@@ -292,8 +305,9 @@ def simulate(
         "steps": [list(s) for s in steps],
         "config": cfg.to_dict(),
         "t_ref_c": t_ref,
-        "surrogate": sur.to_dict(),
-        "base_surrogate": base.to_dict(),
+        "reality": dict(reality) if reality else {"source": "default" if surrogate is None else "given"},
+        "surrogate": _brief(sur),
+        "base_surrogate": _brief(base),
         "sensitivities": {k: v.to_dict() for k, v in sens.items()},
         "traffic_load_map": load_map.tolist(),
         "settlement": _summary(x),

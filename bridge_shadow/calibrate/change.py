@@ -1,0 +1,257 @@
+"""Measured reaction change between two records (before, after an imposed settlement), with its covariance.
+
+Per record (``record_level``):
+
+1. 1 s bins; the test car is flagged (:mod:`.car`) and left out;
+2. the car-free stretches are cut into ``window_s`` windows (10 s by default: the car-free parts
+   of the 12-minute records are a few minutes long, too short for the shadow's 60 s windows);
+3. per channel a straight line ``level + rate (t - t_c)`` is fitted to the window means, ``t_c``
+   the mean time of the windows (there the level and the rate are uncorrelated);
+4. the uncertainty of the level is the shadow's noise model of window residuals
+   (:class:`bridge_shadow.estimate.noise.WindowNoise`: AR(1) long-run variance of the window
+   means, with the channels' correlation), divided by the number of windows.
+
+Between the records (``measured_change``): ``dR = level_after - level_before``. The car-free
+baseline drifts within a record (on 2022-04-11 about +0.07 kN/min on some channels while the air
+warmed), and nothing is measured in the gap between two records. Two treatments:
+
+- ``baseline_change="uncertainty"`` (default): the baseline's change over the time ``dt`` between
+  the two levels is unknown with mean zero and covariance ``dt^2 (r_b r_b' + r_a r_a') / 2``, the
+  second moment of the drift-rate vectors ``r`` measured within the two records; it adds to the
+  covariance of ``dR``. Nothing is subtracted.
+- ``baseline_change="linear"``: the drift is a modelled term: the mean rate ``(r_b + r_a) / 2``
+  continues through the gap and ``dt`` times it is subtracted; the covariance then holds
+  ``dt^2 (r_a - r_b)(r_a - r_b)' / 4`` (how far the two records disagree on the rate) and the
+  rates' standard errors.
+
+The model's own uniform thermal response to the change of the air temperature between the
+records is a modelled term of the forward model, not of this module (``air_temp_change_k``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.calibrate.car import Binned, CarDetection, bin_record, detect_car
+from bridge_shadow.calibrate.errors import CalibrationError
+from bridge_shadow.estimate.noise import WindowNoise
+from bridge_shadow.series import MonitoringData
+
+__all__ = ["BASELINE_CHANGES", "MeasuredChange", "RecordLevel", "measured_change", "record_level"]
+
+NS = 1_000_000_000
+#: Per-sample load-cell noise of the paper (Sigma_E, DESIGN 2), N: the floor of the window noise.
+PAPER_SIGMA_E_N = (60.4, 82.7)
+#: Treatments of the baseline's change between two records (see the module docstring).
+BASELINE_CHANGES = ("uncertainty", "linear")
+
+
+@dataclass
+class RecordLevel:
+    """The car-free level of one record.
+
+    Attributes:
+        t_ns: stamp (UTC ns) of the level: the mean time of the car-free windows.
+        level_n: (2,) N, car-free level at ``t_ns`` [south, north].
+        cov_n2: (2, 2) N^2, covariance of ``level_n`` (AR(1) window noise, ``WindowNoise``).
+        rate_n_per_s: (2,) N/s, drift of the car-free baseline within the record.
+        rate_se: (2,) N/s, standard error of the rate (same noise model).
+        windows: number of car-free windows. window_s: their length, s.
+        phi: (2,) lag-1 correlation of the window residuals. sd_n: (2,) N, their sd.
+        temp_c: mean air temperature over the car-free windows, C (NaN without temperature).
+        car: the car detection (intervals, plateaus).
+        start_ns, duration_s: the record's first stamp and length.
+
+    """
+
+    t_ns: int
+    level_n: np.ndarray
+    cov_n2: np.ndarray
+    rate_n_per_s: np.ndarray
+    rate_se: np.ndarray
+    windows: int
+    window_s: float
+    phi: np.ndarray
+    sd_n: np.ndarray
+    temp_c: float
+    car: CarDetection
+    start_ns: int
+    duration_s: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (SI)."""
+        return {
+            "start_ns": int(self.start_ns),
+            "duration_s": self.duration_s,
+            "t_ns": int(self.t_ns),
+            "level_n": self.level_n.tolist(),
+            "sd_n": np.sqrt(np.diag(self.cov_n2)).tolist(),
+            "rate_n_per_s": self.rate_n_per_s.tolist(),
+            "rate_se_n_per_s": self.rate_se.tolist(),
+            "car_free_windows": self.windows,
+            "window_s": self.window_s,
+            "residual_phi": self.phi.tolist(),
+            "residual_sd_n": self.sd_n.tolist(),
+            "air_temp_c": self.temp_c,
+            "car_free_fraction": self.car.free_fraction,
+            "car_intervals_s": [list(iv) for iv in self.car.intervals_s],
+            "plateaus": [p.to_dict() for p in self.car.plateaus],
+        }
+
+
+def _windows(binned: Binned, car: np.ndarray, per: int) -> list[np.ndarray]:
+    """Bin indices of consecutive ``per``-bin windows inside each car-free run (remainders dropped)."""
+    free = ~car & np.all(binned.samples > 0, axis=1)
+    m = np.concatenate([[False], free, [False]]).astype(np.int8)
+    d = np.diff(m)
+    out = []
+    for i, j in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True):
+        for k in range((j - i) // per):
+            out.append(np.arange(i + k * per, i + (k + 1) * per))
+    return out
+
+
+def record_level(
+    data: MonitoringData,
+    *,
+    window_s: float = 10.0,
+    min_windows: int = 3,
+    car_threshold_n: float = 300.0,
+    car_margin_s: float = 10.0,
+) -> RecordLevel:
+    """Car-free level, drift rate and their uncertainty of one record (see the module docstring)."""
+    binned = bin_record(data, 1.0)
+    det = detect_car(binned, threshold_n=car_threshold_n, margin_s=car_margin_s)
+    per = max(1, round(window_s / binned.bin_s))
+    wins = _windows(binned, det.car, per)
+    if len(wins) < min_windows:
+        raise CalibrationError(
+            f"record from {_iso(binned.start_ns)}: only {len(wins)} car-free windows of {window_s:g} s "
+            f"(need {min_windows}); the test car covers {100 * (1 - det.free_fraction):.0f} % of it"
+        )
+    w_force = np.array([np.average(binned.force_n[w], axis=0, weights=binned.samples[w]) for w in wins])
+    w_samples = np.array([binned.samples[w].sum(axis=0) for w in wins])
+    w_t = np.array([binned.t_s[w].mean() for w in wins])
+    t_c = float(w_t.mean())
+    dt = w_t - t_c
+    design = np.column_stack([np.ones_like(dt), dt])
+    coef, *_ = np.linalg.lstsq(design, w_force, rcond=None)  # (2, 2): [level, rate] x channel
+    resid = w_force - design @ coef
+    noise = WindowNoise(np.asarray(PAPER_SIGMA_E_N), adaptive=True, floor=True)
+    index = 0
+    for i, (w, e) in enumerate(zip(wins, resid, strict=True)):
+        if i:  # adjacent windows count as lag-1 pairs; a car excursion between them breaks the chain
+            index += 1 if wins[i - 1][-1] + 1 == w[0] else 2
+        noise.add(e, w_samples[i], index)
+    r_window = noise.R(w_samples.mean(axis=0))  # long-run covariance of one window mean
+    n_w = len(wins)
+    cov_level = r_window / n_w
+    sxx = float(np.sum(dt**2))
+    rate_se = np.sqrt(np.diag(r_window) / sxx) if sxx > 0 else np.full(2, np.inf)
+    temps = np.concatenate([binned.temp_c[w] for w in wins])
+    temp = float(np.nanmean(temps)) if np.isfinite(temps).any() else float("nan")
+    return RecordLevel(
+        t_ns=int(binned.start_ns + round(t_c * NS)),
+        level_n=coef[0].copy(),
+        cov_n2=cov_level,
+        rate_n_per_s=coef[1].copy(),
+        rate_se=rate_se,
+        windows=n_w,
+        window_s=per * binned.bin_s,
+        phi=noise.phi,
+        sd_n=np.sqrt(np.diag(noise.sample_cov()) / w_samples.mean(axis=0)),
+        temp_c=temp,
+        car=det,
+        start_ns=int(binned.start_ns),
+        duration_s=float(binned.t_s[-1] + binned.bin_s / 2),
+    )
+
+
+def _iso(ns: int) -> str:
+    import datetime as dt
+
+    return dt.datetime.fromtimestamp(ns / NS, dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+@dataclass
+class MeasuredChange:
+    """Reaction change between two records and its covariance.
+
+    Attributes:
+        dR_n: (2,) N, after minus before [south, north] (drift-corrected with ``linear``).
+        cov_n2: (2, 2) N^2, total covariance: both levels + the baseline change between the records.
+        parts: name -> (2, 2) N^2, the covariance's parts (``level_before``, ``level_after``,
+            ``baseline_change``).
+        dt_s: s between the two levels. air_temp_change_k: K, mean air temperature after minus
+            before (NaN without temperature). baseline_change: the treatment used.
+        drift_correction_n: (2,) N subtracted from the raw difference (zero for ``uncertainty``).
+        before, after: the two record levels.
+
+    """
+
+    dR_n: np.ndarray
+    cov_n2: np.ndarray
+    parts: dict[str, np.ndarray] = field(default_factory=dict)
+    dt_s: float = 0.0
+    air_temp_change_k: float = float("nan")
+    baseline_change: str = "uncertainty"
+    drift_correction_n: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    before: RecordLevel | None = None
+    after: RecordLevel | None = None
+
+    @property
+    def sd_n(self) -> np.ndarray:
+        """(2,) N, standard deviation of each channel's change."""
+        return np.sqrt(np.diag(self.cov_n2))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (SI)."""
+        return {
+            "dR_n": self.dR_n.tolist(),
+            "sd_n": self.sd_n.tolist(),
+            "cov_n2": self.cov_n2.tolist(),
+            "parts_sd_n": {k: np.sqrt(np.diag(v)).tolist() for k, v in self.parts.items()},
+            "dt_s": self.dt_s,
+            "air_temp_change_k": self.air_temp_change_k,
+            "baseline_change": self.baseline_change,
+            "drift_correction_n": self.drift_correction_n.tolist(),
+            "before": self.before.to_dict() if self.before else None,
+            "after": self.after.to_dict() if self.after else None,
+        }
+
+
+def measured_change(
+    before: RecordLevel, after: RecordLevel, baseline_change: str = "uncertainty"
+) -> MeasuredChange:
+    """``after - before`` with the baseline change between them handled as ``baseline_change``."""
+    if baseline_change not in BASELINE_CHANGES:
+        raise CalibrationError(
+            f"baseline_change must be one of {', '.join(BASELINE_CHANGES)}, got {baseline_change!r}"
+        )
+    dt = (after.t_ns - before.t_ns) / NS
+    if dt <= 0:
+        raise CalibrationError("the 'after' record must come after the 'before' record")
+    rb, ra = before.rate_n_per_s, after.rate_n_per_s
+    correction = np.zeros(2)
+    if baseline_change == "uncertainty":
+        base = dt**2 * 0.5 * (np.outer(rb, rb) + np.outer(ra, ra))
+    else:
+        correction = dt * 0.5 * (rb + ra)
+        diff = ra - rb
+        base = dt**2 * (0.25 * np.outer(diff, diff) + 0.25 * np.diag(before.rate_se**2 + after.rate_se**2))
+    parts = {"level_before": before.cov_n2, "level_after": after.cov_n2, "baseline_change": base}
+    d_temp = after.temp_c - before.temp_c
+    return MeasuredChange(
+        dR_n=after.level_n - before.level_n - correction,
+        cov_n2=sum(parts.values()),
+        parts=parts,
+        dt_s=dt,
+        air_temp_change_k=float(d_temp),
+        baseline_change=baseline_change,
+        drift_correction_n=correction,
+        before=before,
+        after=after,
+    )

@@ -1,0 +1,57 @@
+"""Read one record (a bag, or munich-bridge-data CSV/zip files) as ``MonitoringData`` (no ROS import).
+
+A record is a list of paths: one rosbag2 directory (or ``.db3``/``.mcap`` file), or force and
+temperature CSVs / zips of them (``bridge-shadow import-csv`` format). Relative paths resolve
+against the calibration file's directory first, then the shared data directory
+(``bridge_shadow.paths.shared_data_dir``, ``../shared/data/munich-bridge-data``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from bridge_shadow.calibrate.errors import CalibrationError
+from bridge_shadow.contract import FORCE_TOPICS
+from bridge_shadow.paths import shared_data_dir
+from bridge_shadow.series import MonitoringData
+
+__all__ = ["load_record", "resolve_path"]
+
+
+def resolve_path(path: str | Path, base: Path | None = None) -> Path:
+    """Absolute path of ``path``: as is, else under ``base``, else under the shared data directory."""
+    p = Path(path).expanduser()
+    if p.is_absolute():
+        candidates = [p]
+    else:
+        candidates = ([base / p] if base is not None else []) + [Path.cwd() / p, shared_data_dir() / p]
+    for c in candidates:
+        if c.exists():
+            return c.resolve()
+    tried = ", ".join(str(c) for c in candidates)
+    raise CalibrationError(f"record {path}: not found (tried {tried})")
+
+
+def _is_bag(path: Path) -> bool:
+    return path.is_dir() or path.suffix in (".db3", ".mcap")
+
+
+def load_record(paths: Sequence[str | Path], base: Path | None = None) -> MonitoringData:
+    """Read a record given as one bag or as CSV/zip files (forces and, optionally, temperature)."""
+    files = [resolve_path(p, base) for p in paths]
+    if not files:
+        raise CalibrationError("a record needs at least one file or bag")
+    bags = [f for f in files if _is_bag(f)]
+    if bags:
+        if len(files) != 1:
+            raise CalibrationError(
+                f"a record is one bag or a list of CSV/zip files, got {len(files)} paths with a bag"
+            )
+        from bridge_shadow.bagio import read_monitoring
+
+        return read_monitoring(bags[0], required=list(FORCE_TOPICS.values()))
+    from bridge_shadow.importers import import_csv
+
+    data, _ = import_csv(list(files))
+    return data

@@ -1,0 +1,162 @@
+"""Calibration building blocks against closed forms: evidence, bounds, LM, SVD, car detection, changes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import optimize, stats
+
+from bridge_shadow.calibrate.car import bin_record, detect_car
+from bridge_shadow.calibrate.change import measured_change, record_level
+from bridge_shadow.calibrate.errors import CalibrationError
+from bridge_shadow.calibrate.identifiability import identifiability
+from bridge_shadow.calibrate.lm import levenberg_marquardt
+from bridge_shadow.calibrate.posterior import laplace
+from bridge_shadow.calibrate.spec import spec_from_dict
+from bridge_shadow.series import MonitoringData
+
+NS = 1_000_000_000
+
+
+def _linear(y, g, sd):
+    """Whitened residual function of y = G u + e, e ~ N(0, diag(sd^2)), prior u ~ N(0, I)."""
+
+    def fun(u, jacobian=True):
+        r = np.concatenate([(y - g @ u) / sd, u])
+        return r, (np.vstack([-g / sd[:, None], np.eye(len(u))]) if jacobian else None)
+
+    return fun
+
+
+def test_laplace_evidence_is_exact_for_a_linear_gaussian_model() -> None:
+    rng = np.random.default_rng(0)
+    g = rng.normal(size=(2, 4)) * [[3.0], [0.5]]
+    sd = np.array([0.3, 0.7])
+    y = rng.normal(size=2) * 2
+    fun = _linear(y, g, sd)
+    res = levenberg_marquardt(fun, np.zeros(4))
+    post = laplace(res.r, res.J, res.x, np.full(4, np.inf), 2, float(np.sum(np.log(sd**2))))
+    exact = stats.multivariate_normal(np.zeros(2), np.diag(sd**2) + g @ g.T).logpdf(y)
+    assert post.log_evidence == pytest.approx(exact, abs=1e-8)
+    np.testing.assert_allclose(post.cov, np.linalg.inv(np.eye(4) + g.T @ np.diag(sd**-2) @ g), rtol=1e-8)
+
+
+@pytest.mark.parametrize("y", [-2.0, 0.3, 2.5])
+def test_bounded_evidence_and_interval_are_exact_for_a_half_normal_prior(y) -> None:
+    """U <= 0 (a fraction at its as-built 1): evidence = N(y; 0, s^2 + g^2) 2 Phi(-m / sqrt(v))."""
+    g, s = 1.5, 0.8
+    fun = _linear(np.array([y]), np.array([[g]]), np.array([s]))
+    res = levenberg_marquardt(fun, np.array([-0.5]), upper=np.array([0.0]))
+    post = laplace(res.r, res.J, res.x, np.array([0.0]), 1, float(np.log(s**2)))
+    v = 1.0 / (1.0 + g**2 / s**2)
+    m = v * g * y / s**2
+    exact = stats.norm(0, np.sqrt(s**2 + g**2)).logpdf(y) + np.log(2 * stats.norm.cdf(-m / np.sqrt(v)))
+    assert post.log_evidence == pytest.approx(exact, abs=1e-8)
+    truncated = stats.truncnorm(-np.inf, -m / np.sqrt(v), loc=m, scale=np.sqrt(v))
+    lo, hi = post.lo95[0], post.hi95[0]
+    assert truncated.cdf(hi) - truncated.cdf(lo) == pytest.approx(0.95, abs=1e-6)
+    if hi < 0.0:  # highest density: equal density at both ends, else the interval reaches the bound
+        assert truncated.pdf(lo) == pytest.approx(truncated.pdf(hi), rel=1e-5)
+    assert lo <= min(res.x[0], 0.0) and hi >= res.x[0]
+    assert bool(post.active[0]) == (m > 0)  # the mode sits on the bound when the data push past it
+    assert res.x[0] <= 0.0
+
+
+def test_lm_matches_scipy_least_squares_on_a_nonlinear_problem() -> None:
+    t = np.linspace(0, 3, 12)
+    y = 2.0 * np.exp(-1.3 * t) + 0.05 * np.sin(7 * t)
+
+    def resid(p):
+        return y - p[0] * np.exp(-p[1] * t)
+
+    def fun(p, jacobian=True):
+        e = np.exp(-p[1] * t)
+        return resid(p), (np.column_stack([-e, p[0] * t * e]) if jacobian else None)
+
+    ours = levenberg_marquardt(fun, np.array([1.0, 0.5]))
+    ref = optimize.least_squares(resid, [1.0, 0.5], xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    np.testing.assert_allclose(ours.x, ref.x, rtol=1e-5)
+    assert ours.converged
+
+
+def test_identifiability_finds_the_combination_the_data_fix() -> None:
+    j = np.array([[10.0, 10.0, 0.0], [0.0, 0.0, 0.01]])  # one number sees a + b, the other almost nothing
+    rep = identifiability(j, ["a", "b", "c"])
+    first = rep["directions"][0]
+    assert first["singular_value"] == pytest.approx(np.sqrt(200.0))
+    assert first["combination"] == {"a": pytest.approx(0.707, abs=1e-3), "b": pytest.approx(0.707, abs=1e-3)}
+    assert rep["directions"][1]["posterior_to_prior_sd"] == pytest.approx(1.0, abs=1e-4)
+    assert "2 measured numbers" in rep["summary"]
+
+
+def _record(start_ns, level, rate, steps=(), seconds=720, hz=20, seed=0, temp=2.0):
+    """Synthetic load-cell record: level + drift + car events (t0, t1, height per channel) + noise."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * hz)) / hz
+    y = np.asarray(level, float)[None, :] + np.outer(t, rate)
+    for t0, t1, h in steps:
+        y[(t >= t0) & (t < t1)] += h
+    y += rng.normal(0, 20.0, y.shape)
+    stamps = start_ns + np.round(t * NS).astype(np.int64)
+    tt = start_ns + np.arange(0, seconds, 1.0).astype(np.int64) * NS
+    return MonitoringData.from_arrays(stamps, y, tt, np.full(len(tt), temp))
+
+
+CAR = [
+    (20, 35, [4000.0, 3000.0]),
+    (120, 240, [5600.0, 4600.0]),
+    (250, 370, [10400.0, 9900.0]),
+    (400, 415, [5000.0, 2000.0]),
+]
+
+
+def test_car_detection_finds_crossings_plateaus_and_the_baseline() -> None:
+    data = _record(0, [234e3, 233e3], [1.0, 0.0], CAR)
+    det = detect_car(bin_record(data))
+    assert len(det.plateaus) == 2
+    np.testing.assert_allclose(det.plateaus[0].height_n, [5600, 4600], atol=60)
+    np.testing.assert_allclose(det.plateaus[1].height_n, [10400, 9900], atol=60)
+    np.testing.assert_allclose(det.baseline[:, 1], [1.0, 0.0], atol=0.05)  # drift N/s
+    assert len(det.intervals_s) == 3  # two crossings and the parked sequence
+    assert 0.3 < det.free_fraction < 0.55
+
+
+def test_measured_change_linear_recovers_a_step_under_drift_and_uncertainty_covers_it() -> None:
+    """Both records drift +1 N/s; the step between them is -20 / -40 kN."""
+    step = np.array([-20e3, -40e3])
+    t_b, t_a = 0, 2640 * NS  # 44 min apart
+    before = record_level(_record(t_b, [234e3, 234e3], [1.0, 1.0], CAR, seed=1))
+    level_a = np.array([234e3, 234e3]) + step + 2640.0 * 1.0
+    after = record_level(_record(t_a, level_a, [1.0, 1.0], CAR, seed=2))
+    lin = measured_change(before, after, "linear")
+    np.testing.assert_allclose(lin.dR_n, step, atol=60)  # the drift over the gap is modelled away
+    unc = measured_change(before, after, "uncertainty")
+    z = (unc.dR_n - step) / unc.sd_n
+    assert np.all(np.abs(z) < 2.0) and np.all(unc.sd_n > 2000.0)  # unmodelled: 2.6 kN of drift is in the sd
+    assert unc.air_temp_change_k == pytest.approx(0.0)
+
+
+def test_spec_errors_are_one_line() -> None:
+    good = {
+        "pairs": [
+            {
+                "name": "p",
+                "before": "a",
+                "after": "b",
+                "imposed_m": [-0.01, -0.01],
+                "imposed_sd_m": [5e-4, 5e-4],
+            }
+        ]
+    }
+    assert spec_from_dict(good).pairs[0].imposed_m.tolist() == [-0.01, -0.01]
+    bad = [
+        {"pairs": []},
+        {"pairs": [{**good["pairs"][0], "imposed_sd_m": [0, 1e-3]}]},
+        {**good, "explanations": {"x": ["no_such_parameter"]}},
+        {**good, "choose": "nothing"},
+        {**good, "mesh": "huge"},
+    ]
+    for data in bad:
+        with pytest.raises(CalibrationError) as err:
+            spec_from_dict(data)
+        assert "\n" not in str(err.value)
