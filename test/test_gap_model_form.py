@@ -44,7 +44,8 @@ def test_support_spring_closed_form_is_the_condensed_spring_chain():
     np.testing.assert_allclose(changed.u0, ks @ np.linalg.solve(SUR.A + ks, SUR.u0), rtol=1e-9)
     np.testing.assert_allclose(m @ SUR.u0, changed.u0, rtol=1e-12)
     rigid, _ = support_spring_change(SUR, [np.inf, np.inf])
-    np.testing.assert_allclose(rigid.A, SUR.A, rtol=1e-12)
+    # the closed form returns a symmetrized A; the file's A is symmetric to about 1e-12 (FE round-off)
+    np.testing.assert_allclose(rigid.A, SUR.A, rtol=1e-9)
 
 
 def test_slab_joint_placeholder_factors_match_the_unit_load_integrals():

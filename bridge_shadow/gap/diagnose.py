@@ -470,7 +470,7 @@ def _forward_selection(
         # what the joint model leaves with every grid value fixed (see ``base`` above)
         base = cross_validate([fixed], fitter.resid, fitter.valid, fitter.fold)
         sse_now, pred_now = base.sse_after.sum(), base.pred_full
-        final = r
+        final = base  # the joint all-data fit of every block (a spring's own cv holds only its compliances)
         remaining = [n for n in remaining if n not in taken]
     if final is not None:
         k = 0
