@@ -79,6 +79,15 @@ def run(args: argparse.Namespace) -> int:
             "the shipped config/surrogate.yaml is built from the default model and mesh without "
             "overrides; give --out for this variant"
         )
+    # every output path is checked before the FE solves, so a bad one costs no minutes
+    from bridge_shadow.fileio import output_dir, output_file
+    from bridge_shadow.model.surrogate_file import surrogate_target
+
+    surrogate_target(args.out if args.out is not None else config_file("surrogate.yaml"))
+    if args.png is not None:
+        output_file(args.png, "model picture")
+    if args.vtk is not None:
+        output_dir(args.vtk, "VTK directory")
     run_ = compute_surrogate(
         cfg, args.mesh, sensitivities=not args.no_sensitivities, report=lambda f, s: progress(f, "surrogate")
     )
@@ -89,7 +98,6 @@ def run(args: argparse.Namespace) -> int:
     if args.vtk is not None:
         from bridge_shadow.fe.vtk import write_vtu
 
-        args.vtk.mkdir(parents=True, exist_ok=True)
         vtu = write_vtu(args.vtk / f"bridge_{args.mesh}.vtu", run_.base.model, run_.base.results)
         doc["provenance"]["vtk"] = str(vtu)
     if args.png is not None:
