@@ -3,9 +3,10 @@
 Every file the package writes goes through here (or through ``bagio``'s staged bag writer, or
 ``estimate.checkpoint``):
 
-- ``output_file``/``output_dir`` check a path argument up front, so a command that runs for
-  minutes fails in its first millisecond on ``--out /tmp`` (a directory) or ``--plots FILE``, with
-  one line (``InputError``) naming the path;
+- ``check_output_file``/``check_output_dir`` check a path argument up front and create nothing,
+  so a command that runs for minutes fails in its first millisecond on ``--out /tmp`` (a
+  directory) or ``--plots FILE``, with one line (``InputError``) naming the path, and leaves
+  nothing behind; ``output_file``/``output_dir`` check and create the directories when writing;
 - ``atomic_write`` yields a temporary name in the target's directory (``.NAME.<pid>.tmp``) and
   renames it over the target only when the block succeeds, so a reader never sees half a file and
   a failure (an error, Ctrl-C) removes the temporary file and leaves the old target as it was.
@@ -25,6 +26,8 @@ from bridge_shadow.errors import InputError
 __all__ = [
     "atomic_write",
     "atomic_write_text",
+    "check_output_dir",
+    "check_output_file",
     "output_dir",
     "output_file",
     "remove_orphans",
@@ -54,8 +57,20 @@ def yaml_problem(err: Exception) -> str:
     return f"line {mark.line + 1}, column {mark.column + 1}: {problem}" if mark is not None else problem
 
 
-def output_file(path: str | Path, what: str = "output file") -> Path:
-    """Check that ``path`` can be written as a file; create its directory; return it as a Path.
+def _check_creatable(path: Path, what: str) -> None:
+    """Refuse a path whose missing directories cannot be created (no side effect)."""
+    blocking = _blocking_file(path)
+    if blocking is not None:
+        raise InputError(f"{path}: cannot write the {what}: {blocking} is a file, not a directory")
+    for ancestor in path.parents:
+        if ancestor.exists():
+            if not os.access(ancestor, os.W_OK | os.X_OK):
+                raise InputError(f"{path}: cannot write the {what} there (directory {ancestor} not writable)")
+            return
+
+
+def check_output_file(path: str | Path, what: str = "output file") -> Path:
+    """Check, without creating anything, that ``path`` can be written as a file; return it.
 
     Raises:
         InputError: ``path`` is a directory, or its directory cannot be created or written.
@@ -64,38 +79,40 @@ def output_file(path: str | Path, what: str = "output file") -> Path:
     file = Path(path)
     if file.is_dir():
         raise InputError(f"{file}: is a directory; the {what} must be a file path")
-    parent = file.parent
-    blocking = _blocking_file(file)
-    if blocking is not None:
-        raise InputError(f"{file}: cannot write the {what}: {blocking} is a file, not a directory")
+    _check_creatable(file, what)
+    return file
+
+
+def check_output_dir(path: str | Path, what: str = "output directory") -> Path:
+    """Check, without creating anything, that ``path`` is or can become a writable directory."""
+    directory = Path(path)
+    if directory.exists():
+        if not directory.is_dir():
+            raise InputError(f"{directory}: exists and is not a directory; the {what} must be a directory")
+        if not os.access(directory, os.W_OK | os.X_OK):
+            raise InputError(f"{directory}: the {what} is not writable")
+        return directory
+    _check_creatable(directory, what)
+    return directory
+
+
+def output_file(path: str | Path, what: str = "output file") -> Path:
+    """Check that ``path`` can be written as a file and create its directory; return it."""
+    file = check_output_file(path, what)
     try:
-        parent.mkdir(parents=True, exist_ok=True)
+        file.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{file}: cannot create the directory of the {what} ({_reason(err)})") from None
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"{file}: cannot write the {what} there (directory {parent} not writable)")
     return file
 
 
 def output_dir(path: str | Path, what: str = "output directory") -> Path:
-    """Check that ``path`` is or can become a writable directory; create it; return it.
-
-    Raises:
-        InputError: ``path`` is an existing file, or cannot be created or written.
-
-    """
-    directory = Path(path)
-    if directory.exists() and not directory.is_dir():
-        raise InputError(f"{directory}: exists and is not a directory; the {what} must be a directory")
-    blocking = _blocking_file(directory)
-    if blocking is not None:
-        raise InputError(f"{directory}: cannot create the {what}: {blocking} is a file, not a directory")
+    """Check that ``path`` is or can become a writable directory, and create it; return it."""
+    directory = check_output_dir(path, what)
     try:
         directory.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{directory}: cannot create the {what} ({_reason(err)})") from None
-    if not os.access(directory, os.W_OK | os.X_OK):
-        raise InputError(f"{directory}: the {what} is not writable")
     return directory
 
 

@@ -26,7 +26,6 @@ from bridge_shadow.contract import (
     TEMPERATURE_TOPIC,
     TEMPERATURE_TYPE,
 )
-from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.series import MonitoringData
 
 __all__ = ["STORAGES", "BagOutputWriter", "check_bag_target", "get_typestore", "write_monitoring"]
@@ -72,14 +71,12 @@ def _check_target(path: Path, overwrite: bool) -> None:
 
 def check_bag_target(path: str | Path, overwrite: bool = False) -> Path:
     """Check before any work that a bag can be written at ``path``; BagError in one line if not."""
-    from bridge_shadow.fileio import output_dir
+    from bridge_shadow.fileio import check_output_dir
 
     target = Path(path)
     _check_target(target, overwrite)
-    try:
-        output_dir(target.parent if str(target.parent) else Path("."), "directory of the bag")
-    except BridgeShadowError as err:
-        raise BagError(f"{target}: cannot create bag: {err}") from None
+    if not target.exists():
+        check_output_dir(target, "bag")
     return target
 
 
@@ -134,6 +131,7 @@ class BagOutputWriter:
         remove_orphans(self.path)
         self._stage = temp_name(self.path)
         try:
+            self._stage.parent.mkdir(parents=True, exist_ok=True)
             self._stage.mkdir()
             self._writer = Writer(self.staged_path, version=9, storage_plugin=self._plugin)
             if self._compress:  # zstd-compressed MCAP chunks, transparent to every MCAP reader

@@ -71,15 +71,19 @@ def _human(summary: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Read the bag, diagnose, print, and write the report."""
+    import math
+
     from bridge_shadow.bagio import read_monitoring
     from bridge_shadow.commands.output import emit_json
+    from bridge_shadow.errors import InputError
+    from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.gap.diagnose import diagnose
     from bridge_shadow.model.surrogate_file import load_surrogate
 
-    if args.window <= 0:
-        from bridge_shadow.errors import InputError
-
-        raise InputError("--window must be positive")
+    if not (args.window > 0 and math.isfinite(args.window)):
+        raise InputError("--window must be a positive, finite number of seconds")
+    if args.report:
+        check_output_dir(args.report, "report directory")  # before the work
     data = read_monitoring(args.bag)
     surrogate = load_surrogate(args.surrogate) if args.surrogate else None
     dg = diagnose(data, surrogate, width_s=args.window, holdout_days=args.holdout_days, replay=args.replay)

@@ -178,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.commands.output import emit_json, progress
     from bridge_shadow.errors import InputError
     from bridge_shadow.estimate import load_config
-    from bridge_shadow.fileio import output_dir
+    from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.model.surrogate_file import load_surrogate
 
     show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "replay"))
@@ -190,7 +190,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         check_bag_target(args.out)
     if args.plots:
-        output_dir(args.plots, "plot directory")
+        check_output_dir(args.plots, "plot directory")
     if args.live:
         from bridge_shadow.ros.live_replay import run_live
 
@@ -216,8 +216,8 @@ def run(args: argparse.Namespace) -> int:
     # a params file's checkpoint_path belongs to the live node: never read or written here
     config = load_config(args.params).replace(checkpoint_path=args.checkpoint or "")
     surrogate = load_surrogate(config.surrogate_path or None)
+    shadow, notes = open_shadow(config, surrogate)  # an unusable checkpoint stops us before the bag
     data = read_monitoring(args.bag, topics=config.input_topics())
-    shadow, notes = open_shadow(config, surrogate)
     for line in notes:
         print(f"bridge-shadow replay: {line}", file=sys.stderr)
     result = shadow.run(data, progress=show)

@@ -80,14 +80,14 @@ def run(args: argparse.Namespace) -> int:
             "overrides; give --out for this variant"
         )
     # every output path is checked before the FE solves, so a bad one costs no minutes
-    from bridge_shadow.fileio import output_dir, output_file
+    from bridge_shadow.fileio import check_output_dir, check_output_file
     from bridge_shadow.model.surrogate_file import surrogate_target
 
-    surrogate_target(args.out if args.out is not None else config_file("surrogate.yaml"))
+    surrogate_target(args.out if args.out is not None else config_file("surrogate.yaml"), create=False)
     if args.png is not None:
-        output_file(args.png, "model picture")
+        check_output_file(args.png, "model picture")
     if args.vtk is not None:
-        output_dir(args.vtk, "VTK directory")
+        check_output_dir(args.vtk, "VTK directory")
     run_ = compute_surrogate(
         cfg, args.mesh, sensitivities=not args.no_sensitivities, report=lambda f, s: progress(f, "surrogate")
     )

@@ -27,6 +27,16 @@ Effects (--effect NAME=VALUE, repeatable; SI units; see bridge_shadow/effects.py
 """ + "\n".join(f"  {e.name:<20} [{e.unit}] e.g. {e.realistic:g} (edge {e.edge:g})" for e in EFFECTS.values())
 
 
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, not {value}")
+    return value
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``synth``."""
     parser.add_argument("--out", required=True, metavar="BAG", help="output bag directory")
@@ -39,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="HZ",
         help="air-temperature rate, Hz (default 1/60)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=_seed, default=0, help="random seed, >= 0 (default 0)")
     parser.add_argument(
         "--effect",
         action="append",
@@ -69,6 +79,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
+    import math
+
     from bridge_shadow.errors import InputError
 
     steps = []
@@ -77,6 +89,8 @@ def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
             day, south, north = (float(v) for v in item.split(":"))
         except ValueError:
             raise InputError(f"--step {item!r}: expected DAY:SOUTH:NORTH (days, m, m)") from None
+        if not all(math.isfinite(v) for v in (day, south, north)) or day < 0:
+            raise InputError(f"--step {item!r}: DAY must be >= 0 and every value finite")
         steps.append((day, south, north))
     return steps
 

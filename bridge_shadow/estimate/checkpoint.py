@@ -15,6 +15,7 @@ file is never overwritten here: the caller stops, or sets it aside (``set_aside`
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import tempfile
@@ -122,7 +123,8 @@ def save_state(state: dict[str, Any], path: str | Path) -> Path:
             os.fsync(fh.fileno())
         os.replace(tmp, file)
     except BaseException as err:  # also an interrupt: never leave the temporary file behind
-        tmp.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            tmp.unlink()
         if isinstance(err, OSError):
             raise CheckpointError(f"{file}: cannot write the checkpoint ({err.strerror or err})") from None
         raise

@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from bridge_shadow.errors import ConfigError, InputError
-from bridge_shadow.fileio import atomic_write_text, output_file
+from bridge_shadow.fileio import atomic_write_text, check_output_file, output_file
 from bridge_shadow.paths import config_file
 
 __all__ = [
@@ -179,14 +179,15 @@ def save_surrogate(surrogate: Surrogate, path: str | Path, header: str = "") -> 
     return atomic_write_text(file, text, "surrogate file")
 
 
-def surrogate_target(path: str | Path) -> Path:
+def surrogate_target(path: str | Path, *, create: bool = True) -> Path:
     """Check that a surrogate may be written at ``path``; return it as a Path.
 
     A new file, or an existing surrogate file (keys ``A`` and ``u0``), may be written; anything
     else at that path (a directory, a parameter file, a bag's metadata) is refused with one
-    InputError line, so a mistyped ``--out`` never replaces a user's file.
+    InputError line, so a mistyped ``--out`` never replaces a user's file. ``create`` makes the
+    file's directory (False: only check, as a command does before its work).
     """
-    file = output_file(path, "surrogate file")
+    file = output_file(path, "surrogate file") if create else check_output_file(path, "surrogate file")
     if file.exists():
         try:
             data = yaml.safe_load(file.read_text(encoding="utf-8"))

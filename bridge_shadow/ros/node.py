@@ -29,7 +29,12 @@ has delivered a stamp at least as new (or that topic has been quiet, or the mess
 for ``REORDER_HOLD_S``). Live, the window-closing message never waits: the others are past it.
 
 Parameters: every entry of ``config/shadow.yaml`` (its values are the declared defaults), overridable
-with ``--ros-args -p name:=value`` or ``--params-file FILE``. ``qos_depth`` is the input history
+with ``--ros-args -p name:=value`` or ``--params-file FILE``. Each is declared with a
+ParameterDescriptor built from ``estimate.param_specs`` (type, description with unit, constraint,
+range), and checked as strictly as ``replay --params`` checks it: an unknown name, a wrong type or
+an out-of-range value stops the node at start with one line and exit code 2. Only
+``diagnostics_period_s`` may change at run time (the set-parameters callback refuses a bad value
+with the reason); every other parameter is read-only once the node runs. ``qos_depth`` is the input history
 depth (RELIABLE, KEEP_LAST; 0 means KEEP_ALL). Note that a full reliable reader drops samples for
 the writer to resend at its next heartbeat (seconds later, in Fast DDS), so a fast replay keeps
 fewer than ``qos_depth`` messages in flight using the status service instead.
@@ -42,7 +47,11 @@ for such a window that arrives later still is counted ``late``. Data after the g
 
 Checkpoint: with ``checkpoint_path`` set, the node resumes from that file when it exists, the shadow
 saves it every ``checkpoint_period_s`` of stamp time, and the node saves it on SIGINT/SIGTERM
-after ingesting what it has buffered.
+after ingesting what it has buffered. A file that cannot be read, or was saved under parameters
+that shape the state differently (``estimate.checkpoint``), stops the node with one line naming
+it (``checkpoint_unusable: fresh`` sets it aside and starts from the prior); it is never
+overwritten. At start the node logs the surrogate, the parameter files, the topics and the
+checkpoint it uses.
 
 Network: before ``rclpy.init`` the node confines DDS discovery to loopback
 (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ``ROS_DOMAIN_ID`` if none is set) unless the
@@ -50,7 +59,8 @@ environment already sets ``ROS_AUTOMATIC_DISCOVERY_RANGE``: an explicit choice (
 a real monitoring network) is respected.
 
 Executor: ``rclpy.experimental.EventsExecutor``, driven by ``spin_until_future_complete`` with a
-0.2 s timeout in a loop that checks the stop flag. In rclpy 7.1 its ``spin()`` (and
+0.2 s timeout in a loop that checks the stop flag; SIGINT/SIGTERM also complete the future it
+waits on, which ends the spin even when a callback is always due. In rclpy 7.1 its ``spin()`` (and
 ``spin_until_future_complete`` without a timeout) neither returns on SIGINT/SIGTERM nor idles (it
 busy-waits a core), so it is not used; ``spin_once`` per message costs a Python call per event.
 """
@@ -155,8 +165,9 @@ usage: bridge_shadow_node [--ros-args [-p NAME:=VALUE ...] [--params-file FILE]]
 
 The live digital shadow of the UniBw Munich test bridge: subscribes to the two central-bearing
 load cells and the air temperature, publishes the posterior settlements, their covariance, the
-temperature-compensated forces and /diagnostics. Parameters: config/shadow.yaml (documented there).
-Stop with Ctrl-C or SIGTERM (a checkpoint is written when checkpoint_path is set).
+temperature-compensated forces and /diagnostics. Parameters: config/shadow.yaml (documented there;
+unknown names and bad values stop the node with one line). Stop with Ctrl-C or SIGTERM (a
+checkpoint is written when checkpoint_path is set).
 """
 
 
