@@ -17,9 +17,8 @@ By default the bag is decoded vectorized and fed to the pipeline directly; --liv
 the rclpy node in a loopback DDS graph (same pipeline, same posterior). Parameters come from
 config/shadow.yaml or --params; the replay ignores checkpoint_path there (a running node's
 state is never touched) unless --checkpoint PATH names a checkpoint to resume and write. --json
-prints one object: posterior.mean_m [south, north] (m),
-posterior.covariance_m2 (m^2), messages used and rejected by reason, messages_per_s, spline edf
-and lambda per channel. --out and --plots work in both modes (live: drawn from the node's history
+prints one object: posterior.mean_m [south, north] (m), posterior.covariance_m2 (m^2), messages
+used and rejected by reason, messages_per_s, spline edf and lambda per channel. --out and --plots work in both modes (live: drawn from the node's history
 service and final checkpoint). A progress bar shows on a terminal unless --json.
 
 To watch the topics of a paced live replay (the ros2 command-line tools are not in the venv:

@@ -103,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
     """Simulate, write the bag and its truth, print a summary."""
     from pathlib import Path
 
+    from bridge_shadow.bagio import check_bag_target
     from bridge_shadow.commands.output import emit_json
     from bridge_shadow.errors import InputError
     from bridge_shadow.twin.bag import write_twin_bag
@@ -111,6 +112,7 @@ def run(args: argparse.Namespace) -> int:
 
     if Path(args.out).exists() and not args.overwrite:
         raise InputError(f"{args.out}: exists already (use --overwrite to replace it)")
+    check_bag_target(args.out, args.overwrite)  # before the simulation
     out, truth = write_twin_bag(
         args.out,
         storage=args.storage,
