@@ -166,6 +166,8 @@ def test_node_refuses_bad_values_with_a_reason_and_applies_good_ones(node_factor
     (result,) = node.set_parameters([Parameter("window_s", value=30.0)])
     assert not result.successful and "read-only" in result.reason
     assert node.config.window_s == 60.0
+    (result,) = node.set_parameters([Parameter("use_sim_time", value=False)])  # rclpy's own: not ours
+    assert result.successful
     (result,) = node.set_parameters([Parameter("diagnostics_period_s", value=2)])  # an int for a real
     assert result.successful
     assert node.config.diagnostics_period_s == 2.0

@@ -18,8 +18,9 @@ the rclpy node in a loopback DDS graph (same pipeline, same posterior). Paramete
 config/shadow.yaml or --params; the replay ignores checkpoint_path there (a running node's
 state is never touched) unless --checkpoint PATH names a checkpoint to resume and write. --json
 prints one object: posterior.mean_m [south, north] (m), posterior.covariance_m2 (m^2), messages
-used and rejected by reason, messages_per_s, spline edf and lambda per channel. --out and --plots work in both modes (live: drawn from the node's history
-service and final checkpoint). A progress bar shows on a terminal unless --json.
+used and rejected by reason, messages_per_s, spline edf and lambda per channel. --out and
+--plots work in both modes (live: drawn from the node's history service and final checkpoint).
+A progress bar shows on a terminal unless --json.
 
 To watch the topics of a paced live replay (the ros2 command-line tools are not in the venv:
 they are not on the package index), --watch prints the node's latest outputs once a second:

@@ -261,7 +261,9 @@ class ShadowNode(Node):
 
     def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
         """Refuse a new value that breaks its spec, with the reason (read-only ones rclpy refuses)."""
-        changes = {p.name: _plain(p.value) for p in params}
+        changes = {p.name: _plain(p.value) for p in params if not _ros_own(p.name)}  # use_sim_time: rclpy's
+        if not changes:
+            return SetParametersResult(successful=True)
         frozen = [n for n in changes if n not in SPECS or not SPECS[n].live]
         if frozen:
             return SetParametersResult(
