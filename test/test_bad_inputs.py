@@ -14,6 +14,8 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import signal
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -193,7 +195,13 @@ def test_node_case_gives_one_line_and_changes_nothing(case: str, scratch: Path, 
     argv = ["--ros-args", *(a.format(w=scratch) for a in NODE_CASES[case])]
     watched = (scratch, root / "bags", root / "config")
     before = _tree(*watched)
-    code = node_main(argv)
+    # a case the node wrongly accepts would spin until stopped: stop it (exit 0 fails the test)
+    watchdog = threading.Timer(20.0, os.kill, (os.getpid(), signal.SIGINT))
+    watchdog.start()
+    try:
+        code = node_main(argv)
+    finally:
+        watchdog.cancel()
     _check(code, capfd.readouterr().err, before, _tree(*watched))
 
 
