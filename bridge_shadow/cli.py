@@ -62,7 +62,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args._run(args) or 0)
     except BridgeShadowError as err:
-        print(f"bridge-shadow {args.command}: error: {err}", file=sys.stderr)
+        text = " ".join(str(err).split())  # one line, whatever a library put in the message
+        print(f"bridge-shadow {args.command}: error: {text}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"bridge-shadow {args.command}: interrupted", file=sys.stderr)

@@ -277,3 +277,31 @@ def test_swap_decided_per_file_across_midnight(tmp_path: Path) -> None:
     )
     np.testing.assert_array_equal(data.forces["frc_02"].force_n, [2500.0, 2750.0])
     assert report.repeats == {"frc_01": 1, "frc_02": 0, "air_temperature": 0}
+
+
+def test_a_row_with_an_unreadable_cell_is_rejected_whole(tmp_path: Path) -> None:
+    """Its readable cell shares the doubtful row: it must not displace a good sample at that stamp.
+
+    Two force files hold the same instant (as overlapping exports do); in the first, FRC-02 of
+    that row is unreadable. The good row of the second file is the one kept, on both channels.
+    """
+    bad = tmp_path / "a_2022-03-07.csv"
+    bad.write_text(
+        "Time (-),FRC-01 (kN),FRC-02 (kN)\n"
+        "2022-03-07 16:35:00.000,233.90,221.10\n"
+        "2022-03-07 16:35:00.010,233.90,#WERT!\n"
+    )
+    good = tmp_path / "b_2022-03-07.csv"
+    good.write_text(
+        "Time (-),FRC-01 (kN),FRC-02 (kN)\n"
+        "2022-03-07 16:35:00.010,243.88,221.20\n"
+        "2022-03-07 16:35:00.020,243.90,221.30\n"
+    )
+    data, report = import_csv([bad, good])
+    t = _ns("2022-03-07T15:35:00.010")
+    for ch, value in (("frc_01", 243.88e3), ("frc_02", 221.20e3)):
+        series = data.forces[ch]
+        (at,) = np.flatnonzero(series.stamp_ns == t)
+        assert series.force_n[at] == pytest.approx(value, rel=1e-12), ch
+        assert len(series) == 3
+    assert [(r["line"], r["reason"]) for r in report.rejected] == [(3, "unreadable value of frc_02")]

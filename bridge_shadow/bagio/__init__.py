@@ -29,7 +29,13 @@ from bridge_shadow.bagio.reader import (
     read_monitoring,
     read_raw_topics,
 )
-from bridge_shadow.bagio.writer import STORAGES, BagOutputWriter, get_typestore, write_monitoring
+from bridge_shadow.bagio.writer import (
+    STORAGES,
+    BagOutputWriter,
+    check_bag_target,
+    get_typestore,
+    write_monitoring,
+)
 
 __all__ = [
     "N_FLOATS",
@@ -44,6 +50,7 @@ __all__ = [
     "RawBlock",
     "UnexpectedTypeError",
     "bag_summary",
+    "check_bag_target",
     "decode_buffer",
     "decode_stamped_floats",
     "encode_stamped_floats",

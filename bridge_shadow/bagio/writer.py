@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
 import shutil
 from collections.abc import Iterable, Mapping, Sequence
 from functools import lru_cache
@@ -26,7 +28,7 @@ from bridge_shadow.contract import (
 )
 from bridge_shadow.series import MonitoringData
 
-__all__ = ["STORAGES", "BagOutputWriter", "get_typestore", "write_monitoring"]
+__all__ = ["STORAGES", "BagOutputWriter", "check_bag_target", "get_typestore", "write_monitoring"]
 
 #: Storage plugins a bag can be written with.
 STORAGES: tuple[str, ...] = ("sqlite3", "mcap")
@@ -45,8 +47,11 @@ def get_typestore() -> Any:
     return _get(Stores.ROS2_JAZZY)
 
 
-def _prepare_path(path: Path, overwrite: bool) -> None:
-    """Remove an existing bag when asked; refuse anything that does not look like a bag."""
+def _check_target(path: Path, overwrite: bool) -> None:
+    """Refuse an existing target unless asked to overwrite it, and anything that is not a bag.
+
+    Nothing is removed here: the old bag is replaced only once the new one is complete.
+    """
     if not path.exists() and not path.is_symlink():
         return
     if not overwrite:
@@ -60,9 +65,19 @@ def _prepare_path(path: Path, overwrite: bool) -> None:
         )
         if not looks_like_bag:
             raise BagExistsError(f"{path}: exists and is not a bag; refusing to overwrite it")
-        shutil.rmtree(path)
     else:
         raise BagExistsError(f"{path}: exists and is not a bag directory; refusing to overwrite it")
+
+
+def check_bag_target(path: str | Path, overwrite: bool = False) -> Path:
+    """Check before any work that a bag can be written at ``path``; BagError in one line if not."""
+    from bridge_shadow.fileio import check_output_dir
+
+    target = Path(path)
+    _check_target(target, overwrite)
+    if not target.exists():
+        check_output_dir(target, "bag")
+    return target
 
 
 def _storage_plugin(storage: str) -> Any:
@@ -98,34 +113,84 @@ class BagOutputWriter:
         self._overwrite = overwrite
         self._compress = compress
         self._writer: Any = None
+        self._stage: Path | None = None
         self._connections: dict[tuple[str, str], Any] = {}
         self.counts: dict[str, int] = {}
+
+    @property
+    def staged_path(self) -> Path:
+        """Where the bag is being written (renamed to ``path`` when the block succeeds)."""
+        return self._stage / self.path.name
 
     def __enter__(self) -> BagOutputWriter:
         from rosbags.rosbag2 import Writer, WriterError
 
-        _prepare_path(self.path, self._overwrite)
+        from bridge_shadow.fileio import remove_orphans, temp_name
+
+        check_bag_target(self.path, self._overwrite)
+        remove_orphans(self.path)
+        self._stage = temp_name(self.path)
         try:
-            self._writer = Writer(self.path, version=9, storage_plugin=self._plugin)
+            self._stage.parent.mkdir(parents=True, exist_ok=True)
+            self._stage.mkdir()
+            self._writer = Writer(self.staged_path, version=9, storage_plugin=self._plugin)
             if self._compress:  # zstd-compressed MCAP chunks, transparent to every MCAP reader
                 from rosbags.rosbag2 import CompressionFormat, CompressionMode
 
                 self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
             self._writer.open()
         except (WriterError, OSError) as err:
-            raise BagError(f"{self.path}: cannot create bag: {err}") from err
+            self._discard()
+            raise BagError(f"{self.path}: cannot create bag: {err}") from None
         return self
 
     def __exit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
-        self.close()
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
 
     def close(self) -> None:
-        """Write the metadata and close the storage (idempotent)."""
+        """Write the metadata, close the storage and move the bag into place (idempotent).
+
+        With ``overwrite`` the old bag is replaced only now, when the new one is complete.
+        """
+        writer, self._writer = self._writer, None
+        if writer is None:
+            return
+        try:
+            writer.close()
+            self._commit()
+        except BaseException as err:
+            self._discard()
+            if isinstance(err, OSError):
+                raise BagError(f"{self.path}: cannot write bag: {err.strerror or err}") from None
+            raise
+
+    def abort(self) -> None:
+        """Close and remove the unfinished bag; the target (and an old bag there) stays as it was."""
         writer, self._writer = self._writer, None
         if writer is not None:
-            writer.close()
+            with contextlib.suppress(Exception):
+                writer.close()
+        self._discard()
+
+    def _commit(self) -> None:
+        assert self._stage is not None
+        old = None
+        if self.path.exists() or self.path.is_symlink():
+            _check_target(self.path, self._overwrite)  # it may have appeared while we wrote
+            old = self._stage / f".old-{self.path.name}"  # removed with the stage directory
+            os.replace(self.path, old)
+        os.replace(self.staged_path, self.path)
+        self._discard()
+
+    def _discard(self) -> None:
+        stage = getattr(self, "_stage", None)
+        if stage is not None and stage.exists():
+            shutil.rmtree(stage, ignore_errors=True)
 
     def _connection(self, topic: str, msgtype: str) -> Any:
         key = (topic, msgtype)
@@ -255,12 +320,14 @@ def write_monitoring(
     *,
     overwrite: bool = False,
     compress: bool = False,
+    extra_files: Mapping[str, str] | None = None,
 ) -> Path:
     """Write the three contract input topics, merged in log-time order, CDR built with numpy.
 
     Ties in log time keep the order frc_01, frc_02, temperature. Every topic gets a connection,
     even when its series is empty. ``compress`` (mcap only) zstd-compresses the MCAP chunks
-    (about 3.5x smaller bags).
+    (about 3.5x smaller bags). ``extra_files`` (name -> text) go into the bag directory with it
+    (a twin's ``truth.yaml``): the bag appears complete with them, or not at all.
 
     Returns:
         the bag path.
@@ -296,4 +363,6 @@ def write_monitoring(
             write(conns[tk], ti, raws[i])
         for topic, idx in zip(topics, range(len(topics)), strict=True):
             bag.counts[topic] = int(np.count_nonzero(topic_idx == idx))
+        for name, text in (extra_files or {}).items():
+            (bag.staged_path / name).write_text(text, encoding="utf-8")
     return path

@@ -174,19 +174,20 @@ def _human(summary: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Read the bag, diagnose, print, and write the report."""
-    from pathlib import Path
+    import math
 
     from bridge_shadow.bagio import read_monitoring
     from bridge_shadow.commands.output import emit_json
     from bridge_shadow.errors import InputError
+    from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.gap.diagnose import diagnose
     from bridge_shadow.gap.posterior import shadow_config
     from bridge_shadow.model.surrogate_file import load_surrogate
 
-    if not args.window > 0:
-        raise InputError("--window must be positive")
-    if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
-        raise InputError(f"--report {args.report}: exists and is not a directory")
+    if not (args.window > 0 and math.isfinite(args.window)):
+        raise InputError("--window must be a positive, finite number of seconds")
+    if args.report:
+        check_output_dir(args.report, "report directory")  # before the work
     config = shadow_config(args.params, args.surrogate)
     surrogate = load_surrogate(config.surrogate_path or None)
     data = read_monitoring(args.bag, topics=config.input_topics())

@@ -47,13 +47,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Import, write the bag, print the summary."""
-    from bridge_shadow.bagio import BagExistsError, write_monitoring
+    from bridge_shadow.bagio import BagExistsError, check_bag_target, write_monitoring
     from bridge_shadow.commands.output import emit_json
     from bridge_shadow.errors import InputError
     from bridge_shadow.importers import import_csv
 
     if args.compress and args.storage != "mcap":
         raise InputError("--compress needs --storage mcap")
+    try:
+        check_bag_target(args.out, args.overwrite)  # before reading the records
+    except BagExistsError as err:
+        if args.overwrite:
+            raise
+        raise BagExistsError(f"{err} (pass --overwrite to replace it)") from None
     data, report = import_csv(args.files, date_hint=args.date)
     try:
         out = write_monitoring(args.out, data, args.storage, overwrite=args.overwrite, compress=args.compress)

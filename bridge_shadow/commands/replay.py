@@ -15,15 +15,21 @@ central-support settlements over u = A x + u0.
 
 By default the bag is decoded vectorized and fed to the pipeline directly; --live plays it through
 the rclpy node in a loopback DDS graph (same pipeline, same posterior). Parameters come from
-config/shadow.yaml or --params. --json prints one object: posterior.mean_m [south, north] (m),
-posterior.covariance_m2 (m^2), messages used and rejected by reason, messages_per_s, spline edf
-and lambda per channel. --out and --plots work in both modes (live: drawn from the node's history
-service and final checkpoint). A progress bar shows on a terminal unless --json.
+config/shadow.yaml or --params; the replay ignores checkpoint_path there (a running node's
+state is never touched) unless --checkpoint PATH names a checkpoint to resume and write. --json
+prints one object: posterior.mean_m [south, north] (m), posterior.covariance_m2 (m^2), messages
+used and rejected by reason, messages_per_s, spline edf and lambda per channel. --out and
+--plots work in both modes (live: drawn from the node's history service and final checkpoint).
+A progress bar shows on a terminal unless --json.
+
+To watch the topics of a paced live replay (the ros2 command-line tools are not in the venv:
+they are not on the package index), --watch prints the node's latest outputs once a second:
+  bridge-shadow replay bags/demo_3d --live --rate 3600 --watch
 """
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add BAG, --params, --live, --rate, --out, --plots, --json."""
+    """Add BAG, --params, --live, --rate, --out, --plots, --checkpoint, --watch, --json."""
     parser.add_argument("bag", metavar="BAG", help="rosbag2 directory (sqlite3 or MCAP)")
     parser.add_argument("--params", metavar="YAML", help="shadow parameter file (default config/shadow.yaml)")
     parser.add_argument(
@@ -41,6 +47,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--out", metavar="OUTBAG", help="write the outputs (mean, covariance, ...) as a bag")
     parser.add_argument("--plots", metavar="DIR", help="write PNG plots (compensation, posterior, ellipse)")
+    parser.add_argument(
+        "--checkpoint",
+        metavar="PATH",
+        help=(
+            "resume from this checkpoint if it exists and write the state there (periodically and at "
+            "the end); without it the replay neither reads nor writes a checkpoint, whatever "
+            "checkpoint_path the --params file names (that is the live node's)"
+        ),
+    )
+    parser.add_argument(
+        "--watch",
+        action="store_true",
+        help="with --live: print the node's latest outputs (settlements, compensated forces, "
+        "diagnostics) as they arrive, one line a second on stderr",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object (SI units)")
 
 
@@ -138,9 +159,15 @@ def _summary(js: dict[str, Any]) -> str:
         f"{js['messages_per_s']:.0f} msg/s",
         f"windows: {js['windows']['closed']} closed, {js['windows']['updates']} updates",
     ]
+    from bridge_shadow.estimate.gate import MESSAGE_REASONS
+
     rejected = {k: v for k, v in js["rejected"].items() if v}
-    if rejected:
-        lines.append("rejected: " + ", ".join(f"{k} {v}" for k, v in rejected.items()))
+    messages = {k: v for k, v in rejected.items() if k in MESSAGE_REASONS}
+    windows = {k: v for k, v in rejected.items() if k not in MESSAGE_REASONS}
+    if messages:
+        lines.append("rejected messages: " + ", ".join(f"{k} {v}" for k, v in messages.items()))
+    if windows:
+        lines.append("windows not used: " + ", ".join(f"{k} {v}" for k, v in windows.items()))
     for ch, sp in js["spline"].items():
         lines.append(
             f"compensation {ch}: edf {sp['edf']:.2f}, lambda {sp['lambda']:.3g}, "
@@ -153,15 +180,23 @@ def run(args: argparse.Namespace) -> int:
     """Replay the bag and print the result; exit 0."""
     import sys
 
+    from bridge_shadow.bagio import check_bag_target
     from bridge_shadow.commands.output import emit_json, progress
-    from bridge_shadow.estimate import Shadow, load_config
+    from bridge_shadow.errors import InputError
+    from bridge_shadow.estimate import load_config
+    from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.model.surrogate_file import load_surrogate
 
     show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "replay"))
-    if args.rate is not None and (not args.live or not args.rate > 0):
-        from bridge_shadow.errors import InputError
-
-        raise InputError("--rate needs --live and a positive speed factor")
+    if args.rate is not None and (not args.live or not (0 < args.rate < float("inf"))):
+        raise InputError("--rate needs --live and a positive, finite speed factor")
+    if args.watch and not args.live:
+        raise InputError("--watch needs --live (it shows the node's topics)")
+    # the outputs are checked before the replay runs, so a bad path costs no time
+    if args.out:
+        check_bag_target(args.out)
+    if args.plots:
+        check_output_dir(args.plots, "plot directory")
     over = {"surrogate_path": str(Path(args.surrogate).resolve())} if args.surrogate else None
     if args.live:
         from bridge_shadow.ros.live_replay import run_live
@@ -173,7 +208,9 @@ def run(args: argparse.Namespace) -> int:
             plots=args.plots,
             rate=args.rate,
             overrides=over,
-            progress=show,
+            progress=None if args.watch else show,
+            checkpoint=args.checkpoint,
+            watch=args.watch,
         )
         if args.json:
             emit_json(js)
@@ -182,11 +219,15 @@ def run(args: argparse.Namespace) -> int:
         return 0
 
     from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.estimate.startup import open_shadow
 
-    config = load_config(args.params, over)
+    # a params file's checkpoint_path belongs to the live node: never read or written here
+    config = load_config(args.params, over).replace(checkpoint_path=args.checkpoint or "")
     surrogate = load_surrogate(config.surrogate_path or None)
+    shadow, notes = open_shadow(config, surrogate)  # an unusable checkpoint stops us before the bag
     data = read_monitoring(args.bag, topics=config.input_topics())
-    shadow = Shadow(config, surrogate)
+    for line in notes:
+        print(f"bridge-shadow replay: {line}", file=sys.stderr)
     result = shadow.run(data, progress=show)
     js = result.to_json()
     js["bag"] = str(args.bag)

@@ -79,6 +79,16 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = load_bridge_config(args.model, parse_overrides(args.overrides))
     cfg.mesh(args.mesh)  # fail early on an unknown level
+    # every output path is checked before the FE solves, so a bad one costs no minutes
+    from bridge_shadow.fileio import check_output_dir, check_output_file
+    from bridge_shadow.model.surrogate_file import surrogate_target
+
+    if args.out is not None:
+        surrogate_target(args.out, create=False)
+    if args.png is not None:
+        check_output_file(args.png, "model picture")
+    if args.vtk is not None:
+        check_output_dir(args.vtk, "VTK directory")
     run_ = compute_surrogate(
         cfg, args.mesh, sensitivities=not args.no_sensitivities, report=lambda f, s: progress(f, "surrogate")
     )
@@ -90,7 +100,6 @@ def run(args: argparse.Namespace) -> int:
     if args.vtk is not None:
         from bridge_shadow.fe.vtk import write_vtu
 
-        args.vtk.mkdir(parents=True, exist_ok=True)
         vtu = write_vtu(args.vtk / f"bridge_{args.mesh}.vtu", run_.base.model, run_.base.results)
         doc["provenance"]["vtk"] = str(vtu)
     if args.png is not None:

@@ -43,6 +43,16 @@ support_spring takes K (N/m, a spring under both central bearings), south:K, nor
 slab_joint_opening is the fraction of slab-joint stiffness kept over the hogging zone (1 = closed)."""
 
 
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, not {value}")
+    return value
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``synth``."""
     parser.add_argument("--out", required=True, metavar="BAG", help="output bag directory")
@@ -55,7 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="HZ",
         help="air-temperature rate, Hz (default 1/60)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=_seed, default=0, help="random seed, >= 0 (default 0)")
     parser.add_argument(
         "--effect",
         action="append",
@@ -103,6 +113,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
+    import math
+
     from bridge_shadow.errors import InputError
 
     steps = []
@@ -111,6 +123,8 @@ def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
             day, south, north = (float(v) for v in item.split(":"))
         except ValueError:
             raise InputError(f"--step {item!r}: expected DAY:SOUTH:NORTH (days, m, m)") from None
+        if not all(math.isfinite(v) for v in (day, south, north)) or day < 0:
+            raise InputError(f"--step {item!r}: DAY must be >= 0 and every value finite")
         steps.append((day, south, north))
     return steps
 
@@ -140,6 +154,7 @@ def run(args: argparse.Namespace) -> int:
     """Simulate, write the bag and its truth, print a summary."""
     from pathlib import Path
 
+    from bridge_shadow.bagio import check_bag_target
     from bridge_shadow.commands.output import emit_json
     from bridge_shadow.errors import InputError
     from bridge_shadow.twin.bag import write_twin_bag
@@ -148,6 +163,7 @@ def run(args: argparse.Namespace) -> int:
 
     if Path(args.out).exists() and not args.overwrite:
         raise InputError(f"{args.out}: exists already (use --overwrite to replace it)")
+    check_bag_target(args.out, args.overwrite)  # before the simulation
     reality_kw = _reality(args)
     out, truth = write_twin_bag(
         args.out,

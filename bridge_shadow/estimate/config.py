@@ -27,14 +27,12 @@ from bridge_shadow.contract import (
     TEMPERATURE_TOPIC,
 )
 from bridge_shadow.errors import ConfigError
+from bridge_shadow.estimate.param_specs import check_value, kind_of
+from bridge_shadow.fileio import yaml_problem
 from bridge_shadow.paths import config_file
 
-__all__ = ["ShadowConfig", "load_config"]
+__all__ = ["ShadowConfig", "load_config", "read_params_file"]
 
-_MATCH_MODES = ("hold", "linear")
-_SMOOTHING_MODES = ("reml", "gcv", "fixed", "none")
-_NOISE_MODES = ("adaptive", "fixed")
-_LEVELS = ("warmup_mean", "mean", "reference")
 #: The topic parameters (validated together in ``ShadowConfig.validate``).
 _TOPIC_FIELDS = (
     "topic_frc_01",
@@ -45,6 +43,29 @@ _TOPIC_FIELDS = (
     "topic_compensated_frc_01",
     "topic_compensated_frc_02",
 )
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader with YAML 1.2 floats, as the ROS parameter parser reads them.
+
+    PyYAML (YAML 1.1) reads ``5.0e6`` and ``1e-4`` as strings; rcl reads them as doubles, so the
+    same file would mean different things to the node and to ``replay --params``.
+    """
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+
+        |[-+]?\.[0-9][0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.VERBOSE,
+    ),
+    list("-+0123456789."),
+)
+
 #: A ROS topic name: absolute or relative, tokens of letters, digits and underscores.
 _TOPIC_NAME = re.compile(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$")
 
@@ -95,6 +116,7 @@ class ShadowConfig:
     # checkpoint
     checkpoint_path: str = ""
     checkpoint_period_s: float = 600.0
+    checkpoint_unusable: str = "stop"
     # model
     surrogate_path: str = ""
     # node-only parameters (used by bridge_shadow.ros)
@@ -113,38 +135,26 @@ class ShadowConfig:
         self.validate()
 
     def validate(self) -> None:
-        """Raise ConfigError on an inconsistent parameter set."""
+        """Check every value against its spec (``param_specs.SPECS``) and the cross-field rules.
+
+        Values are normalized in place (an integer given for a real becomes a float); the first
+        problem raises ConfigError with one line naming the parameter, what it must be and what
+        it got.
+        """
+        for f in dataclasses.fields(self):
+            try:
+                value = check_value(f.name, getattr(self, f.name), kind_of(f))
+            except ConfigError as err:
+                raise ConfigError(f"shadow parameters: {err}") from None
+            object.__setattr__(self, f.name, value)
 
         def need(cond: bool, msg: str) -> None:
             if not cond:
                 raise ConfigError(f"shadow parameters: {msg}")
 
-        need(self.window_s > 0, "window_s must be > 0")
-        need(self.window_min_samples >= 1, "window_min_samples must be >= 1")
-        need(self.temperature_match in _MATCH_MODES, f"temperature_match must be one of {_MATCH_MODES}")
-        need(self.smoothing in _SMOOTHING_MODES, f"smoothing must be one of {_SMOOTHING_MODES}")
-        need(self.compensation_level in _LEVELS, f"compensation_level must be one of {_LEVELS}")
-        need(self.noise_mode in _NOISE_MODES, f"noise_mode must be one of {_NOISE_MODES}")
         need(self.spline_t_max_c > self.spline_t_min_c, "spline_t_max_c must exceed spline_t_min_c")
-        need(self.spline_segments >= 1, "spline_segments must be >= 1")
-        need(self.spline_lambda >= 0, "spline_lambda must be >= 0")
-        need(self.spline_forgetting_s >= 0, "spline_forgetting_s must be >= 0 (0 = off)")
-        for name in ("prior_sigma_m", "process_noise_m2_per_s", "noise_sigma_n", "systematic_sigma_n"):
-            value = getattr(self, name)
-            need(len(value) == 2, f"{name} must have two values [south, north]")
-            setattr(self, name, [float(v) for v in value])
-        need(min(self.prior_sigma_m) > 0, "prior_sigma_m must be > 0")
-        need(min(self.noise_sigma_n) > 0, "noise_sigma_n must be > 0")
-        need(min(self.process_noise_m2_per_s) >= 0, "process_noise_m2_per_s must be >= 0")
-        need(min(self.systematic_sigma_n) >= 0, "systematic_sigma_n must be >= 0")
-        need(0.0 <= self.noise_phi_max < 1.0, "noise_phi_max must be in [0, 1)")
-        need(0.0 < self.mahalanobis_probability <= 1.0, "mahalanobis_probability must be in (0, 1]")
         need(self.force_max_n > self.force_min_n, "force_max_n must exceed force_min_n")
-        need(self.clock_jump_s > 0, "clock_jump_s must be > 0")
-        need(self.noise_refilter_max_windows >= 2, "noise_refilter_max_windows must be >= 2")
-        need(self.gate_max_consecutive >= 1, "gate_max_consecutive must be >= 1")
-        need(self.clock_jump_confirm >= 1, "clock_jump_confirm must be >= 1")
-        need(self.temperature_stale_s > 0 and self.topic_timeout_s >= 0, "timeouts must be positive")
+        need(self.temp_max_c > self.temp_min_c, "temp_max_c must exceed temp_min_c")
         topics = [*self.input_topics(), *self.output_topics().values()]
         for name in _TOPIC_FIELDS:
             value = getattr(self, name)
@@ -166,32 +176,17 @@ class ShadowConfig:
 
     @classmethod
     def from_params(cls, params: dict[str, Any], *, strict: bool = True) -> ShadowConfig:
-        """Build from a flat ``{name: value}`` map; unknown names raise ConfigError when strict."""
-        names = {f.name: f for f in dataclasses.fields(cls)}
-        unknown = sorted(set(params) - set(names))
+        """Build from a flat ``{name: value}`` map; unknown names raise ConfigError when strict.
+
+        Types are strict (see ``param_specs``): ``true`` is not 1.0, 2.7 is not 2.
+        """
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(params) - names)
         if unknown and strict:
-            raise ConfigError(f"shadow parameters: unknown name(s) {unknown}")
-        kwargs: dict[str, Any] = {}
-        for key, value in params.items():
-            if key not in names:
-                continue
-            default = names[key].default
-            try:
-                if isinstance(default, bool):
-                    if not isinstance(value, bool):
-                        raise TypeError("expected true or false")
-                    kwargs[key] = value
-                elif isinstance(default, int):
-                    kwargs[key] = int(value)
-                elif isinstance(default, float):
-                    kwargs[key] = float(value)
-                elif isinstance(default, str):
-                    kwargs[key] = str(value)
-                else:
-                    kwargs[key] = [float(v) for v in value]
-            except (TypeError, ValueError) as err:
-                raise ConfigError(f"shadow parameters: {key}: bad value {value!r} ({err})") from err
-        return cls(**kwargs)
+            raise ConfigError(
+                f"shadow parameters: unknown name(s) {', '.join(unknown)} (see config/shadow.yaml)"
+            )
+        return cls(**{key: value for key, value in params.items() if key in names})
 
     def to_params(self) -> dict[str, Any]:
         """Flat ``{name: value}`` map (the ``ros__parameters`` section)."""
@@ -202,23 +197,37 @@ class ShadowConfig:
         return dataclasses.replace(self, **changes)
 
 
+def read_params_file(file: Path) -> dict[str, Any]:
+    """Return the ``bridge_shadow: ros__parameters:`` map of a parameter file; ConfigError in one line."""
+    if file.is_dir():
+        raise ConfigError(f"{file}: is a directory, not a parameter file")
+    if not file.is_file():
+        raise ConfigError(f"{file}: parameter file not found")
+    try:
+        text = file.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{file}: cannot read the parameter file ({err})") from None
+    try:
+        data = yaml.load(text, Loader=_Loader) or {}
+    except yaml.YAMLError as err:
+        raise ConfigError(f"{file}: not valid YAML at {yaml_problem(err)}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{file}: expected a mapping at the top level")
+    section = data.get(NODE_NAME, data.get(f"/{NODE_NAME}", data.get("/**", {})))
+    if not isinstance(section, dict) or "ros__parameters" not in section:
+        raise ConfigError(f"{file}: expected '{NODE_NAME}: ros__parameters:' at the top level")
+    params = section["ros__parameters"] or {}
+    if not isinstance(params, dict):
+        raise ConfigError(f"{file}: 'ros__parameters' must be a mapping of name: value")
+    return dict(params)
+
+
 def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> ShadowConfig:
     """Load ``config/shadow.yaml`` (or ``path``) and apply ``overrides``; ConfigError on problems."""
     file = Path(path) if path is not None else config_file("shadow.yaml")
     params: dict[str, Any] = {}
-    if file.is_file():
-        try:
-            data = yaml.safe_load(file.read_text()) or {}
-        except yaml.YAMLError as err:
-            raise ConfigError(f"{file}: not valid YAML ({err})") from err
-        if not isinstance(data, dict):
-            raise ConfigError(f"{file}: expected a mapping at the top level")
-        section = data.get(NODE_NAME, data.get(f"/{NODE_NAME}", data.get("/**", {})))
-        if not isinstance(section, dict) or "ros__parameters" not in section:
-            raise ConfigError(f"{file}: expected '{NODE_NAME}: ros__parameters:' at the top level")
-        params = dict(section["ros__parameters"] or {})
-    elif path is not None:
-        raise ConfigError(f"{file}: parameter file not found")
+    if path is not None or file.is_file():
+        params = read_params_file(file)
     params.update(overrides or {})
     try:
         return ShadowConfig.from_params(params)

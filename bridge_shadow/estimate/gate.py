@@ -9,12 +9,23 @@ Reasons counted at message level:
 - ``duplicate``: same stamp as the last accepted on the topic; ``out_of_order``: older.
 - ``clock_jump``: more than ``clock_jump_s`` away from the topic's last stamp (or from the data
   clock, for a topic's first message); a forward jump becomes the new time base once
-  ``clock_jump_confirm`` consecutive messages agree.
+  ``clock_jump_confirm`` consecutive messages agree. Also a single wild stamp ahead of the
+  stream (see below).
 - ``late``: force stamp in a window already closed (counted by the shadow).
 
-The common case (finite, in range, strictly increasing, no jump) is decided in a few vectorized
-numpy passes; any irregular chunk falls back to an exact sequential loop, so the result never
-depends on how messages are chunked.
+A single wild stamp costs that one message only. A stamp that steps forward more than
+``GAP_FACTOR`` times the topic's previous step (a gap in the data, or one glitched stamp, say
+25 min ahead) is held back until the topic's next message decides: if that one comes after it,
+the gap was real and the held message is taken (``pop_released`` hands it to the caller, before
+the messages of the current chunk); if it comes between the last accepted stamp and the held
+one, the held stamp was wild and only it is rejected (``clock_jump``). Accepting the wild stamp
+at once would make every good message after it ``out_of_order`` until the stream caught up with
+it, and move the data clock so that windows close with a topic missing. The price is a delay of
+one message after each real gap (``release_held`` takes a held message at the end of the data).
+
+The common case (finite, in range, strictly increasing, no jump, no gap) is decided in vectorized
+numpy passes over runs of regular messages; an irregular message is decided by an exact
+sequential step, so the result never depends on how messages are chunked.
 """
 
 from __future__ import annotations
@@ -23,7 +34,7 @@ from collections import Counter
 
 import numpy as np
 
-__all__ = ["MESSAGE_REASONS", "REASONS", "TopicGate"]
+__all__ = ["GAP_FACTOR", "MESSAGE_REASONS", "REASONS", "TopicGate"]
 
 #: The rejection reasons of single messages (the gate's and the late-arrival check), in report order.
 MESSAGE_REASONS: tuple[str, ...] = (
@@ -35,6 +46,10 @@ MESSAGE_REASONS: tuple[str, ...] = (
     "clock_jump",
     "late",
 )
+#: A forward step larger than this many times the topic's previous one is held until the next
+#: message shows whether it was a real gap or a wild stamp (the bundled and real records step
+#: evenly: the largest ratio of two consecutive steps outside gaps is below 2).
+GAP_FACTOR = 4
 #: Every rejection reason the shadow counts (message and window level), in report order.
 REASONS: tuple[str, ...] = (
     *MESSAGE_REASONS,
@@ -52,8 +67,10 @@ class TopicGate:
         frame_id: expected frame id (None: not checked).
         lo, hi: accepted value range (inclusive).
         jump_ns: clock-jump threshold in ns; confirm: messages needed to accept a new time base.
-        last_ns: last accepted stamp (None before the first).
+        last_ns: last accepted stamp (None before the first); last_step_ns: the step before it
+            (0: unknown).
         jump_count, jump_last_ns: consecutive jumped messages and the last of them.
+        held_ns, held_value: a message held after a large forward step (None: none held).
 
     """
 
@@ -63,8 +80,13 @@ class TopicGate:
         self.jump_ns = int(jump_ns)
         self.confirm = int(confirm)
         self.last_ns: int | None = None
+        self.last_step_ns = 0
         self.jump_count = 0
         self.jump_last_ns = 0
+        self.held_ns: int | None = None
+        self.held_value = float("nan")
+        self._held_index = -1  # index of the held message in the current call's arrays, or -1
+        self._released: list[tuple[int, float]] = []
 
     def __call__(
         self,
@@ -77,7 +99,9 @@ class TopicGate:
         """Return the boolean mask of accepted messages and add rejections to ``counts``.
 
         ``clock_ns`` is the span (first, latest) of accepted stamps over all topics, or None; a
-        topic's first message must lie within ``clock_jump_s`` of it.
+        topic's first message must lie within ``clock_jump_s`` of it. A message held in an earlier
+        call and accepted in this one is not in the mask: take it with ``pop_released`` (or use
+        ``with_released``), it comes before the messages accepted here.
         """
         stamps = np.asarray(stamp_ns, dtype=np.int64)
         vals = np.asarray(value, dtype=float)
@@ -103,71 +127,154 @@ class TopicGate:
         idx = np.flatnonzero(ok)
         if not len(idx):
             return ok
-        s = stamps[idx]
-        if self.last_ns is None:
-            ds = np.diff(s)
-            first_ok = self._near_clock(int(s[0]), clock_ns)
-        else:
-            ds = np.diff(s, prepend=np.int64(self.last_ns))
-            first_ok = True
-        if first_ok and self.jump_count == 0 and np.all(ds > 0) and np.all(ds <= self.jump_ns):
-            self.last_ns = int(s[-1])
-            return ok
-        keep = self._sequential(s, clock_ns, counts)
+        keep = self._decide(stamps[idx], vals[idx], clock_ns, counts)
         ok[idx[~keep]] = False
         return ok
+
+    def _decide(
+        self, s: np.ndarray, v: np.ndarray, clock_ns: tuple[int, int] | None, counts: Counter
+    ) -> np.ndarray:
+        """Accept or reject the (finite, in-range, right-frame) messages ``s`` in order."""
+        n = len(s)
+        keep = np.zeros(n, dtype=bool)
+        i = 0
+        while i < n:
+            if self.last_ns is not None and self.held_ns is None and self.jump_count == 0:
+                # a run of regular messages, decided at once
+                ds = np.diff(s[i:], prepend=np.int64(self.last_ns))
+                prev = np.empty_like(ds)
+                prev[0] = self.last_step_ns
+                prev[1:] = ds[:-1]
+                irregular = (ds <= 0) | (ds > self.jump_ns) | ((prev > 0) & (ds > GAP_FACTOR * prev))
+                bad = np.flatnonzero(irregular)
+                j = int(bad[0]) if len(bad) else len(ds)
+                if j:
+                    keep[i : i + j] = True
+                    self.last_ns = int(s[i + j - 1])
+                    self.last_step_ns = int(ds[j - 1])
+                    i += j
+                    if i == n:
+                        break
+            self._step(i, int(s[i]), float(v[i]), keep, clock_ns, counts)
+            i += 1
+        if self.held_ns is not None and self._held_index >= 0:
+            self._held_index = -1  # still held after this call: released later by value
+        return keep
+
+    def _accept(self, stamp: int) -> None:
+        if self.last_ns is not None:
+            self.last_step_ns = stamp - self.last_ns
+        self.last_ns = stamp
+
+    def _take_held(self, keep: np.ndarray) -> None:
+        assert self.held_ns is not None
+        if self._held_index >= 0:
+            keep[self._held_index] = True
+        else:
+            self._released.append((self.held_ns, self.held_value))
+        self._accept(self.held_ns)
+        self.held_ns, self._held_index = None, -1
 
     def _near_clock(self, stamp: int, clock_ns: tuple[int, int] | None) -> bool:
         return clock_ns is None or clock_ns[0] - self.jump_ns <= stamp <= clock_ns[1] + self.jump_ns
 
-    def _sequential(self, s: np.ndarray, clock_ns: tuple[int, int] | None, counts: Counter) -> np.ndarray:
-        keep = np.zeros(len(s), dtype=bool)
-        for i, stamp in enumerate(s.tolist()):
-            last = self.last_ns
-            if last is None:
-                if self._near_clock(stamp, clock_ns):
-                    keep[i] = True
-                    self.last_ns = stamp
-                    continue
-                jumped = True
-            elif stamp == last:
-                counts["duplicate"] += 1
-                continue
-            elif stamp < last:
-                if last - stamp > self.jump_ns:
-                    counts["clock_jump"] += 1
-                else:
-                    counts["out_of_order"] += 1
-                continue
-            else:
-                jumped = stamp - last > self.jump_ns
-            if not jumped:
-                keep[i] = True
-                self.last_ns = stamp
-                self.jump_count = 0
-                continue
-            consistent = self.jump_count > 0 and 0 < stamp - self.jump_last_ns <= self.jump_ns
-            self.jump_count = self.jump_count + 1 if consistent else 1
-            self.jump_last_ns = stamp
-            if self.jump_count >= self.confirm:
-                keep[i] = True
-                self.last_ns = stamp
-                self.jump_count = 0
-            else:
+    def _step(
+        self,
+        i: int,
+        stamp: int,
+        value: float,
+        keep: np.ndarray,
+        clock_ns: tuple[int, int] | None,
+        counts: Counter,
+    ) -> None:
+        """Decide one message exactly (the sequential definition the vectorized runs follow)."""
+        if self.held_ns is not None:
+            if stamp >= self.held_ns:  # the stream goes on after the held message: a real gap
+                self._take_held(keep)
+            elif self.last_ns is None or stamp > self.last_ns:  # it falls back: the held stamp was wild
                 counts["clock_jump"] += 1
-        return keep
+                self.held_ns, self._held_index = None, -1
+        last = self.last_ns
+        if last is None:
+            if self._near_clock(stamp, clock_ns):
+                keep[i] = True
+                self._accept(stamp)
+                return
+            jumped = True
+        elif stamp == last:
+            counts["duplicate"] += 1
+            return
+        elif stamp < last:
+            if last - stamp > self.jump_ns:
+                counts["clock_jump"] += 1
+            else:
+                counts["out_of_order"] += 1
+            return
+        else:
+            step = stamp - last
+            jumped = step > self.jump_ns
+            if not jumped and self.last_step_ns > 0 and step > GAP_FACTOR * self.last_step_ns:
+                self.held_ns, self.held_value, self._held_index = stamp, value, i
+                return
+        if not jumped:
+            keep[i] = True
+            self._accept(stamp)
+            self.jump_count = 0
+            return
+        consistent = self.jump_count > 0 and 0 < stamp - self.jump_last_ns <= self.jump_ns
+        self.jump_count = self.jump_count + 1 if consistent else 1
+        self.jump_last_ns = stamp
+        if self.jump_count >= self.confirm:
+            keep[i] = True
+            self.last_ns = stamp
+            self.last_step_ns = 0  # a new time base: no step known yet
+            self.jump_count = 0
+        else:
+            counts["clock_jump"] += 1
+
+    def release_held(self) -> bool:
+        """End of the data: take a held message (``pop_released`` returns it); True if there was one."""
+        if self.held_ns is None:
+            return False
+        self._released.append((self.held_ns, self.held_value))
+        self._accept(self.held_ns)
+        self.held_ns, self._held_index = None, -1
+        return True
+
+    def pop_released(self) -> tuple[np.ndarray, np.ndarray]:
+        """Messages held earlier and accepted since: (stamps ns int64, values), oldest first."""
+        out = self._released
+        self._released = []
+        return np.array([t for t, _ in out], dtype=np.int64), np.array([x for _, x in out], dtype=float)
+
+    def with_released(self, stamps: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Prepend ``pop_released()`` to the messages accepted in the last call."""
+        rs, rv = self.pop_released()
+        if not len(rs):
+            return stamps, values
+        return np.concatenate([rs, stamps]), np.concatenate([rv, values])
 
     def state_dict(self) -> dict[str, object]:
-        """Plain-data state."""
+        """Plain-data state (a held message included; nothing is waiting in ``pop_released``)."""
         return {
             "last_ns": -1 if self.last_ns is None else self.last_ns,
             "has_last": self.last_ns is not None,
+            "last_step_ns": self.last_step_ns,
             "jump_count": self.jump_count,
             "jump_last_ns": self.jump_last_ns,
+            "has_held": self.held_ns is not None,
+            "held_ns": -1 if self.held_ns is None else self.held_ns,
+            "held_value": self.held_value,
         }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
-        """Restore the state."""
+        """Restore the state (a checkpoint written before the hold existed has no held message)."""
         self.last_ns = int(state["last_ns"]) if bool(state["has_last"]) else None  # type: ignore[call-overload]
+        self.last_step_ns = int(state.get("last_step_ns", 0))  # type: ignore[call-overload]
         self.jump_count = int(state["jump_count"])  # type: ignore[call-overload]
         self.jump_last_ns = int(state["jump_last_ns"])  # type: ignore[call-overload]
+        held = bool(state.get("has_held", False))
+        self.held_ns = int(state["held_ns"]) if held else None  # type: ignore[call-overload]
+        self.held_value = float(state["held_value"]) if held else float("nan")  # type: ignore[arg-type]
+        self._held_index = -1
+        self._released = []

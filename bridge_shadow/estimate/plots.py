@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from bridge_shadow.contract import CHANNELS, SUPPORTS
+from bridge_shadow.fileio import atomic_write, output_dir
 
 __all__ = ["write_plots"]
 
@@ -22,8 +23,7 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(directory, "plot directory")
     h = result.history()
     t_h = (h["end_ns"] - (h["end_ns"][0] if len(h["end_ns"]) else 0)) / 3.6e12
     paths: list[Path] = []
@@ -80,9 +80,12 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
 
 
 def _save(fig: Any, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
     import matplotlib.pyplot as plt
 
-    plt.close(fig)
+    fig.tight_layout()
+    try:
+        with atomic_write(path, "plot") as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+    finally:
+        plt.close(fig)
     return path

@@ -351,7 +351,7 @@ class Shadow:
         stamps = np.atleast_1d(np.asarray(stamp_ns, dtype=np.int64))
         values = np.atleast_1d(np.asarray(force_n, dtype=float))
         ok = self.gates[c](stamps, values, frame_id, self._clock_span(), self.counts)
-        stamps, values = stamps[ok], values[ok]
+        stamps, values = self.gates[c].with_released(stamps[ok], values[ok])  # + a held one, now taken
         self._note_first(stamps)
         if len(stamps):
             if self.next_k is None:
@@ -375,9 +375,10 @@ class Shadow:
         stamps = np.atleast_1d(np.asarray(stamp_ns, dtype=np.int64))
         values = np.atleast_1d(np.asarray(temp_c, dtype=float))
         ok = self.gates[2](stamps, values, frame_id, self._clock_span(), self.counts)
-        self._note_first(stamps[ok])
-        self._temp.append(stamps[ok], values[ok])
-        n = int(np.count_nonzero(ok))
+        stamps, values = self.gates[2].with_released(stamps[ok], values[ok])  # + a held one, now taken
+        self._note_first(stamps)
+        self._temp.append(stamps, values)
+        n = len(stamps)
         self.used["air_temperature"] += n
         return n
 
@@ -429,6 +430,10 @@ class Shadow:
 
     def flush(self) -> list[WindowOutput]:
         """Close every window that holds data (end of a replay); later data will be ``late``."""
+        for c, gate in enumerate(self.gates):  # the end of the data: a message held after a gap is taken
+            if gate.release_held():
+                none = np.empty(0, np.int64), np.empty(0)
+                self.ingest_forces(c, *none) if c < 2 else self.ingest_temperature(*none)
         outputs: list[WindowOutput] = []
         while self.next_k is not None and self.holds_data:
             outputs.extend(self._close(self.next_k))
@@ -902,9 +907,9 @@ class Shadow:
         cls, path: str | Path, config: ShadowConfig | None = None, surrogate: Surrogate | None = None
     ) -> Shadow:
         """Rebuild a shadow from a checkpoint file written by ``save_checkpoint``."""
-        from bridge_shadow.estimate.checkpoint import load_state
+        from bridge_shadow.estimate.checkpoint import restore  # refuses unusable/incompatible files
 
-        return cls.from_state_dict(load_state(path), config, surrogate)
+        return restore(path, config, surrogate, cls.from_state_dict)
 
     def _maybe_checkpoint(self) -> None:
         if not self.config.checkpoint_path or self.clock_ns is None:

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 
-from bridge_shadow.fe.errors import FEError
 from bridge_shadow.fe.model import Model
 from bridge_shadow.fe.solve import Result
 
@@ -35,9 +34,9 @@ def write_vtu(path: str | Path, model: Model, results: Result | Sequence[Result]
         point_data[f"{r.case}:displacement"] = r.u[:, :3]
         point_data[f"{r.case}:rotation"] = r.u[:, 3:]
     mesh = meshio.Mesh(model.nodes, cells, point_data=point_data, cell_data={"set": set_ids})
+    from bridge_shadow.fileio import atomic_write
+
     path = Path(path)
-    try:
-        mesh.write(path, file_format="vtu")
-    except OSError as err:
-        raise FEError(f"cannot write {path}: {err}") from err
+    with atomic_write(path, "VTK file") as tmp:
+        mesh.write(tmp, file_format="vtu")
     return path

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from bridge_shadow.contract import SUPPORTS
+from bridge_shadow.fileio import atomic_write, atomic_write_text, output_dir
 from bridge_shadow.gap.diagnose import Diagnosis
 from bridge_shadow.gap.windows import NS
 
@@ -34,7 +35,7 @@ def _plot_residual(dg: Diagnosis, plt: Any, path: Path) -> None:
     axes[-1].set_xlabel("hours since start")
     fig.suptitle("Measured minus baseline model")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    _savefig(fig, path)
     plt.close(fig)
 
 
@@ -59,7 +60,7 @@ def _plot_breakdown(summary: dict[str, Any], plt: Any, path: Path) -> None:
     ax2.set_title("Frequency bands")
     ax2.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    _savefig(fig, path)
     plt.close(fig)
 
 
@@ -77,7 +78,7 @@ def _plot_heldout(dg: Diagnosis, plt: Any, path: Path) -> None:
     axes[-1].set_xlabel("hours since start (each day predicted by a fit on the other days)")
     fig.suptitle("Held-out residual before and after")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    _savefig(fig, path)
     plt.close(fig)
 
 
@@ -190,11 +191,16 @@ def write_report(dg: Diagnosis, out_dir: str | Path, source: str = "") -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(out_dir, "report directory")
     _plot_residual(dg, plt, out / "residual.png")
     _plot_breakdown(dg.summary, plt, out / "breakdown.png")
     _plot_heldout(dg, plt, out / "heldout.png")
     md = out / "report.md"
-    md.write_text(_markdown(dg.summary, source))
+    atomic_write_text(md, _markdown(dg.summary, source), "report")
     return md
+
+
+def _savefig(fig: Any, path: Path) -> None:
+    """Save a PNG atomically (a failed save leaves neither half a file nor a temporary one)."""
+    with atomic_write(path, "plot") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")

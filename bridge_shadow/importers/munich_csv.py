@@ -42,7 +42,7 @@ class Parsed:
         source: where it came from.
         local_ns: (n,) int64 naive local stamps (ns since 1970-01-01 local).
         values: (n, k) float64 readings as written (kN or C); NaN/inf cells are kept as read.
-        ok: (n, k) bool, False where a cell did not parse (that sample is rejected).
+        ok: (n, k) bool, False where a cell did not parse (that whole row is rejected).
         columns: channel name of each value column.
         written_dates: distinct calendar dates as written in the file.
         rejected: (line number, reason) of each rejected row or cell.
@@ -309,8 +309,10 @@ def import_csv(
         offsets.update(np.unique(offset_s).tolist())
         report.dst_ambiguous += odd
         scale = _KN_TO_N if p.source.kind == "force" else 1.0
+        # a row with any unreadable cell is rejected whole: its other cells carry the same
+        # doubtful stamp, and a kept half-row would displace a good sample at that stamp
+        ok = p.ok.all(axis=1)
         for j, name in enumerate(p.columns):
-            ok = p.ok[:, j]
             stamps[name].append(utc[ok])
             values[name].append(p.values[ok, j] * scale)
         report.rejected += [{"file": p.source.label, "line": n, "reason": r} for n, r in p.rejected]

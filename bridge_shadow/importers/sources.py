@@ -109,6 +109,8 @@ def find_sources(files: list[str | Path]) -> list[CsvSource]:
     out: list[CsvSource] = []
     for f in files:
         path = Path(f)
+        if path.is_dir():
+            raise InputError(f"{path}: is a directory; give the CSV or zip files in it")
         if not path.is_file():
             raise InputError(f"{path}: no such file")
         try:

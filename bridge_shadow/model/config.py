@@ -156,7 +156,9 @@ def load_bridge_config(
     try:
         data = _floatify(yaml.safe_load(raw))
     except yaml.YAMLError as err:
-        raise ConfigError(f"{file}: not valid YAML ({err})") from err
+        from bridge_shadow.fileio import yaml_problem
+
+        raise ConfigError(f"{file}: not valid YAML at {yaml_problem(err)}") from None
     if not isinstance(data, dict):
         raise ConfigError(f"{file}: not a bridge model (top level must be a mapping)")
     cfg = BridgeConfig(data, file, hashlib.sha256(raw).hexdigest())

@@ -101,8 +101,12 @@ def plot_model(mesh: BridgeMesh, path: str | Path, solution: Any = None) -> Path
             transform=ax2.transAxes,
             fontsize=8,
         )
+    from bridge_shadow.fileio import atomic_write
+
     out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    try:
+        with atomic_write(out, "model picture") as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+    finally:
+        plt.close(fig)
     return out

@@ -322,8 +322,10 @@ def write_surrogate(run: SurrogateRun, path: str | Path, header: str | None = No
 
     ``header``: comment lines (each starting with ``#``) put on top; a default names the command.
     """
-    file = Path(path)
-    file.parent.mkdir(parents=True, exist_ok=True)
+    from bridge_shadow.fileio import atomic_write_text
+    from bridge_shadow.model.surrogate_file import surrogate_target
+
+    file = surrogate_target(path)
     prov = run.surrogate.provenance
     if header is None:
         header = (
@@ -333,10 +335,7 @@ def write_surrogate(run: SurrogateRun, path: str | Path, header: str | None = No
             "# sensitivities per unit relative change of the parameter (same units).\n"
         )
     text = header + yaml.safe_dump(run.document(), sort_keys=False, default_flow_style=None)
-    tmp = file.with_name(file.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(file)
-    return file
+    return atomic_write_text(file, text, "surrogate file")
 
 
 def load_sensitivities(path: str | Path | None = None) -> dict[str, Any]:

@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from bridge_shadow.errors import ConfigError
+from bridge_shadow.errors import ConfigError, InputError
+from bridge_shadow.fileio import atomic_write_text, check_output_file, output_file
 from bridge_shadow.paths import config_file
 
 __all__ = [
@@ -30,6 +31,7 @@ __all__ = [
     "load_surrogate",
     "placeholder_surrogate",
     "save_surrogate",
+    "surrogate_target",
 ]
 
 THERMAL_CASES: tuple[str, str, str] = ("uniform", "vertical_gradient", "transverse_gradient")
@@ -147,6 +149,8 @@ def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = 
     """
     explicit = path is not None
     file = Path(path) if explicit else config_file("surrogate.yaml")
+    if file.is_dir():
+        raise ConfigError(f"{file}: is a directory, not a surrogate file")
     if not file.is_file():
         if explicit or not allow_placeholder:
             raise ConfigError(f"{file}: surrogate file not found")
@@ -169,11 +173,26 @@ def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = 
 
 def save_surrogate(surrogate: Surrogate, path: str | Path, header: str = "") -> Path:
     """Write the surrogate as YAML (atomic: temp file + rename); return the path."""
-    file = Path(path)
-    file.parent.mkdir(parents=True, exist_ok=True)
+    file = surrogate_target(path)
     text = "".join(f"# {line}\n" for line in header.splitlines())
     text += yaml.safe_dump(surrogate.to_dict(), sort_keys=False, default_flow_style=None)
-    tmp = file.with_name(file.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(file)
+    return atomic_write_text(file, text, "surrogate file")
+
+
+def surrogate_target(path: str | Path, *, create: bool = True) -> Path:
+    """Check that a surrogate may be written at ``path``; return it as a Path.
+
+    A new file, or an existing surrogate file (keys ``A`` and ``u0``), may be written; anything
+    else at that path (a directory, a parameter file, a bag's metadata) is refused with one
+    InputError line, so a mistyped ``--out`` never replaces a user's file. ``create`` makes the
+    file's directory (False: only check, as a command does before its work).
+    """
+    file = output_file(path, "surrogate file") if create else check_output_file(path, "surrogate file")
+    if file.exists():
+        try:
+            data = yaml.safe_load(file.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+            data = None
+        if not (isinstance(data, dict) and "A" in data and "u0" in data):
+            raise InputError(f"{file}: exists and is not a surrogate file; refusing to overwrite it")
     return file

@@ -326,6 +326,8 @@ def run_live(
     overrides: dict[str, Any] | None = None,
     timeout_s: float = 60.0,
     progress: Callable[[float], None] | None = None,
+    checkpoint: str | Path | None = None,
+    watch: bool = False,
 ) -> dict[str, Any]:
     """Replay ``bag`` through ``bridge_shadow_node`` over loopback DDS; return the replay JSON.
 
@@ -339,6 +341,10 @@ def run_live(
         overrides: parameter overrides applied after the file (as ``-p name:=value``).
         timeout_s: limit for discovery, acknowledgement, flush and outputs, each.
         progress: called with the fraction of the bag published (a progress bar).
+        checkpoint: the node resumes from this file if it exists and writes it (at flush and exit);
+            default: a fresh temporary one, so the replay never touches a running node's state
+            (the ``checkpoint_path`` of the parameter file is not used).
+        watch: print the node's latest outputs once a second on stderr (``watch.TopicWatch``).
 
     Returns:
         The direct replay's JSON keys (``posterior``, ``messages``, ``rejected``, ``messages_per_s``,
@@ -361,8 +367,9 @@ def run_live(
     topic, pos, merged = merge_log_order(log_ns)
     total = len(topic)
     with tempfile.TemporaryDirectory(prefix="bridge_shadow_live_") as tmp:
-        # a fresh checkpoint: the replay must not resume an earlier run (the direct mode does not)
-        node_config = config.replace(checkpoint_path=str(Path(tmp) / "checkpoint.npz"))
+        # a fresh checkpoint unless one is named: the replay must not resume an earlier run nor
+        # overwrite a running node's state (the params file's checkpoint_path is the node's)
+        node_config = config.replace(checkpoint_path=str(checkpoint or Path(tmp) / "checkpoint.npz"))
         params_file = write_params_file(node_config.to_params(), Path(tmp))
         node = NodeProcess(["--ros-args", "--params-file", str(params_file)])
         player = None
@@ -372,6 +379,10 @@ def run_live(
             player = Player(inputs=inputs, outputs=config.output_topics())
             discovery_s = player.wait_for_node(node, timeout_s)
             in_flight = min(config.qos_depth if config.qos_depth > 0 else MAX_IN_FLIGHT, MAX_IN_FLIGHT)
+            if watch:
+                from bridge_shadow.ros.watch import TopicWatch
+
+                progress = TopicWatch(player.records)
             t_first, t_last = player.publish(topic, pos, raws, merged, rate, in_flight, node, progress)
             wait_until(lambda: player.taken(node) >= total, timeout_s, f"the node to take {total} messages")
             report = player.flush(node, timeout_s)

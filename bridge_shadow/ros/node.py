@@ -29,7 +29,12 @@ has delivered a stamp at least as new (or that topic has been quiet, or the mess
 for ``REORDER_HOLD_S``). Live, the window-closing message never waits: the others are past it.
 
 Parameters: every entry of ``config/shadow.yaml`` (its values are the declared defaults), overridable
-with ``--ros-args -p name:=value`` or ``--params-file FILE``. ``qos_depth`` is the input history
+with ``--ros-args -p name:=value`` or ``--params-file FILE``. Each is declared with a
+ParameterDescriptor built from ``estimate.param_specs`` (type, description with unit, constraint,
+range), and checked as strictly as ``replay --params`` checks it: an unknown name, a wrong type or
+an out-of-range value stops the node at start with one line and exit code 2. Only
+``diagnostics_period_s`` may change at run time (the set-parameters callback refuses a bad value
+with the reason); every other parameter is read-only once the node runs. ``qos_depth`` is the input history
 depth (RELIABLE, KEEP_LAST; 0 means KEEP_ALL). Note that a full reliable reader drops samples for
 the writer to resend at its next heartbeat (seconds later, in Fast DDS), so a fast replay keeps
 fewer than ``qos_depth`` messages in flight using the status service instead.
@@ -42,7 +47,11 @@ for such a window that arrives later still is counted ``late``. Data after the g
 
 Checkpoint: with ``checkpoint_path`` set, the node resumes from that file when it exists, the shadow
 saves it every ``checkpoint_period_s`` of stamp time, and the node saves it on SIGINT/SIGTERM
-after ingesting what it has buffered.
+after ingesting what it has buffered. A file that cannot be read, or was saved under parameters
+that shape the state differently (``estimate.checkpoint``), stops the node with one line naming
+it (``checkpoint_unusable: fresh`` sets it aside and starts from the prior); it is never
+overwritten. At start the node logs the surrogate, the parameter files, the topics and the
+checkpoint it uses.
 
 Network: before ``rclpy.init`` the node confines DDS discovery to loopback
 (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ``ROS_DOMAIN_ID`` if none is set) unless the
@@ -50,7 +59,8 @@ environment already sets ``ROS_AUTOMATIC_DISCOVERY_RANGE``: an explicit choice (
 a real monitoring network) is respected.
 
 Executor: ``rclpy.experimental.EventsExecutor``, driven by ``spin_until_future_complete`` with a
-0.2 s timeout in a loop that checks the stop flag. In rclpy 7.1 its ``spin()`` (and
+0.2 s timeout in a loop that checks the stop flag; SIGINT/SIGTERM also complete the future it
+waits on, which ends the spin even when a callback is always due. In rclpy 7.1 its ``spin()`` (and
 ``spin_until_future_complete`` without a timeout) neither returns on SIGINT/SIGTERM nor idles (it
 busy-waits a core), so it is not used; ``spin_once`` per message costs a Python call per event.
 """
@@ -65,6 +75,7 @@ import struct
 import sys
 import time
 from collections import deque
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -72,7 +83,14 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+    SetParametersResult,
+)
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
@@ -94,8 +112,11 @@ from bridge_shadow.contract import (
     NODE_NAME,
 )
 from bridge_shadow.errors import BridgeShadowError
-from bridge_shadow.estimate import Shadow, ShadowConfig, WindowOutput, load_config
+from bridge_shadow.estimate import ShadowConfig, WindowOutput, load_config
+from bridge_shadow.estimate.param_specs import SPECS, constraint_text, describe, kind_of
+from bridge_shadow.estimate.startup import open_shadow
 from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.paths import config_file
 from bridge_shadow.ros import convert
 from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
 from bridge_shadow.ros.netenv import confine_to_loopback
@@ -113,6 +134,9 @@ __all__ = [
     "input_qos",
     "main",
     "outputs_from_history",
+    "parameter_descriptor",
+    "params_files",
+    "startup_lines",
     "window_history",
 ]
 
@@ -141,8 +165,9 @@ usage: bridge_shadow_node [--ros-args [-p NAME:=VALUE ...] [--params-file FILE]]
 
 The live digital shadow of the UniBw Munich test bridge: subscribes to the two central-bearing
 load cells and the air temperature, publishes the posterior settlements, their covariance, the
-temperature-compensated forces and /diagnostics. Parameters: config/shadow.yaml (documented there).
-Stop with Ctrl-C or SIGTERM (a checkpoint is written when checkpoint_path is set).
+temperature-compensated forces and /diagnostics. Parameters: config/shadow.yaml (documented there;
+unknown names and bad values stop the node with one line). Stop with Ctrl-C or SIGTERM (a
+checkpoint is written when checkpoint_path is set).
 """
 
 
@@ -166,20 +191,18 @@ class ShadowNode(Node):
 
     """
 
-    def __init__(self, **kwargs: Any) -> None:
+    def __init__(self, params_files: Sequence[str] = (), **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         self.config = self._read_parameters()
+        self._next_config: ShadowConfig | None = None
         cfg = self.config
         surrogate = load_surrogate(cfg.surrogate_path or None)
-        ckpt = Path(cfg.checkpoint_path) if cfg.checkpoint_path else None
-        if ckpt is not None and ckpt.is_file():
-            self.shadow = Shadow.resume(ckpt, cfg, surrogate)
-            self.get_logger().info(
-                f"resumed from {ckpt}: {self.shadow.n_windows} windows, "
-                f"{self.shadow.filter.n_updates} updates"
-            )
-        else:
-            self.shadow = Shadow(cfg, surrogate)
+        self.shadow, notes = open_shadow(cfg, surrogate)
+        log = self.get_logger()
+        for line in startup_lines(cfg, surrogate, params_files):
+            log.info(line)
+        for line in notes:
+            log.info(line) if line.startswith(("resumed", "checkpoint")) else log.warning(line)
         self.received = [0, 0, 0]
         self.malformed = 0
         self.windows_published = 0
@@ -216,20 +239,53 @@ class ShadowNode(Node):
 
     # -- parameters ------------------------------------------------------------------------
     def _read_parameters(self) -> ShadowConfig:
-        """Declare every shadow parameter (defaults: config/shadow.yaml) and read them back."""
-        defaults = load_config().to_params()
+        """Check the start-up parameters, declare each with its descriptor, and read them back.
+
+        Defaults are config/shadow.yaml. The overrides (``--params-file``, ``-p``) are checked by
+        the same strict rules as ``replay --params`` (``estimate.param_specs``): an unknown name,
+        a wrong type or an out-of-range value raises ConfigError, one line.
+        """
+        overrides = {
+            name: _plain(p.value)
+            for name, p in getattr(self, "_parameter_overrides", {}).items()
+            if not _ros_own(name)
+        }
+        config = ShadowConfig.from_params({**load_config().to_params(), **overrides})
         for f in dataclasses.fields(ShadowConfig):
-            descriptor = ParameterDescriptor(
-                description=f"see config/shadow.yaml: {f.name}", dynamic_typing=True
+            value = getattr(config, f.name)
+            descriptor = parameter_descriptor(f.name, kind_of(f))
+            self.declare_parameter(f.name, value, descriptor, ignore_override=True)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
+        return config
+
+    def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
+        """Refuse a new value that breaks its spec, with the reason (read-only ones rclpy refuses)."""
+        changes = {p.name: _plain(p.value) for p in params if not _ros_own(p.name)}  # use_sim_time: rclpy's
+        if not changes:
+            return SetParametersResult(successful=True)
+        frozen = [n for n in changes if n not in SPECS or not SPECS[n].live]
+        if frozen:
+            return SetParametersResult(
+                successful=False,
+                reason=f"{', '.join(frozen)}: read-only while the node runs (restart it with the new value)",
             )
-            self.declare_parameter(f.name, defaults[f.name], descriptor)
-        params = {}
-        for name in defaults:
-            value = self.get_parameter(name).value
-            if value is not None and not isinstance(value, (str, bool, int, float)):
-                value = [float(v) for v in value]  # DOUBLE_ARRAY comes back as array.array
-            params[name] = value
-        return ShadowConfig.from_params(params)
+        try:
+            self._next_config = self.config.replace(**changes)
+        except (BridgeShadowError, TypeError) as err:
+            return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    def _after_set_parameters(self, params: list[Any]) -> None:
+        """Apply the accepted values (only ``diagnostics_period_s`` changes at run time)."""
+        new = getattr(self, "_next_config", None)
+        if new is None:
+            return
+        self._next_config = None
+        if new.diagnostics_period_s != self.config.diagnostics_period_s:
+            self.destroy_timer(self._diag_timer)
+            self._diag_timer = self.create_timer(new.diagnostics_period_s, self.publish_diagnostics)
+        self.config = new
 
     # -- input -----------------------------------------------------------------------------
     def _callback(self, i: int) -> Any:
@@ -425,6 +481,79 @@ class ShadowNode(Node):
         return self.shadow.save_checkpoint() if self.config.checkpoint_path else None
 
 
+#: Parameters rclpy itself reads (not the shadow's, and not unknown either).
+_ROS_OWN = ("use_sim_time", "start_type_description_service", "qos_overrides.")
+#: ROS parameter type of each value kind of ``param_specs``.
+_ROS_TYPES = {
+    "bool": ParameterType.PARAMETER_BOOL,
+    "int": ParameterType.PARAMETER_INTEGER,
+    "float": ParameterType.PARAMETER_DOUBLE,
+    "str": ParameterType.PARAMETER_STRING,
+    "float_pair": ParameterType.PARAMETER_DOUBLE_ARRAY,
+}
+
+
+def _ros_own(name: str) -> bool:
+    return any(name == own or (own.endswith(".") and name.startswith(own)) for own in _ROS_OWN)
+
+
+def _plain(value: Any) -> Any:
+    """Return a ROS parameter value as plain Python (arrays as lists)."""
+    if value is None or isinstance(value, (str, bool, int, float)):
+        return value
+    return list(value)
+
+
+def parameter_descriptor(name: str, kind: str) -> ParameterDescriptor:
+    """Build the ParameterDescriptor of a shadow parameter from ``param_specs`` (one table).
+
+    Type, description (the comment of config/shadow.yaml, unit, constraint, role), the constraint
+    in words, and the range where both ends are finite. Parameters that cannot change while the
+    node runs are read-only; the live ones take an integer for a real (dynamic typing, the
+    set-parameters callback then checks the value).
+    """
+    spec = SPECS.get(name)
+    live = spec is not None and spec.live
+    descriptor = ParameterDescriptor(
+        name=name,
+        type=_ROS_TYPES[kind],
+        description=describe(name, kind),
+        additional_constraints=constraint_text(name, kind),
+        read_only=not live,
+        dynamic_typing=live,
+    )
+    if spec is not None and spec.low is not None and spec.high is not None:
+        if kind == "float":
+            descriptor.floating_point_range = [
+                FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)
+            ]
+        elif kind == "int":
+            descriptor.integer_range = [
+                IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)
+            ]
+    return descriptor
+
+
+def startup_lines(config: ShadowConfig, surrogate: Any, params_files: Sequence[str] = ()) -> list[str]:
+    """Return what the node says at start: surrogate, parameter files, topics, checkpoint."""
+    if config.surrogate_path:
+        source = config.surrogate_path
+    elif config_file("surrogate.yaml").is_file():
+        source = str(config_file("surrogate.yaml"))
+    else:
+        source = "none found: the closed-form placeholder"
+    solver = surrogate.provenance.get("solver", "")
+    files = ", ".join(params_files) if params_files else "none (defaults only)"
+    outs = config.output_topics()
+    return [
+        f"surrogate: {source}" + (f" ({solver})" if solver else ""),
+        f"parameters: defaults {config_file('shadow.yaml')}; parameter files: {files}",
+        f"inputs: {', '.join(config.input_topics())}",
+        f"outputs: {', '.join(outs.values())} (every {config.diagnostics_period_s:g} s)",
+        f"checkpoint: {config.checkpoint_path or 'off (checkpoint_path is empty)'}",
+    ]
+
+
 def window_history(outputs: Any) -> list[dict[str, Any]]:
     """``WindowOutput``s as plain JSON data (SI units; NaN, e.g. an uncompensated window, as null)."""
     fields = [f.name for f in dataclasses.fields(WindowOutput)]
@@ -450,41 +579,127 @@ def outputs_from_history(windows: list[dict[str, Any]]) -> list[WindowOutput]:
     ]
 
 
+def params_files(argv: Sequence[str]) -> list[str]:
+    """Return the ``--params-file FILE`` arguments of a ROS command line (after ``--ros-args``)."""
+    files, in_ros = [], False
+    for k, arg in enumerate(argv):
+        if arg == "--ros-args":
+            in_ros = True
+        elif arg == "--":
+            in_ros = False
+        elif in_ros and arg == "--params-file" and k + 1 < len(argv):
+            files.append(argv[k + 1])
+    return files
+
+
+def _check_params_file(path: str) -> None:
+    """Read a ``--params-file`` before rcl does, so a broken one gives one line (not an RCLError)."""
+    from bridge_shadow.estimate.config import read_params_file
+
+    try:
+        read_params_file(Path(path))
+    except BridgeShadowError as err:
+        if "expected" in str(err) and "ros__parameters" in str(err):
+            return  # a file for other nodes only: legal in ROS, it sets nothing here
+        raise
+
+
+class _stderr_held:
+    """Hold what C code writes to file descriptor 2 in a block; pass it on unless ``drop()``ped."""
+
+    def __enter__(self) -> _stderr_held:
+        import tempfile
+
+        sys.stderr.flush()
+        self._file = tempfile.TemporaryFile()
+        self._saved = os.dup(2)
+        os.dup2(self._file.fileno(), 2)
+        self._keep = True
+        return self
+
+    def drop(self) -> None:
+        self._keep = False
+
+    def __exit__(self, *exc: object) -> None:
+        sys.stderr.flush()
+        os.dup2(self._saved, 2)
+        os.close(self._saved)
+        if self._keep:
+            self._file.seek(0)
+            text = self._file.read()
+            if text:
+                sys.stderr.buffer.write(text)
+                sys.stderr.flush()
+        self._file.close()
+
+
+def _one_line(err: BaseException) -> str:
+    text = " ".join(str(err).split())
+    return text[:400]
+
+
 def main(args: list[str] | None = None) -> int:
     """Run the node until SIGINT/SIGTERM; return 0, or 2 with one line on a configuration error."""
     argv = sys.argv[1:] if args is None else list(args)
     if "--ros-args" not in argv and any(a in ("-h", "--help") for a in argv):
         print(_USAGE, end="")
         return 0
+    prog = "bridge_shadow_node"
+    files = params_files(argv)
+    try:
+        for file in files:
+            _check_params_file(file)
+    except BridgeShadowError as err:
+        print(f"{prog}: {err}", file=sys.stderr)
+        return 2
     if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in os.environ:
         confine_to_loopback()
-    # SIGINT/SIGTERM only set a flag: the loop ends between callbacks, so no callback is cut off
-    # by a context shut down under it, and the exit path still has a valid context.
+    # SIGINT/SIGTERM set a flag and complete the future the executor waits on: the loop ends
+    # between callbacks, so no callback is cut off by a context shut down under it, the exit path
+    # still has a valid context, and a busy executor (a timer that is always due) still returns.
     stop: list[int] = []
-    previous = {sig: signal.signal(sig, lambda signum, frame: stop.append(signum)) for sig in _STOP_SIGNALS}
-    rclpy.init(args=[sys.argv[0], *argv], signal_handler_options=SignalHandlerOptions.NO)
+    never = Future()
+
+    def on_signal(signum: int, frame: Any) -> None:
+        stop.append(signum)
+        if not never.done():
+            never.set_result(None)
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in _STOP_SIGNALS}
     node = None
     code = 0
     try:
-        node = ShadowNode()
+        init_error = None
+        with _stderr_held() as held:
+            try:
+                rclpy.init(args=[sys.argv[0], *argv], signal_handler_options=SignalHandlerOptions.NO)
+            except Exception as err:  # RCLError: a -p rule or a file rcl cannot parse
+                held.drop()  # rcl's own "[ERROR] ... Failed to parse" line: ours says it once
+                init_error = err
+        if init_error is not None:
+            print(f"{prog}: cannot read the ROS arguments: {_one_line(init_error)}", file=sys.stderr)
+            return 2
+        node = ShadowNode(params_files=files)
         executor = EventsExecutor()
         executor.add_node(node)
-        never = Future()  # spin in C++ for 0.2 s at a time, not one Python call per message
         while not stop and rclpy.ok():
             executor.spin_until_future_complete(never, timeout_sec=0.2)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except BridgeShadowError as err:
-        print(f"bridge_shadow_node: {err}", file=sys.stderr)
+        print(f"{prog}: {err}", file=sys.stderr)
+        code = 2
+    except ParameterException as err:  # refused by rclpy itself
+        print(f"{prog}: {_one_line(err)}", file=sys.stderr)
         code = 2
     finally:
         if node is not None:
             try:
                 path = node.save_on_exit()
                 if path is not None:
-                    print(f"bridge_shadow_node: checkpoint written to {path}", file=sys.stderr)
+                    print(f"{prog}: checkpoint written to {path}", file=sys.stderr)
             except BridgeShadowError as err:
-                print(f"bridge_shadow_node: checkpoint not written: {err}", file=sys.stderr)
+                print(f"{prog}: checkpoint not written: {err}", file=sys.stderr)
                 code = 2
             node.destroy_node()
         rclpy.try_shutdown()

@@ -8,7 +8,7 @@ from typing import Any
 from bridge_shadow.bagio import write_monitoring
 from bridge_shadow.errors import InputError
 from bridge_shadow.twin.simulate import simulate
-from bridge_shadow.twin.truth import write_truth
+from bridge_shadow.twin.truth import TRUTH_FILE, truth_text
 
 __all__ = ["write_twin_bag"]
 
@@ -28,6 +28,9 @@ def write_twin_bag(
     if compress and storage != "mcap":
         raise InputError("compression is available for mcap storage only")
     data, truth = simulate(**simulate_kwargs)
-    path = write_monitoring(Path(out), data, storage, overwrite=overwrite, compress=compress)
-    write_truth(path, truth)
+    # the truth goes into the bag directory with the bag: both appear together, or neither
+    extra = {TRUTH_FILE: truth_text(truth)}
+    path = write_monitoring(
+        Path(out), data, storage, overwrite=overwrite, compress=compress, extra_files=extra
+    )
     return path, truth

@@ -14,7 +14,7 @@ import yaml
 
 from bridge_shadow.errors import InputError
 
-__all__ = ["TRUTH_FILE", "read_truth", "truth_path", "write_truth"]
+__all__ = ["TRUTH_FILE", "read_truth", "truth_path", "truth_text", "write_truth"]
 
 #: File name of the truth next to the bag's storage files.
 TRUTH_FILE = "truth.yaml"
@@ -43,12 +43,17 @@ def truth_path(bag: str | Path) -> Path:
     return Path(bag) / TRUTH_FILE
 
 
+def truth_text(truth: dict[str, Any]) -> str:
+    """Return the text of ``truth.yaml`` for ``truth`` (without its ``series`` arrays)."""
+    data = _plain({k: v for k, v in truth.items() if k != "series"})
+    return _HEADER + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=100)
+
+
 def write_truth(bag: str | Path, truth: dict[str, Any]) -> Path:
     """Write ``truth`` (without its ``series`` arrays) to ``BAG/truth.yaml``; return the path."""
-    data = _plain({k: v for k, v in truth.items() if k != "series"})
-    file = truth_path(bag)
-    file.write_text(_HEADER + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=100))
-    return file
+    from bridge_shadow.fileio import atomic_write_text
+
+    return atomic_write_text(truth_path(bag), truth_text(truth), "truth file")
 
 
 def read_truth(bag: str | Path) -> dict[str, Any]:

@@ -1,0 +1,192 @@
+"""Checkpoints are never lost or overwritten without being asked, and never resumed wrongly.
+
+- ``replay --params`` with a ``checkpoint_path`` (the live node's) neither reads nor writes it;
+  ``--checkpoint PATH`` names one explicitly (resume, then write).
+- A checkpoint records the parameters that shape its state and the surrogate; resuming under
+  others is refused, naming each difference.
+- An empty, truncated, foreign or malformed file gives one line naming it and is left as it was;
+  ``checkpoint_unusable: fresh`` sets it aside (kept) and starts from the prior.
+- Temporary files of killed writers are removed at start; a failed write leaves none.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bridge_shadow.bagio import write_monitoring
+from bridge_shadow.cli import main
+from bridge_shadow.estimate import Shadow, ShadowConfig
+from bridge_shadow.estimate.checkpoint import CheckpointError, save_state
+from bridge_shadow.estimate.startup import open_shadow
+from bridge_shadow.model.surrogate_file import Surrogate, placeholder_surrogate
+
+T0 = 1_700_000_040 * 10**9
+CFG = dict(spline_warmup_windows=5, noise_warmup_windows=5, gate_after_updates=3, window_min_samples=2)
+
+
+def _data(minutes: int = 30):
+    from bridge_shadow.series import MonitoringData
+
+    rng = np.random.default_rng(5)
+    sur = placeholder_surrogate()
+    stamps = T0 + np.arange(minutes * 6, dtype=np.int64) * 10 * 10**9  # forces every 10 s
+    t_stamps = T0 + np.arange(minutes, dtype=np.int64) * 60 * 10**9
+    temp = 8.0 + 0.1 * np.arange(minutes)
+    forces = sur.reactions(np.array([2e-4, -1e-4])) + rng.normal(0.0, 60.0, (len(stamps), 2))
+    return MonitoringData.from_arrays(stamps, forces, t_stamps, temp)
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.fixture(scope="module")
+def saved(tmp_path_factory) -> tuple[Path, ShadowConfig, Surrogate]:
+    """A real checkpoint of a short run (window_s 60, the placeholder surrogate)."""
+    path = tmp_path_factory.mktemp("ckpt") / "state.npz"
+    cfg = ShadowConfig(**CFG)
+    sur = placeholder_surrogate()
+    shadow = Shadow(cfg, sur)
+    shadow.run(_data())
+    shadow.save_checkpoint(path)
+    return path, cfg, sur
+
+
+def test_resume_under_other_parameters_is_refused_naming_them(saved) -> None:
+    path, cfg, sur = saved
+    before = _digest(path)
+    assert Shadow.resume(path, cfg, sur).n_windows > 20  # the same parameters resume
+    with pytest.raises(CheckpointError) as err:
+        Shadow.resume(path, cfg.replace(window_s=30.0, prior_sigma_m=[1e-3, 1e-3]), sur)
+    text = str(err.value)
+    assert text.startswith(f"{path}: saved under other parameters")
+    assert "window_s 60 (now 30)" in text and "prior_sigma_m [0.0003, 0.0003] (now [0.001, 0.001])" in text
+    other = Surrogate(sur.A * 1.1, sur.u0)
+    with pytest.raises(CheckpointError, match="the surrogate's A and u0"):
+        Shadow.resume(path, cfg, other)
+    # a parameter that does not shape the state may change
+    assert Shadow.resume(path, cfg.replace(mahalanobis_probability=0.99), sur).n_windows > 20
+    assert _digest(path) == before
+
+
+def _broken(kind: str, good: Path, target: Path) -> Path:
+    if kind == "empty":
+        target.write_bytes(b"")
+    elif kind == "truncated":
+        target.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    elif kind == "random":
+        target.write_bytes(np.random.default_rng(0).bytes(4096))
+    elif kind == "other_npz":
+        np.savez(target, a=np.zeros(3))
+        target = target.with_suffix(".npz") if not target.name.endswith(".npz") else target
+    elif kind == "missing_entries":
+        np.savez(target, version=np.array(1), config=np.array("{}"))
+    elif kind == "directory":
+        target.mkdir()
+    return target
+
+
+BROKEN = ["empty", "truncated", "random", "other_npz", "missing_entries", "directory"]
+
+
+@pytest.mark.parametrize("kind", BROKEN)
+def test_an_unusable_checkpoint_gives_one_line_naming_it_and_is_left_alone(saved, tmp_path, kind) -> None:
+    good, cfg, sur = saved
+    path = _broken(kind, good, tmp_path / "state.npz")
+    before = _digest(path) if path.is_file() else None
+    with pytest.raises(CheckpointError) as err:
+        open_shadow(cfg.replace(checkpoint_path=str(path)), sur)
+    text = str(err.value)
+    assert text.startswith(str(path)) and "\n" not in text
+    assert "pickled" not in text  # the old message for random bytes misled
+    if before is not None:
+        assert _digest(path) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["state.npz"]  # nothing beside it
+
+
+def test_fresh_sets_an_unusable_checkpoint_aside_and_keeps_it(saved, tmp_path) -> None:
+    _, cfg, sur = saved
+    path = tmp_path / "state.npz"
+    path.write_bytes(b"not a checkpoint")
+    shadow, notes = open_shadow(cfg.replace(checkpoint_path=str(path), checkpoint_unusable="fresh"), sur)
+    assert shadow.n_windows == 0 and not path.exists()
+    (aside,) = tmp_path.glob("state.npz.unusable-*")
+    assert aside.read_bytes() == b"not a checkpoint"
+    assert any(aside.name in line for line in notes)
+
+
+def test_orphan_temporaries_of_killed_writers_are_removed_at_start(saved, tmp_path) -> None:
+    _, cfg, sur = saved
+    code = "import os; print(os.getpid())"
+    dead = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    orphan = tmp_path / f".state.npz.{int(dead.stdout)}.tmp"
+    alive = tmp_path / f".state.npz.{os.getppid()}.tmp"  # a running process may be writing it
+    orphan.write_bytes(b"half")
+    alive.write_bytes(b"busy")
+    _, notes = open_shadow(cfg.replace(checkpoint_path=str(tmp_path / "state.npz")), sur)
+    assert not orphan.exists() and alive.exists()
+    assert any(orphan.name in line for line in notes)
+
+
+def test_a_failed_write_leaves_nothing_behind(tmp_path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(CheckpointError, match="cannot write the checkpoint"):
+        save_state({"version": 1}, blocker / "state.npz")
+    (tmp_path / "dir.npz").mkdir()
+    with pytest.raises(CheckpointError, match="is a directory"):
+        save_state({"version": 1}, tmp_path / "dir.npz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.npz", "file"]
+
+
+@pytest.fixture(scope="module")
+def small_bag(tmp_path_factory) -> Path:
+    return write_monitoring(tmp_path_factory.mktemp("bag") / "small", _data(60))
+
+
+def _params(path: Path, **values: object) -> Path:
+    import yaml
+
+    body = {**CFG, **values}
+    path.write_text(yaml.safe_dump({"bridge_shadow": {"ros__parameters": body}}))
+    return path
+
+
+def test_replay_leaves_the_live_nodes_checkpoint_alone(saved, small_bag, tmp_path, capsys) -> None:
+    live = tmp_path / "live.npz"
+    live.write_bytes(saved[0].read_bytes())
+    before = _digest(live)
+    params = _params(tmp_path / "p.yaml", checkpoint_path=str(live))
+    assert main(["replay", str(small_bag), "--params", str(params), "--json"]) == 0
+    assert _digest(live) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["live.npz", "p.yaml"]
+
+
+def test_replay_checkpoint_option_resumes_and_refuses_other_parameters(small_bag, tmp_path, capsys) -> None:
+    import json
+
+    ckpt = tmp_path / "replay.npz"
+    params = _params(tmp_path / "p.yaml")
+    assert main(["replay", str(small_bag), "--params", str(params), "--checkpoint", str(ckpt), "--json"]) == 0
+    first = json.loads(capsys.readouterr().out)
+    assert ckpt.is_file()
+    # the same bag again, resumed: every message is older than the saved state, none is used twice
+    assert main(["replay", str(small_bag), "--params", str(params), "--checkpoint", str(ckpt), "--json"]) == 0
+    out = capsys.readouterr()
+    again = json.loads(out.out)
+    assert "resumed from" in out.err
+    assert again["windows"]["closed"] == first["windows"]["closed"]
+    assert again["messages"]["used"] == first["messages"]["used"]  # counts carry over
+    before = _digest(ckpt)
+    other = _params(tmp_path / "q.yaml", window_s=30.0)
+    assert main(["replay", str(small_bag), "--params", str(other), "--checkpoint", str(ckpt)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "window_s 60 (now 30)" in err[0] and str(ckpt) in err[0]
+    assert _digest(ckpt) == before

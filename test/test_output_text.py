@@ -1,0 +1,100 @@
+"""Text for people: replay's counts say what they count, the node says what it runs with, --watch."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bridge_shadow.commands.replay import _summary
+from bridge_shadow.estimate import REASONS, load_config
+
+
+def _replay_json(rejected: dict[str, int]) -> dict:
+    return {
+        "posterior": {"mean_m": [7e-4, -7e-4], "covariance_m2": [[1e-10, 5e-11], [5e-11, 1e-10]]},
+        "messages": {"total": 100, "used": 93, "rejected": 7},
+        "messages_per_s": 1e5,
+        "windows": {"closed": 40, "updates": 25},
+        "rejected": {r: rejected.get(r, 0) for r in REASONS},
+        "spline": {},
+    }
+
+
+def test_rejected_messages_and_unused_windows_are_counted_apart() -> None:
+    text = _summary(_replay_json({"nonfinite": 7, "missing_topic": 6, "sparse_window": 4, "outlier": 5}))
+    lines = text.splitlines()
+    assert "rejected messages: nonfinite 7" in lines  # the 7 of "93 used, 7 rejected"
+    assert "windows not used: missing_topic 6, sparse_window 4, outlier 5" in lines
+    assert not any(line.startswith("rejected:") for line in lines)
+
+
+def test_node_start_up_lines_name_surrogate_parameter_files_topics_and_checkpoint(root) -> None:
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    pytest.importorskip("rclpy")
+    from bridge_shadow.ros.node import params_files, startup_lines
+
+    argv = ["--ros-args", "-p", "window_s:=30.0", "--params-file", "/etc/shadow.yaml"]
+    assert params_files(argv) == ["/etc/shadow.yaml"]
+    cfg = load_config(None, {"checkpoint_path": "/var/lib/shadow/state.npz", "topic_frc_01": "/site/south"})
+    lines = startup_lines(cfg, load_surrogate(), params_files(argv))
+    text = "\n".join(lines)
+    assert f"surrogate: {root / 'config' / 'surrogate.yaml'}" in text
+    assert "parameter files: /etc/shadow.yaml" in text
+    assert "inputs: /site/south, /bridge/frc_02/force, /bridge/air_temperature" in text
+    assert "/bridge_shadow/settlement/mean" in text and "/diagnostics" in text
+    assert "checkpoint: /var/lib/shadow/state.npz" in text
+    off = startup_lines(load_config(), load_surrogate(), [])
+    assert "checkpoint: off" in "\n".join(off) and "parameter files: none" in "\n".join(off)
+
+
+def test_the_node_logs_its_start_up_lines(capfd) -> None:
+    rclpy = pytest.importorskip("rclpy")
+    from bridge_shadow.ros.node import ShadowNode
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        ShadowNode(context=context).destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+    err = capfd.readouterr().err
+    for what in ("surrogate:", "parameters:", "inputs:", "outputs:", "checkpoint:"):
+        assert f"[bridge_shadow]: {what}" in err, what
+
+
+def test_watch_line_shows_the_latest_outputs() -> None:
+    pytest.importorskip("rclpy")
+    from rclpy.serialization import serialize_message
+
+    from bridge_shadow.contract import COMPENSATED_TOPICS, COVARIANCE_TOPIC, DIAGNOSTICS_TOPIC, MEAN_TOPIC
+    from bridge_shadow.ros import convert
+    from bridge_shadow.ros.diagnostics import Status, diagnostic_array
+    from bridge_shadow.ros.watch import TopicWatch, watch_line
+
+    end_ns = 1_647_241_200 * 10**9  # 2022-03-14 07:00 UTC
+    records: dict[str, list] = {}
+    assert watch_line(records, 0.0) == "[  0%] no window closed yet"
+
+    def put(topic: str, msg) -> None:
+        records.setdefault(topic, []).append((0, serialize_message(msg)))
+
+    put(MEAN_TOPIC, convert.mean_msg(np.array([1e-4, -1e-4])))  # an older window
+    put(MEAN_TOPIC, convert.mean_msg(np.array([7.0e-4, -6.9e-4])))
+    put(COVARIANCE_TOPIC, convert.covariance_msg(np.diag([(1e-5) ** 2, (2e-5) ** 2])))
+    put(COMPENSATED_TOPICS["frc_01"], convert.wrench_msg(end_ns, "frc_01", 238_910.0))
+    put(COMPENSATED_TOPICS["frc_02"], convert.wrench_msg(end_ns, "frc_02", 238_870.0))
+    put(DIAGNOSTICS_TOPIC, diagnostic_array([Status("bridge_shadow: settlement", 1, "warming up")], end_ns))
+    line = watch_line(records, 0.42)
+    assert line == (
+        "[ 42%] window to 2022-03-14 07:00 UTC: south +0.700 ± 0.020 mm, north -0.690 ± 0.039 mm"
+        " | compensated 238.91 / 238.87 kN | settlement WARN | 2 windows"
+    )
+    import io
+
+    out = io.StringIO()
+    watch = TopicWatch(records, period_s=3600.0, stream=out)
+    watch(0.1)
+    watch(0.2)  # within the period: not shown
+    watch(1.0)  # the end: always shown
+    assert len(out.getvalue().splitlines()) == 2
