@@ -70,9 +70,10 @@ def test_one_wild_stamp_costs_one_message(clean, topic: str) -> None:
         r: n for r, n in ref.rejected.items() if r != "clock_jump"
     }
     assert res.windows == ref.windows and res.updates == ref.updates - len(changed)
-    # one sample of one 60 s window is missing: the posterior moves by far less than its sigma
+    # one sample (at most one window) is missing: the posterior moves by far less than its sigma
+    # (a window of ~1400 with AR(1) residuals weighs about 1 / n_eff; 0.2 sigma is a loose bound)
     sigma = np.sqrt(np.diag(ref.covariance_m2))
-    assert np.all(np.abs(res.mean_m - ref.mean_m) < 0.05 * sigma)
+    assert np.all(np.abs(res.mean_m - ref.mean_m) < 0.2 * sigma)
 
 
 def test_a_real_gap_loses_nothing_and_chunking_does_not_matter() -> None:

@@ -187,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
     if not (args.window > 0 and math.isfinite(args.window)):
         raise InputError("--window must be a positive, finite number of seconds")
     if args.report:
-        check_output_dir(args.report, "report directory")  # before the work
+        check_output_dir(args.report, "--report directory")  # before the work
     config = shadow_config(args.params, args.surrogate)
     surrogate = load_surrogate(config.surrogate_path or None)
     data = read_monitoring(args.bag, topics=config.input_topics())
