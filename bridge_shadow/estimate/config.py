@@ -24,9 +24,11 @@ from bridge_shadow.contract import (
     FORCE_TOPICS,
     MEAN_TOPIC,
     NODE_NAME,
+    TEMPERATURE_FRAME,
     TEMPERATURE_TOPIC,
 )
 from bridge_shadow.errors import ConfigError
+from bridge_shadow.estimate.prior import PRIOR_RULES
 from bridge_shadow.paths import config_file
 
 __all__ = ["ShadowConfig", "load_config"]
@@ -34,7 +36,6 @@ __all__ = ["ShadowConfig", "load_config"]
 _MATCH_MODES = ("hold", "linear")
 _SMOOTHING_MODES = ("reml", "gcv", "fixed", "none")
 _NOISE_MODES = ("adaptive", "fixed")
-_LEVELS = ("warmup_mean", "mean", "reference")
 #: The topic parameters (validated together in ``ShadowConfig.validate``).
 _TOPIC_FIELDS = (
     "topic_frc_01",
@@ -59,39 +60,43 @@ class ShadowConfig:
     temperature_match: str = "linear"
     temperature_stale_s: float = 120.0
     topic_timeout_s: float = 30.0
-    # P-spline compensation
+    # temperature compensation (fitted jointly with the settlement levels)
     smoothing: str = "reml"
     spline_lambda: float = 10.0
     spline_t_min_c: float = -20.0
     spline_t_max_c: float = 45.0
     spline_segments: int = 13
-    spline_forgetting_s: float = 0.0
-    spline_warmup_windows: int = 30
-    compensation_level: str = "warmup_mean"
-    reference_temperature_c: float = 10.0
-    # Kalman update
-    prior_sigma_m: list[float] = field(default_factory=lambda: [3.0e-4, 3.0e-4])
+    thermal_prior_sd_n_per_k: float = 500.0
+    warmup_windows: int = 10
+    refit_windows: int = 30
+    lambda_reselect_growth: float = 1.25
+    # settlement prior and process noise
+    prior_sigma_m: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    prior_rule: str = "one_bearing"
     process_noise_m2_per_s: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    drift_block_s: float = 7200.0
+    # measurement noise
     noise_sigma_n: list[float] = field(default_factory=lambda: [60.4, 82.7])
     systematic_sigma_n: list[float] = field(default_factory=lambda: [0.0, 0.0])
-    # honest uncertainty (noise model)
     noise_mode: str = "adaptive"
-    noise_warmup_windows: int = 30
     noise_phi_max: float = 0.999
     noise_floor: bool = True
-    noise_refilter_tolerance: float = 0.1
-    noise_refilter_max_windows: int = 20000
+    # settlement events (GLR step detector)
+    event_detection: bool = True
+    event_trigger_probability: float = 0.999
+    event_probability: float = 0.999999
+    event_confirm_windows: int = 3
+    event_max_pending: int = 15
     # gating
     force_min_n: float = 1.0
     force_max_n: float = 5.0e6
     temp_min_c: float = -60.0
     temp_max_c: float = 70.0
     mahalanobis_probability: float = 0.999999
-    gate_after_updates: int = 10
-    gate_max_consecutive: int = 5
     clock_jump_s: float = 3600.0
     clock_jump_confirm: int = 100
     check_frame_id: bool = True
+    temperature_frame_id: str = TEMPERATURE_FRAME
     # checkpoint
     checkpoint_path: str = ""
     checkpoint_period_s: float = 600.0
@@ -123,26 +128,38 @@ class ShadowConfig:
         need(self.window_min_samples >= 1, "window_min_samples must be >= 1")
         need(self.temperature_match in _MATCH_MODES, f"temperature_match must be one of {_MATCH_MODES}")
         need(self.smoothing in _SMOOTHING_MODES, f"smoothing must be one of {_SMOOTHING_MODES}")
-        need(self.compensation_level in _LEVELS, f"compensation_level must be one of {_LEVELS}")
         need(self.noise_mode in _NOISE_MODES, f"noise_mode must be one of {_NOISE_MODES}")
+        need(self.prior_rule in PRIOR_RULES, f"prior_rule must be one of {PRIOR_RULES}")
         need(self.spline_t_max_c > self.spline_t_min_c, "spline_t_max_c must exceed spline_t_min_c")
         need(self.spline_segments >= 1, "spline_segments must be >= 1")
         need(self.spline_lambda >= 0, "spline_lambda must be >= 0")
-        need(self.spline_forgetting_s >= 0, "spline_forgetting_s must be >= 0 (0 = off)")
+        need(self.thermal_prior_sd_n_per_k > 0, "thermal_prior_sd_n_per_k must be > 0")
+        need(self.warmup_windows >= 1, "warmup_windows must be >= 1")
+        need(self.refit_windows >= 1, "refit_windows must be >= 1")
+        need(self.lambda_reselect_growth > 1.0, "lambda_reselect_growth must be > 1")
+        need(self.drift_block_s >= self.window_s, "drift_block_s must be at least window_s")
         for name in ("prior_sigma_m", "process_noise_m2_per_s", "noise_sigma_n", "systematic_sigma_n"):
             value = getattr(self, name)
             need(len(value) == 2, f"{name} must have two values [south, north]")
             setattr(self, name, [float(v) for v in value])
-        need(min(self.prior_sigma_m) > 0, "prior_sigma_m must be > 0")
+        need(
+            min(self.prior_sigma_m) > 0 or max(self.prior_sigma_m) == 0,
+            "prior_sigma_m must be > 0, or [0, 0] for the paper's rule (prior_rule)",
+        )
         need(min(self.noise_sigma_n) > 0, "noise_sigma_n must be > 0")
         need(min(self.process_noise_m2_per_s) >= 0, "process_noise_m2_per_s must be >= 0")
         need(min(self.systematic_sigma_n) >= 0, "systematic_sigma_n must be >= 0")
         need(0.0 <= self.noise_phi_max < 1.0, "noise_phi_max must be in [0, 1)")
         need(0.0 < self.mahalanobis_probability <= 1.0, "mahalanobis_probability must be in (0, 1]")
+        need(0.0 < self.event_trigger_probability < 1.0, "event_trigger_probability must be in (0, 1)")
+        need(0.0 < self.event_probability < 1.0, "event_probability must be in (0, 1)")
+        need(self.event_confirm_windows >= 1, "event_confirm_windows must be >= 1")
+        need(
+            self.event_max_pending > self.event_confirm_windows,
+            "event_max_pending must exceed event_confirm_windows",
+        )
         need(self.force_max_n > self.force_min_n, "force_max_n must exceed force_min_n")
         need(self.clock_jump_s > 0, "clock_jump_s must be > 0")
-        need(self.noise_refilter_max_windows >= 2, "noise_refilter_max_windows must be >= 2")
-        need(self.gate_max_consecutive >= 1, "gate_max_consecutive must be >= 1")
         need(self.clock_jump_confirm >= 1, "clock_jump_confirm must be >= 1")
         need(self.temperature_stale_s > 0 and self.topic_timeout_s >= 0, "timeouts must be positive")
         topics = [*self.input_topics(), *self.output_topics().values()]
