@@ -37,7 +37,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
-from bridge_shadow.estimate.spline import basis_nonzero, clamped_knots, gram_penalty, gram_slope, select_lambda
+from bridge_shadow.estimate.spline import (
+    basis_nonzero,
+    clamped_knots,
+    gram_penalty,
+    gram_slope,
+    select_lambda,
+)
 from bridge_shadow.estimate.sums import FitSums
 
 __all__ = ["Compensation", "CompensationFit"]
@@ -55,6 +61,7 @@ class CompensationFit:
         dof: (2,) residual degrees of freedom ``n - S - edf``.
         minv: (2, q, q) inverse of the fit matrix ``M`` (for the curve's uncertainty).
         t_lo, t_hi: (2,) C, temperature range the curve was fitted on.
+        kappa: (2,) K, the slope prior's weight used.
         n: windows in the fit.
 
     """
@@ -67,6 +74,7 @@ class CompensationFit:
     minv: np.ndarray
     t_lo: np.ndarray
     t_hi: np.ndarray
+    kappa: np.ndarray
     n: int
 
     def beta_variance_factor(self, sums: FitSums, s: int) -> np.ndarray:
@@ -184,8 +192,9 @@ class Compensation:
         level = (sums.sys - np.einsum("scq,cq->sc", sums.sbs, beta)) / ws_all
         level[~used] = 0.0
         dof = np.maximum(sums.n - n_levels - edf, 1.0)
+        kap = np.zeros(2) if kappa is None else np.asarray(kappa, float).reshape(2)
         return CompensationFit(
-            beta, lams, edf, level[:n_seg], dof, minv, sums.t_lo.copy(), sums.t_hi.copy(), sums.n
+            beta, lams, edf, level[:n_seg], dof, minv, sums.t_lo.copy(), sums.t_hi.copy(), kap, sums.n
         )
 
     # -- evaluation -------------------------------------------------------------------------------

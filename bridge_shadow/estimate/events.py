@@ -26,8 +26,9 @@ freedom.
      pending windows were a passing excursion, such as a test car. Those beyond ``h_outlier``
      (``mahalanobis_probability``) are rejected as outliers, the others are ordinary windows; the
      latest window is judged afresh;
-   - after ``event_max_pending`` windows a decision is forced: an event if ``T_j* > h_event``,
-     otherwise the run is ordinary windows (outliers still rejected): no lock-out.
+   - after ``event_max_pending`` windows a decision is forced: an event if a candidate qualifies,
+     otherwise the whole run is ordinary windows (a long excursion that is not a step, such as a
+     drift the model has no process noise for, is data, not outliers): no lock-out.
 
 While the noise model rests on few windows, its variance is uncertain: detection uses it inflated
 by ``dof / chi2_dof(0.05)`` (its one-sided 95 % bound; ``dof`` the fit's residual degrees of
@@ -146,7 +147,8 @@ class ChangeDetector:
     # -- per window -----------------------------------------------------------------------------
     def step(self, k: int, v: Vec, r_window: Sym, apa: Sym, payload: Any) -> Decision:
         """Take window ``k``'s innovation ``v`` (N) with ``R1 / m`` and ``A P A'`` (N^2, symmetric 2x2
-        as ``(a, b, d)`` floats); return what to do with the held windows."""
+        as ``(a, b, d)`` floats); return what to do with the held windows.
+        """
         infl = self.inflation
         if not self.pending:
             total = (r_window[0] * infl + apa[0], r_window[1] * infl + apa[1], r_window[2] * infl + apa[2])
@@ -168,7 +170,7 @@ class ChangeDetector:
             forced = max(self._candidates(), key=lambda c: c.glr if self._qualifies(c) else -1.0)
             if self._qualifies(forced):
                 return self._event(forced)
-            return self._release_all()
+            return self._release_all(reject_outliers=False)
         return Decision()
 
     def flush(self) -> Decision:
@@ -178,7 +180,7 @@ class ChangeDetector:
         best = self._best()
         if self._qualifies(best) and best.consistent and len(self.pending) - best.j >= self.confirm:
             return self._event(best)
-        return self._release_all()
+        return self._release_all(reject_outliers=len(self.pending) < self.max_pending)
 
     # -- internals ------------------------------------------------------------------------------
     def _qualifies(self, c: _Candidate) -> bool:
@@ -277,7 +279,10 @@ class ChangeDetector:
             reject=reject, accept_before=ordinary, event=[p.payload for p in after], step_n=c.step, glr=c.glr
         )
 
-    def _release_all(self) -> Decision:
+    def _release_all(self, reject_outliers: bool = True) -> Decision:
         items, self.pending = self.pending, []
+        if not reject_outliers:  # a long excursion that is not a step is data, not outliers
+            self.prev = items[-1]
+            return Decision(accept_before=[p.payload for p in items])
         reject, ordinary = self._split_ordinary(items)
         return Decision(reject=reject, accept_before=ordinary)

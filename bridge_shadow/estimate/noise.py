@@ -90,8 +90,7 @@ class NoiseModel:
         if moments.n_pairs >= 2:
             mean_sq = np.maximum(np.diag(moments.s2) / moments.n, 1e-300)
             phi = (moments.lag / moments.n_pairs) / mean_sq
-            # Kendall's bias of the lag-1 estimator, per fitted level: over runs of n_pairs / S pairs
-            phi = phi + (1.0 + 3.0 * phi) / (moments.n_pairs / max(len(sizes), 1))
+            phi = phi + (1.0 + 3.0 * phi) / moments.n_pairs  # Kendall's first-order bias
             self.phi = np.clip(phi, 0.0, self.phi_max)
         else:
             self.phi = np.zeros(2)

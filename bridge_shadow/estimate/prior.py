@@ -23,7 +23,7 @@ import numpy as np
 
 from bridge_shadow.errors import ConfigError
 
-__all__ = ["PRIOR_RULES", "prior_sigma"]
+__all__ = ["PRIOR_RULES", "configured_prior_sigma", "prior_sigma"]
 
 #: Names of the paper's rule variants (``prior_rule``).
 PRIOR_RULES: tuple[str, ...] = ("one_bearing", "both")
@@ -55,3 +55,9 @@ def prior_sigma(A: np.ndarray, u0: np.ndarray, rule: str = "one_bearing") -> np.
             f"stiffness {stiffness.tolist()} N/m); set prior_sigma_m instead"
         )
     return u / stiffness / 3.0
+
+
+def configured_prior_sigma(prior_sigma_m: list[float], rule: str, A: np.ndarray, u0: np.ndarray) -> np.ndarray:
+    """The prior standard deviation (2,) m in use: ``prior_sigma_m`` if set, else the paper's rule."""
+    given = np.asarray(prior_sigma_m, float).reshape(2)
+    return given if np.all(given > 0) else prior_sigma(A, u0, rule)

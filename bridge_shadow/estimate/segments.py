@@ -162,7 +162,8 @@ class SegmentChain:
 
     def open_segment(self, k: int, jump_cov: np.ndarray | None = None) -> None:
         """A new segment from window ``k``: its prior is the last posterior plus ``J`` (an event) or
-        plus ``jump_cov`` (a random-walk block)."""
+        plus ``jump_cov`` (a random-walk block).
+        """
         jump = self.jump_cov if jump_cov is None else np.asarray(jump_cov, float).reshape(2, 2)
         self.jumps.append(jump)
         j = _sym(jump)

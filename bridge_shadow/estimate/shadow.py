@@ -49,7 +49,7 @@ from bridge_shadow.estimate.events import ChangeDetector, Decision
 from bridge_shadow.estimate.gate import REASONS, TopicGate
 from bridge_shadow.estimate.inputs import TopicLedger
 from bridge_shadow.estimate.noise import NoiseModel
-from bridge_shadow.estimate.prior import prior_sigma
+from bridge_shadow.estimate.prior import configured_prior_sigma
 from bridge_shadow.estimate.result import EventRecord, ReplayResult, WindowOutput
 from bridge_shadow.estimate.segments import SegmentChain
 from bridge_shadow.estimate.small import congruence, quad_inv
@@ -122,12 +122,8 @@ class Shadow:
         self.surrogate = surrogate
         self.A, self.u0 = surrogate.A, surrogate.u0
         self._w_ns = round(config.window_s * _NS)
-        if max(config.prior_sigma_m) > 0:
-            self.prior_sigma_m = np.asarray(config.prior_sigma_m, float)
-            self.prior_source = "prior_sigma_m"
-        else:
-            self.prior_sigma_m = prior_sigma(self.A, self.u0, config.prior_rule)
-            self.prior_source = f"paper's rule ({config.prior_rule})"
+        self.prior_sigma_m = configured_prior_sigma(config.prior_sigma_m, config.prior_rule, self.A, self.u0)
+        self.prior_source = "prior_sigma_m" if max(config.prior_sigma_m) > 0 else f"paper's rule ({config.prior_rule})"
         jump_ns = round(config.clock_jump_s * _NS)
         check = config.check_frame_id
         frames = [FORCE_FRAMES[ch] for ch in CHANNELS] + [config.temperature_frame_id]
@@ -378,6 +374,15 @@ class Shadow:
         a = self._af
         v = (f0 - self._u0f[0] - g0 - (a[0] * x0 + a[1] * x1), f1 - self._u0f[1] - g1 - (a[2] * x0 + a[3] * x1))
         apa = congruence(a, P)
+        t0, t1 = float(w.temp[0]), float(w.temp[1])
+        lo, hi = self._range
+        if t0 < lo[0] or t0 > hi[0] or t1 < lo[1] or t1 > hi[1]:
+            # beyond the fitted range the curve follows the FE slope: its error grows with the
+            # distance, by the slope prior's standard deviation per kelvin
+            sd = self.config.thermal_prior_sd_n_per_k
+            d0 = max(lo[0] + _RANGE_MARGIN_K - t0, t0 - hi[0] + _RANGE_MARGIN_K, 0.0) * sd
+            d1 = max(lo[1] + _RANGE_MARGIN_K - t1, t1 - hi[1] + _RANGE_MARGIN_K, 0.0) * sd
+            apa = (apa[0] + d0 * d0, apa[1] + d0 * d1, apa[2] + d1 * d1)
         r_window = self.noise.window_floats(float(w.samples[0]), float(w.samples[1]))
         if not self.config.event_detection:
             infl = self.detector.inflation

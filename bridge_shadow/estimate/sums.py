@@ -77,7 +77,7 @@ class WindowRows:
 
 
 def _scatter_vec(i0: np.ndarray, vals: np.ndarray, q: int) -> np.ndarray:
-    """sum over rows of a q-vector with ``vals`` (n, 4) at ``i0 .. i0 + 3``."""
+    """Sum over rows of a q-vector with ``vals`` (n, 4) at ``i0 .. i0 + 3``."""
     if not len(i0):
         return np.zeros(q)
     idx = (i0[:, None] + np.arange(4)).ravel()
@@ -85,7 +85,7 @@ def _scatter_vec(i0: np.ndarray, vals: np.ndarray, q: int) -> np.ndarray:
 
 
 def _scatter_outer(i0: np.ndarray, a: np.ndarray, j0: np.ndarray, b: np.ndarray, w: np.ndarray, q: int) -> np.ndarray:
-    """sum over rows of ``w a b'`` (a at i0.., b at j0..) as a (q, q) matrix."""
+    """Sum over rows of ``w a b'`` (a at i0.., b at j0..) as a (q, q) matrix."""
     if not len(i0):
         return np.zeros((q, q))
     rows = (i0[:, None] + np.arange(4))[:, :, None]

@@ -24,10 +24,11 @@ from bridge_shadow.series import ForceSeries, MonitoringData
 __all__ = ["posterior", "replay_posterior"]
 
 
-def _prior_and_noise() -> tuple[np.ndarray, np.ndarray]:
+def _prior_and_noise(s: Surrogate) -> tuple[np.ndarray, np.ndarray]:
     """Prior covariance (2, 2) m^2 and window noise covariance (2, 2) N^2 from the shadow config."""
     from bridge_shadow.errors import ConfigError
     from bridge_shadow.estimate.config import ShadowConfig, load_config
+    from bridge_shadow.estimate.prior import configured_prior_sigma
 
     try:
         cfg = load_config()
@@ -35,7 +36,8 @@ def _prior_and_noise() -> tuple[np.ndarray, np.ndarray]:
         # The diagnosis needs only the paper's prior and noise: do not fail on a parameter file
         # written for a newer or older node; use the documented defaults instead.
         cfg = ShadowConfig()
-    return np.diag(np.square(cfg.prior_sigma_m)), np.diag(np.square(cfg.noise_sigma_n))
+    sigma_x = configured_prior_sigma(cfg.prior_sigma_m, cfg.prior_rule, s.A, s.u0)
+    return np.diag(np.square(sigma_x)), np.diag(np.square(cfg.noise_sigma_n))
 
 
 def posterior(force_n: np.ndarray, dtemp_k: np.ndarray, s: Surrogate) -> dict[str, Any]:
@@ -44,7 +46,7 @@ def posterior(force_n: np.ndarray, dtemp_k: np.ndarray, s: Surrogate) -> dict[st
 
     ok = np.isfinite(force_n).all(axis=1)
     z = force_n[ok] - s.u0 - dtemp_k[ok, None] * s.thermal.get("uniform", np.zeros(2))
-    sigma_x, sigma_e = _prior_and_noise()
+    sigma_x, sigma_e = _prior_and_noise(s)
     if not len(z):
         return {"mean_m": [0.0, 0.0], "covariance_m2": sigma_x.tolist(), "windows": 0}
     mean, cov = batch_posterior(s.A, sigma_x, sigma_e, z)
