@@ -16,8 +16,13 @@ central-support settlements over u = A x + u0.
 By default the bag is decoded vectorized and fed to the pipeline directly; --live plays it through
 the rclpy node in a loopback DDS graph (same pipeline, same posterior). Parameters come from
 config/shadow.yaml or --params. --json prints one object: posterior.mean_m [south, north] (m),
-posterior.covariance_m2 (m^2), messages used and rejected by reason, messages_per_s, spline edf
-and lambda per channel. --out and --plots work in both modes (live: drawn from the node's history
+posterior.covariance_m2 (m^2), messages used and rejected by reason, messages_per_s, detected
+settlement events (time, window, size per support in m with covariance and 95 % interval),
+warnings, the prior in use, spline edf and lambda per channel.
+
+Nothing fails silently: a missing air-temperature topic runs uncompensated, a topic whose every
+message is rejected is named with the reason and the expected value (WARN lines on stderr and
+"warnings" in the JSON), and a replay in which no window updated the estimate exits with 1. --out and --plots work in both modes (live: drawn from the node's history
 service and final checkpoint). A progress bar shows on a terminal unless --json.
 """
 
@@ -135,12 +140,45 @@ def _summary(js: dict[str, Any]) -> str:
     rejected = {k: v for k, v in js["rejected"].items() if v}
     if rejected:
         lines.append("rejected: " + ", ".join(f"{k} {v}" for k, v in rejected.items()))
+    prior = js.get("prior", {})
+    if prior:
+        lines.append(
+            "prior: sigma " + "/".join(f"{1e3 * s:.2f}" for s in prior["sigma_m"]) + f" mm ({prior['source']})"
+        )
+    for i, e in enumerate(js.get("events", []), 1):
+        size = ", ".join(
+            f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f} mm"
+            for side, m, sd in zip(("south", "north"), e["size_m"], e["sigma_m"], strict=True)
+        )
+        lines.append(f"event {i}: settlement step at window {e['window']} ({_utc(e['time_ns'])}): {size}")
     for ch, sp in js["spline"].items():
         lines.append(
             f"compensation {ch}: edf {sp['edf']:.2f}, lambda {sp['lambda']:.3g}, "
-            f"mean {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
+            f"level {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
         )
     return "\n".join(lines)
+
+
+def _utc(stamp_ns: int) -> str:
+    import datetime as dt
+
+    return dt.datetime.fromtimestamp(stamp_ns / 1e9, dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+
+def _loud(js: dict[str, Any]) -> int:
+    """WARN lines on stderr for what must not pass silently; the exit code (1 when nothing updated)."""
+    import sys
+
+    for line in js.get("warnings", []):
+        print(f"bridge-shadow replay: WARN: {line}", file=sys.stderr)
+    if not js["windows"]["updates"]:
+        print(
+            "bridge-shadow replay: error: no window updated the estimate (the posterior printed is the "
+            "prior); see the WARN lines and the rejected counts",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -164,13 +202,15 @@ def run(args: argparse.Namespace) -> int:
             emit_json(js)
         else:
             print(_summary(js))
-        return 0
+        return _loud(js)
 
     from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.contract import INPUT_TOPICS
 
     config = load_config(args.params)
     surrogate = load_surrogate(config.surrogate_path or None)
-    data = read_monitoring(args.bag, topics=config.input_topics())
+    # the air temperature may be absent: the shadow then runs uncompensated and says so
+    data = read_monitoring(args.bag, required=list(INPUT_TOPICS)[:2], topics=config.input_topics())
     shadow = Shadow(config, surrogate)
     result = shadow.run(data, progress=show)
     js = result.to_json()
@@ -190,4 +230,4 @@ def run(args: argparse.Namespace) -> int:
         emit_json(js)
     else:
         print(_summary(js))
-    return 0
+    return _loud(js)

@@ -85,7 +85,7 @@ class ShadowConfig:
     event_detection: bool = True
     event_trigger_probability: float = 0.999
     event_probability: float = 0.999999
-    event_confirm_windows: int = 3
+    event_confirm_windows: int = 4
     event_max_pending: int = 15
     # gating
     force_min_n: float = 1.0

@@ -18,12 +18,12 @@ freedom.
      the step like noise, ``sum (v_i - step)' S1^-1 (v_i - step)`` below the chi-square bound, with
      at least ``event_confirm_windows`` windows) has ``T_j* > h_event``
      (``event_probability``) *and* the innovation jumps there: from the window before ``j*`` to
-     one of the next three, ``v_b - v_a`` beyond ``h_trigger`` under its AR(1) covariance
+     one of the next three, ``v_b - v_a`` beyond ``h_event`` under its AR(1) covariance
      (variance ``2 (1 - phi^d) R`` per channel; a slow wander of autocorrelated noise drifts, a
      step jumps). The
      windows from ``j*`` on start a new segment; windows before it are handled as in *transient*;
-   - *transient*: the latest window is back (closer to no change than to the step): the earlier
-     pending windows were a passing excursion, such as a test car. Those beyond ``h_outlier``
+   - *transient*: the latest window is back (closer to no change than to the step of the whole
+     run): the earlier pending windows were a passing excursion, such as a test car. Those beyond ``h_outlier``
      (``mahalanobis_probability``) are rejected as outliers, the others are ordinary windows; the
      latest window is judged afresh;
    - after ``event_max_pending`` windows a decision is forced: an event if a candidate qualifies,
@@ -116,13 +116,13 @@ class ChangeDetector:
         trigger_probability: float = 0.999,
         event_probability: float = 1.0 - 1e-6,
         outlier_probability: float = 1.0 - 1e-6,
-        confirm: int = 3,
+        confirm: int = 4,
         max_pending: int = 15,
         consistency_probability: float = 0.999,
     ) -> None:
         self.h_trigger = float(stats.chi2.ppf(trigger_probability, 2))
         self.h_event = float(stats.chi2.ppf(event_probability, 2))
-        self.h_jump = self.h_trigger
+        self.h_jump = self.h_event
         self.h_outlier = float("inf") if outlier_probability >= 1.0 else float(stats.chi2.ppf(outlier_probability, 2))
         self.confirm = int(confirm)
         self.max_pending = int(max_pending)
@@ -160,9 +160,10 @@ class ChangeDetector:
             self.pending = [item]
             return Decision()
         self.pending.append(item)
-        best = self._best()
-        if self._d2(item, np.zeros(2)) < self._d2(item, best.step):
-            return self._transient()
+        cands = self._candidates()
+        if self._d2(item, np.zeros(2)) < self._d2(item, cands[0].step):
+            return self._transient()  # back to where the run started from: it was passing by
+        best = self._best(cands)
         n_after = len(self.pending) - best.j
         if self._qualifies(best) and best.consistent and n_after >= self.confirm:
             return self._event(best)
@@ -244,8 +245,8 @@ class ChangeDetector:
             out.append(_Candidate(j, t, step, bool(scatter <= bound), self._jump(j)))
         return out
 
-    def _best(self) -> _Candidate:
-        cands = self._candidates()
+    def _best(self, cands: list[_Candidate] | None = None) -> _Candidate:
+        cands = self._candidates() if cands is None else cands
         good = [c for c in cands if c.consistent and c.jump > self.h_jump] or [c for c in cands if c.consistent]
         return max(good or cands, key=lambda c: c.glr)
 
