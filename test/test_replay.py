@@ -134,7 +134,7 @@ def test_topic_parameters_rename_what_replay_reads_and_writes(
     assert MEAN_TOPIC not in out and len(out[RENAMED["topic_mean"]][1]) == ref["windows"]["closed"]
     # without the parameters the renamed bag lacks the contract topics: one line, exit 2
     assert main(["replay", str(bag)]) == 2
-    assert "missing topic(s) /bridge/air_temperature" in capsys.readouterr().err
+    assert "missing topic(s) /bridge/frc_01/force" in capsys.readouterr().err
 
 
 def test_topic_parameters_are_validated() -> None:

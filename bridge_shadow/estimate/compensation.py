@@ -62,6 +62,7 @@ class CompensationFit:
         minv: (2, q, q) inverse of the fit matrix ``M`` (for the curve's uncertainty).
         t_lo, t_hi: (2,) C, temperature range the curve was fitted on.
         kappa: (2,) K, the slope prior's weight used.
+        mbar: (2, q) ``M^-1 bbar``; sbar: (2,) ``bbar' M^-1 bbar`` (``bbar = sb / W``), for the variance.
         n: windows in the fit.
 
     """
@@ -75,6 +76,8 @@ class CompensationFit:
     t_lo: np.ndarray
     t_hi: np.ndarray
     kappa: np.ndarray
+    mbar: np.ndarray
+    sbar: np.ndarray
     n: int
 
     def beta_variance_factor(self, sums: FitSums, s: int) -> np.ndarray:
@@ -193,44 +196,63 @@ class Compensation:
         level[~used] = 0.0
         dof = np.maximum(sums.n - n_levels - edf, 1.0)
         kap = np.zeros(2) if kappa is None else np.asarray(kappa, float).reshape(2)
+        bbar = sums.sb / np.maximum(sums.W, 1e-300)[:, None]
+        mbar = np.einsum("cij,cj->ci", minv, bbar)
+        sbar = np.einsum("ci,ci->c", bbar, mbar)
         return CompensationFit(
-            beta, lams, edf, level[:n_seg], dof, minv, sums.t_lo.copy(), sums.t_hi.copy(), kap, sums.n
+            beta, lams, edf, level[:n_seg], dof, minv, sums.t_lo.copy(), sums.t_hi.copy(), kap, mbar, sbar, sums.n
         )
 
     # -- evaluation -------------------------------------------------------------------------------
     def curve(self, fit: CompensationFit, temp_c: np.ndarray) -> np.ndarray:
         """Centred ``g(T)`` (n, 2) N at window temperatures (n, 2); 0 where T is unknown.
 
-        Beyond the fitted range ``[t_lo, t_hi]`` the curve continues from its edge with the FE slope.
+        Beyond the temperatures of the data the penalized curve itself continues: straight on (the
+        curvature penalty) and bending toward the FE slope (the slope prior), so a trend made up
+        by a few windows is not extrapolated while one that days of data show is. Beyond the knot
+        range it continues with the FE slope.
         """
         t = np.asarray(temp_c, float).reshape(-1, 2)
-        out = np.zeros(t.shape)
-        if self.mode == "none":
-            return out
-        for c in range(2):
-            lo, hi = fit.t_lo[c], fit.t_hi[c]
-            ok = np.isfinite(t[:, c])
-            if not ok.any() or not np.isfinite(lo):
-                continue
-            tc = np.clip(t[ok, c], lo, hi)
-            i0, bv = basis_nonzero(self.knots, np.clip(tc, self.t_min, self.t_max))
-            coef = fit.beta[c][i0[:, None] + np.arange(4)]
-            out[ok, c] = np.sum(bv * coef, axis=1) + self.slope_fe[c] * (t[ok, c] - tc)
-        return out
+        ok = np.isfinite(t)
+        i0, bv = self.basis_rows(np.where(ok, t, np.nan))
+        return self.curve_rows(fit, t, i0, bv)
 
     def curve_rows(self, fit: CompensationFit, temp_c: np.ndarray, i0: np.ndarray, bv: np.ndarray) -> np.ndarray:
-        """``curve`` for rows whose basis is already known (n, 2); inside the range it is ``b' beta``."""
+        """``curve`` for rows whose basis is already known: ``b(T)' beta`` (n, 2)."""
         t = np.asarray(temp_c, float).reshape(-1, 2)
         out = np.zeros(t.shape)
         if self.mode == "none":
             return out
         for c in range(2):
             ok = i0[:, c] >= 0
-            if not ok.any() or not np.isfinite(fit.t_lo[c]):
+            if not ok.any():
                 continue
             coef = fit.beta[c][i0[ok, c][:, None] + np.arange(4)]
             out[ok, c] = np.sum(bv[ok, c] * coef, axis=1)
-            outside = ok & ((t[:, c] < fit.t_lo[c]) | (t[:, c] > fit.t_hi[c]))
-            if outside.any():
-                out[outside, c] = self.curve(fit, np.column_stack([t[outside, c]] * 2))[:, c]
+            beyond = ok & ((t[:, c] < self.t_min) | (t[:, c] > self.t_max))
+            if beyond.any():
+                tc = t[beyond, c]
+                out[beyond, c] += self.slope_fe[c] * (tc - np.clip(tc, self.t_min, self.t_max))
+        return out
+
+    def curve_variance(self, fit: CompensationFit, i0: np.ndarray, bv: np.ndarray) -> np.ndarray:
+        """The centred curve's own variance (n, 2) N^2 (Bayesian P-spline posterior), 0 without T.
+
+        ``sigma^2 (b - bbar)' M^-1 (b - bbar)`` with ``bbar = sb / W`` (the curve is centred) and the
+        ``sigma^2 = kappa * slope_sd^2`` that weighed the slope prior of this fit: small where days of
+        data fix the curve, growing beyond the temperatures seen so far.
+        """
+        out = np.zeros(i0.shape, float)
+        if self.mode == "none":
+            return out
+        idx = np.arange(4)
+        for c in range(2):
+            ok = i0[:, c] >= 0
+            if not ok.any():
+                continue
+            cols = i0[ok, c][:, None] + idx  # (n, 4)
+            block = fit.minv[c][cols[:, :, None], cols[:, None, :]]  # (n, 4, 4)
+            b = bv[ok, c]
+            quad = np.einsum("ni,nij,nj->n", b, block, b) - 2.0 * np.sum(b * fit.mbar[c][cols], axis=1)
+            out[ok, c] = fit.kappa[c] * self.slope_sd**2 * np.maximum(quad + fit.sbar[c], 0.0)
         return out

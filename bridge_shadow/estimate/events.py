@@ -144,6 +144,19 @@ class ChangeDetector:
         dof = max(float(dof), 1.0)
         self.inflation = float(dof / special.chdtri(dof, 0.95))
 
+    def rebase(self, k: int, v: Vec) -> None:
+        """The estimate or the curve changed (a refit): window ``k``'s innovation is now ``v``.
+
+        The jump test compares innovations of neighbouring windows; across a refit they refer to
+        different estimates, so the reference window is re-expressed against the new one.
+        """
+        p = self.prev
+        if p is not None and p.k == k:
+            if isinstance(p.v, tuple):
+                self.prev = Pending(k, v, p.r_window, p.apa, None)
+            else:
+                self.prev = Pending(k, np.array(v), p.r_window, p.apa, None)
+
     # -- per window -----------------------------------------------------------------------------
     def step(self, k: int, v: Vec, r_window: Sym, apa: Sym, payload: Any) -> Decision:
         """Take window ``k``'s innovation ``v`` (N) with ``R1 / m`` and ``A P A'`` (N^2, symmetric 2x2

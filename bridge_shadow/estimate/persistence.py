@@ -28,7 +28,7 @@ __all__ = ["restore_shadow", "shadow_state"]
 
 _VERSION = 2
 _NONE = -(2**62)
-_FIT_FIELDS = ("beta", "lam", "edf", "level", "dof", "minv", "t_lo", "t_hi", "kappa", "n")
+_FIT_FIELDS = ("beta", "lam", "edf", "level", "dof", "minv", "t_lo", "t_hi", "kappa", "mbar", "sbar", "n")
 
 
 def _opt(value: int | None) -> int:

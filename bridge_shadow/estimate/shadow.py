@@ -80,7 +80,7 @@ class Window:
     ``event`` (the first window of a new segment).
     """
 
-    __slots__ = ("action", "bv", "event_end", "force", "g", "g_fit", "i0", "k", "reason", "samples", "temp")
+    __slots__ = ("action", "bv", "event_end", "force", "g", "g_fit", "gvar", "i0", "k", "reason", "samples", "temp")
 
     def __init__(
         self, k: int, samples: np.ndarray, force: np.ndarray, temp: np.ndarray, reason: str, i0: np.ndarray, bv: np.ndarray
@@ -95,6 +95,7 @@ class Window:
         self.action: str | None = "invalid" if reason else None
         self.event_end = False  # the last window of an event's confirmation run
         self.g = (0.0, 0.0)  # the centred curve at this window's temperature, N
+        self.gvar = (0.0, 0.0)  # the curve's own variance there, N^2
         self.g_fit = -1  # the fit that ``g`` comes from
 
 
@@ -192,6 +193,7 @@ class Shadow:
         self._ckpt_ns: int | None = None
         self._first_ns: int | None = None
         self._last_judged = -1
+        self._last_ok: Window | None = None  # the last window used (the jump test's reference)
 
     # -- input ------------------------------------------------------------------------------
     @property
@@ -349,17 +351,28 @@ class Shadow:
         if self.fit is None:
             return
         g = self.compensation.curve_rows(self.fit, temp, i0, bv).tolist()
-        for w, gw in zip(windows, g, strict=True):
+        gvar = self.compensation.curve_variance(self.fit, i0, bv).tolist()
+        for w, gw, vw in zip(windows, g, gvar, strict=True):
             w.g = (gw[0], gw[1])
+            w.gvar = (vw[0], vw[1])
             w.g_fit = self._fit_id
 
     # -- judging and applying ---------------------------------------------------------------------
     def _curve(self, w: Window) -> tuple[float, float]:
         """Centred ``g(T)`` (N, per channel) of one window (0 without temperature or before a fit)."""
         if w.g_fit != self._fit_id and self.fit is not None:
-            g = self.compensation.curve_rows(self.fit, w.temp[None, :], w.i0[None, :], w.bv[None, :])[0]
-            w.g, w.g_fit = (float(g[0]), float(g[1])), self._fit_id
+            self._precompute_curve([w], w.temp[None, :], w.i0[None, :], w.bv[None, :])
         return w.g
+
+    def _innovation(self, w: Window) -> tuple[float, float]:
+        """``v = y - u0 - g(T) - A x`` (N) of one window against the current curve and estimate."""
+        g0, g1 = self._curve(w)
+        (x0, x1), _ = self.filter.predict_floats((w.k + 1) * self._w_ns)
+        a = self._af
+        return (
+            float(w.force[0]) - self._u0f[0] - g0 - (a[0] * x0 + a[1] * x1),
+            float(w.force[1]) - self._u0f[1] - g1 - (a[2] * x0 + a[3] * x1),
+        )
 
     def _judge(self, w: Window) -> None:
         """Innovation of one usable window against the current estimate, then the detector's verdict.
@@ -368,21 +381,10 @@ class Shadow:
         ``A P A'`` (plain floats: this runs for every window).
         """
         self._last_judged = w.k
-        g0, g1 = self._curve(w)
-        f0, f1 = float(w.force[0]), float(w.force[1])
-        (x0, x1), P = self.filter.predict_floats((w.k + 1) * self._w_ns)
-        a = self._af
-        v = (f0 - self._u0f[0] - g0 - (a[0] * x0 + a[1] * x1), f1 - self._u0f[1] - g1 - (a[2] * x0 + a[3] * x1))
-        apa = congruence(a, P)
-        t0, t1 = float(w.temp[0]), float(w.temp[1])
-        lo, hi = self._range
-        if t0 < lo[0] or t0 > hi[0] or t1 < lo[1] or t1 > hi[1]:
-            # beyond the fitted range the curve follows the FE slope: its error grows with the
-            # distance, by the slope prior's standard deviation per kelvin
-            sd = self.config.thermal_prior_sd_n_per_k
-            d0 = max(lo[0] + _RANGE_MARGIN_K - t0, t0 - hi[0] + _RANGE_MARGIN_K, 0.0) * sd
-            d1 = max(lo[1] + _RANGE_MARGIN_K - t1, t1 - hi[1] + _RANGE_MARGIN_K, 0.0) * sd
-            apa = (apa[0] + d0 * d0, apa[1] + d0 * d1, apa[2] + d1 * d1)
+        v = self._innovation(w)
+        apa = congruence(self._af, self.filter.predict_floats((w.k + 1) * self._w_ns)[1])
+        gv0, gv1 = w.gvar  # the curve's own uncertainty (large beyond the temperatures seen so far)
+        apa = (apa[0] + gv0, apa[1], apa[2] + gv1)
         r_window = self.noise.window_floats(float(w.samples[0]), float(w.samples[1]))
         if not self.config.event_detection:
             infl = self.detector.inflation
@@ -445,6 +447,7 @@ class Shadow:
             self.filter.open_segment(w.k, self._block_jump * dt_blocks)
         z = (float(w.force[0]) - self._u0f[0] - g0, float(w.force[1]) - self._u0f[1] - g1)
         self.filter.accept(end_ns, w.samples, z)
+        self._last_ok = w
         if add_rows:
             y = w.force - self.u0
             seg = self.filter.segment
@@ -468,6 +471,7 @@ class Shadow:
             self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, 0))
             self._n_accepted += 1
         self._refit(reselect=True, online=False)
+        self._refit(reselect=True, online=False)  # the slope prior, weighed with the noise just learned
         for w in warm:
             w.action = "warm"
 
@@ -510,6 +514,9 @@ class Shadow:
         if not online:
             self.filter.restart_current()
         self.detector.set_noise(self.noise.phi, float(np.min(self.noise.dof)))
+        last = self._last_ok
+        if last is not None:  # the jump test's reference window, against the new curve and estimate
+            self.detector.rebase(last.k, self._innovation(last))
         self._refit_at = self.sums.n + cfg.refit_windows
 
     def _output(self, w: Window, compensated: np.ndarray, updated: bool, reason: str, event: bool = False) -> WindowOutput:
