@@ -87,6 +87,7 @@ class ShadowConfig:
     event_probability: float = 0.999999
     event_confirm_windows: int = 4
     event_max_pending: int = 15
+    event_jump_rule: str = "both"
     # gating
     force_min_n: float = 1.0
     force_max_n: float = 5.0e6
@@ -154,6 +155,10 @@ class ShadowConfig:
         need(0.0 < self.event_trigger_probability < 1.0, "event_trigger_probability must be in (0, 1)")
         need(0.0 < self.event_probability < 1.0, "event_probability must be in (0, 1)")
         need(self.event_confirm_windows >= 1, "event_confirm_windows must be >= 1")
+        need(
+            self.event_jump_rule in (*PRIOR_RULES, "prior"),
+            f"event_jump_rule must be one of {(*PRIOR_RULES, 'prior')}",
+        )
         need(
             self.event_max_pending > self.event_confirm_windows,
             "event_max_pending must exceed event_confirm_windows",

@@ -49,7 +49,7 @@ from bridge_shadow.estimate.events import ChangeDetector, Decision
 from bridge_shadow.estimate.gate import REASONS, TopicGate
 from bridge_shadow.estimate.inputs import TopicLedger
 from bridge_shadow.estimate.noise import NoiseModel
-from bridge_shadow.estimate.prior import configured_prior_sigma
+from bridge_shadow.estimate.prior import configured_prior_sigma, prior_sigma
 from bridge_shadow.estimate.result import EventRecord, ReplayResult, WindowOutput
 from bridge_shadow.estimate.segments import SegmentChain
 from bridge_shadow.estimate.small import congruence, quad_inv
@@ -163,7 +163,11 @@ class Shadow:
         self.drifting = bool(np.any(q_rate > 0))
         self._block_k = max(1, round(config.drift_block_s / config.window_s))  # windows per block
         self._block_jump = np.diag(q_rate * self._block_k * config.window_s)  # Q dt of one block, m^2
-        self.filter = SegmentChain(self.A, prior_cov, prior_cov)
+        jump_sd = (
+            self.prior_sigma_m if config.event_jump_rule == "prior" else prior_sigma(self.A, self.u0, config.event_jump_rule)
+        )
+        self.jump_sigma_m = jump_sd
+        self.filter = SegmentChain(self.A, prior_cov, np.diag(jump_sd**2))
         self.detector = ChangeDetector(
             config.event_trigger_probability,
             config.event_probability,
@@ -623,8 +627,12 @@ class Shadow:
         }
 
     def prior_info(self) -> dict[str, Any]:
-        """The prior in use: sigma per support (m) and where it comes from."""
-        return {"sigma_m": self.prior_sigma_m.tolist(), "source": self.prior_source}
+        """The prior in use: sigma per support (m), where it comes from, and an event's opening (m)."""
+        return {
+            "sigma_m": self.prior_sigma_m.tolist(),
+            "source": self.prior_source,
+            "event_jump_sigma_m": self.jump_sigma_m.tolist(),
+        }
 
     def diagnostics(self, now_ns: int | None = None) -> dict[str, Any]:
         """Health and key values (SI): level OK/WARN/ERROR, message, posterior, counts, events."""
