@@ -18,8 +18,9 @@ least-squares problem with weights ``m_w`` (samples per window):
   temperature clusters of different segments, in a narrow range of a few windows) ``g`` follows
   the FE slope, and the change of ``g`` across a gap of ``D`` kelvin has a prior standard
   deviation of about ``thermal_prior_sd_n_per_k * sqrt(D / 1 K)``: ``kappa = sigma^2 / sd^2 * 1 K``
-  with ``sigma^2`` the noise model's long-run per-sample variance (the data term's scale). A day of
-  data outweighs it by orders of magnitude. (``beta' Omega1 beta = int g'^2``, exact.)
+  with ``sigma^2`` the noise model's per-sample variance (the data term's scale; the marginal one,
+  so that a misfit that the noise model takes for slow noise cannot pin the curve to the prior). A
+  day of data outweighs it by orders of magnitude. (``beta' Omega1 beta = int g'^2``, exact.)
 - Outside the temperature range seen so far ``g`` continues with the FE slope from the edge,
   never with a trend extrapolated from a few windows.
 - ``lambda`` is chosen by REML (or GCV) on the profiled sums, the slope prior counted as data, in

@@ -68,7 +68,7 @@ class ShadowConfig:
     spline_segments: int = 13
     thermal_prior_sd_n_per_k: float = 500.0
     warmup_windows: int = 10
-    refit_windows: int = 30
+    refit_windows: int = 60
     lambda_reselect_growth: float = 1.25
     # settlement prior and process noise
     prior_sigma_m: list[float] = field(default_factory=lambda: [0.0, 0.0])

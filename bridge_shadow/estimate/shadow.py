@@ -502,7 +502,7 @@ class Shadow:
         self._flush_rows()
         cfg = self.config
         lam = None if reselect or not np.all(np.isfinite(self.lam)) else self.lam
-        fit = self.compensation.fit(self.sums, lam, self.compensation.slope_weight(np.diag(self.noise.long_run_cov())))
+        fit = self.compensation.fit(self.sums, lam, self.compensation.slope_weight(np.diag(self.noise.r1)))
         self.fit = fit
         self._fit_id += 1
         self._range = (
@@ -521,7 +521,9 @@ class Shadow:
         last = self._last_ok
         if last is not None:  # the jump test's reference window, against the new curve and estimate
             self.detector.rebase(last.k, self._innovation(last))
-        self._refit_at = self.sums.n + cfg.refit_windows
+        # on a schedule that thins out as the record grows: a refit every refit_windows windows,
+        # or every 5 % of the windows already fitted (the curve and the noise settle)
+        self._refit_at = self.sums.n + max(cfg.refit_windows, self.sums.n // 20)
 
     def _output(self, w: Window, compensated: np.ndarray, updated: bool, reason: str, event: bool = False) -> WindowOutput:
         x, P = self.filter.posterior()
