@@ -1,4 +1,4 @@
-"""Settlement events on truth-twin bags: are steps and drifts followed, and are the 95 % intervals honest?
+"""Settlement events on truth-twin bags: are steps and drifts followed, are the 95 % intervals honest.
 
 For each scenario and each of ``--seeds`` seeds, a truth-twin record (forces every 5 s, the twin's
 weather, AR(1) load-cell noise, dropouts, NaNs) goes through ``Shadow.run`` with the default
@@ -118,7 +118,9 @@ def one(args: tuple[str, int, str]) -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--seeds", type=int, default=200)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--only", choices=list(SCENARIOS), action="append")
@@ -137,9 +139,13 @@ def main() -> None:
             shift = np.array([r["shift"] for r in rows])
             print(f"== {name} ({time.perf_counter() - t0:.0f} s)")
             if args.world == "strong":
-                print(f"   paper's level minus the twin's: median |shift| {1e3 * np.median(np.abs(shift)):.4f} mm")
+                print(
+                    "   paper's level minus the twin's: median |shift| "
+                    f"{1e3 * np.median(np.abs(shift)):.4f} mm"
+                )
             print(
-                f"   final 95 %: ellipse {np.mean(d2 <= 5.991):.3f}, south {np.mean(np.abs(z[:, 0]) <= 1.96):.3f}, "
+                f"   final 95 %: ellipse {np.mean(d2 <= 5.991):.3f}, "
+                f"south {np.mean(np.abs(z[:, 0]) <= 1.96):.3f}, "
                 f"north {np.mean(np.abs(z[:, 1]) <= 1.96):.3f}; mean d2 {d2.mean():.2f} (2 if calibrated)"
             )
             print(
@@ -151,7 +157,8 @@ def main() -> None:
                 sd2 = np.concatenate([r["size_d2"] for r in rows])
                 follow = np.concatenate([r["follow"] for r in rows])
                 print(
-                    f"   change time: exact in {np.mean(terr == 0):.3f}, within 1 window {np.mean(np.abs(terr) <= 1):.3f}"
+                    f"   change time: exact in {np.mean(terr == 0):.3f}, "
+                    f"within 1 window {np.mean(np.abs(terr) <= 1):.3f}"
                     f"; step size 95 % region holds the truth in {np.mean(sd2 <= 5.991):.3f}"
                 )
                 print(

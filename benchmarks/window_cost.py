@@ -35,7 +35,7 @@ T0 = 1_646_667_300 * 10**9
 
 
 def make_data(hours: float, force_hz: float, seed: int = 0) -> MonitoringData:
-    """Forces at ``force_hz`` following a daily temperature swing, AR(1) noise, one 1 mm step."""
+    """Make forces at ``force_hz`` following a daily temperature swing, AR(1) noise, one 1 mm step."""
     rng = np.random.default_rng(seed)
     n = int(hours * 3600 * force_hz)
     dt = round(1e9 / force_hz)
@@ -56,14 +56,18 @@ def make_data(hours: float, force_hz: float, seed: int = 0) -> MonitoringData:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--days", type=float, default=2.0, help="record length at 1 Hz (100 Hz: 1/24 of it)")
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
     sur = load_surrogate()
     cases = [("1 Hz", 1.0, 24.0 * args.days), ("100 Hz", 100.0, args.days)]
-    print(f"{'forces':>7} {'windows':>8} {'messages':>10} {'raw read':>12} {'Shadow.run':>12} "
-          f"{'us/window':>10} {'us/msg':>8} {'shadow/raw':>11} {'events':>7}")
+    print(
+        f"{'forces':>7} {'windows':>8} {'messages':>10} {'raw read':>12} {'Shadow.run':>12} "
+        f"{'us/window':>10} {'us/msg':>8} {'shadow/raw':>11} {'events':>7}"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         for label, hz, hours in cases:
             data = make_data(hours, hz)

@@ -1,5 +1,8 @@
-"""Compensation fitted jointly with the segment levels: equals the dense penalized least squares, keeps a
-step in the levels, follows the FE slope where the data say nothing."""
+"""Compensation fitted jointly with the segment levels.
+
+It equals the dense penalized least squares, keeps a step in the levels, and follows the FE slope
+where the data say nothing.
+"""
 
 from __future__ import annotations
 

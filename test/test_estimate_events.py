@@ -1,5 +1,8 @@
-"""Event detector on synthetic innovations: AR(1) noise raises no event, a step is found at its window,
-a spike is an outlier, a passing load is not an event, a slow ramp is data (no lock-out)."""
+"""Event detector on synthetic innovations.
+
+AR(1) noise raises no event, a step is found at its window,
+a spike is an outlier, a passing load is not an event, a slow ramp is data (no lock-out).
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,8 @@
-"""Noise model: the AR(1) factor is the variance of a mean of an AR(1) run; estimates from residual moments
-recover a simulated AR(1) process; the float path equals the array path."""
+"""Noise model.
+
+The AR(1) factor is the variance of a mean of an AR(1) run; estimates from residual moments
+recover a simulated AR(1) process; the float path equals the array path.
+"""
 
 from __future__ import annotations
 

@@ -23,7 +23,9 @@ def test_rule_from_the_fe_surrogate_and_the_override() -> None:
         np.testing.assert_allclose(both, 14.1e-3, rtol=0.01)
     assert np.array_equal(Shadow(ShadowConfig(), sur).prior_sigma_m, one)
     paper = Shadow(ShadowConfig(prior_sigma_m=[3e-4, 3e-4]), sur)
-    assert np.array_equal(paper.prior_sigma_m, [3e-4, 3e-4]) and paper.prior_info()["source"] == "prior_sigma_m"
+    assert (
+        np.array_equal(paper.prior_sigma_m, [3e-4, 3e-4]) and paper.prior_info()["source"] == "prior_sigma_m"
+    )
     with pytest.raises(ConfigError):
         ShadowConfig(prior_rule="half")
     with pytest.raises(ConfigError):

@@ -1,5 +1,8 @@
-"""Real records of the bridge: the 2022-04-11 reference record followed by the record after the first
-10 mm lowering of the whole central support, imported as one stream."""
+"""Real records of the bridge.
+
+The 2022-04-11 reference record followed by the record after the first
+10 mm lowering of the whole central support, imported as one stream.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""Truth-twin scenarios and an independent record: steps are followed within a few windows with an honest
+"""Truth-twin scenarios and an independent record.
+
+Steps are followed within a few windows with an honest
 interval, a record without events ends exactly where the paper's batch method does.
 
 The coverage over 200 seeds per scenario is measured by ``benchmarks/event_coverage.py``; these tests run
@@ -57,7 +59,7 @@ def _followed(res, truth, t_day: float, step: np.ndarray, within: int = 8) -> in
     ],
 )
 def test_twin_steps_are_found_and_followed_within_a_few_windows(name: str, steps: list) -> None:
-    shadow, res, truth = _run(steps, THERMAL, days=3.0)
+    _, res, truth = _run(steps, THERMAL, days=3.0)
     k0 = truth["start_ns"] // W
     assert len(res.events) == len(steps), (name, [e.window - k0 for e in res.events])
     for (t_day, ds, dn), ev in zip(steps, res.events, strict=True):
@@ -116,8 +118,10 @@ def test_a_record_without_events_ends_at_the_papers_batch_posterior() -> None:
 
 
 def test_an_independent_record_is_recovered_as_the_batch_method_does() -> None:
-    """Not from the twin: 1 day at 1 Hz, forces following the air at 400/300 N/K, AR(1) noise
-    (phi 0.9, 60 N per sample), settlement offset +0.7/-0.4 mm."""
+    """Not from the twin: 1 day at 1 Hz, forces following the air at 400/300 N/K.
+
+    AR(1) noise (phi 0.9, 60 N per sample), settlement offset +0.7/-0.4 mm.
+    """
     rng = np.random.default_rng(42)
     n = 86_400
     t0 = 1_650_000_000 * 10**9

@@ -1,5 +1,8 @@
-"""Settlement over segments: one segment is the paper's closed form; the online update equals the exact
-refresh; two segments with a jump equal the dense joint Gaussian; the float helpers equal numpy."""
+"""Settlement over segments.
+
+One segment is the paper's closed form; the online update equals the exact
+refresh; two segments with a jump equal the dense joint Gaussian; the float helpers equal numpy.
+"""
 
 from __future__ import annotations
 
@@ -28,7 +31,9 @@ def _setup(n: int, seg: np.ndarray, seed: int = 0):
     sums = FitSums(comp.q)
     sums.add(rows)
     noise = NoiseModel(np.array([60.4, 82.7]))
-    noise.update(Moments(np.array([[3e5, 5e4], [5e4, 4e5]]) * n, np.zeros(2), n, 0), np.zeros(2), np.array([n]))
+    noise.update(
+        Moments(np.array([[3e5, 5e4], [5e4, 4e5]]) * n, np.zeros(2), n, 0), np.zeros(2), np.array([n])
+    )
     return rows, sums, comp.fit(sums), noise
 
 
@@ -96,4 +101,6 @@ def test_float_helpers_equal_numpy() -> None:
     np.testing.assert_allclose(quad_inv(sym, tuple(v)), v @ np.linalg.solve(m, v))
     np.testing.assert_allclose(sym_vec(sym, tuple(v)), m @ v)
     np.testing.assert_allclose(mat_vec(tuple(t.ravel()), tuple(v)), t @ v)
-    np.testing.assert_allclose(np.array(congruence(tuple(t.ravel()), sym)), (t @ m @ t.T)[[0, 0, 1], [0, 1, 1]])
+    np.testing.assert_allclose(
+        np.array(congruence(tuple(t.ravel()), sym)), (t @ m @ t.T)[[0, 0, 1], [0, 1, 1]]
+    )

@@ -1,5 +1,8 @@
-"""Sufficient statistics: added in any batches they equal direct sums; residual moments from them equal a
-direct pass over the residuals."""
+"""Sufficient statistics.
+
+Added in any batches they equal direct sums; residual moments from them equal a
+direct pass over the residuals.
+"""
 
 from __future__ import annotations
 

@@ -107,7 +107,8 @@ def test_replay_on_the_real_records(
     assert np.all(np.isfinite(mean)) and np.all(np.isfinite(sd))
     # about 234 / 234 kN against u0 of the surrogate: a settlement of the order of a millimetre
     assert np.all(np.abs(mean) < 5e-3)
-    assert np.all(sd > 0) and np.all(sd < 0.5 * np.array(js["prior"]["sigma_m"]))  # the data narrowed the prior
+    # the data narrowed the prior
+    assert np.all(sd > 0) and np.all(sd < 0.5 * np.array(js["prior"]["sigma_m"]))
     assert js["windows"]["updates"] >= 10
     assert js["messages"]["used"] > 100_000
 

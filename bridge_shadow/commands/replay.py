@@ -22,7 +22,9 @@ warnings, the prior in use, spline edf and lambda per channel.
 
 Nothing fails silently: a missing air-temperature topic runs uncompensated, a topic whose every
 message is rejected is named with the reason and the expected value (WARN lines on stderr and
-"warnings" in the JSON), and a replay in which no window updated the estimate exits with 1. --out and --plots work in both modes (live: drawn from the node's history
+"warnings" in the JSON), and a replay in which no window updated the estimate exits with 1.
+
+--out and --plots work in both modes (live: drawn from the node's history
 service and final checkpoint). A progress bar shows on a terminal unless --json.
 """
 
@@ -143,7 +145,9 @@ def _summary(js: dict[str, Any]) -> str:
     prior = js.get("prior", {})
     if prior:
         lines.append(
-            "prior: sigma " + "/".join(f"{1e3 * s:.2f}" for s in prior["sigma_m"]) + f" mm ({prior['source']})"
+            "prior: sigma "
+            + "/".join(f"{1e3 * s:.2f}" for s in prior["sigma_m"])
+            + f" mm ({prior['source']})"
         )
     for i, e in enumerate(js.get("events", []), 1):
         size = ", ".join(

@@ -73,7 +73,7 @@ def paper_batch(
     phi_max: float = 0.999,
     floor: bool = True,
 ) -> BatchResult:
-    """The batch posterior of a record of ``n`` window means.
+    """Return the batch posterior of a record of ``n`` window means.
 
     Args:
         k: (n,) window indices (adjacent windows differ by one).
@@ -95,7 +95,6 @@ def paper_batch(
     omega, omega1 = gram_penalty(knots), gram_slope(knots)
     e_vec = np.zeros(q)
     e_vec[0], e_vec[-1] = -1.0, 1.0
-    span = t_max_c - t_min_c
     sigma_e = np.array([60.4, 82.7]) if sigma_e is None else np.asarray(sigma_e, float)
     beta = np.zeros((2, q))
     level = np.zeros(2)

@@ -82,7 +82,7 @@ class CompensationFit:
     n: int
 
     def beta_variance_factor(self, sums: FitSums, s: int) -> np.ndarray:
-        """(2,) ``v_s' M^-1 v_s`` per channel: the curve's share of segment ``s``'s level variance / sigma^2."""
+        """Return (2,) ``v_s' M^-1 v_s``: the curve's share of segment ``s``'s level variance / sigma^2."""
         out = np.zeros(2)
         if sums.n_segments < 2:
             return out
@@ -147,7 +147,9 @@ class Compensation:
         """(2,) ``kappa`` (K) of the slope prior for per-sample noise variances ``sigma2`` (2,) N^2."""
         return np.asarray(sigma2, float).reshape(2) / self.slope_sd**2 * 1.0
 
-    def fit(self, sums: FitSums, lam: np.ndarray | None = None, kappa: np.ndarray | None = None) -> CompensationFit:
+    def fit(
+        self, sums: FitSums, lam: np.ndarray | None = None, kappa: np.ndarray | None = None
+    ) -> CompensationFit:
         """Fit both channels.
 
         ``lam`` (2,) reuses smoothing parameters (None: select them by REML/GCV); ``kappa`` (2,) K
@@ -201,7 +203,18 @@ class Compensation:
         mbar = np.einsum("cij,cj->ci", minv, bbar)
         sbar = np.einsum("ci,ci->c", bbar, mbar)
         return CompensationFit(
-            beta, lams, edf, level[:n_seg], dof, minv, sums.t_lo.copy(), sums.t_hi.copy(), kap, mbar, sbar, sums.n
+            beta,
+            lams,
+            edf,
+            level[:n_seg],
+            dof,
+            minv,
+            sums.t_lo.copy(),
+            sums.t_hi.copy(),
+            kap,
+            mbar,
+            sbar,
+            sums.n,
         )
 
     # -- evaluation -------------------------------------------------------------------------------
@@ -218,7 +231,9 @@ class Compensation:
         i0, bv = self.basis_rows(np.where(ok, t, np.nan))
         return self.curve_rows(fit, t, i0, bv)
 
-    def curve_rows(self, fit: CompensationFit, temp_c: np.ndarray, i0: np.ndarray, bv: np.ndarray) -> np.ndarray:
+    def curve_rows(
+        self, fit: CompensationFit, temp_c: np.ndarray, i0: np.ndarray, bv: np.ndarray
+    ) -> np.ndarray:
         """``curve`` for rows whose basis is already known: ``b(T)' beta`` (n, 2)."""
         t = np.asarray(temp_c, float).reshape(-1, 2)
         out = np.zeros(t.shape)
@@ -237,7 +252,7 @@ class Compensation:
         return out
 
     def curve_variance(self, fit: CompensationFit, i0: np.ndarray, bv: np.ndarray) -> np.ndarray:
-        """The centred curve's own variance (n, 2) N^2 (Bayesian P-spline posterior), 0 without T.
+        """Return the centred curve's own variance (n, 2) N^2 (Bayesian P-spline posterior), 0 without T.
 
         ``sigma^2 (b - bbar)' M^-1 (b - bbar)`` with ``bbar = sb / W`` (the curve is centred) and the
         ``sigma^2 = kappa * slope_sd^2`` that weighed the slope prior of this fit: small where days of

@@ -23,7 +23,8 @@ freedom.
      step jumps). The
      windows from ``j*`` on start a new segment; windows before it are handled as in *transient*;
    - *transient*: the latest window is back (closer to no change than to the step of the whole
-     run): the earlier pending windows were a passing excursion, such as a test car. Those beyond ``h_outlier``
+     run): the earlier pending windows were a passing excursion, such as a test car. Those beyond
+     ``h_outlier``
      (``mahalanobis_probability``) are rejected as outliers, the others are ordinary windows; the
      latest window is judged afresh;
    - after ``event_max_pending`` windows a decision is forced: an event if a candidate qualifies,
@@ -38,6 +39,7 @@ known yet.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -47,7 +49,12 @@ from scipy import special, stats
 from bridge_shadow.estimate.noise import ar1_factor
 from bridge_shadow.estimate.small import Sym, Vec, quad_inv
 
-__all__ = ["ChangeDetector", "Decision", "Pending"]
+__all__ = ["JUMP_MEMORY", "JUMP_OVER_SEEN", "ChangeDetector", "Decision", "Pending"]
+
+#: An event's jump must exceed this many times the largest jump seen between ordinary windows.
+JUMP_OVER_SEEN = 2.0
+#: Per window, the largest ordinary jump is forgotten by this factor (a half-life of 70 windows).
+JUMP_MEMORY = 0.99
 
 
 def _arr(m: Sym) -> np.ndarray:
@@ -123,12 +130,17 @@ class ChangeDetector:
         self.h_trigger = float(stats.chi2.ppf(trigger_probability, 2))
         self.h_event = float(stats.chi2.ppf(event_probability, 2))
         self.h_jump = self.h_event
-        self.h_outlier = float("inf") if outlier_probability >= 1.0 else float(stats.chi2.ppf(outlier_probability, 2))
+        self.h_outlier = (
+            float("inf") if outlier_probability >= 1.0 else float(stats.chi2.ppf(outlier_probability, 2))
+        )
         self.confirm = int(confirm)
         self.max_pending = int(max_pending)
-        self._chi2_bound = [np.inf] + [float(stats.chi2.ppf(consistency_probability, 2 * k)) for k in range(1, 64)]
+        self._chi2_bound = [np.inf] + [
+            float(stats.chi2.ppf(consistency_probability, 2 * k)) for k in range(1, 64)
+        ]
         self.pending: list[Pending] = []
         self.prev: Pending | None = None
+        self.max_jump = 0.0  # largest jump statistic between ordinary neighbours (slowly forgotten)
         self.n_events = 0
         self.phi = np.zeros(2)
         self.inflation = 1.0
@@ -145,7 +157,7 @@ class ChangeDetector:
         self.inflation = float(dof / special.chdtri(dof, 0.95))
 
     def rebase(self, k: int, v: Vec) -> None:
-        """The estimate or the curve changed (a refit): window ``k``'s innovation is now ``v``.
+        """Re-express the jump test's reference after a refit: window ``k``'s innovation is now ``v``.
 
         The jump test compares innovations of neighbouring windows; across a refit they refer to
         different estimates, so the reference window is re-expressed against the new one.
@@ -159,13 +171,15 @@ class ChangeDetector:
 
     # -- per window -----------------------------------------------------------------------------
     def step(self, k: int, v: Vec, r_window: Sym, apa: Sym, payload: Any) -> Decision:
-        """Take window ``k``'s innovation ``v`` (N) with ``R1 / m`` and ``A P A'`` (N^2, symmetric 2x2
-        as ``(a, b, d)`` floats); return what to do with the held windows.
+        """Take window ``k``'s innovation and return what to do with the held windows.
+
+        ``v`` (N) with ``R1 / m`` and ``A P A'`` (N^2, symmetric 2x2 as ``(a, b, d)`` floats).
         """
         infl = self.inflation
         if not self.pending:
             total = (r_window[0] * infl + apa[0], r_window[1] * infl + apa[1], r_window[2] * infl + apa[2])
             if quad_inv(total, v) <= self.h_trigger:  # the common case, on floats
+                self._note_jump(k, v, r_window)
                 self.prev = Pending(k, v, r_window, apa, None)  # kept lazily as floats
                 return Decision(accept=[payload])
         item = Pending(k, np.array(v), _arr(r_window) * infl, _arr(apa), payload)
@@ -198,7 +212,29 @@ class ChangeDetector:
 
     # -- internals ------------------------------------------------------------------------------
     def _qualifies(self, c: _Candidate) -> bool:
-        return c.glr > self.h_event and c.jump > self.h_jump
+        return c.glr > self.h_event and c.jump > max(self.h_jump, JUMP_OVER_SEEN * self.max_jump)
+
+    def _note_jump(self, k: int, v: Vec, r_window: Sym) -> None:
+        """Track the largest jump statistic between neighbouring ordinary windows (slowly forgotten).
+
+        An event's jump must stand out from those too: early in a record, while the noise model
+        still underestimates the scatter, ordinary jumps look large on the same wrong scale.
+        """
+        p = self.prev
+        self.max_jump *= JUMP_MEMORY
+        if p is None or not isinstance(p.v, tuple) or not 0 < k - p.k <= 3:
+            return
+        fa = 1.0 - self.phi[0] ** (k - p.k)
+        fb = 1.0 - self.phi[1] ** (k - p.k)
+        a0, b0, d0 = p.r_window
+        a1, b1, d1 = r_window
+        ra, rb, rd = a0 + a1, b0 + b1, d0 + d1
+        # V = the jump covariance of ``_jump`` (per-channel AR(1) variance, the channels' correlation)
+        scale = math.sqrt(max(fa, 1e-6) * max(fb, 1e-6))
+        V = (ra * max(fa, 1e-6), rb * scale, rd * max(fb, 1e-6))
+        j = quad_inv(V, (v[0] - p.v[0], v[1] - p.v[1])) / self.inflation
+        if j > self.max_jump:
+            self.max_jump = j
 
     @staticmethod
     def _d2(item: Pending, step: np.ndarray) -> float:
@@ -206,7 +242,7 @@ class ChangeDetector:
         return float(d @ np.linalg.solve(item.r_window + item.apa, d))
 
     def _reference(self, j: int) -> Pending | None:
-        """The window before candidate start ``j`` (a held one, or the last ordinary window)."""
+        """Return the window before candidate start ``j`` (a held one, or the last ordinary window)."""
         if j > 0:
             return self.pending[j - 1]
         p = self.prev
@@ -260,7 +296,9 @@ class ChangeDetector:
 
     def _best(self, cands: list[_Candidate] | None = None) -> _Candidate:
         cands = self._candidates() if cands is None else cands
-        good = [c for c in cands if c.consistent and c.jump > self.h_jump] or [c for c in cands if c.consistent]
+        good = [c for c in cands if c.consistent and c.jump > self.h_jump] or [
+            c for c in cands if c.consistent
+        ]
         return max(good or cands, key=lambda c: c.glr)
 
     def _split_ordinary(self, items: list[Pending]) -> tuple[list[Any], list[Any]]:

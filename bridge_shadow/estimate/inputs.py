@@ -39,7 +39,12 @@ class TopicLedger:
     last_value: float | None = None
 
     def note(
-        self, ok: np.ndarray, values: np.ndarray, frame_id: np.ndarray | str | None, counts_before: Counter, counts: Counter
+        self,
+        ok: np.ndarray,
+        values: np.ndarray,
+        frame_id: np.ndarray | str | None,
+        counts_before: Counter,
+        counts: Counter,
     ) -> None:
         """Record one gated batch: ``ok`` mask, the values and frames, and the global counts around it."""
         self.used += int(np.count_nonzero(ok))
@@ -51,7 +56,11 @@ class TopicLedger:
             return
         bad = ~ok
         if self.expected_frame is not None and frame_id is not None:
-            frames = np.full(len(ok), frame_id, dtype=object) if isinstance(frame_id, str) else np.asarray(frame_id, object)
+            frames = (
+                np.full(len(ok), frame_id, dtype=object)
+                if isinstance(frame_id, str)
+                else np.asarray(frame_id, object)
+            )
             wrong = bad & (frames != self.expected_frame) & (frames != "")
             if wrong.any():
                 self.last_frame = str(frames[np.flatnonzero(wrong)[-1]])

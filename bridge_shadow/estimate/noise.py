@@ -59,7 +59,9 @@ class NoiseModel:
 
     """
 
-    def __init__(self, sigma_e: np.ndarray, adaptive: bool = True, phi_max: float = 0.999, floor: bool = True) -> None:
+    def __init__(
+        self, sigma_e: np.ndarray, adaptive: bool = True, phi_max: float = 0.999, floor: bool = True
+    ) -> None:
         self.sigma_e = np.asarray(sigma_e, float).reshape(2)
         self.adaptive = adaptive
         self.phi_max = float(phi_max)
@@ -166,7 +168,13 @@ class NoiseModel:
 
     def state_dict(self) -> dict[str, object]:
         """Plain-data state."""
-        return {"r1": self.r1.copy(), "phi": self.phi.copy(), "n": self.n, "dof": self.dof.copy(), "dof_ar": self.dof_ar.copy()}
+        return {
+            "r1": self.r1.copy(),
+            "phi": self.phi.copy(),
+            "n": self.n,
+            "dof": self.dof.copy(),
+            "dof_ar": self.dof_ar.copy(),
+        }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
         """Restore the estimate."""

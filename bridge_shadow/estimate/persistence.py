@@ -1,4 +1,4 @@
-"""The shadow's whole online state as nested plain data, and back (``Shadow.state_dict`` / ``from_state_dict``).
+"""The shadow's online state as nested plain data, and back (``Shadow.state_dict`` / ``from_state_dict``).
 
 Every part contributes its own ``state_dict``; this module gathers them, plus the windows still on
 their way to an output (the queue, the detector's held windows, the warm-up) and the rows not yet
@@ -40,6 +40,59 @@ def _unopt(value: Any) -> int | None:
     return None if v == _NONE else v
 
 
+def _prev_state(p: Pending | None) -> dict[str, Any]:
+    """Return the jump test's reference window as plain data (floats from the fast path, or arrays)."""
+    if p is None:
+        return {
+            "has": False,
+            "k": 0,
+            "lazy": False,
+            "v": np.zeros(2),
+            "r": np.zeros((2, 2)),
+            "apa": np.zeros((2, 2)),
+        }
+    lazy = isinstance(p.v, tuple)
+
+    def arr(m: Any) -> np.ndarray:
+        return np.array([[m[0], m[1]], [m[1], m[2]]]) if lazy else np.asarray(m, float)
+
+    return {
+        "has": True,
+        "k": p.k,
+        "lazy": lazy,
+        "v": np.asarray(p.v, float),
+        "r": arr(p.r_window),
+        "apa": arr(p.apa),
+    }
+
+
+def _restore_prev(state: dict[str, Any]) -> Pending | None:
+    if not bool(state["has"]):
+        return None
+    v = np.asarray(state["v"], float).reshape(2)
+    r = np.asarray(state["r"], float).reshape(2, 2)
+    apa = np.asarray(state["apa"], float).reshape(2, 2)
+    if bool(state["lazy"]):
+        sym = lambda m: (float(m[0, 0]), float(m[0, 1]), float(m[1, 1]))  # noqa: E731
+        return Pending(int(state["k"]), (float(v[0]), float(v[1])), sym(r), sym(apa), None)
+    return Pending(int(state["k"]), v, r, apa, None)
+
+
+def _window_state(w: Any) -> dict[str, Any]:
+    """Return the last window used as plain data (or none)."""
+    if w is None:
+        return {"has": False}
+    return {
+        "has": True,
+        "k": w.k,
+        "samples": np.asarray(w.samples),
+        "force": np.asarray(w.force, float),
+        "temp": np.asarray(w.temp, float),
+        "i0": np.asarray(w.i0),
+        "bv": np.asarray(w.bv, float),
+    }
+
+
 def shadow_state(shadow: Shadow) -> dict[str, Any]:
     """Return the state of ``shadow`` as nested plain data."""
     queue = list(shadow._queue)
@@ -70,11 +123,14 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "n_events": det.n_events,
             "phi": det.phi.copy(),
             "inflation": det.inflation,
+            "max_jump": det.max_jump,
             "pending_index": np.array([index[id(p.payload)] for p in det.pending], np.int64),
             "pending_v": np.array([p.v for p in det.pending]).reshape(-1, 2),
             "pending_r": np.array([p.r_window for p in det.pending]).reshape(-1, 2, 2),
             "pending_apa": np.array([p.apa for p in det.pending]).reshape(-1, 2, 2),
+            "prev": _prev_state(det.prev),
         },
+        "last_ok": _window_state(shadow._last_ok),
         "queue": {
             "k": np.array([w.k for w in queue], np.int64),
             "samples": np.array([w.samples for w in queue], np.int64).reshape(-1, 2),
@@ -97,7 +153,10 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "seg": np.array([r[6] for r in rows], np.int64),
         },
         "events": json.dumps(
-            [{**e, "step_n": np.asarray(e["step_n"], float).tolist(), "glr": float(e["glr"])} for e in shadow.events]
+            [
+                {**e, "step_n": np.asarray(e["step_n"], float).tolist(), "glr": float(e["glr"])}
+                for e in shadow.events
+            ]
         ),
         "scalars": {
             "n_windows": shadow.n_windows,
@@ -141,7 +200,8 @@ def restore_shadow(
     if bool(state["has_fit"]):
         f = state["fit"]
         shadow.fit = CompensationFit(
-            *(np.asarray(f[name], float) for name in _FIT_FIELDS[:-1]), int(f["n"])  # type: ignore[arg-type]
+            *(np.asarray(f[name], float) for name in _FIT_FIELDS[:-1]),
+            int(f["n"]),  # type: ignore[arg-type]
         )
     shadow.lam = np.asarray(state["lam"], float).reshape(2)
     shadow.noise.load_state_dict(state["noise"])
@@ -172,6 +232,21 @@ def restore_shadow(
     det.n_events = int(d["n_events"])
     det.phi = np.asarray(d["phi"], float).reshape(2)
     det.inflation = float(d["inflation"])
+    det.max_jump = float(d["max_jump"])
+    det.prev = _restore_prev(d["prev"])
+    lw = state["last_ok"]
+    if bool(lw["has"]):
+        shadow._last_ok = Window(
+            int(lw["k"]),
+            np.asarray(lw["samples"]).reshape(2),
+            np.asarray(lw["force"], float).reshape(2),
+            np.asarray(lw["temp"], float).reshape(2),
+            "",
+            np.asarray(lw["i0"]).reshape(2),
+            np.asarray(lw["bv"], float).reshape(2, 4),
+        )
+    if shadow.fit is not None:
+        shadow._set_range(shadow.fit)
     det.pending = [
         Pending(int(queue[int(i)].k), v, r, a, queue[int(i)])
         for i, v, r, a in zip(
@@ -196,7 +271,9 @@ def restore_shadow(
         )
         for i in range(n_rows)
     ]
-    shadow.events = [{**e, "step_n": np.asarray(e["step_n"], float)} for e in json.loads(str(state["events"]))]
+    shadow.events = [
+        {**e, "step_n": np.asarray(e["step_n"], float)} for e in json.loads(str(state["events"]))
+    ]
     sc = state["scalars"]
     shadow.n_windows = int(sc["n_windows"])
     shadow.uncompensated = int(sc["uncompensated"])

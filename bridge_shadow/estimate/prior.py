@@ -57,7 +57,9 @@ def prior_sigma(A: np.ndarray, u0: np.ndarray, rule: str = "one_bearing") -> np.
     return u / stiffness / 3.0
 
 
-def configured_prior_sigma(prior_sigma_m: list[float], rule: str, A: np.ndarray, u0: np.ndarray) -> np.ndarray:
-    """The prior standard deviation (2,) m in use: ``prior_sigma_m`` if set, else the paper's rule."""
+def configured_prior_sigma(
+    prior_sigma_m: list[float], rule: str, A: np.ndarray, u0: np.ndarray
+) -> np.ndarray:
+    """Return the prior standard deviation (2,) m in use: ``prior_sigma_m`` if set, else the paper's rule."""
     given = np.asarray(prior_sigma_m, float).reshape(2)
     return given if np.all(given > 0) else prior_sigma(A, u0, rule)

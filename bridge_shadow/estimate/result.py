@@ -78,7 +78,9 @@ class EventRecord:
             "size_m": self.size_m.tolist(),
             "covariance_m2": self.covariance_m2.tolist(),
             "sigma_m": sd.tolist(),
-            "interval95_m": [[float(m - 1.96 * s), float(m + 1.96 * s)] for m, s in zip(self.size_m, sd, strict=True)],
+            "interval95_m": [
+                [float(m - 1.96 * s), float(m + 1.96 * s)] for m, s in zip(self.size_m, sd, strict=True)
+            ],
             "supports": list(SUPPORTS),
             "glr": float(self.glr),
             "step_n": self.step_n.tolist(),
@@ -142,7 +144,11 @@ class ReplayResult:
             "rejected": dict(self.rejected),
             "messages_per_s": self.messages_per_s,
             "seconds": self.seconds,
-            "windows": {"closed": self.windows, "updates": self.updates, "uncompensated": self.uncompensated_windows},
+            "windows": {
+                "closed": self.windows,
+                "updates": self.updates,
+                "uncompensated": self.uncompensated_windows,
+            },
             "events": [e.to_json() for e in self.events],
             "warnings": list(self.warnings),
             "prior": dict(self.prior),

@@ -161,8 +161,9 @@ class SegmentChain:
             self.jumps.append(np.zeros((2, 2)))
 
     def open_segment(self, k: int, jump_cov: np.ndarray | None = None) -> None:
-        """A new segment from window ``k``: its prior is the last posterior plus ``J`` (an event) or
-        plus ``jump_cov`` (a random-walk block).
+        """Open a new segment from window ``k``.
+
+        Its prior is the last posterior plus ``J`` (an event) or ``jump_cov`` (a random-walk block).
         """
         jump = self.jump_cov if jump_cov is None else np.asarray(jump_cov, float).reshape(2, 2)
         self.jumps.append(jump)
@@ -182,7 +183,7 @@ class SegmentChain:
 
     # -- windows --------------------------------------------------------------------------------
     def predict_floats(self, end_ns: int) -> tuple[Vec, Sym]:
-        """The prediction for the next window as floats (the settlement does not move)."""
+        """Return the prediction for the next window as floats (the settlement does not move)."""
         return self._x, self._P
 
     def predict(self, end_ns: int) -> tuple[np.ndarray, np.ndarray]:
@@ -208,7 +209,7 @@ class SegmentChain:
         self._update_current()
 
     def _update_current(self) -> None:
-        """The current segment's posterior from its running sums (the module's formulas, on floats)."""
+        """Update the current segment's posterior from its running sums (the module's formulas, on floats)."""
         on = self._online
         if self._noise is None:
             raise RuntimeError("refresh the chain with a noise model before adding windows")
@@ -268,7 +269,9 @@ class SegmentChain:
             )
         if n_seg:
             n_last = int(sums.ns[n_seg - 1]) if n_seg - 1 < sums.n_segments else 0
-            self._online = _Online.from_arrays(*self._sums_mz(sums, fit, n_seg - 1), n_last) if n_last else _Online()
+            self._online = (
+                _Online.from_arrays(*self._sums_mz(sums, fit, n_seg - 1), n_last) if n_last else _Online()
+            )
             self._x, self._P = (float(kf.x[0, 0]), float(kf.x[1, 0])), _sym(kf.P)
         self.n_updates = int(sums.n)
 
@@ -359,7 +362,9 @@ def _combine_f(m0: Vec, p0: Sym, x_d: Vec, d: Sym) -> tuple[Vec, Sym]:
     return x, (a - q[0], b - q[1], dd - q[2])
 
 
-def _combine(m0: np.ndarray, p0: np.ndarray, x_d: np.ndarray, d_cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _combine(
+    m0: np.ndarray, p0: np.ndarray, x_d: np.ndarray, d_cov: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Kalman update of the prior ``N(m0, p0)`` with a direct measurement ``x_d ~ N(x, d_cov)``.
 
     ``S = P0 + D``; ``G = P0 S^-1``; ``x = m0 + G (x_d - m0)``; ``P = P0 - G P0`` (symmetrized).

@@ -80,10 +80,30 @@ class Window:
     ``event`` (the first window of a new segment).
     """
 
-    __slots__ = ("action", "bv", "event_end", "force", "g", "g_fit", "gvar", "i0", "k", "reason", "samples", "temp")
+    __slots__ = (
+        "action",
+        "bv",
+        "event_end",
+        "force",
+        "g",
+        "g_fit",
+        "gvar",
+        "i0",
+        "k",
+        "reason",
+        "samples",
+        "temp",
+    )
 
     def __init__(
-        self, k: int, samples: np.ndarray, force: np.ndarray, temp: np.ndarray, reason: str, i0: np.ndarray, bv: np.ndarray
+        self,
+        k: int,
+        samples: np.ndarray,
+        force: np.ndarray,
+        temp: np.ndarray,
+        reason: str,
+        i0: np.ndarray,
+        bv: np.ndarray,
     ) -> None:
         self.k = k
         self.samples = samples
@@ -124,17 +144,22 @@ class Shadow:
         self.A, self.u0 = surrogate.A, surrogate.u0
         self._w_ns = round(config.window_s * _NS)
         self.prior_sigma_m = configured_prior_sigma(config.prior_sigma_m, config.prior_rule, self.A, self.u0)
-        self.prior_source = "prior_sigma_m" if max(config.prior_sigma_m) > 0 else f"paper's rule ({config.prior_rule})"
+        self.prior_source = (
+            "prior_sigma_m" if max(config.prior_sigma_m) > 0 else f"paper's rule ({config.prior_rule})"
+        )
         jump_ns = round(config.clock_jump_s * _NS)
         check = config.check_frame_id
         frames = [FORCE_FRAMES[ch] for ch in CHANNELS] + [config.temperature_frame_id]
-        ranges = [(config.force_min_n, config.force_max_n, "N")] * 2 + [(config.temp_min_c, config.temp_max_c, "C")]
+        ranges = [(config.force_min_n, config.force_max_n, "N")] * 2 + [
+            (config.temp_min_c, config.temp_max_c, "C")
+        ]
         self.gates = [
             TopicGate(frame if check and frame else None, lo, hi, jump_ns, config.clock_jump_confirm)
             for frame, (lo, hi, _) in zip(frames, ranges, strict=True)
         ]
         self.ledgers = [
-            TopicLedger(key, gate.frame_id, rng) for key, gate, rng in zip(TOPIC_KEYS, self.gates, ranges, strict=True)
+            TopicLedger(key, gate.frame_id, rng)
+            for key, gate, rng in zip(TOPIC_KEYS, self.gates, ranges, strict=True)
         ]
         self.counts: Counter = Counter(dict.fromkeys(REASONS, 0))
         self.used = dict.fromkeys(TOPIC_KEYS, 0)
@@ -164,7 +189,9 @@ class Shadow:
         self._block_k = max(1, round(config.drift_block_s / config.window_s))  # windows per block
         self._block_jump = np.diag(q_rate * self._block_k * config.window_s)  # Q dt of one block, m^2
         jump_sd = (
-            self.prior_sigma_m if config.event_jump_rule == "prior" else prior_sigma(self.A, self.u0, config.event_jump_rule)
+            self.prior_sigma_m
+            if config.event_jump_rule == "prior"
+            else prior_sigma(self.A, self.u0, config.event_jump_rule)
         )
         self.jump_sigma_m = jump_sd
         self.filter = SegmentChain(self.A, prior_cov, np.diag(jump_sd**2))
@@ -323,7 +350,15 @@ class Shadow:
         self.n_windows += n
         i0, bv = self.compensation.basis_rows(batch.temp_c)
         windows = [
-            Window(int(batch.k[j]), batch.samples[j], batch.force_n[j], batch.temp_c[j], str(batch.reason[j]), i0[j], bv[j])
+            Window(
+                int(batch.k[j]),
+                batch.samples[j],
+                batch.force_n[j],
+                batch.temp_c[j],
+                str(batch.reason[j]),
+                i0[j],
+                bv[j],
+            )
             for j in range(n)
         ]
         outputs: list[WindowOutput] = []
@@ -350,8 +385,10 @@ class Shadow:
         outputs.extend(self._drain())
         return outputs
 
-    def _precompute_curve(self, windows: list[Window], temp: np.ndarray, i0: np.ndarray, bv: np.ndarray) -> None:
-        """The current curve at every window of a batch, at once."""
+    def _precompute_curve(
+        self, windows: list[Window], temp: np.ndarray, i0: np.ndarray, bv: np.ndarray
+    ) -> None:
+        """Evaluate the current curve (and its variance) at every window of a batch, at once."""
         if self.fit is None:
             return
         g = self.compensation.curve_rows(self.fit, temp, i0, bv).tolist()
@@ -422,7 +459,7 @@ class Shadow:
         return []
 
     def _drain(self) -> list[WindowOutput]:
-        """Outputs of the decided windows at the head of the queue, applying each in order."""
+        """Apply the decided windows at the head of the queue in order; return their outputs."""
         outputs = []
         q = self._queue
         while q and q[0].action is not None:
@@ -505,13 +542,12 @@ class Shadow:
         fit = self.compensation.fit(self.sums, lam, self.compensation.slope_weight(np.diag(self.noise.r1)))
         self.fit = fit
         self._fit_id += 1
-        self._range = (
-            (float(fit.t_lo[0]) - _RANGE_MARGIN_K, float(fit.t_lo[1]) - _RANGE_MARGIN_K),
-            (float(fit.t_hi[0]) + _RANGE_MARGIN_K, float(fit.t_hi[1]) + _RANGE_MARGIN_K),
-        )
+        self._set_range(fit)
         if lam is None:
             self.lam = fit.lam
-            self._lambda_at = max(int(self.sums.n * cfg.lambda_reselect_growth), self.sums.n + cfg.refit_windows)
+            self._lambda_at = max(
+                int(self.sums.n * cfg.lambda_reselect_growth), self.sums.n + cfg.refit_windows
+            )
         moments = residual_moments(self.sums, fit.beta, fit.level)
         self.noise.update(moments, fit.edf, self.sums.ns)
         self.filter.refresh(self.sums, fit, self.noise)
@@ -525,7 +561,16 @@ class Shadow:
         # or every 5 % of the windows already fitted (the curve and the noise settle)
         self._refit_at = self.sums.n + max(cfg.refit_windows, self.sums.n // 20)
 
-    def _output(self, w: Window, compensated: np.ndarray, updated: bool, reason: str, event: bool = False) -> WindowOutput:
+    def _set_range(self, fit: CompensationFit) -> None:
+        """Set the temperatures beyond which a window brings a refit (the fitted range plus a margin)."""
+        self._range = (
+            (float(fit.t_lo[0]) - _RANGE_MARGIN_K, float(fit.t_lo[1]) - _RANGE_MARGIN_K),
+            (float(fit.t_hi[0]) + _RANGE_MARGIN_K, float(fit.t_hi[1]) + _RANGE_MARGIN_K),
+        )
+
+    def _output(
+        self, w: Window, compensated: np.ndarray, updated: bool, reason: str, event: bool = False
+    ) -> WindowOutput:
         x, P = self.filter.posterior()
         return WindowOutput(
             w.k,
@@ -561,7 +606,7 @@ class Shadow:
         return {r: int(self.counts.get(r, 0)) for r in REASONS}
 
     def event_records(self) -> list[EventRecord]:
-        """Detected events with their size and covariance as the data now say (last refit)."""
+        """Return the detected events with their size and covariance as the data now say (last refit)."""
         out = []
         summaries = getattr(self.filter, "summaries", [])
         for i, e in enumerate(self.events):
@@ -629,7 +674,7 @@ class Shadow:
         }
 
     def prior_info(self) -> dict[str, Any]:
-        """The prior in use: sigma per support (m), where it comes from, and an event's opening (m)."""
+        """Return the prior in use: sigma per support (m), its source, and an event's opening (m)."""
         return {
             "sigma_m": self.prior_sigma_m.tolist(),
             "source": self.prior_source,
@@ -668,7 +713,8 @@ class Shadow:
             level, message = "OK", "tracking"
         sigma = np.sqrt(np.diag(cov))
         summary = ", ".join(
-            f"{s} {1e3 * mu:+.3f} ± {1e3 * sd:.3f} mm" for s, mu, sd in zip(SUPPORTS, mean, sigma, strict=True)
+            f"{s} {1e3 * mu:+.3f} ± {1e3 * sd:.3f} mm"
+            for s, mu, sd in zip(SUPPORTS, mean, sigma, strict=True)
         )
         return {
             "level": level,
@@ -741,7 +787,7 @@ class Shadow:
 
     # -- offline ----------------------------------------------------------------------------
     def result(self, outputs: list[WindowOutput], messages: int, seconds: float) -> ReplayResult:
-        """The replay result of what this shadow has seen."""
+        """Return the replay result of what this shadow has seen."""
         mean, cov = self.posterior
         return ReplayResult(
             mean_m=mean,

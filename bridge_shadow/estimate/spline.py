@@ -25,7 +25,15 @@ import numpy as np
 from scipy import linalg
 from scipy.interpolate import BSpline
 
-__all__ = ["OnlinePSpline", "SplineFit", "basis_nonzero", "clamped_knots", "gram_penalty", "gram_slope", "select_lambda"]
+__all__ = [
+    "OnlinePSpline",
+    "SplineFit",
+    "basis_nonzero",
+    "clamped_knots",
+    "gram_penalty",
+    "gram_slope",
+    "select_lambda",
+]
 
 _DEGREE = 3
 
@@ -220,7 +228,7 @@ def select_lambda(
 
 
 def basis_nonzero(knots: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The four non-zero cubic B-splines at ``x`` (inside the knot range): (first index (n,), values (n, 4)).
+    """Return the four non-zero cubic B-splines at ``x``: (first index (n,), values (n, 4)).
 
     The same Cox-de Boor recursion as ``_basis``, vectorized over ``x``; column ``j`` of the values
     is basis function ``i0 + j``.

@@ -61,7 +61,7 @@ class WindowRows:
         return len(self.k)
 
     def dense_b(self, q: int) -> np.ndarray:
-        """The full basis rows (n, 2, q) (zeros where the temperature is unknown)."""
+        """Return the full basis rows (n, 2, q) (zeros where the temperature is unknown)."""
         out = np.zeros((len(self.k), 2, q))
         for c in range(2):
             ok = self.i0[:, c] >= 0
@@ -84,7 +84,9 @@ def _scatter_vec(i0: np.ndarray, vals: np.ndarray, q: int) -> np.ndarray:
     return np.bincount(idx, weights=vals.ravel(), minlength=q)
 
 
-def _scatter_outer(i0: np.ndarray, a: np.ndarray, j0: np.ndarray, b: np.ndarray, w: np.ndarray, q: int) -> np.ndarray:
+def _scatter_outer(
+    i0: np.ndarray, a: np.ndarray, j0: np.ndarray, b: np.ndarray, w: np.ndarray, q: int
+) -> np.ndarray:
     """Sum over rows of ``w a b'`` (a at i0.., b at j0..) as a (q, q) matrix."""
     if not len(i0):
         return np.zeros((q, q))
@@ -115,7 +117,22 @@ class FitSums:
     """
 
     _GLOBAL = ("W", "sy", "yy", "sb", "r", "G", "Xyy", "Xb0y1", "Xy0b1", "XBB", "Lyy", "Lby", "Lyb", "LBB")
-    _SEG = ("ns", "Ws", "sys", "sbs", "X1s", "Xy0s", "Xy1s", "Xb0s", "Xb1s", "L1s", "Lyps", "Lycs", "Lbps", "Lbcs")
+    _SEG = (
+        "ns",
+        "Ws",
+        "sys",
+        "sbs",
+        "X1s",
+        "Xy0s",
+        "Xy1s",
+        "Xb0s",
+        "Xb1s",
+        "L1s",
+        "Lyps",
+        "Lycs",
+        "Lbps",
+        "Lbcs",
+    )
 
     def __init__(self, q: int) -> None:
         self.q = q
@@ -267,8 +284,13 @@ class FitSums:
             has_prev=self.prev is not None,
         )
         prev = self.prev or WindowRows(
-            np.zeros(1, np.int64), np.zeros((1, 2)), np.zeros((1, 2)), np.zeros((1, 2)),
-            np.zeros((1, 2), int), np.zeros((1, 2, 4)), np.zeros(1, int),
+            np.zeros(1, np.int64),
+            np.zeros((1, 2)),
+            np.zeros((1, 2)),
+            np.zeros((1, 2)),
+            np.zeros((1, 2), int),
+            np.zeros((1, 2, 4)),
+            np.zeros(1, int),
         )
         out["prev"] = {f: getattr(prev, f) for f in _FIELDS}
         return out
@@ -348,6 +370,12 @@ def residual_moments(sums: FitSums, beta: np.ndarray, level: np.ndarray) -> Mome
     z0 = sums.Xy0s - sums.Xb0s @ b0
     z1 = sums.Xy1s - sums.Xb1s @ b1
     s2[0, 1] = s2[1, 0] = (
-        sums.Xyy - b0 @ sums.Xb0y1 - b1 @ sums.Xy0b1 + b0 @ sums.XBB @ b1 - l1 @ z0 - l0 @ z1 + (l0 * l1) @ sums.X1s
+        sums.Xyy
+        - b0 @ sums.Xb0y1
+        - b1 @ sums.Xy0b1
+        + b0 @ sums.XBB @ b1
+        - l1 @ z0
+        - l0 @ z1
+        + (l0 * l1) @ sums.X1s
     )
     return Moments(s2, lag, sums.n, sums.n_pairs)

@@ -107,7 +107,7 @@ class WindowBatch:
 
     @classmethod
     def empty(cls) -> WindowBatch:
-        """A batch without windows."""
+        """Return a batch without windows."""
         return cls(
             np.empty(0, np.int64),
             np.empty((0, 2), np.int64),

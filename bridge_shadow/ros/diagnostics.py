@@ -1,7 +1,8 @@
 """``/diagnostics`` for the node: the small piece of diagnostic_updater we need (not on PyPI).
 
 ``statuses`` turns ``Shadow.diagnostics()`` plus the node's own input bookkeeping into four
-statuses (settlement, inputs, compensation, events) (plain data, testable without DDS); ``diagnostic_array`` builds the
+statuses (settlement, inputs, compensation, events; plain data, testable without DDS);
+``diagnostic_array`` builds the
 ``diagnostic_msgs/DiagnosticArray``. Levels follow ``diagnostic_msgs/DiagnosticStatus``:
 0 OK, 1 WARN, 2 ERROR. Values are text for people, so settlements are in mm and forces in kN.
 """
@@ -101,7 +102,8 @@ def _compensation(diag: Mapping[str, Any]) -> Status:
         values[f"{ch} lambda"] = _num(sp["lambda"], ".4g")
         values[f"{ch} mean force [kN]"] = _num(1e-3 * sp["mean_force_n"], ".3f")
         values[f"{ch} windows"] = str(sp["windows"])
-        values[f"{ch} temperature range [C]"] = f"{_num(sp['t_min_c'], '.1f')} .. {_num(sp['t_max_c'], '.1f')}"
+        span = f"{_num(sp['t_min_c'], '.1f')} .. {_num(sp['t_max_c'], '.1f')}"
+        values[f"{ch} temperature range [C]"] = span
     noise = diag["noise"]
     values["noise mode"] = str(noise["mode"])
     for ch, phi, sd in zip(CHANNELS, noise["phi"], noise["sigma_n"], strict=True):
@@ -120,7 +122,7 @@ def _compensation(diag: Mapping[str, Any]) -> Status:
 
 
 def _events(diag: Mapping[str, Any]) -> Status:
-    """Detected settlement events: the last one in the message, each in the values (mm)."""
+    """Build the events status: the last one in the message, each in the values (mm)."""
     events = diag.get("events", [])
     values: dict[str, str] = {"events": str(len(events))}
     for i, e in enumerate(events):
@@ -132,7 +134,8 @@ def _events(diag: Mapping[str, Any]) -> Status:
     if not events:
         return Status(f"{NODE_NAME}: events", LEVELS["OK"], "no settlement event", values)
     last = values[f"event {len(events)}"]
-    return Status(f"{NODE_NAME}: events", LEVELS["WARN"], f"{len(events)} settlement event(s); last: {last}", values)
+    message = f"{len(events)} settlement event(s); last: {last}"
+    return Status(f"{NODE_NAME}: events", LEVELS["WARN"], message, values)
 
 
 def statuses(
