@@ -146,3 +146,34 @@ def test_topic_parameters_are_validated() -> None:
         ShadowConfig(topic_mean="/bridge shadow/mean")
     with pytest.raises(ConfigError, match="must all be different"):
         ShadowConfig(topic_covariance=ShadowConfig().topic_mean)
+
+
+def test_replay_is_loud_about_what_it_lost(
+    root: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """No temperature topic: uncompensated with a WARN line; every force rejected: named, exit 1."""
+    import yaml
+
+    from bridge_shadow.bagio import read_monitoring, write_monitoring
+    from bridge_shadow.series import ForceSeries, MonitoringData
+
+    bag = root / "bags" / "baseline_1d"
+    params = tmp_path / "p.yaml"
+    no_temp = {"bridge_shadow": {"ros__parameters": {"topic_air_temperature": "/nowhere"}}}
+    params.write_text(yaml.safe_dump(no_temp))
+    assert main(["replay", str(bag), "--params", str(params), "--json"]) == 0
+    captured = capsys.readouterr()
+    js = json.loads(captured.out)
+    assert "WARN: no air temperature" in captured.err
+    assert js["windows"]["uncompensated"] == js["windows"]["updates"] > 1000
+    assert any("no air temperature" in w for w in js["warnings"])
+    data = read_monitoring(bag)
+    wrong = {
+        ch: ForceSeries(f.stamp_ns, f.force_n, np.full(len(f), "load_cell", dtype=object))
+        for ch, f in data.forces.items()
+    }
+    write_monitoring(tmp_path / "wrong", MonitoringData(wrong, data.temperature))
+    assert main(["replay", str(tmp_path / "wrong")]) == 1
+    err = capsys.readouterr().err
+    assert "WARN: topic frc_01: all" in err and "frame_id 'load_cell', expected 'frc_01'" in err
+    assert "no window updated the estimate" in err and "Traceback" not in err
