@@ -13,7 +13,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["TopicLedger"]
+from bridge_shadow.contract import CHANNELS
+
+__all__ = ["TOPIC_KEYS", "TopicLedger"]
+
+#: Keys of the three input topics in counters and diagnostics.
+TOPIC_KEYS: tuple[str, str, str] = (*CHANNELS, "air_temperature")
 
 
 @dataclass

@@ -42,14 +42,16 @@ from typing import Any
 
 import numpy as np
 
-from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, SUPPORTS
+from bridge_shadow.contract import CHANNELS, FORCE_FRAMES
+from bridge_shadow.estimate import report
 from bridge_shadow.estimate.compensation import Compensation, CompensationFit
 from bridge_shadow.estimate.config import ShadowConfig
 from bridge_shadow.estimate.events import ChangeDetector, Decision
 from bridge_shadow.estimate.gate import REASONS, TopicGate
-from bridge_shadow.estimate.inputs import TopicLedger
+from bridge_shadow.estimate.inputs import TOPIC_KEYS, TopicLedger
 from bridge_shadow.estimate.noise import NoiseModel
 from bridge_shadow.estimate.prior import configured_prior_sigma, prior_sigma
+from bridge_shadow.estimate.report import NOISE_FULL_DAY_S
 from bridge_shadow.estimate.result import EventRecord, ReplayResult, WindowOutput
 from bridge_shadow.estimate.segments import SegmentChain
 from bridge_shadow.estimate.small import congruence, quad_inv
@@ -60,11 +62,6 @@ from bridge_shadow.series import MonitoringData
 
 __all__ = ["NOISE_FULL_DAY_S", "TOPIC_KEYS", "ReplayResult", "Shadow", "WindowOutput"]
 
-#: Residual history the adaptive noise model needs before the diagnostics call its intervals
-#: calibrated: one whole day (a quiet night gives intervals too narrow for the day that follows).
-NOISE_FULL_DAY_S = 86_400.0
-#: Keys of the three input topics in counters and diagnostics.
-TOPIC_KEYS: tuple[str, str, str] = (*CHANNELS, "air_temperature")
 _NS = 1_000_000_000
 #: Windows whose curve values are computed together after a refit (the next refit is at least
 #: ``refit_windows`` accepted windows away).
@@ -606,141 +603,28 @@ class Shadow:
         return {r: int(self.counts.get(r, 0)) for r in REASONS}
 
     def event_records(self) -> list[EventRecord]:
-        """Return the detected events with their size and covariance as the data now say (last refit)."""
-        out = []
-        summaries = getattr(self.filter, "summaries", [])
-        for i, e in enumerate(self.events):
-            s = i + 1
-            size = np.full(2, np.nan)
-            cov = np.full((2, 2), np.nan)
-            if s < len(summaries):
-                a, b = summaries[s - 1], summaries[s]
-                size = b.x_data - a.x_data
-                cov = a.d_cov + b.d_cov
-            out.append(
-                EventRecord(
-                    int(e["window"]),
-                    int(e["window"]) * self._w_ns,
-                    int(e["detected_window"]),
-                    size,
-                    cov,
-                    float(e["glr"]),
-                    np.asarray(e["step_n"], float),
-                )
-            )
-        return out
+        """Return the detected events with their size and covariance as the data now say."""
+        return report.event_records(self)
 
     def warnings(self) -> list[str]:
-        """Problems a user must hear about (one line each): silent failures made loud."""
-        out = []
-        if self.uncompensated:
-            out.append(
-                f"no air temperature: {self.uncompensated} windows used without temperature compensation "
-                f"(topic {self.config.topic_air_temperature} delivered no accepted reading)"
-            )
-        for ledger in self.ledgers:
-            line = ledger.all_rejected_message()
-            if line:
-                out.append(line)
-        if self.n_windows and not self.n_updates:
-            out.append("no window updated the estimate: the posterior is the prior")
-        return out
+        """Return what a user must hear about (one line each): silent failures made loud."""
+        return report.warnings(self)
 
     def spline_info(self) -> dict[str, dict[str, float]]:
-        """Per channel: edf, lambda, level, windows fitted, temperature range (NaN before a fit)."""
-        info: dict[str, dict[str, float]] = {}
-        fit = self.fit
-        for c, ch in enumerate(CHANNELS):
-            level = float("nan")
-            if fit is not None and len(fit.level):
-                level = float(fit.level[min(self.filter.segment, len(fit.level) - 1), c] + self.u0[c])
-            info[ch] = {
-                "edf": float(fit.edf[c]) if fit is not None else float("nan"),
-                "lambda": float(fit.lam[c]) if fit is not None else float("nan"),
-                "mean_force_n": level,
-                "windows": int(self.sums.n + len(self._rows)),
-                "t_min_c": float(fit.t_lo[c]) if fit is not None else float("nan"),
-                "t_max_c": float(fit.t_hi[c]) if fit is not None else float("nan"),
-            }
-        return info
+        """Return, per channel, the curve's edf, lambda, level, windows and temperature range."""
+        return report.spline_info(self)
 
     def noise_info(self) -> dict[str, Any]:
-        """Noise model: mode, phi per channel, per-sample-equivalent sigma (N), windows behind it."""
-        return {
-            "mode": self.config.noise_mode,
-            "phi": self.noise.phi.tolist(),
-            "sigma_n": self.noise.sample_sigma.tolist(),
-            "windows": self.noise.n,
-        }
+        """Return the noise model: mode, phi per channel, per-sample sigma (N), windows behind it."""
+        return report.noise_info(self)
 
     def prior_info(self) -> dict[str, Any]:
         """Return the prior in use: sigma per support (m), its source, and an event's opening (m)."""
-        return {
-            "sigma_m": self.prior_sigma_m.tolist(),
-            "source": self.prior_source,
-            "event_jump_sigma_m": self.jump_sigma_m.tolist(),
-        }
+        return report.prior_info(self)
 
     def diagnostics(self, now_ns: int | None = None) -> dict[str, Any]:
-        """Health and key values (SI): level OK/WARN/ERROR, message, posterior, counts, events."""
-        mean, cov = self.posterior
-        clock = self.clock_ns
-        ref = now_ns if now_ns is not None else clock
-        staleness = {
-            key: (None if g.last_ns is None or ref is None else (ref - g.last_ns) / _NS)
-            for key, g in zip(TOPIC_KEYS, self.gates, strict=True)
-        }
-        timeout = max(self.config.topic_timeout_s, self.config.window_s)
-        stale = [k for k, v in staleness.items() if v is None or v > timeout]
-        warnings = self.warnings()
-        if not np.all(np.isfinite(mean)) or not np.all(np.isfinite(cov)):
-            level, message = "ERROR", "posterior is not finite"
-        elif clock is not None and len(stale) == len(TOPIC_KEYS):
-            level, message = "ERROR", "no input on any topic"
-        elif warnings:
-            level, message = "WARN", "; ".join(warnings)
-        elif stale:
-            level, message = "WARN", f"stale or missing topic(s): {', '.join(stale)}"
-        elif not self.warm:
-            level, message = "WARN", f"warming up ({len(self._warm)}/{self.config.warmup_windows} windows)"
-        elif self.noise.adaptive and (seen_s := self.noise.n * self.config.window_s) < NOISE_FULL_DAY_S:
-            level, message = (
-                "WARN",
-                f"noise model has seen {seen_s / 3600.0:.1f} h (< 24 h): intervals may be optimistic "
-                "until a whole day of sun and traffic is in the residuals",
-            )
-        else:
-            level, message = "OK", "tracking"
-        sigma = np.sqrt(np.diag(cov))
-        summary = ", ".join(
-            f"{s} {1e3 * mu:+.3f} ± {1e3 * sd:.3f} mm"
-            for s, mu, sd in zip(SUPPORTS, mean, sigma, strict=True)
-        )
-        return {
-            "level": level,
-            "message": message,
-            "summary": summary,
-            "mean_m": mean.tolist(),
-            "covariance_m2": cov.tolist(),
-            "sigma_m": sigma.tolist(),
-            "used": dict(self.used),
-            "rejected": self.rejected,
-            "staleness_s": staleness,
-            "spline": self.spline_info(),
-            "noise": self.noise_info(),
-            "prior": self.prior_info(),
-            "events": [e.to_json() for e in self.event_records()],
-            "warnings": warnings,
-            "windows": {
-                "closed": self.n_windows,
-                "fitted": int(self.sums.n + len(self._rows)),
-                "held": len(self._queue),
-                "updates": self.n_updates,
-                "uncompensated": self.uncompensated,
-                "warm": self.warm,
-            },
-            "clock_ns": clock,
-        }
+        """Return health and key values (SI): level OK/WARN/ERROR, message, posterior, counts, events."""
+        return report.diagnostics(self, now_ns)
 
     # -- state ----------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
@@ -788,24 +672,7 @@ class Shadow:
     # -- offline ----------------------------------------------------------------------------
     def result(self, outputs: list[WindowOutput], messages: int, seconds: float) -> ReplayResult:
         """Return the replay result of what this shadow has seen."""
-        mean, cov = self.posterior
-        return ReplayResult(
-            mean_m=mean,
-            covariance_m2=cov,
-            messages=messages,
-            used=dict(self.used),
-            rejected=self.rejected,
-            windows=self.n_windows,
-            updates=self.n_updates,
-            spline=self.spline_info(),
-            noise=self.noise_info(),
-            outputs=outputs,
-            seconds=seconds,
-            events=self.event_records(),
-            warnings=self.warnings(),
-            prior=self.prior_info(),
-            uncompensated_windows=self.uncompensated,
-        )
+        return report.replay_result(self, outputs, messages, seconds)
 
     def run(
         self,
