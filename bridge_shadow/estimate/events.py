@@ -16,17 +16,16 @@ freedom.
 
    - *event*: the best candidate ``j*`` (largest ``T_j`` among those whose windows scatter around
      the step like noise, ``sum (v_i - step)' S1^-1 (v_i - step)`` below the chi-square bound, with
-     at least ``event_confirm_windows`` windows) has ``T_j* > h_event``
-     (``event_probability``) *and* the innovation jumps there: from the window before ``j*`` to
-     one of the next three, ``v_b - v_a`` beyond ``h_event`` under its AR(1) covariance
-     (variance ``2 (1 - phi^d) R`` per channel; a slow wander of autocorrelated noise drifts, a
-     step jumps). The
+     at least ``event_confirm_windows`` windows) has ``T_j* > h_event`` (``event_probability``),
+     *and* the innovation jumps there: from the window before ``j*`` to one of the next three,
+     ``v_b - v_a`` exceeds ``h_event`` under its AR(1) covariance (variance ``2 (1 - phi^d) R`` per
+     channel, the channels correlated as in ``R``) and twice the largest jump seen between ordinary
+     neighbouring windows lately. A slow wander of autocorrelated noise drifts, a step jumps. The
      windows from ``j*`` on start a new segment; windows before it are handled as in *transient*;
    - *transient*: the latest window is back (closer to no change than to the step of the whole
      run): the earlier pending windows were a passing excursion, such as a test car. Those beyond
-     ``h_outlier``
-     (``mahalanobis_probability``) are rejected as outliers, the others are ordinary windows; the
-     latest window is judged afresh;
+     ``h_outlier`` (``mahalanobis_probability``) are rejected as outliers, the others are ordinary
+     windows; the latest window is judged afresh;
    - after ``event_max_pending`` windows a decision is forced: an event if a candidate qualifies,
      otherwise the whole run is ordinary windows (a long excursion that is not a step, such as a
      drift the model has no process noise for, is data, not outliers): no lock-out.
@@ -34,7 +33,8 @@ freedom.
 While the noise model rests on few windows, its variance is uncertain: detection uses it inflated
 by ``dof / chi2_dof(0.05)`` (its one-sided 95 % bound; ``dof`` the fit's residual degrees of
 freedom), so that the first hours of a record do not raise events from a noise level that is not
-known yet.
+known yet; the comparison with the jumps seen so far guards the same hours (on the same, possibly
+too small, scale, ordinary jumps look as large as a false event's).
 """
 
 from __future__ import annotations
