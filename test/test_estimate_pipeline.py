@@ -329,3 +329,22 @@ def test_systematic_term_widens_the_published_covariance_only(root: Path) -> Non
     assert err @ np.linalg.solve(wide.covariance_m2, err) <= 5.991
     with pytest.raises(ConfigError):
         ShadowConfig(systematic_sigma_n=[-1.0, 0.0])
+
+
+def test_a_calibrated_surrogates_model_uncertainty_joins_the_published_covariance() -> None:
+    """Surrogate.model_covariance(x) widens the interval where the calibration is uncertain."""
+    from bridge_shadow.model.surrogate_file import Surrogate
+
+    base = placeholder_surrogate()
+    cov = np.diag([(0.05 * base.A[0, 0]) ** 2, 0.0, 0.0, (0.05 * base.A[1, 1]) ** 2, 500.0**2, 500.0**2])
+    uncertain = Surrogate(base.A, base.u0, base.thermal, base.provenance, cov)
+    data = synthetic(minutes=60, rate=2, x_m=(1e-3, -1e-3))
+    plain = Shadow(small_config(), base).run(data)
+    wide = Shadow(small_config(), uncertain).run(data)
+    np.testing.assert_array_equal(wide.mean_m, plain.mean_m)
+    extra = uncertain.model_covariance(wide.mean_m)
+    assert np.all(np.diag(extra) > 0)
+    np.testing.assert_allclose(wide.covariance_m2, plain.covariance_m2 + extra, rtol=1e-12)
+    np.testing.assert_allclose(
+        wide.outputs[-1].covariance_m2, plain.outputs[-1].covariance_m2 + extra, rtol=1e-12
+    )
