@@ -66,9 +66,11 @@ def test_shadow_windows_with_q0_equal_the_batch_formula() -> None:
     config = ShadowConfig(
         smoothing="none",
         noise_mode="fixed",
-        spline_warmup_windows=0,
-        noise_warmup_windows=0,
+        prior_sigma_m=[3e-4, 3e-4],
+        warmup_windows=1,
         window_min_samples=1,
+        event_detection=False,
+        mahalanobis_probability=1.0,
     )
     result = Shadow(config, sur).run(data)
     mean, cov = batch_posterior(sur.A, SIGMA_X, SIGMA_E, y - sur.u0)

@@ -67,7 +67,7 @@ def diag(root: Path) -> dict:
 
 def test_statuses_carry_posterior_in_mm_and_counts(diag: dict) -> None:
     ages = {"frc_01": 0.1, "frc_02": 0.1, "air_temperature": 0.5}
-    est, inputs, comp = statuses(diag, ages, malformed=3, timeout_s=60.0)
+    est, inputs, comp, events = statuses(diag, ages, malformed=3, timeout_s=60.0)
     mean, sigma = np.array(diag["mean_m"]), np.array(diag["sigma_m"])
     assert est.values["south settlement [mm]"] == f"{1e3 * mean[0]:+.4f}"
     assert est.values["north sigma [mm]"] == f"{1e3 * sigma[1]:.4f}"
@@ -76,8 +76,9 @@ def test_statuses_carry_posterior_in_mm_and_counts(diag: dict) -> None:
     assert inputs.values["rejected nonfinite"] == str(diag["rejected"]["nonfinite"]) != "0"
     assert inputs.values["rejected malformed"] == "3"
     assert comp.values["frc_02 lambda"] == f"{diag['spline']['frc_02']['lambda']:.4g}"
-    msg = diagnostic_array([est, inputs, comp], 5_000_000_001)
-    assert [s.level for s in msg.status] == [bytes([est.level]), b"\x00", bytes([comp.level])]
+    assert events.level == 0 and events.values["events"] == "0"
+    msg = diagnostic_array([est, inputs, comp, events], 5_000_000_001)
+    assert [s.level for s in msg.status] == [bytes([est.level]), b"\x00", bytes([comp.level]), b"\x00"]
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (5, 1)
 
 
@@ -88,3 +89,30 @@ def test_input_levels_follow_arrival_age(diag: dict) -> None:
     inputs = statuses(diag, stale_all, timeout_s=60.0)[1]
     assert inputs.level == 2
     assert inputs.message.startswith("no input for 60 s on any topic")
+
+
+def test_events_and_lost_topics_reach_diagnostics() -> None:
+    """A detected step is a WARN status naming its window and size; a topic lost to its frame id too."""
+    from bridge_shadow.model.surrogate_file import placeholder_surrogate
+    from bridge_shadow.series import MonitoringData, TemperatureSeries
+
+    sur = placeholder_surrogate()
+    t0 = 1_700_000_040 * 10**9
+    n = 60 * 60  # one hour at 1 Hz
+    stamps = t0 + np.arange(n, dtype=np.int64) * 10**9
+    rng = np.random.default_rng(0)
+    x = np.where(np.arange(n)[:, None] >= 2400, [-1e-3, 0.0], [0.0, 0.0])
+    forces = sur.reactions(x) + rng.normal(0.0, 60.0, (n, 2))
+    data = MonitoringData.from_arrays(stamps, forces, stamps[::10], np.full(n // 10, 8.0))
+    t = data.temperature
+    data = MonitoringData(
+        data.forces, TemperatureSeries(t.stamp_ns, t.temp_c, None, np.full(len(t), "roof", dtype=object))
+    )
+    shadow = Shadow(load_config(None, {"temperature_frame_id": "air_temperature"}), sur)
+    shadow.run(data)
+    diag = shadow.diagnostics()
+    _, inputs, comp, events = statuses(diag, {"frc_01": 0.1, "frc_02": 0.1, "air_temperature": 0.1})
+    assert events.level == 1 and events.values["events"] == "1"
+    assert "south -1.00" in events.values["event 1"] and "window" in events.values["event 1"]
+    assert inputs.level == 1 and "topic air_temperature: all" in inputs.message and "'roof'" in inputs.message
+    assert comp.level == 1 and "no air temperature" in comp.message

@@ -162,7 +162,12 @@ def test_sigterm_writes_checkpoint_and_restart_resumes(bag: Path, direct, tmp_pa
     np.testing.assert_allclose(report["mean_m"], direct.mean_m, rtol=1e-12, atol=0)
     np.testing.assert_allclose(report["covariance_m2"], direct.covariance_m2, rtol=1e-12, atol=0)
     # the /diagnostics the node published after the flush carry that posterior, in mm
-    assert set(diag) == {"bridge_shadow: settlement", "bridge_shadow: inputs", "bridge_shadow: compensation"}
+    assert set(diag) == {
+        "bridge_shadow: settlement",
+        "bridge_shadow: inputs",
+        "bridge_shadow: compensation",
+        "bridge_shadow: events",
+    }
     level, values = diag["bridge_shadow: settlement"]
     assert level in (0, 1)
     sigma = np.sqrt(np.diag(direct.covariance_m2))
@@ -231,8 +236,7 @@ def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
         "topic_timeout_s": 0.2,
         "temperature_stale_s": 0.5,
         "window_min_samples": 10,
-        "spline_warmup_windows": 5,
-        "noise_warmup_windows": 5,
+        "warmup_windows": 5,
     }
     config = load_config(None, overrides)
     ref = Shadow(config).run(data)

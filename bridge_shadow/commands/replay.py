@@ -18,9 +18,16 @@ the rclpy node in a loopback DDS graph (same pipeline, same posterior). Paramete
 config/shadow.yaml or --params; the replay ignores checkpoint_path there (a running node's
 state is never touched) unless --checkpoint PATH names a checkpoint to resume and write. --json
 prints one object: posterior.mean_m [south, north] (m), posterior.covariance_m2 (m^2), messages
-used and rejected by reason, messages_per_s, spline edf and lambda per channel. --out and
---plots work in both modes (live: drawn from the node's history service and final checkpoint).
-A progress bar shows on a terminal unless --json.
+used and rejected by reason, messages_per_s, detected settlement events (time, window, size per
+support in m with covariance and 95 % interval), warnings, the prior in use, spline edf and
+lambda per channel.
+
+Nothing fails silently: a missing air-temperature topic runs uncompensated, a topic whose every
+message is rejected is named with the reason and the expected value (WARN lines on stderr and
+"warnings" in the JSON), and a replay in which no window updated the estimate exits with 1.
+
+--out and --plots work in both modes (live: drawn from the node's history service and final
+checkpoint). A progress bar shows on a terminal unless --json.
 
 To watch the topics of a paced live replay (the ros2 command-line tools are not in the venv:
 they are not on the package index), --watch prints the node's latest outputs once a second:
@@ -168,12 +175,47 @@ def _summary(js: dict[str, Any]) -> str:
         lines.append("rejected messages: " + ", ".join(f"{k} {v}" for k, v in messages.items()))
     if windows:
         lines.append("windows not used: " + ", ".join(f"{k} {v}" for k, v in windows.items()))
+    prior = js.get("prior", {})
+    if prior:
+        lines.append(
+            "prior: sigma "
+            + "/".join(f"{1e3 * s:.2f}" for s in prior["sigma_m"])
+            + f" mm ({prior['source']})"
+        )
+    for i, e in enumerate(js.get("events", []), 1):
+        size = ", ".join(
+            f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f} mm"
+            for side, m, sd in zip(("south", "north"), e["size_m"], e["sigma_m"], strict=True)
+        )
+        lines.append(f"event {i}: settlement step at window {e['window']} ({_utc(e['time_ns'])}): {size}")
     for ch, sp in js["spline"].items():
         lines.append(
             f"compensation {ch}: edf {sp['edf']:.2f}, lambda {sp['lambda']:.3g}, "
-            f"mean {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
+            f"level {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
         )
     return "\n".join(lines)
+
+
+def _utc(stamp_ns: int) -> str:
+    import datetime as dt
+
+    return dt.datetime.fromtimestamp(stamp_ns / 1e9, dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+
+def _loud(js: dict[str, Any]) -> int:
+    """WARN lines on stderr for what must not pass silently; the exit code (1 when nothing updated)."""
+    import sys
+
+    for line in js.get("warnings", []):
+        print(f"bridge-shadow replay: WARN: {line}", file=sys.stderr)
+    if not js["windows"]["updates"]:
+        print(
+            "bridge-shadow replay: error: no window updated the estimate (the posterior printed is the "
+            "prior); see the WARN lines and the rejected counts",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -216,16 +258,18 @@ def run(args: argparse.Namespace) -> int:
             emit_json(js)
         else:
             print(_summary(js))
-        return 0
+        return _loud(js)
 
     from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.contract import INPUT_TOPICS
     from bridge_shadow.estimate.startup import open_shadow
 
     # a params file's checkpoint_path belongs to the live node: never read or written here
     config = load_config(args.params, over).replace(checkpoint_path=args.checkpoint or "")
     surrogate = load_surrogate(config.surrogate_path or None)
     shadow, notes = open_shadow(config, surrogate)  # an unusable checkpoint stops us before the bag
-    data = read_monitoring(args.bag, topics=config.input_topics())
+    # the air temperature may be absent: the shadow then runs uncompensated and says so
+    data = read_monitoring(args.bag, required=list(INPUT_TOPICS)[:2], topics=config.input_topics())
     for line in notes:
         print(f"bridge-shadow replay: {line}", file=sys.stderr)
     result = shadow.run(data, progress=show)
@@ -246,4 +290,4 @@ def run(args: argparse.Namespace) -> int:
         emit_json(js)
     else:
         print(_summary(js))
-    return 0
+    return _loud(js)

@@ -24,6 +24,7 @@ from bridge_shadow.contract import (
     FORCE_TOPICS,
     MEAN_TOPIC,
     NODE_NAME,
+    TEMPERATURE_FRAME,
     TEMPERATURE_TOPIC,
 )
 from bridge_shadow.errors import ConfigError
@@ -80,39 +81,44 @@ class ShadowConfig:
     temperature_match: str = "linear"
     temperature_stale_s: float = 120.0
     topic_timeout_s: float = 30.0
-    # P-spline compensation
+    # temperature compensation (fitted jointly with the settlement levels)
     smoothing: str = "reml"
     spline_lambda: float = 10.0
     spline_t_min_c: float = -20.0
     spline_t_max_c: float = 45.0
     spline_segments: int = 13
-    spline_forgetting_s: float = 0.0
-    spline_warmup_windows: int = 30
-    compensation_level: str = "warmup_mean"
-    reference_temperature_c: float = 10.0
-    # Kalman update
-    prior_sigma_m: list[float] = field(default_factory=lambda: [3.0e-4, 3.0e-4])
+    thermal_prior_sd_n_per_k: float = 500.0
+    warmup_windows: int = 10
+    refit_windows: int = 60
+    lambda_reselect_growth: float = 1.25
+    # settlement prior and process noise
+    prior_sigma_m: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    prior_rule: str = "one_bearing"
     process_noise_m2_per_s: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    drift_block_s: float = 7200.0
+    # measurement noise
     noise_sigma_n: list[float] = field(default_factory=lambda: [60.4, 82.7])
     systematic_sigma_n: list[float] = field(default_factory=lambda: [0.0, 0.0])
-    # honest uncertainty (noise model)
     noise_mode: str = "adaptive"
-    noise_warmup_windows: int = 30
     noise_phi_max: float = 0.999
     noise_floor: bool = True
-    noise_refilter_tolerance: float = 0.1
-    noise_refilter_max_windows: int = 20000
+    # settlement events (GLR step detector)
+    event_detection: bool = True
+    event_trigger_probability: float = 0.999
+    event_probability: float = 0.999999
+    event_confirm_windows: int = 4
+    event_max_pending: int = 15
+    event_jump_rule: str = "both"
     # gating
     force_min_n: float = 1.0
     force_max_n: float = 5.0e6
     temp_min_c: float = -60.0
     temp_max_c: float = 70.0
     mahalanobis_probability: float = 0.999999
-    gate_after_updates: int = 10
-    gate_max_consecutive: int = 5
     clock_jump_s: float = 3600.0
     clock_jump_confirm: int = 100
     check_frame_id: bool = True
+    temperature_frame_id: str = TEMPERATURE_FRAME
     # checkpoint
     checkpoint_path: str = ""
     checkpoint_period_s: float = 600.0
@@ -155,6 +161,15 @@ class ShadowConfig:
         need(self.spline_t_max_c > self.spline_t_min_c, "spline_t_max_c must exceed spline_t_min_c")
         need(self.force_max_n > self.force_min_n, "force_max_n must exceed force_min_n")
         need(self.temp_max_c > self.temp_min_c, "temp_max_c must exceed temp_min_c")
+        need(
+            min(self.prior_sigma_m) > 0 or max(self.prior_sigma_m) == 0,
+            "prior_sigma_m must be > 0, or [0, 0] for the paper's rule (prior_rule)",
+        )
+        need(self.drift_block_s >= self.window_s, "drift_block_s must be at least window_s")
+        need(
+            self.event_max_pending > self.event_confirm_windows,
+            "event_max_pending must exceed event_confirm_windows",
+        )
         topics = [*self.input_topics(), *self.output_topics().values()]
         for name in _TOPIC_FIELDS:
             value = getattr(self, name)

@@ -1,121 +1,186 @@
 """Measurement-noise model of window means: honest ``R`` under autocorrelated residuals.
 
 The paper's ``Sigma_E`` is a per-sample covariance; for a window mean of ``m`` i.i.d. samples it
-is ``Sigma_E / m`` (``fixed`` mode). Real residuals are strongly autocorrelated, so the window
-means scatter far more than that. The ``adaptive`` mode estimates online, per channel, the
-second moments of the scaled window residuals ``e_w sqrt(m_w)`` and their lag-1
-autocorrelation ``phi`` between adjacent windows, and uses
+is ``Sigma_E / m`` (``fixed`` mode). Real residuals are strongly autocorrelated, so window means
+scatter far more than that and neighbouring windows repeat each other. The ``adaptive`` mode
+estimates, from the residuals of the current fit (``e = y - l_s - g(T)`` of every accepted window,
+computed from the sufficient statistics, never from innovations), per channel:
 
-    R_w = D C D / sqrt(m_i m_j),  D = diag(sqrt(s_ii (1 + phi_i) / (1 - phi_i)))
+- the lag-1 autocorrelation ``phi_c`` of the scaled residuals ``sqrt(m) e`` of adjacent windows
+  (with Kendall's first-order bias correction ``+ (1 + 3 phi) / n``), capped at ``phi_max``;
+- the per-sample-equivalent variance ``s_c^2 = sum m e^2 / dof`` with
+  ``dof = n - sum_s f(n_s) - edf``: a fitted level of an AR(1) run of ``n_s`` windows takes
+  ``f(n_s)`` windows' worth of residual variance (not one), and the curve ``edf``; and the
+  correlation between channels.
 
-with ``C`` the residual correlation between channels: the long-run variance of an AR(1) mean,
-so that a run of ``N`` windows carries ``N (1 - phi) / (1 + phi)`` windows' worth of
-information. With ``noise_floor`` the diagonal never drops below the paper's ``Sigma_E / m``.
+A run of ``n`` windows of an AR(1) sequence has a mean whose variance is ``s^2 f(n) / (n m)``,
 
-The residuals ``e_w`` come from the shadow: leave-one-out residuals of the spline fit for the
-warm-up windows, then the innovation ``z_w - A x`` of each kept window (so a settlement change
-that the filter tracks with ``Q > 0`` does not count as noise).
+    f(n) = (1 + phi) / (1 - phi) - 2 phi (1 - phi^n) / (n (1 - phi)^2),
+
+``f(1) = 1`` (one window) and ``f -> (1 + phi) / (1 - phi)`` (the long-run variance) for long runs.
+So the covariance used for a settlement segment of ``n`` windows is ``C(n) o R1`` per sample
+(Hadamard product, ``C_ij = sqrt(f_i f_j)``), divided by the samples of each window; with
+``noise_floor`` its diagonal never drops below the paper's ``Sigma_E``. A window's own scatter
+(for the event detector) is ``R1 / m`` (``f = 1``).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["WindowNoise"]
+from bridge_shadow.estimate.sums import Moments
+
+__all__ = ["NoiseModel", "ar1_factor"]
 
 
-class WindowNoise:
-    """Online second moments and lag-1 autocorrelation of scaled window residuals.
+def ar1_factor(phi: np.ndarray | float, n: np.ndarray | float) -> np.ndarray:
+    """``f(n)``: variance of the mean of ``n`` AR(1) terms over that of ``n`` independent ones."""
+    p = np.asarray(phi, float)
+    n = np.maximum(np.asarray(n, float), 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = (1.0 + p) / (1.0 - p) - 2.0 * p * (1.0 - p**n) / (n * (1.0 - p) ** 2)
+    return np.where(p > 0.0, np.maximum(f, 1.0), 1.0)
+
+
+class NoiseModel:
+    """Per-sample-equivalent residual covariance ``R1`` and lag-1 autocorrelation ``phi``.
 
     Attributes:
-        sigma_e: (2,) N, per-sample noise standard deviation (the paper's ``Sigma_E``).
-        adaptive: estimate from residuals (True) or use ``Sigma_E / m`` (False).
-        phi_max: cap on the estimated autocorrelation.
-        floor: keep the diagonal of R at least ``Sigma_E / m``.
-        n: residual windows seen; S2: (2, 2) sum of e e'; n_pairs, S1: (2,) lag-1 products sum
-            over adjacent windows; S0: (2,) sum of e_{w-1}^2 over those pairs; last: previous
-            scaled residual and its window index.
+        sigma_e: (2,) N, the paper's per-sample noise (``Sigma_E``; ``fixed`` mode, and the floor).
+        adaptive: estimate from residuals (True) or use ``Sigma_E`` with ``phi = 0`` (False).
+        phi_max: cap on ``phi``.
+        floor: keep the diagonal at least ``Sigma_E``.
+        r1: (2, 2) N^2, per-sample-equivalent covariance of the residuals.
+        phi: (2,) lag-1 autocorrelation between adjacent windows.
+        n: windows behind the estimate; dof: (2,) residual degrees of freedom ``n - S - edf``;
+        dof_ar: (2,) the same with ``f(n_s)`` per level (the divisor of ``s^2``).
 
     """
 
     def __init__(
-        self, sigma_e: np.ndarray, adaptive: bool = True, phi_max: float = 0.99, floor: bool = True
+        self, sigma_e: np.ndarray, adaptive: bool = True, phi_max: float = 0.999, floor: bool = True
     ) -> None:
-        self.sigma_e = np.asarray(sigma_e, dtype=float).reshape(2)
+        self.sigma_e = np.asarray(sigma_e, float).reshape(2)
         self.adaptive = adaptive
         self.phi_max = float(phi_max)
         self.floor = floor
+        self.r1 = np.diag(self.sigma_e**2)
+        self.phi = np.zeros(2)
         self.n = 0
-        self.S2 = np.zeros((2, 2))
-        self.S1 = np.zeros(2)
-        self.S0 = np.zeros(2)
-        self.n_pairs = 0
-        self.last = np.full(2, np.nan)
-        self.last_index = -(2**62)
+        self.dof = np.zeros(2)
+        self.dof_ar = np.zeros(2)
+        self._cache()
 
-    def add(self, residual_n: np.ndarray, samples: np.ndarray, window_index: int) -> None:
-        """Add one window's residual (2,) N of means over ``samples`` (2,) samples."""
-        e = np.asarray(residual_n, float).reshape(2) * np.sqrt(np.asarray(samples, float).reshape(2))
-        self.S2 += np.outer(e, e)
-        self.n += 1
-        if window_index == self.last_index + 1:
-            self.S1 += e * self.last
-            self.S0 += self.last * self.last
-            self.n_pairs += 1
-        self.last = e
-        self.last_index = int(window_index)
+    def update(self, moments: Moments, edf: np.ndarray, segment_windows: np.ndarray) -> None:
+        """Re-estimate from the residual moments of the current fit (``adaptive`` mode only).
+
+        ``edf`` (2,) is the curve's effective degrees of freedom and ``segment_windows`` the window
+        count of each segment (each segment's level was fitted too).
+        """
+        self.n = moments.n
+        sizes = np.asarray(segment_windows, float)
+        sizes = sizes[sizes > 0]
+        self.dof = np.maximum(moments.n - len(sizes) - np.asarray(edf, float).reshape(2), 1.0)
+        if not self.adaptive or moments.n < 3:
+            return
+        self._update(moments, sizes, np.asarray(edf, float).reshape(2))
+        self._cache()
+
+    def _update(self, moments: Moments, sizes: np.ndarray, edf: np.ndarray) -> None:
+        if moments.n_pairs >= 2:
+            mean_sq = np.maximum(np.diag(moments.s2) / moments.n, 1e-300)
+            phi = (moments.lag / moments.n_pairs) / mean_sq
+            phi = phi + (1.0 + 3.0 * phi) / moments.n_pairs  # Kendall's first-order bias
+            self.phi = np.clip(phi, 0.0, self.phi_max)
+        else:
+            self.phi = np.zeros(2)
+        # E[sum (e - mean)^2] = s^2 (n - f(n)) for an AR(1) run of n windows: each fitted level
+        # takes f(n_s) windows' worth of variance, not one (short autocorrelated records would
+        # otherwise look far quieter than they are)
+        taken = np.array([float(np.sum(ar1_factor(p, sizes))) for p in self.phi])
+        self.dof_ar = np.maximum(moments.n - taken - edf, 1.0)
+        var = np.maximum(np.diag(moments.s2) / self.dof_ar, 0.0)
+        if self.floor:
+            var = np.maximum(var, self.sigma_e**2)
+        sd = np.sqrt(var)
+        denom = np.sqrt(max(moments.s2[0, 0], 0.0) * max(moments.s2[1, 1], 0.0))
+        rho = float(np.clip(moments.s2[0, 1] / denom, -0.999, 0.999)) if denom > 0 else 0.0
+        self.r1 = np.array([[var[0], rho * sd[0] * sd[1]], [rho * sd[0] * sd[1], var[1]]])
+
+    def factors(self, n_windows: float) -> np.ndarray:
+        """(2, 2) ``C(n)``: the AR(1) variance factor of a run of ``n`` windows, per channel pair."""
+        f = ar1_factor(self.phi, n_windows)
+        return np.sqrt(np.outer(f, f))
+
+    def run_cov(self, n_windows: float) -> np.ndarray:
+        """(2, 2) N^2 per sample: ``C(n) o R1`` (diagonal floored at ``Sigma_E``)."""
+        cov = self.factors(n_windows) * self.r1
+        if self.floor:
+            d = np.maximum(np.diag(cov), self.sigma_e**2)
+            scale = np.sqrt(d / np.maximum(np.diag(cov), 1e-300))
+            cov = cov * np.outer(scale, scale)
+        return cov
+
+    def run_cov_floats(self, n_windows: int) -> tuple[float, float, float]:
+        """``run_cov(n)`` as ``(c00, c01, c11)`` plain floats (the per-window hot path)."""
+        f = []
+        for p in self._phi_f:
+            if p > 0.0:
+                v = (1.0 + p) / (1.0 - p) - 2.0 * p * (1.0 - p**n_windows) / (n_windows * (1.0 - p) ** 2)
+                f.append(max(v, 1.0))
+            else:
+                f.append(1.0)
+        r00, r01, r11 = self._r1_f
+        c00, c11 = f[0] * r00, f[1] * r11
+        c01 = math.sqrt(f[0] * f[1]) * r01
+        if self.floor:
+            s0, s1 = self._se2_f
+            g0 = math.sqrt(s0 / c00) if c00 < s0 else 1.0
+            g1 = math.sqrt(s1 / c11) if c11 < s1 else 1.0
+            c00, c01, c11 = c00 * g0 * g0, c01 * g0 * g1, c11 * g1 * g1
+        return (c00, c01, c11)
+
+    def window_floats(self, m0: float, m1: float) -> tuple[float, float, float]:
+        """``window_cov`` as ``(a, b, d)`` plain floats."""
+        r00, r01, r11 = self._r1_f
+        return (r00 / m0, r01 / math.sqrt(m0 * m1), r11 / m1)
+
+    def _cache(self) -> None:
+        self._r1_f = (float(self.r1[0, 0]), float(self.r1[0, 1]), float(self.r1[1, 1]))
+        self._phi_f = (float(self.phi[0]), float(self.phi[1]))
+        self._se2_f = (float(self.sigma_e[0] ** 2), float(self.sigma_e[1] ** 2))
+
+    def long_run_cov(self) -> np.ndarray:
+        """(2, 2) N^2 per sample: ``R1`` with the long-run AR(1) factor ``(1 + phi) / (1 - phi)``."""
+        return self.run_cov(1e12)
+
+    def window_cov(self, samples: np.ndarray) -> np.ndarray:
+        """(2, 2) N^2: scatter of one window mean over ``samples`` (2,) (no AR factor)."""
+        s = np.sqrt(np.asarray(samples, float).reshape(2))
+        return self.r1 / np.outer(s, s)
 
     @property
-    def phi(self) -> np.ndarray:
-        """Lag-1 autocorrelation per channel, clipped to ``[0, phi_max]`` (0 before two pairs)."""
-        if self.n_pairs < 2:
-            return np.zeros(2)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            phi = np.where(self.S0 > 0, self.S1 / self.S0, 0.0)
-        # first-order bias correction of the lag-1 estimator (Kendall): E[phi^] ~ phi - (1 + 3 phi) / n
-        phi = phi + (1.0 + 3.0 * phi) / self.n_pairs
-        return np.clip(phi, 0.0, self.phi_max)
-
-    def sample_cov(self) -> np.ndarray:
-        """(2, 2) N^2: per-sample-equivalent covariance of the residuals (``Sigma_E`` if unknown)."""
-        if not self.adaptive or self.n < 2:
-            return np.diag(self.sigma_e**2)
-        return self.S2 / self.n
-
-    def R(self, samples: np.ndarray) -> np.ndarray:
-        """Measurement covariance (2, 2) N^2 of a window mean over ``samples`` (2,)."""
-        m = np.asarray(samples, float).reshape(2)
-        paper = self.sigma_e**2 / m
-        if not self.adaptive or self.n < 2:
-            return np.diag(paper)
-        cov = self.sample_cov()
-        phi = self.phi
-        var = np.diag(cov) * (1.0 + phi) / (1.0 - phi) / m
-        if self.floor:
-            var = np.maximum(var, paper)
-        sd = np.sqrt(var)
-        denom = np.sqrt(cov[0, 0] * cov[1, 1])
-        rho = float(np.clip(cov[0, 1] / denom, -0.999, 0.999)) if denom > 0 else 0.0
-        return np.array([[var[0], rho * sd[0] * sd[1]], [rho * sd[0] * sd[1], var[1]]])
+    def sample_sigma(self) -> np.ndarray:
+        """(2,) N, per-sample-equivalent residual standard deviation."""
+        return np.sqrt(np.diag(self.r1))
 
     def state_dict(self) -> dict[str, object]:
         """Plain-data state."""
         return {
+            "r1": self.r1.copy(),
+            "phi": self.phi.copy(),
             "n": self.n,
-            "S2": self.S2.copy(),
-            "S1": self.S1.copy(),
-            "S0": self.S0.copy(),
-            "n_pairs": self.n_pairs,
-            "last": self.last.copy(),
-            "last_index": self.last_index,
+            "dof": self.dof.copy(),
+            "dof_ar": self.dof_ar.copy(),
         }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
-        """Restore the sums."""
+        """Restore the estimate."""
+        self.r1 = np.asarray(state["r1"], float).reshape(2, 2)
+        self.phi = np.asarray(state["phi"], float).reshape(2)
         self.n = int(state["n"])  # type: ignore[call-overload]
-        self.S2 = np.array(state["S2"], float).reshape(2, 2)
-        self.S1 = np.array(state["S1"], float).reshape(2)
-        self.S0 = np.array(state["S0"], float).reshape(2)
-        self.n_pairs = int(state["n_pairs"])  # type: ignore[call-overload]
-        self.last = np.array(state["last"], float).reshape(2)
-        self.last_index = int(state["last_index"])  # type: ignore[call-overload]
+        self.dof = np.asarray(state["dof"], float).reshape(2)
+        self.dof_ar = np.asarray(state["dof_ar"], float).reshape(2)
+        self._cache()

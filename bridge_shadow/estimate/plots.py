@@ -32,11 +32,12 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
     for c, ax in enumerate(axes):
         ok = np.isfinite(h["temp_c"][:, c]) & np.isfinite(h["force_n"][:, c])
         ax.plot(h["temp_c"][ok, c], 1e-3 * h["force_n"][ok, c], ".", ms=3, alpha=0.5, label="60 s means")
-        sp = shadow.splines[c]
-        if sp.sw > 0 and ok.any():
+        fit = shadow.fit
+        if fit is not None and ok.any():
             grid = np.linspace(h["temp_c"][ok, c].min(), h["temp_c"][ok, c].max(), 200)
-            fit = sp.fit()
-            ax.plot(grid, 1e-3 * sp.predict(grid), "r-", label=f"g(T), edf {fit.edf:.1f}")
+            g = shadow.compensation.curve(fit, np.column_stack([grid, grid]))[:, c]
+            level = np.nanmean(h["compensated_n"][ok, c])  # the curve is centred: y - g(T) has mean ybar
+            ax.plot(grid, 1e-3 * (g + level), "r-", label=f"g(T) + mean level, edf {fit.edf[c]:.1f}")
         ax.set(xlabel="air temperature (°C)", ylabel="reaction (kN)", title=f"{CHANNELS[c]} ({SUPPORTS[c]})")
         ax.legend()
     paths.append(_save(fig, out / "compensation_curve.png"))
@@ -63,7 +64,7 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
 
     fig, ax = plt.subplots(figsize=(5.5, 5))
     mean, cov = 1e3 * result.mean_m, 1e6 * result.covariance_m2
-    prior = 1e3 * np.asarray(shadow.config.prior_sigma_m)
+    prior = 1e3 * np.asarray(shadow.prior_sigma_m)
     theta = np.linspace(0, 2 * np.pi, 200)
     circle = np.stack([np.cos(theta), np.sin(theta)])
     k95 = np.sqrt(5.991)  # chi2(2) 95%

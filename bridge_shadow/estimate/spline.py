@@ -25,7 +25,15 @@ import numpy as np
 from scipy import linalg
 from scipy.interpolate import BSpline
 
-__all__ = ["OnlinePSpline", "SplineFit", "clamped_knots", "gram_penalty"]
+__all__ = [
+    "OnlinePSpline",
+    "SplineFit",
+    "basis_nonzero",
+    "clamped_knots",
+    "gram_penalty",
+    "gram_slope",
+    "select_lambda",
+]
 
 _DEGREE = 3
 
@@ -110,6 +118,23 @@ def gram_penalty(knots: np.ndarray) -> np.ndarray:
     return 0.5 * (omega + omega.T)
 
 
+def gram_slope(knots: np.ndarray) -> np.ndarray:
+    """``Omega1_kl = int b_k' b_l'`` over the knot range, exact (3-point Gauss-Legendre), (q, q).
+
+    ``beta' Omega1 beta = int g'(T)^2 dT``: the first-derivative penalty (``b'`` is quadratic, the
+    product of degree 4, so three Gauss-Legendre points per knot interval integrate it exactly).
+    """
+    edges = np.unique(knots)
+    left, right = edges[:-1], edges[1:]
+    half, mid = 0.5 * (right - left), 0.5 * (right + left)
+    nodes, weights = np.polynomial.legendre.leggauss(3)
+    xq = np.concatenate([mid + half * t for t in nodes])
+    wq = np.concatenate([half * w for w in weights])
+    d1 = _basis(knots, xq, nu=1)
+    omega1 = (d1 * wq[:, None]).T @ d1
+    return 0.5 * (omega1 + omega1.T)
+
+
 def _solve(lhs: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """Solve the symmetric ``lhs x = rhs``; the minimum-norm least squares when it is (near) singular.
 
@@ -127,6 +152,104 @@ def _solve(lhs: np.ndarray, rhs: np.ndarray) -> np.ndarray:
             if info == 0:
                 return x
     return np.linalg.lstsq(lhs, rhs, rcond=1e-13)[0]
+
+
+
+def _eigen(G: np.ndarray, omega: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Simultaneous diagonalization of ``(G, Omega)``: (g, d, v~ = V^T L^-1 r)."""
+    q = len(r)
+    kappa = np.trace(G) / np.trace(omega)
+    # S = L L^T; a relative 1e-12 ridge keeps S definite when the data leave the slope
+    # unidentified (all windows at one temperature); it only steers the lambda search
+    S = G + kappa * omega
+    chol = np.linalg.cholesky(S + 1e-12 * np.trace(S) / q * np.eye(q))
+    linv, info = linalg.lapack.dtrtri(chol, lower=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("singular Cholesky factor")
+    d, vecs = np.linalg.eigh(linv @ omega @ linv.T)
+    d = np.clip(d, 0.0, None)
+    g = np.clip(1.0 - kappa * d, 0.0, None)
+    return g, d, vecs.T @ (linv @ r)
+
+
+def _criterion(
+    g: np.ndarray, d: np.ndarray, vt: np.ndarray, p0: int, yy: float, n_obs: float, mode: str
+) -> Callable[[np.ndarray], np.ndarray]:
+    """REML or GCV score as a function of trial ``log10 lambda`` values (vectorized)."""
+    v2 = vt * vt
+    pos = d > 0
+    g_pen, d_pen = g[pos], d[pos]
+    n_pen = len(d_pen)
+
+    def reml(log_lam: np.ndarray) -> np.ndarray:
+        lam = (10.0**log_lam)[:, None]
+        fit_ss = yy - np.sum(v2 / (g + lam * d), axis=1)
+        log_det = np.sum(np.log(g_pen + lam * d_pen), axis=1)
+        return (n_obs - p0) * np.log(np.maximum(fit_ss, 1e-300)) + log_det - n_pen * np.log(lam[:, 0])
+
+    def gcv(log_lam: np.ndarray) -> np.ndarray:
+        a = g + (10.0**log_lam)[:, None] * d
+        rss = yy - np.sum(v2 * (2.0 / a - g / a**2), axis=1)
+        edf = np.sum(g / a, axis=1)
+        return n_obs * np.maximum(rss, 1e-300) / np.maximum(n_obs - edf, 1e-12) ** 2
+
+    return reml if mode == "reml" else gcv
+
+
+def select_lambda(
+    G: np.ndarray, omega: np.ndarray, r: np.ndarray, yy: float, n_obs: float, mode: str = "reml"
+) -> float:
+    """Minimize REML or GCV of ``(G + lambda Omega) beta = r`` over ``log10 lambda``, from sums alone.
+
+    ``G = sum w b b'`` (q, q), ``r = sum w b y`` (q,), ``yy = sum w y^2`` and ``n_obs`` the number of
+    observations (the residual degrees of freedom before the fit). A 0.25-decade grid over 16
+    decades, a 0.005-decade grid around its best point, and the vertex of the parabola through the
+    best fine point and its neighbours.
+    """
+    g, d, vt = _eigen(G, omega, r)
+    dmax = float(d.max()) if d.size else 0.0
+    pos = d > 1e-9 * dmax
+    d = np.where(pos, d, 0.0)
+    p0 = int(np.count_nonzero(~pos))
+    score = _criterion(g, d, vt, p0, float(yy), float(n_obs), mode)
+    # lambda d ~ 1 at the balance point: search 8 decades either side of 1 / median(d).
+    center = -np.log10(np.median(d[pos])) if pos.any() else 0.0
+    coarse = center + np.linspace(-8.0, 8.0, 65)
+    fine = coarse[int(np.argmin(score(coarse)))] + np.linspace(-0.25, 0.25, 101)
+    values = score(fine)
+    j = int(np.argmin(values))
+    best = float(fine[j])
+    if 0 < j < len(fine) - 1:
+        lo, mid, hi = values[j - 1], values[j], values[j + 1]
+        curvature = hi - 2.0 * mid + lo
+        if curvature > 0:
+            best -= 0.5 * (fine[1] - fine[0]) * (hi - lo) / curvature
+    return 10.0**best
+
+
+def basis_nonzero(knots: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return the four non-zero cubic B-splines at ``x``: (first index (n,), values (n, 4)).
+
+    The same Cox-de Boor recursion as ``_basis``, vectorized over ``x``; column ``j`` of the values
+    is basis function ``i0 + j``.
+    """
+    x = np.asarray(x, dtype=float).ravel()
+    q = len(knots) - _DEGREE - 1
+    i = np.clip(np.searchsorted(knots, x, side="right") - 1, _DEGREE, q - 1)
+    n = np.zeros((len(x), _DEGREE + 1))
+    n[:, 0] = 1.0
+    left = np.empty((len(x), _DEGREE + 1))
+    right = np.empty((len(x), _DEGREE + 1))
+    for j in range(1, _DEGREE + 1):
+        left[:, j] = x - knots[i + 1 - j]
+        right[:, j] = knots[i + j] - x
+        saved = np.zeros(len(x))
+        for r in range(j):
+            temp = n[:, r] / (right[:, r + 1] + left[:, j - r])
+            n[:, r] = saved + right[:, r + 1] * temp
+            saved = left[:, j - r] * temp
+        n[:, j] = saved
+    return (i - _DEGREE).astype(np.int64), n
 
 
 @dataclass
@@ -223,72 +346,11 @@ class OnlinePSpline:
         return self.st / self.sw if self.sw > 0 else float("nan")
 
     # -- fitting ----------------------------------------------------------------------------
-    def _eigen(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Simultaneous diagonalization of ``(G, Omega)``: (g, d, v~ = V^T L^-1 r)."""
-        kappa = np.trace(self.G) / np.trace(self.omega)
-        # S = L L^T; a relative 1e-12 ridge keeps S definite when the data leave the slope
-        # unidentified (all windows at one temperature); it only steers the lambda search
-        S = self.G + kappa * self.omega
-        chol = np.linalg.cholesky(S + 1e-12 * np.trace(S) / self.q * np.eye(self.q))
-        linv, info = linalg.lapack.dtrtri(chol, lower=1)
-        if info != 0:
-            raise np.linalg.LinAlgError("singular Cholesky factor")
-        d, vecs = np.linalg.eigh(linv @ self.omega @ linv.T)
-        d = np.clip(d, 0.0, None)
-        g = np.clip(1.0 - kappa * d, 0.0, None)
-        return g, d, vecs.T @ (linv @ self.r)
-
-    def _criterion(
-        self, g: np.ndarray, d: np.ndarray, vt: np.ndarray, p0: int
-    ) -> Callable[[np.ndarray], np.ndarray]:
-        """REML or GCV score as a function of trial ``log10 lambda`` values (vectorized)."""
-        v2 = vt * vt
-        pos = d > 0
-        g_pen, d_pen = g[pos], d[pos]
-        n_pen = len(d_pen)
-        yy, sw = self.yy, self.sw
-
-        def reml(log_lam: np.ndarray) -> np.ndarray:
-            lam = (10.0**log_lam)[:, None]
-            fit_ss = yy - np.sum(v2 / (g + lam * d), axis=1)
-            log_det = np.sum(np.log(g_pen + lam * d_pen), axis=1)
-            return (sw - p0) * np.log(np.maximum(fit_ss, 1e-300)) + log_det - n_pen * np.log(lam[:, 0])
-
-        def gcv(log_lam: np.ndarray) -> np.ndarray:
-            a = g + (10.0**log_lam)[:, None] * d
-            rss = yy - np.sum(v2 * (2.0 / a - g / a**2), axis=1)
-            edf = np.sum(g / a, axis=1)
-            return sw * np.maximum(rss, 1e-300) / np.maximum(sw - edf, 1e-12) ** 2
-
-        return reml if self.mode == "reml" else gcv
-
     def select_lambda(self) -> float:
-        """Smoothing parameter of the current mode (REML/GCV minimized over log10 lambda).
-
-        A 0.25-decade grid over 16 decades, a 0.005-decade grid around its best point, and the
-        vertex of the parabola through the best fine point and its neighbours.
-        """
+        """Smoothing parameter of the current mode (REML/GCV minimized over log10 lambda)."""
         if self.mode == "fixed":
             return self.lam_fixed
-        g, d, vt = self._eigen()
-        dmax = float(d.max()) if d.size else 0.0
-        pos = d > 1e-9 * dmax
-        d = np.where(pos, d, 0.0)
-        p0 = int(np.count_nonzero(~pos))
-        score = self._criterion(g, d, vt, p0)
-        # lambda d ~ 1 at the balance point: search 8 decades either side of 1 / median(d).
-        center = -np.log10(np.median(d[pos])) if pos.any() else 0.0
-        coarse = center + np.linspace(-8.0, 8.0, 65)
-        fine = coarse[int(np.argmin(score(coarse)))] + np.linspace(-0.25, 0.25, 101)
-        values = score(fine)
-        j = int(np.argmin(values))
-        best = float(fine[j])
-        if 0 < j < len(fine) - 1:
-            lo, mid, hi = values[j - 1], values[j], values[j + 1]
-            curvature = hi - 2.0 * mid + lo
-            if curvature > 0:
-                best -= 0.5 * (fine[1] - fine[0]) * (hi - lo) / curvature
-        return 10.0**best
+        return select_lambda(self.G, self.omega, self.r, self.yy, self.sw, self.mode)
 
     def fit(self) -> SplineFit:
         """Fit with the current sums (cached until the next ``add``); needs data."""

@@ -1,7 +1,8 @@
 """``/diagnostics`` for the node: the small piece of diagnostic_updater we need (not on PyPI).
 
-``statuses`` turns ``Shadow.diagnostics()`` plus the node's own input bookkeeping into three
-statuses (plain data, testable without DDS); ``diagnostic_array`` builds the
+``statuses`` turns ``Shadow.diagnostics()`` plus the node's own input bookkeeping into four
+statuses (settlement, inputs, compensation, events; plain data, testable without DDS);
+``diagnostic_array`` builds the
 ``diagnostic_msgs/DiagnosticArray``. Levels follow ``diagnostic_msgs/DiagnosticStatus``:
 0 OK, 1 WARN, 2 ERROR. Values are text for people, so settlements are in mm and forces in kN.
 """
@@ -86,6 +87,10 @@ def _inputs(
     if n_rejected:
         top = sorted(((c, r) for r, c in rejected.items() if c), reverse=True)[:3]
         message += f"; {n_rejected} rejected ({', '.join(f'{r} {c}' for c, r in top) or 'malformed'})"
+    lost = [w for w in diag.get("warnings", []) if w.startswith("topic ")]
+    if lost:  # a topic whose every message was rejected: name it, the reason and what was expected
+        level = max(level, LEVELS["WARN"])
+        message += "; " + "; ".join(lost)
     return Status(f"{NODE_NAME}: inputs", level, message, values)
 
 
@@ -97,15 +102,40 @@ def _compensation(diag: Mapping[str, Any]) -> Status:
         values[f"{ch} lambda"] = _num(sp["lambda"], ".4g")
         values[f"{ch} mean force [kN]"] = _num(1e-3 * sp["mean_force_n"], ".3f")
         values[f"{ch} windows"] = str(sp["windows"])
-        values[f"{ch} clamped"] = str(sp["clamped"])
+        span = f"{_num(sp['t_min_c'], '.1f')} .. {_num(sp['t_max_c'], '.1f')}"
+        values[f"{ch} temperature range [C]"] = span
     noise = diag["noise"]
     values["noise mode"] = str(noise["mode"])
     for ch, phi, sd in zip(CHANNELS, noise["phi"], noise["sigma_n"], strict=True):
         values[f"{ch} noise phi"] = _num(phi, ".3f")
         values[f"{ch} noise sigma [kN]"] = _num(1e-3 * sd, ".4f")
+    values["uncompensated windows"] = str(diag["windows"].get("uncompensated", 0))
     warm = bool(diag["windows"]["warm"])
-    message = "warm" if warm else f"warming up ({diag['windows']['fitted']} windows fitted)"
-    return Status(f"{NODE_NAME}: compensation", LEVELS["OK" if warm else "WARN"], message, values)
+    uncompensated = int(diag["windows"].get("uncompensated", 0))
+    if uncompensated:
+        level, message = LEVELS["WARN"], f"no air temperature: {uncompensated} windows used uncompensated"
+    elif warm:
+        level, message = LEVELS["OK"], "warm"
+    else:
+        level, message = LEVELS["WARN"], f"warming up ({diag['windows']['fitted']} windows fitted)"
+    return Status(f"{NODE_NAME}: compensation", level, message, values)
+
+
+def _events(diag: Mapping[str, Any]) -> Status:
+    """Build the events status: the last one in the message, each in the values (mm)."""
+    events = diag.get("events", [])
+    values: dict[str, str] = {"events": str(len(events))}
+    for i, e in enumerate(events):
+        size = ", ".join(
+            f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f}"
+            for side, m, sd in zip(SUPPORTS, e["size_m"], e["sigma_m"], strict=True)
+        )
+        values[f"event {i + 1}"] = f"window {e['window']} (stamp {e['time_ns']} ns): {size} mm (95 %)"
+    if not events:
+        return Status(f"{NODE_NAME}: events", LEVELS["OK"], "no settlement event", values)
+    last = values[f"event {len(events)}"]
+    message = f"{len(events)} settlement event(s); last: {last}"
+    return Status(f"{NODE_NAME}: events", LEVELS["WARN"], message, values)
 
 
 def statuses(
@@ -114,7 +144,7 @@ def statuses(
     malformed: int = 0,
     timeout_s: float = 60.0,
 ) -> list[Status]:
-    """Build the node's statuses: settlement, inputs, compensation.
+    """Build the node's statuses: settlement, inputs, compensation, events.
 
     Args:
         diag: ``Shadow.diagnostics()`` (SI units).
@@ -123,7 +153,12 @@ def statuses(
         timeout_s: an input quiet for longer is stale (WARN; ERROR when every topic is).
 
     """
-    return [_estimate(diag), _inputs(diag, arrival_age_s, malformed, timeout_s), _compensation(diag)]
+    return [
+        _estimate(diag),
+        _inputs(diag, arrival_age_s, malformed, timeout_s),
+        _compensation(diag),
+        _events(diag),
+    ]
 
 
 def diagnostic_array(items: Sequence[Status], stamp_ns: int) -> DiagnosticArray:

@@ -70,6 +70,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import signal
 import struct
 import sys
@@ -207,6 +208,7 @@ class ShadowNode(Node):
         self.malformed = 0
         self.windows_published = 0
         self.quiet_flushes = 0
+        self._warned: set[str] = set()
         self.history: deque[Any] = deque(maxlen=HISTORY_WINDOWS)
         self._raw: list[list[bytes]] = [[], [], []]
         self._arrival: list[float | None] = [None, None, None]
@@ -446,9 +448,15 @@ class ShadowNode(Node):
         return {k: (None if t is None else now - t) for k, t in zip(keys, self._arrival, strict=True)}
 
     def publish_diagnostics(self) -> None:
-        """Publish /diagnostics: settlement (mm with sigma), inputs (counts, staleness), compensation."""
+        """Publish /diagnostics: settlement, inputs, compensation, events; log new warnings once."""
         self.drain()
-        items = statuses(self.shadow.diagnostics(), self._ages(), self.malformed, self._timeout_s)
+        diag = self.shadow.diagnostics()
+        for line in diag["warnings"]:  # what must not pass silently also reaches the log (stderr)
+            key = re.sub(r"[0-9]+", "#", line)  # the same warning with other counts is not new
+            if key not in self._warned:
+                self._warned.add(key)
+                self.get_logger().warn(line)
+        items = statuses(diag, self._ages(), self.malformed, self._timeout_s)
         self._pub_diag.publish(diagnostic_array(items, self.get_clock().now().nanoseconds))
 
     def _on_status(self, request: Any, response: Any) -> Any:

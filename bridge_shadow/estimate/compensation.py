@@ -1,0 +1,274 @@
+"""Temperature compensation fitted jointly with the settlement levels, so it cannot absorb a settlement.
+
+Per channel the window means follow ``y_w - u0 = l_s(w) + g(T_w) + e_w``: a level ``l_s`` per
+settlement segment (segments are separated by detected events; ``l_s = A x_s`` plus the mean
+thermal response) and one smooth curve ``g`` shared by all segments. The fit is a penalized
+least-squares problem with weights ``m_w`` (samples per window):
+
+    min  sum_w m_w (y_w - l_s(w) - b_w' beta)^2 + lambda int g''^2 dT + kappa int (g' - s_FE)^2 dT
+
+- Profiling the levels out leaves the within-segment sums ``Gw = G - sum_s sb_s sb_s' / W_s`` and
+  ``rw = r - sum_s sb_s sy_s / W_s`` (``FitSums``): the curve is fitted on the variation *inside*
+  segments only, so a step between segments, at whatever temperature, stays in the levels.
+- ``g`` is centred, ``sum_w m_w g(T_w) = 0`` over all windows (the paper's ``y - g(T) + ybar``: the
+  level belongs to the settlement). The constant direction (B-splines sum to one) is in the null
+  space of ``Gw`` and ``Omega``; adding ``sb sb' / W`` to the matrix fixes it at ``sb' beta = 0``.
+- ``kappa int (g' - s_FE)^2 dT`` is a prior on the slope, centred on the FE uniform-temperature
+  sensitivity ``s_FE = surrogate.thermal['uniform']`` (N/K): where the data say nothing (between
+  temperature clusters of different segments, in a narrow range of a few windows) ``g`` follows
+  the FE slope, and the change of ``g`` across a gap of ``D`` kelvin has a prior standard
+  deviation of about ``thermal_prior_sd_n_per_k * sqrt(D / 1 K)``: ``kappa = sigma^2 / sd^2 * 1 K``
+  with ``sigma^2`` the noise model's per-sample variance (the data term's scale; the marginal one,
+  so that a misfit that the noise model takes for slow noise cannot pin the curve to the prior). A
+  day of data outweighs it by orders of magnitude. (``beta' Omega1 beta = int g'^2``, exact.)
+- Outside the temperature range seen so far ``g`` continues with the FE slope from the edge,
+  never with a trend extrapolated from a few windows.
+- ``lambda`` is chosen by REML (or GCV) on the profiled sums, the slope prior counted as data, in
+  the basis orthogonal to the constant, with ``n - S`` observations (S levels profiled out).
+
+Levels of the fit: ``l_s = (sy_s - sb_s' beta) / W_s``. The curve's own uncertainty reaches a
+segment level through ``v_s = sb_s / W_s - sb / W`` (zero with one segment):
+``var_beta(l_s) = sigma^2 v_s' M^-1 v_s`` (Bayesian P-spline posterior, ``M`` the matrix above).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg
+
+from bridge_shadow.estimate.spline import (
+    basis_nonzero,
+    clamped_knots,
+    gram_penalty,
+    gram_slope,
+    select_lambda,
+)
+from bridge_shadow.estimate.sums import FitSums
+
+__all__ = ["Compensation", "CompensationFit"]
+
+
+@dataclass
+class CompensationFit:
+    """One fit of both channels.
+
+    Attributes:
+        beta: (2, q) N, centred spline coefficients.
+        lam: (2,) smoothing parameters (inf: no curve).
+        edf: (2,) effective degrees of freedom of the curve (within segments).
+        level: (n_seg, 2) N, segment levels ``l_s`` relative to ``u0``.
+        dof: (2,) residual degrees of freedom ``n - S - edf``.
+        minv: (2, q, q) inverse of the fit matrix ``M`` (for the curve's uncertainty).
+        t_lo, t_hi: (2,) C, temperature range the curve was fitted on.
+        kappa: (2,) K, the slope prior's weight used.
+        mbar: (2, q) ``M^-1 bbar``; sbar: (2,) ``bbar' M^-1 bbar`` (``bbar = sb / W``), for the variance.
+        n: windows in the fit.
+
+    """
+
+    beta: np.ndarray
+    lam: np.ndarray
+    edf: np.ndarray
+    level: np.ndarray
+    dof: np.ndarray
+    minv: np.ndarray
+    t_lo: np.ndarray
+    t_hi: np.ndarray
+    kappa: np.ndarray
+    mbar: np.ndarray
+    sbar: np.ndarray
+    n: int
+
+    def beta_variance_factor(self, sums: FitSums, s: int) -> np.ndarray:
+        """Return (2,) ``v_s' M^-1 v_s``: the curve's share of segment ``s``'s level variance / sigma^2."""
+        out = np.zeros(2)
+        if sums.n_segments < 2:
+            return out
+        for c in range(2):
+            if sums.Ws[s, c] <= 0 or sums.W[c] <= 0:
+                continue
+            v = sums.sbs[s, c] / sums.Ws[s, c] - sums.sb[c] / sums.W[c]
+            out[c] = max(float(v @ self.minv[c] @ v), 0.0)
+        return out
+
+
+class Compensation:
+    """Joint spline-and-levels fit on ``FitSums`` (no state of its own besides its settings).
+
+    Attributes:
+        knots: clamped cubic knot vector; q: basis size; omega: (q, q) curvature penalty.
+        mode: ``reml`` | ``gcv`` | ``fixed`` | ``none`` (``none``: no curve, compensated = raw).
+        lam_fixed: lambda of ``fixed`` mode.
+        slope_fe: (2,) N/K, FE uniform-temperature sensitivity (prior slope and extrapolation).
+        slope_sd: N/K, the slope prior's standard deviation over one kelvin.
+        omega1: (q, q) slope penalty ``int b' b'^T``; e: (q,) ``int b'`` (``e' beta = g(t_max) - g(t_min)``).
+
+    """
+
+    def __init__(
+        self,
+        t_min_c: float,
+        t_max_c: float,
+        segments: int,
+        mode: str = "reml",
+        lam: float = 10.0,
+        slope_fe: np.ndarray | None = None,
+        slope_sd: float = 500.0,
+    ) -> None:
+        self.knots = clamped_knots(np.linspace(t_min_c, t_max_c, segments + 1))
+        self.t_min, self.t_max = float(self.knots[0]), float(self.knots[-1])
+        self.q = len(self.knots) - 4
+        self.omega = gram_penalty(self.knots)
+        self.mode = mode
+        self.lam_fixed = float(lam)
+        self.slope_fe = np.zeros(2) if slope_fe is None else np.asarray(slope_fe, float).reshape(2)
+        self.slope_sd = float(slope_sd)
+        self.omega1 = gram_slope(self.knots)
+        self.e = np.zeros(self.q)
+        self.e[0], self.e[-1] = -1.0, 1.0
+        self.span = self.t_max - self.t_min
+        # orthonormal basis of the coefficients orthogonal to the constant (for REML)
+        q_full, _ = np.linalg.qr(np.column_stack([np.ones(self.q), np.eye(self.q)[:, : self.q - 1]]))
+        self._z = q_full[:, 1:]
+
+    # -- basis ----------------------------------------------------------------------------------
+    def basis_rows(self, temp_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Non-zero basis of window temperatures (n, 2): first index (n, 2) (-1 if NaN), values (n, 2, 4)."""
+        t = np.asarray(temp_c, float).reshape(-1, 2)
+        ok = np.isfinite(t)
+        i0, bv = basis_nonzero(self.knots, np.clip(np.where(ok, t, self.t_min), self.t_min, self.t_max))
+        i0 = np.where(ok.ravel(), i0, -1).reshape(-1, 2)
+        return i0, bv.reshape(-1, 2, 4)
+
+    # -- fitting --------------------------------------------------------------------------------
+    def slope_weight(self, sigma2: np.ndarray) -> np.ndarray:
+        """(2,) ``kappa`` (K) of the slope prior for per-sample noise variances ``sigma2`` (2,) N^2."""
+        return np.asarray(sigma2, float).reshape(2) / self.slope_sd**2 * 1.0
+
+    def fit(
+        self, sums: FitSums, lam: np.ndarray | None = None, kappa: np.ndarray | None = None
+    ) -> CompensationFit:
+        """Fit both channels.
+
+        ``lam`` (2,) reuses smoothing parameters (None: select them by REML/GCV); ``kappa`` (2,) K
+        weighs the slope prior (``slope_weight`` of the noise model's variance; None: no prior).
+        """
+        q, n_seg = self.q, sums.n_segments
+        beta = np.zeros((2, q))
+        lams = np.full(2, np.inf)
+        edf = np.zeros(2)
+        minv = np.zeros((2, q, q))
+        used = sums.ns > 0
+        n_levels = int(np.count_nonzero(used))
+        for c in range(2):
+            ws = np.where(used, sums.Ws[:, c], 1.0)
+            has_t = sums.W[c] > 0 and np.any(sums.sb[c] > 0)
+            if self.mode == "none" or not has_t:
+                continue
+            sbs, sys = sums.sbs[:, c], sums.sys[:, c]
+            gw = sums.G[c] - (sbs.T / ws) @ sbs
+            rw = sums.r[c] - sbs.T @ (sys / ws)
+            yyw = sums.yy[c] - float(np.sum(sys**2 / ws))
+            gw = 0.5 * (gw + gw.T)
+            kap = 0.0 if kappa is None else float(kappa[c])
+            s_fe = self.slope_fe[c]
+            gp = gw + kap * self.omega1  # the slope prior, counted as data for lambda's choice
+            rp = rw + kap * s_fe * self.e
+            yyp = yyw + kap * s_fe**2 * self.span
+            if lam is not None and np.isfinite(lam[c]):
+                lams[c] = float(lam[c])
+            elif self.mode == "fixed":
+                lams[c] = self.lam_fixed
+            else:
+                z = self._z
+                lams[c] = select_lambda(
+                    z.T @ gp @ z, z.T @ self.omega @ z, z.T @ rp, yyp, max(sums.n - n_levels, 2), self.mode
+                )
+            cvec = sums.sb[c] / np.sqrt(sums.W[c])
+            mat = gp + lams[c] * self.omega + np.outer(cvec, cvec)  # + c c' fixes sb' beta = 0
+            rhs = rp
+            chol = linalg.cho_factor(mat, lower=True, check_finite=False)
+            sol = linalg.cho_solve(chol, np.column_stack([rhs, gw, np.eye(q)]), check_finite=False)
+            beta[c] = sol[:, 0]
+            edf[c] = float(np.trace(sol[:, 1 : q + 1]))
+            minv[c] = sol[:, q + 1 :]
+        ws_all = np.where(used[:, None], sums.Ws, 1.0)
+        level = (sums.sys - np.einsum("scq,cq->sc", sums.sbs, beta)) / ws_all
+        level[~used] = 0.0
+        dof = np.maximum(sums.n - n_levels - edf, 1.0)
+        kap = np.zeros(2) if kappa is None else np.asarray(kappa, float).reshape(2)
+        bbar = sums.sb / np.maximum(sums.W, 1e-300)[:, None]
+        mbar = np.einsum("cij,cj->ci", minv, bbar)
+        sbar = np.einsum("ci,ci->c", bbar, mbar)
+        return CompensationFit(
+            beta,
+            lams,
+            edf,
+            level[:n_seg],
+            dof,
+            minv,
+            sums.t_lo.copy(),
+            sums.t_hi.copy(),
+            kap,
+            mbar,
+            sbar,
+            sums.n,
+        )
+
+    # -- evaluation -------------------------------------------------------------------------------
+    def curve(self, fit: CompensationFit, temp_c: np.ndarray) -> np.ndarray:
+        """Centred ``g(T)`` (n, 2) N at window temperatures (n, 2); 0 where T is unknown.
+
+        Beyond the temperatures of the data the penalized curve itself continues: straight on (the
+        curvature penalty) and bending toward the FE slope (the slope prior), so a trend made up
+        by a few windows is not extrapolated while one that days of data show is. Beyond the knot
+        range it continues with the FE slope.
+        """
+        t = np.asarray(temp_c, float).reshape(-1, 2)
+        ok = np.isfinite(t)
+        i0, bv = self.basis_rows(np.where(ok, t, np.nan))
+        return self.curve_rows(fit, t, i0, bv)
+
+    def curve_rows(
+        self, fit: CompensationFit, temp_c: np.ndarray, i0: np.ndarray, bv: np.ndarray
+    ) -> np.ndarray:
+        """``curve`` for rows whose basis is already known: ``b(T)' beta`` (n, 2)."""
+        t = np.asarray(temp_c, float).reshape(-1, 2)
+        out = np.zeros(t.shape)
+        if self.mode == "none":
+            return out
+        for c in range(2):
+            ok = i0[:, c] >= 0
+            if not ok.any():
+                continue
+            coef = fit.beta[c][i0[ok, c][:, None] + np.arange(4)]
+            out[ok, c] = np.sum(bv[ok, c] * coef, axis=1)
+            beyond = ok & ((t[:, c] < self.t_min) | (t[:, c] > self.t_max))
+            if beyond.any():
+                tc = t[beyond, c]
+                out[beyond, c] += self.slope_fe[c] * (tc - np.clip(tc, self.t_min, self.t_max))
+        return out
+
+    def curve_variance(self, fit: CompensationFit, i0: np.ndarray, bv: np.ndarray) -> np.ndarray:
+        """Return the centred curve's own variance (n, 2) N^2 (Bayesian P-spline posterior), 0 without T.
+
+        ``sigma^2 (b - bbar)' M^-1 (b - bbar)`` with ``bbar = sb / W`` (the curve is centred) and the
+        ``sigma^2 = kappa * slope_sd^2`` that weighed the slope prior of this fit: small where days of
+        data fix the curve, growing beyond the temperatures seen so far.
+        """
+        out = np.zeros(i0.shape, float)
+        if self.mode == "none":
+            return out
+        idx = np.arange(4)
+        for c in range(2):
+            ok = i0[:, c] >= 0
+            if not ok.any():
+                continue
+            cols = i0[ok, c][:, None] + idx  # (n, 4)
+            block = fit.minv[c][cols[:, :, None], cols[:, None, :]]  # (n, 4, 4)
+            b = bv[ok, c]
+            quad = np.einsum("ni,nij,nj->n", b, block, b) - 2.0 * np.sum(b * fit.mbar[c][cols], axis=1)
+            out[ok, c] = fit.kappa[c] * self.slope_sd**2 * np.maximum(quad + fit.sbar[c], 0.0)
+        return out

@@ -1,0 +1,108 @@
+"""Per-topic input bookkeeping: what each topic delivered, what was rejected and why, said out loud.
+
+A topic whose every message is rejected, or that never delivered, must not pass silently: the
+shadow's diagnostics, the replay JSON and a WARN line name the topic, the reason and the value it
+expected (``warnings``).
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bridge_shadow.contract import CHANNELS
+
+__all__ = ["TOPIC_KEYS", "TopicLedger"]
+
+#: Keys of the three input topics in counters and diagnostics.
+TOPIC_KEYS: tuple[str, str, str] = (*CHANNELS, "air_temperature")
+
+
+@dataclass
+class TopicLedger:
+    """Accepted and rejected messages of one input topic.
+
+    Attributes:
+        key: the topic key (``frc_01``, ``frc_02``, ``air_temperature``).
+        expected_frame: the frame id the gate expects (None: not checked).
+        value_range: accepted value range (lo, hi) and its unit.
+        used: accepted messages; rejected: rejections by reason.
+        last_frame: a frame id seen on a message rejected for its frame.
+        last_value: a value seen on a message rejected as out of range.
+
+    """
+
+    key: str
+    expected_frame: str | None
+    value_range: tuple[float, float, str]
+    used: int = 0
+    rejected: Counter = field(default_factory=Counter)
+    last_frame: str | None = None
+    last_value: float | None = None
+
+    def note(
+        self,
+        ok: np.ndarray,
+        values: np.ndarray,
+        frame_id: np.ndarray | str | None,
+        counts_before: Counter,
+        counts: Counter,
+    ) -> None:
+        """Record one gated batch: ``ok`` mask, the values and frames, and the global counts around it."""
+        self.used += int(np.count_nonzero(ok))
+        for reason, n in counts.items():
+            d = n - counts_before.get(reason, 0)
+            if d:
+                self.rejected[reason] += d
+        if ok.all():
+            return
+        bad = ~ok
+        if self.expected_frame is not None and frame_id is not None:
+            frames = (
+                np.full(len(ok), frame_id, dtype=object)
+                if isinstance(frame_id, str)
+                else np.asarray(frame_id, object)
+            )
+            wrong = bad & (frames != self.expected_frame) & (frames != "")
+            if wrong.any():
+                self.last_frame = str(frames[np.flatnonzero(wrong)[-1]])
+        lo, hi, _ = self.value_range
+        out = bad & np.isfinite(values) & ((values < lo) | (values > hi))
+        if out.any():
+            self.last_value = float(values[np.flatnonzero(out)[-1]])
+
+    def all_rejected_message(self) -> str | None:
+        """One line when every message of the topic was rejected (None otherwise)."""
+        total = sum(self.rejected.values())
+        if self.used or not total:
+            return None
+        reason, n = self.rejected.most_common(1)[0]
+        detail = {
+            "frame_id": f"frame_id {self.last_frame!r}, expected {self.expected_frame!r} "
+            "(parameter temperature_frame_id / check_frame_id)",
+            "out_of_range": f"value {self.last_value!r}, expected {self.value_range[0]:g} .. "
+            f"{self.value_range[1]:g} {self.value_range[2]}",
+            "nonfinite": "NaN or infinite values, expected finite numbers",
+        }.get(reason, reason)
+        return f"topic {self.key}: all {total} messages rejected ({n} for {reason}: {detail})"
+
+    def state_dict(self) -> dict[str, object]:
+        """Plain-data state."""
+        return {
+            "used": self.used,
+            "rejected": json.dumps({k: int(v) for k, v in self.rejected.items()}),
+            "last_frame": "" if self.last_frame is None else self.last_frame,
+            "has_frame": self.last_frame is not None,
+            "last_value": np.nan if self.last_value is None else self.last_value,
+        }
+
+    def load_state_dict(self, state: dict[str, object]) -> None:
+        """Restore the bookkeeping."""
+        self.used = int(state["used"])  # type: ignore[call-overload]
+        self.rejected = Counter({k: int(v) for k, v in json.loads(str(state["rejected"])).items()})
+        self.last_frame = str(state["last_frame"]) if bool(state["has_frame"]) else None
+        v = float(state["last_value"])  # type: ignore[arg-type]
+        self.last_value = None if np.isnan(v) else v

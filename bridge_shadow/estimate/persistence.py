@@ -1,0 +1,287 @@
+"""The shadow's online state as nested plain data, and back (``Shadow.state_dict`` / ``from_state_dict``).
+
+Every part contributes its own ``state_dict``; this module gathers them, plus the windows still on
+their way to an output (the queue, the detector's held windows, the warm-up) and the rows not yet
+in the sums. The result holds only arrays, numbers and strings (``checkpoint.save_state`` writes it
+as one ``.npz`` without pickle). A shadow restored from it continues exactly as the uninterrupted
+one would (to rounding).
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from bridge_shadow.estimate.compensation import CompensationFit
+from bridge_shadow.estimate.config import ShadowConfig
+from bridge_shadow.estimate.events import Pending
+from bridge_shadow.estimate.gate import REASONS
+from bridge_shadow.model.surrogate_file import Surrogate
+
+if TYPE_CHECKING:
+    from bridge_shadow.estimate.shadow import Shadow
+
+__all__ = ["restore_shadow", "shadow_state"]
+
+_VERSION = 2
+_NONE = -(2**62)
+_FIT_FIELDS = ("beta", "lam", "edf", "level", "dof", "minv", "t_lo", "t_hi", "kappa", "mbar", "sbar", "n")
+
+
+def _opt(value: int | None) -> int:
+    return _NONE if value is None else int(value)
+
+
+def _unopt(value: Any) -> int | None:
+    v = int(value)
+    return None if v == _NONE else v
+
+
+def _prev_state(p: Pending | None) -> dict[str, Any]:
+    """Return the jump test's reference window as plain data (floats from the fast path, or arrays)."""
+    if p is None:
+        return {
+            "has": False,
+            "k": 0,
+            "lazy": False,
+            "v": np.zeros(2),
+            "r": np.zeros((2, 2)),
+            "apa": np.zeros((2, 2)),
+        }
+    lazy = isinstance(p.v, tuple)
+
+    def arr(m: Any) -> np.ndarray:
+        return np.array([[m[0], m[1]], [m[1], m[2]]]) if lazy else np.asarray(m, float)
+
+    return {
+        "has": True,
+        "k": p.k,
+        "lazy": lazy,
+        "v": np.asarray(p.v, float),
+        "r": arr(p.r_window),
+        "apa": arr(p.apa),
+    }
+
+
+def _restore_prev(state: dict[str, Any]) -> Pending | None:
+    if not bool(state["has"]):
+        return None
+    v = np.asarray(state["v"], float).reshape(2)
+    r = np.asarray(state["r"], float).reshape(2, 2)
+    apa = np.asarray(state["apa"], float).reshape(2, 2)
+    if bool(state["lazy"]):
+        sym = lambda m: (float(m[0, 0]), float(m[0, 1]), float(m[1, 1]))  # noqa: E731
+        return Pending(int(state["k"]), (float(v[0]), float(v[1])), sym(r), sym(apa), None)
+    return Pending(int(state["k"]), v, r, apa, None)
+
+
+def _window_state(w: Any) -> dict[str, Any]:
+    """Return the last window used as plain data (or none)."""
+    if w is None:
+        return {"has": False}
+    return {
+        "has": True,
+        "k": w.k,
+        "samples": np.asarray(w.samples),
+        "force": np.asarray(w.force, float),
+        "temp": np.asarray(w.temp, float),
+        "i0": np.asarray(w.i0),
+        "bv": np.asarray(w.bv, float),
+    }
+
+
+def shadow_state(shadow: Shadow) -> dict[str, Any]:
+    """Return the state of ``shadow`` as nested plain data."""
+    queue = list(shadow._queue)
+    index = {id(w): i for i, w in enumerate(queue)}
+    det = shadow.detector
+    rows = shadow._rows
+    fit = shadow.fit
+    return {
+        "version": _VERSION,
+        "config": json.dumps(shadow.config.to_params()),
+        "surrogate": {
+            "A": shadow.surrogate.A,
+            "u0": shadow.surrogate.u0,
+            "uniform": shadow.surrogate.thermal.get("uniform", np.zeros(2)),
+        },
+        "gates": [g.state_dict() for g in shadow.gates],
+        "ledgers": [led.state_dict() for led in shadow.ledgers],
+        "counts": json.dumps({k: int(v) for k, v in shadow.counts.items()}),
+        "used": json.dumps(shadow.used),
+        "buffer": shadow.buffer.state_dict(),
+        "sums": shadow.sums.state_dict(),
+        "has_fit": fit is not None,
+        "fit": {f: np.asarray(getattr(fit, f)) for f in _FIT_FIELDS} if fit is not None else {"n": 0},
+        "lam": shadow.lam.copy(),
+        "noise": shadow.noise.state_dict(),
+        "filter": shadow.filter.state_dict(),
+        "detector": {
+            "n_events": det.n_events,
+            "phi": det.phi.copy(),
+            "inflation": det.inflation,
+            "max_jump": det.max_jump,
+            "pending_index": np.array([index[id(p.payload)] for p in det.pending], np.int64),
+            "pending_v": np.array([p.v for p in det.pending]).reshape(-1, 2),
+            "pending_r": np.array([p.r_window for p in det.pending]).reshape(-1, 2, 2),
+            "pending_apa": np.array([p.apa for p in det.pending]).reshape(-1, 2, 2),
+            "prev": _prev_state(det.prev),
+        },
+        "last_ok": _window_state(shadow._last_ok),
+        "queue": {
+            "k": np.array([w.k for w in queue], np.int64),
+            "samples": np.array([w.samples for w in queue], np.int64).reshape(-1, 2),
+            "force": np.array([w.force for w in queue], float).reshape(-1, 2),
+            "temp": np.array([w.temp for w in queue], float).reshape(-1, 2),
+            "reason": json.dumps([w.reason for w in queue]),
+            "action": json.dumps([w.action for w in queue]),
+            "i0": np.array([w.i0 for w in queue], np.int64).reshape(-1, 2),
+            "bv": np.array([w.bv for w in queue], float).reshape(-1, 2, 4),
+            "event_end": np.array([w.event_end for w in queue], bool),
+            "warm": np.array([index[id(w)] for w in shadow._warm], np.int64),
+        },
+        "rows": {
+            "k": np.array([r[0] for r in rows], np.int64),
+            "m": np.array([r[1] for r in rows], float).reshape(-1, 2),
+            "y": np.array([r[2] for r in rows], float).reshape(-1, 2),
+            "t": np.array([r[3] for r in rows], float).reshape(-1, 2),
+            "i0": np.array([r[4] for r in rows], np.int64).reshape(-1, 2),
+            "bv": np.array([r[5] for r in rows], float).reshape(-1, 2, 4),
+            "seg": np.array([r[6] for r in rows], np.int64),
+        },
+        "events": json.dumps(
+            [
+                {**e, "step_n": np.asarray(e["step_n"], float).tolist(), "glr": float(e["glr"])}
+                for e in shadow.events
+            ]
+        ),
+        "scalars": {
+            "n_windows": shadow.n_windows,
+            "uncompensated": shadow.uncompensated,
+            "warm": int(shadow.warm),
+            "n_accepted": shadow._n_accepted,
+            "refit_at": shadow._refit_at,
+            "lambda_at": shadow._lambda_at,
+            "ckpt_ns": _opt(shadow._ckpt_ns),
+            "first_ns": _opt(shadow._first_ns),
+            "last_judged": shadow._last_judged,
+        },
+    }
+
+
+def restore_shadow(
+    cls: type[Shadow], state: dict[str, Any], config: ShadowConfig | None, surrogate: Surrogate | None
+) -> Shadow:
+    """Rebuild a shadow of class ``cls`` from ``shadow_state`` output."""
+    from bridge_shadow.estimate.shadow import Window
+
+    if int(state.get("version", 1)) != _VERSION:
+        from bridge_shadow.errors import InputError
+
+        raise InputError(f"checkpoint version {state.get('version', 1)} is not {_VERSION}: start without it")
+    if config is None:
+        config = ShadowConfig.from_params(json.loads(str(state["config"])))
+    if surrogate is None:
+        s = state["surrogate"]
+        surrogate = Surrogate(np.asarray(s["A"]), np.asarray(s["u0"]), {"uniform": np.asarray(s["uniform"])})
+    shadow = cls(config, surrogate)
+    for g, s in zip(shadow.gates, state["gates"], strict=True):
+        g.load_state_dict(s)
+    for led, s in zip(shadow.ledgers, state["ledgers"], strict=True):
+        led.load_state_dict(s)
+    shadow.counts = Counter(dict.fromkeys(REASONS, 0))
+    shadow.counts.update(json.loads(str(state["counts"])))
+    shadow.used = {k: int(v) for k, v in json.loads(str(state["used"])).items()}
+    shadow.buffer.load_state_dict(state["buffer"])
+    shadow.sums.load_state_dict(state["sums"])
+    if bool(state["has_fit"]):
+        f = state["fit"]
+        shadow.fit = CompensationFit(
+            *(np.asarray(f[name], float) for name in _FIT_FIELDS[:-1]),
+            int(f["n"]),  # type: ignore[arg-type]
+        )
+    shadow.lam = np.asarray(state["lam"], float).reshape(2)
+    shadow.noise.load_state_dict(state["noise"])
+    shadow.filter.load_state_dict(state["filter"])
+    if shadow.fit is not None:
+        shadow.filter.use_noise(shadow.noise)
+    q = state["queue"]
+    reasons = json.loads(str(q["reason"]))
+    actions = json.loads(str(q["action"]))
+    queue = []
+    for i, k in enumerate(np.asarray(q["k"]).ravel()):
+        w = Window(
+            int(k),
+            np.asarray(q["samples"]).reshape(-1, 2)[i],
+            np.asarray(q["force"], float).reshape(-1, 2)[i],
+            np.asarray(q["temp"], float).reshape(-1, 2)[i],
+            reasons[i],
+            np.asarray(q["i0"]).reshape(-1, 2)[i],
+            np.asarray(q["bv"], float).reshape(-1, 2, 4)[i],
+        )
+        w.action = actions[i]
+        w.event_end = bool(np.asarray(q["event_end"]).ravel()[i])
+        queue.append(w)
+    shadow._queue.extend(queue)
+    shadow._warm = [queue[int(i)] for i in np.asarray(q["warm"]).ravel()]
+    d = state["detector"]
+    det = shadow.detector
+    det.n_events = int(d["n_events"])
+    det.phi = np.asarray(d["phi"], float).reshape(2)
+    det.inflation = float(d["inflation"])
+    det.max_jump = float(d["max_jump"])
+    det.prev = _restore_prev(d["prev"])
+    lw = state["last_ok"]
+    if bool(lw["has"]):
+        shadow._last_ok = Window(
+            int(lw["k"]),
+            np.asarray(lw["samples"]).reshape(2),
+            np.asarray(lw["force"], float).reshape(2),
+            np.asarray(lw["temp"], float).reshape(2),
+            "",
+            np.asarray(lw["i0"]).reshape(2),
+            np.asarray(lw["bv"], float).reshape(2, 4),
+        )
+    if shadow.fit is not None:
+        shadow._set_range(shadow.fit)
+    det.pending = [
+        Pending(int(queue[int(i)].k), v, r, a, queue[int(i)])
+        for i, v, r, a in zip(
+            np.asarray(d["pending_index"]).ravel(),
+            np.asarray(d["pending_v"], float).reshape(-1, 2),
+            np.asarray(d["pending_r"], float).reshape(-1, 2, 2),
+            np.asarray(d["pending_apa"], float).reshape(-1, 2, 2),
+            strict=True,
+        )
+    ]
+    r = state["rows"]
+    n_rows = len(np.asarray(r["k"]).ravel())
+    shadow._rows = [
+        (
+            int(np.asarray(r["k"]).ravel()[i]),
+            np.asarray(r["m"], float).reshape(-1, 2)[i],
+            np.asarray(r["y"], float).reshape(-1, 2)[i],
+            np.asarray(r["t"], float).reshape(-1, 2)[i],
+            np.asarray(r["i0"]).reshape(-1, 2)[i],
+            np.asarray(r["bv"], float).reshape(-1, 2, 4)[i],
+            int(np.asarray(r["seg"]).ravel()[i]),
+        )
+        for i in range(n_rows)
+    ]
+    shadow.events = [
+        {**e, "step_n": np.asarray(e["step_n"], float)} for e in json.loads(str(state["events"]))
+    ]
+    sc = state["scalars"]
+    shadow.n_windows = int(sc["n_windows"])
+    shadow.uncompensated = int(sc["uncompensated"])
+    shadow.warm = bool(int(sc["warm"]))
+    shadow._n_accepted = int(sc["n_accepted"])
+    shadow._refit_at = int(sc["refit_at"])
+    shadow._lambda_at = int(sc["lambda_at"])
+    shadow._ckpt_ns = _unopt(sc["ckpt_ns"])
+    shadow._first_ns = _unopt(sc["first_ns"])
+    shadow._last_judged = int(sc["last_judged"])
+    return shadow

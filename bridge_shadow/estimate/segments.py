@@ -1,0 +1,376 @@
+"""Settlement estimate over segments of constant settlement (Q = 0): information form, then a chain.
+
+Between two detected events the settlement ``x_s`` is constant. The windows of segment ``s``,
+compensated with the current curve (``z_w = y_w - u0 - g(T_w)``, N), are independent
+measurements ``z_w = A x_s + e_w`` with ``cov(e_w) = diag(1/sqrt(m_w)) Rs diag(1/sqrt(m_w))``,
+``Rs = C(n_s) o R1`` the per-sample covariance of a run of ``n_s`` windows (``NoiseModel``).
+Their information is (``o`` is the Hadamard product, ``K = Rs^-1``)
+
+    Lambda_s = sum_w A' S_w K S_w A = A' (K o M_s) A,         M_s,ij = sum_w sqrt(m_wi m_wj)
+    eta_s    = sum_w A' S_w K S_w z_w = A' (K o Z_s) 1,      Z_s,ij = sum_w sqrt(m_wi m_wj) z_wj
+
+(``S_w = diag(sqrt(m_w))``), so a segment is a measurement of ``x_s`` with mean
+``x_d = Lambda_s^-1 eta_s`` and covariance ``D_s = Lambda_s^-1 + A^-1 diag(var_beta) A^-T`` (the
+curve's own uncertainty, zero with one segment). ``M_s`` and ``Z_s`` come from ``FitSums``, so the
+estimate is exact for the current curve and noise model whenever it is refreshed, however the
+noise estimate moved since a window arrived.
+
+The segments form a chain (filterpy ``KalmanFilter``, ``F = I``, ``H = I``):
+
+    x_1 ~ N(0, Sigma_X)                       the prior
+    x_s = x_{s-1} + j_s,  j_s ~ N(0, J)        an event opens the covariance by J (the prior's)
+    x_d,s = x_s + d_s,    d_s ~ N(0, D_s)      the segment's windows
+
+With one segment this is exactly the paper's closed form
+``Sigma' = (Sigma_X^-1 + sum_w A' R_w^-1 A)^-1``, ``mu' = Sigma' sum_w A' R_w^-1 (y_w - u0)`` on the
+compensated windows (the centred curve drops out of the sum).
+
+Between refreshes the current segment is updated window by window with the same formulas (its
+``M``, ``Z`` kept as small arrays), so every window has its posterior at once.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+
+from bridge_shadow.estimate.compensation import CompensationFit
+from bridge_shadow.estimate.noise import NoiseModel
+from bridge_shadow.estimate.small import Sym, Vec, congruence, inv_sym, mat_vec, sym_vec
+from bridge_shadow.estimate.sums import FitSums
+
+__all__ = ["SegmentChain", "SegmentSummary"]
+
+
+@dataclass
+class SegmentSummary:
+    """What the data of one segment say and what the chain makes of it (m, m^2).
+
+    Attributes:
+        start_k: first window index of the segment.
+        windows: windows in the segment.
+        x_data: (2,) data-only estimate ``x_d`` (NaN without windows).
+        d_cov: (2, 2) its covariance ``D``.
+        x: (2,) chained posterior mean; P: (2, 2) its covariance.
+
+    """
+
+    start_k: int
+    windows: int
+    x_data: np.ndarray
+    d_cov: np.ndarray
+    x: np.ndarray
+    P: np.ndarray
+
+
+def _segment_measurement(
+    A: np.ndarray, K: np.ndarray, M: np.ndarray, Z: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(x_d, Lambda^-1)`` of a segment from ``K`` (2, 2), ``M`` (2, 2), ``Z`` (2, 2); None if empty."""
+    if M[0, 0] <= 0 or M[1, 1] <= 0:
+        return None
+    info = A.T @ (K * M) @ A  # Lambda = A' (K o M) A
+    eta = A.T @ (K * Z).sum(axis=1)  # eta = A' (K o Z) 1
+    cov = np.linalg.inv(info)  # the covariance itself is needed, so an explicit inverse
+    cov = 0.5 * (cov + cov.T)
+    return cov @ eta, cov
+
+
+@dataclass
+class _Online:
+    """The current segment's running sums between refreshes (Z compensated with the curve of its time).
+
+    ``M = (M00, M01, M11)`` (symmetric), ``Z = (Z00, Z01, Z10, Z11)``, plain floats (hot path).
+    """
+
+    M: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    Z: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0])
+    n: int = 0
+
+    @classmethod
+    def from_arrays(cls, M: np.ndarray, Z: np.ndarray, n: int) -> _Online:
+        return cls([float(M[0, 0]), float(M[0, 1]), float(M[1, 1])], [float(v) for v in np.ravel(Z)], int(n))
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        m = self.M
+        return np.array([[m[0], m[1]], [m[1], m[2]]]), np.array(self.Z).reshape(2, 2)
+
+
+def _sym(m: np.ndarray) -> Sym:
+    return (float(m[0, 0]), float(0.5 * (m[0, 1] + m[1, 0])), float(m[1, 1]))
+
+
+def _arr(m: Sym) -> np.ndarray:
+    return np.array([[m[0], m[1]], [m[1], m[2]]])
+
+
+class SegmentChain:
+    """Posterior of the settlement, segment by segment (no process noise).
+
+    Attributes:
+        A: (2, 2) N/m; prior_cov: (2, 2) m^2 (``Sigma_X``); jump_cov: (2, 2) m^2 (``J``).
+        starts: first window index of every segment (``starts[0]`` is the first window seen).
+        summaries: per segment, the last refresh's ``SegmentSummary``.
+        n_updates: windows used.
+        x: (2,) m and P: (2, 2) m^2, the current posterior (properties over float state).
+
+    """
+
+    def __init__(self, A: np.ndarray, prior_cov: np.ndarray, jump_cov: np.ndarray) -> None:
+        self.A = np.asarray(A, float).reshape(2, 2)
+        self.a_inv = np.linalg.inv(self.A)
+        self.prior_cov = np.asarray(prior_cov, float).reshape(2, 2)
+        self.jump_cov = np.asarray(jump_cov, float).reshape(2, 2)
+        self.starts: list[int] = []
+        self.jumps: list[np.ndarray] = []  # covariance opened at each segment start (m^2)
+        self.summaries: list[SegmentSummary] = []
+        self.n_updates = 0
+        self._atf = (float(self.A[0, 0]), float(self.A[1, 0]), float(self.A[0, 1]), float(self.A[1, 1]))
+        self._m0f: Vec = (0.0, 0.0)  # prior of the current segment
+        self._p0f: Sym = _sym(self.prior_cov)
+        self._beta_covf: Sym = (0.0, 0.0, 0.0)  # curve term of the current segment (x space)
+        self._noise: NoiseModel | None = None
+        self._online = _Online()
+        self._x: Vec = self._m0f
+        self._P: Sym = self._p0f
+
+    @property
+    def x(self) -> np.ndarray:
+        """Posterior mean (2,) m."""
+        return np.array(self._x)
+
+    @property
+    def P(self) -> np.ndarray:
+        """Posterior covariance (2, 2) m^2."""
+        return _arr(self._P)
+
+    @property
+    def segment(self) -> int:
+        """Index of the current segment (0 before the first window)."""
+        return max(len(self.starts) - 1, 0)
+
+    # -- events ---------------------------------------------------------------------------------
+    def start(self, k: int) -> None:
+        """Open the first segment at window ``k`` (once)."""
+        if not self.starts:
+            self.starts.append(int(k))
+            self.jumps.append(np.zeros((2, 2)))
+
+    def open_segment(self, k: int, jump_cov: np.ndarray | None = None) -> None:
+        """Open a new segment from window ``k``.
+
+        Its prior is the last posterior plus ``J`` (an event) or ``jump_cov`` (a random-walk block).
+        """
+        jump = self.jump_cov if jump_cov is None else np.asarray(jump_cov, float).reshape(2, 2)
+        self.jumps.append(jump)
+        j = _sym(jump)
+        self._m0f = self._x
+        self._p0f = (self._P[0] + j[0], self._P[1] + j[1], self._P[2] + j[2])
+        self._beta_covf = (0.0, 0.0, 0.0)
+        self.starts.append(int(k))
+        self._online = _Online()
+        self._x, self._P = self._m0f, self._p0f
+
+    def restart_current(self) -> None:
+        """Forget the current segment's windows online (they are re-added one by one)."""
+        self.n_updates -= self._online.n
+        self._online = _Online()
+        self._x, self._P = self._m0f, self._p0f
+
+    # -- windows --------------------------------------------------------------------------------
+    def predict_floats(self, end_ns: int) -> tuple[Vec, Sym]:
+        """Return the prediction for the next window as floats (the settlement does not move)."""
+        return self._x, self._P
+
+    def predict(self, end_ns: int) -> tuple[np.ndarray, np.ndarray]:
+        """Prediction for the next window: the current posterior (the settlement does not move)."""
+        return self.x, self.P
+
+    def accept(self, end_ns: int, samples: np.ndarray, z_n: np.ndarray) -> None:
+        """Add one compensated window ``z_n`` (2,) N over ``samples`` (2,) to the current segment."""
+        m0, m1 = float(samples[0]), float(samples[1])
+        z0, z1 = float(z_n[0]), float(z_n[1])
+        p = math.sqrt(m0 * m1)
+        on = self._online
+        M, Z = on.M, on.Z
+        M[0] += m0
+        M[1] += p
+        M[2] += m1
+        Z[0] += m0 * z0
+        Z[1] += p * z1
+        Z[2] += p * z0
+        Z[3] += m1 * z1
+        on.n += 1
+        self.n_updates += 1
+        self._update_current()
+
+    def _update_current(self) -> None:
+        """Update the current segment's posterior from its running sums (the module's formulas, on floats)."""
+        on = self._online
+        if self._noise is None:
+            raise RuntimeError("refresh the chain with a noise model before adding windows")
+        if on.n == 0 or on.M[0] <= 0.0 or on.M[2] <= 0.0:
+            self._x, self._P = self._m0f, self._p0f
+            return
+        k00, k01, k11 = inv_sym(self._noise.run_cov_floats(on.n))  # K = Rs^-1
+        M, Z = on.M, on.Z
+        at = self._atf
+        info = congruence(at, (k00 * M[0], k01 * M[1], k11 * M[2]))  # Lambda = A' (K o M) A
+        eta = mat_vec(at, (k00 * Z[0] + k01 * Z[1], k01 * Z[2] + k11 * Z[3]))  # eta = A' (K o Z) 1
+        lam_inv = inv_sym(info)
+        x_d = sym_vec(lam_inv, eta)
+        bc = self._beta_covf
+        d = (lam_inv[0] + bc[0], lam_inv[1] + bc[1], lam_inv[2] + bc[2])
+        self._x, self._P = _combine_f(self._m0f, self._p0f, x_d, d)
+
+    # -- exact recomputation ----------------------------------------------------------------------
+    def use_noise(self, noise: NoiseModel) -> None:
+        """Take ``noise`` for the windows to come (as ``refresh`` does, without recomputing)."""
+        self._noise = noise
+
+    def refresh(self, sums: FitSums, fit: CompensationFit, noise: NoiseModel) -> None:
+        """Recompute every segment and the chain from the sums, the curve and the noise model."""
+        self._noise = noise
+        kf = KalmanFilter(dim_x=2, dim_z=2)
+        kf.x = np.zeros((2, 1))
+        kf.P = self.prior_cov.copy()
+        kf.F = np.eye(2)
+        kf.H = np.eye(2)
+        sigma2 = np.diag(noise.long_run_cov())
+        self.summaries = []
+        n_seg = len(self.starts)
+        for s in range(n_seg):
+            if s > 0:
+                kf.predict(Q=self.jumps[s])  # x_s = x_{s-1} + j_s
+            if s == n_seg - 1:
+                self._m0f, self._p0f = (float(kf.x[0, 0]), float(kf.x[1, 0])), _sym(kf.P)
+                self._beta_covf = (0.0, 0.0, 0.0)
+            n_s = int(sums.ns[s]) if s < sums.n_segments else 0
+            x_d, d_cov = np.full(2, np.nan), np.full((2, 2), np.nan)
+            if n_s:
+                K = np.linalg.inv(noise.run_cov(n_s))
+                M, Z = self._sums_mz(sums, fit, s)
+                meas = _segment_measurement(self.A, K, M, Z)
+                if meas is not None:
+                    x_d, lam_inv = meas
+                    beta_cov = self.a_inv @ np.diag(sigma2 * fit.beta_variance_factor(sums, s)) @ self.a_inv.T
+                    d_cov = lam_inv + beta_cov
+                    if s == n_seg - 1:
+                        self._beta_covf = _sym(beta_cov)
+                    # update with the segment's measurement (z as a column: filterpy 2.0.0 shape bug)
+                    kf.update(x_d.reshape(2, 1), R=d_cov, H=np.eye(2))
+                    kf.P = 0.5 * (kf.P + kf.P.T)
+            self.summaries.append(
+                SegmentSummary(self.starts[s], n_s, x_d, d_cov, kf.x[:, 0].copy(), kf.P.copy())
+            )
+        if n_seg:
+            n_last = int(sums.ns[n_seg - 1]) if n_seg - 1 < sums.n_segments else 0
+            self._online = (
+                _Online.from_arrays(*self._sums_mz(sums, fit, n_seg - 1), n_last) if n_last else _Online()
+            )
+            self._x, self._P = (float(kf.x[0, 0]), float(kf.x[1, 0])), _sym(kf.P)
+        self.n_updates = int(sums.n)
+
+    @staticmethod
+    def _sums_mz(sums: FitSums, fit: CompensationFit, s: int) -> tuple[np.ndarray, np.ndarray]:
+        """``M_s`` and ``Z_s`` (2, 2) of segment ``s`` with the curve ``fit`` (z = y - g~(T))."""
+        if s >= sums.n_segments:
+            return np.zeros((2, 2)), np.zeros((2, 2))
+        b0, b1 = fit.beta
+        M = np.array([[sums.Ws[s, 0], sums.X1s[s]], [sums.X1s[s], sums.Ws[s, 1]]])
+        Z = np.array(
+            [
+                [sums.sys[s, 0] - sums.sbs[s, 0] @ b0, sums.Xy1s[s] - sums.Xb1s[s] @ b1],
+                [sums.Xy0s[s] - sums.Xb0s[s] @ b0, sums.sys[s, 1] - sums.sbs[s, 1] @ b1],
+            ]
+        )
+        return M, Z
+
+    def posterior(self) -> tuple[np.ndarray, np.ndarray]:
+        """Posterior mean (2,) m and covariance (2, 2) m^2 of the current segment."""
+        return self.x, self.P
+
+    # -- state ----------------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, Any]:
+        """Plain-data state (the summaries are recomputed at the next refresh)."""
+        return {
+            "starts": np.asarray(self.starts, np.int64),
+            "jumps": np.asarray(self.jumps, float).reshape(-1, 2, 2),
+            "n_updates": self.n_updates,
+            "m0": np.array(self._m0f),
+            "p0": _arr(self._p0f),
+            "beta_cov": _arr(self._beta_covf),
+            "online_M": self._online.arrays()[0],
+            "online_Z": self._online.arrays()[1],
+            "online_n": self._online.n,
+            "x": self.x,
+            "P": self.P,
+            "summaries": {
+                "start_k": np.array([s.start_k for s in self.summaries], np.int64),
+                "windows": np.array([s.windows for s in self.summaries], np.int64),
+                "x_data": np.array([s.x_data for s in self.summaries]).reshape(-1, 2),
+                "d_cov": np.array([s.d_cov for s in self.summaries]).reshape(-1, 2, 2),
+                "x": np.array([s.x for s in self.summaries]).reshape(-1, 2),
+                "P": np.array([s.P for s in self.summaries]).reshape(-1, 2, 2),
+            },
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore the state."""
+        self.starts = [int(k) for k in np.asarray(state["starts"]).ravel()]
+        self.jumps = list(np.asarray(state["jumps"], float).reshape(-1, 2, 2))
+        self.n_updates = int(state["n_updates"])
+        m0 = np.asarray(state["m0"], float).reshape(2)
+        self._m0f = (float(m0[0]), float(m0[1]))
+        self._p0f = _sym(np.asarray(state["p0"], float).reshape(2, 2))
+        self._beta_covf = _sym(np.asarray(state["beta_cov"], float).reshape(2, 2))
+        self._online = _Online.from_arrays(
+            np.asarray(state["online_M"], float).reshape(2, 2),
+            np.asarray(state["online_Z"], float).reshape(2, 2),
+            int(state["online_n"]),
+        )
+        x = np.asarray(state["x"], float).reshape(2)
+        self._x = (float(x[0]), float(x[1]))
+        self._P = _sym(np.asarray(state["P"], float).reshape(2, 2))
+        sm = state["summaries"]
+        self.summaries = [
+            SegmentSummary(int(k), int(n), xd, d, x, P)
+            for k, n, xd, d, x, P in zip(
+                np.asarray(sm["start_k"]).ravel(),
+                np.asarray(sm["windows"]).ravel(),
+                np.asarray(sm["x_data"], float).reshape(-1, 2),
+                np.asarray(sm["d_cov"], float).reshape(-1, 2, 2),
+                np.asarray(sm["x"], float).reshape(-1, 2),
+                np.asarray(sm["P"], float).reshape(-1, 2, 2),
+                strict=True,
+            )
+        ]
+
+
+def _combine_f(m0: Vec, p0: Sym, x_d: Vec, d: Sym) -> tuple[Vec, Sym]:
+    """``_combine`` on floats: ``G = P0 S^-1``, ``x = m0 + G (x_d - m0)``, ``P = P0 - P0 S^-1 P0``."""
+    a, b, dd = p0
+    sa, sb, sd = inv_sym((a + d[0], b + d[1], dd + d[2]))
+    g = (a * sa + b * sb, a * sb + b * sd, b * sa + dd * sb, b * sb + dd * sd)
+    r0, r1 = x_d[0] - m0[0], x_d[1] - m0[1]
+    x = (m0[0] + g[0] * r0 + g[1] * r1, m0[1] + g[2] * r0 + g[3] * r1)
+    q = congruence((a, b, b, dd), (sa, sb, sd))
+    return x, (a - q[0], b - q[1], dd - q[2])
+
+
+def _combine(
+    m0: np.ndarray, p0: np.ndarray, x_d: np.ndarray, d_cov: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Kalman update of the prior ``N(m0, p0)`` with a direct measurement ``x_d ~ N(x, d_cov)``.
+
+    ``S = P0 + D``; ``G = P0 S^-1``; ``x = m0 + G (x_d - m0)``; ``P = P0 - G P0`` (symmetrized).
+    """
+    S = p0 + d_cov
+    gain = np.linalg.solve(S.T, p0.T).T  # P0 S^-1 without forming the inverse
+    x = m0 + gain @ (x_d - m0)
+    P = p0 - gain @ p0
+    return x, 0.5 * (P + P.T)

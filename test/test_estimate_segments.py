@@ -1,0 +1,106 @@
+"""Settlement over segments.
+
+One segment is the paper's closed form; the online update equals the exact
+refresh; two segments with a jump equal the dense joint Gaussian; the float helpers equal numpy.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bridge_shadow.estimate.compensation import Compensation
+from bridge_shadow.estimate.noise import NoiseModel
+from bridge_shadow.estimate.segments import SegmentChain
+from bridge_shadow.estimate.small import congruence, inv_sym, mat_vec, quad_inv, sym_vec
+from bridge_shadow.estimate.sums import FitSums, Moments, WindowRows
+from bridge_shadow.model.surrogate_file import placeholder_surrogate
+
+SUR = placeholder_surrogate()
+PRIOR = np.diag([4e-3, 4e-3]) ** 2
+
+
+def _setup(n: int, seg: np.ndarray, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    x = np.array([[0.3e-3, -0.2e-3], [-0.9e-3, -1.1e-3]])[seg]
+    m = rng.integers(30, 61, (n, 2)).astype(float)
+    y = x @ SUR.A.T + rng.normal(0, 400.0, (n, 2)) / np.sqrt(m)
+    t = np.full((n, 2), np.nan)  # uncompensated: the curve drops out
+    comp = Compensation(-20.0, 45.0, 13)
+    i0, bv = comp.basis_rows(t)
+    rows = WindowRows(np.arange(n, dtype=np.int64), m, y, t, i0, bv, seg.astype(np.int64))
+    sums = FitSums(comp.q)
+    sums.add(rows)
+    noise = NoiseModel(np.array([60.4, 82.7]))
+    noise.update(
+        Moments(np.array([[3e5, 5e4], [5e4, 4e5]]) * n, np.zeros(2), n, 0), np.zeros(2), np.array([n])
+    )
+    return rows, sums, comp.fit(sums), noise
+
+
+def test_one_segment_is_the_papers_closed_form_and_online_equals_refresh() -> None:
+    n = 50
+    rows, sums, fit, noise = _setup(n, np.zeros(n, int))
+    chain = SegmentChain(SUR.A, PRIOR, PRIOR)
+    chain.start(0)
+    chain.refresh(sums, fit, noise)
+    # Sigma' = (Sigma_X^-1 + sum A' R_w^-1 A)^-1, mu' = Sigma' sum A' R_w^-1 (y_w - u0), R_w = Rs / sqrt(m m')
+    rs_inv = np.linalg.inv(noise.run_cov(n))
+    info, eta = np.linalg.inv(PRIOR), np.zeros(2)
+    for mi, yi in zip(rows.m, rows.y, strict=True):
+        r_inv = rs_inv * np.sqrt(np.outer(mi, mi))
+        info += SUR.A.T @ r_inv @ SUR.A
+        eta += SUR.A.T @ r_inv @ yi
+    cov = np.linalg.inv(info)
+    np.testing.assert_allclose(chain.x, cov @ eta, rtol=1e-9)
+    np.testing.assert_allclose(chain.P, cov, rtol=1e-9)
+    online = SegmentChain(SUR.A, PRIOR, PRIOR)
+    online.start(0)
+    online.use_noise(noise)
+    for mi, yi in zip(rows.m, rows.y, strict=True):
+        online.accept(0, mi, yi)
+    np.testing.assert_allclose(online.x, chain.x, rtol=1e-9)
+    np.testing.assert_allclose(online.P, chain.P, rtol=1e-9)
+
+
+def test_two_segments_with_a_jump_equal_the_dense_joint_gaussian() -> None:
+    n = 80
+    seg = (np.arange(n) >= 30).astype(int)
+    rows, sums, fit, noise = _setup(n, seg, seed=3)
+    jump = np.diag([2e-3, 3e-3]) ** 2
+    chain = SegmentChain(SUR.A, PRIOR, jump)
+    chain.start(0)
+    chain.open_segment(30)
+    chain.refresh(sums, fit, noise)
+    # joint Gaussian over (x1, x2): x1 ~ N(0, P), x2 - x1 ~ N(0, J), windows of each segment
+    info = np.zeros((4, 4))
+    info[:2, :2] += np.linalg.inv(PRIOR)
+    d = np.hstack([-np.eye(2), np.eye(2)])
+    info += d.T @ np.linalg.inv(jump) @ d
+    eta = np.zeros(4)
+    for s in range(2):
+        rs_inv = np.linalg.inv(noise.run_cov(int((seg == s).sum())))
+        sl = slice(2 * s, 2 * s + 2)
+        for mi, yi in zip(rows.m[seg == s], rows.y[seg == s], strict=True):
+            r_inv = rs_inv * np.sqrt(np.outer(mi, mi))
+            info[sl, sl] += SUR.A.T @ r_inv @ SUR.A
+            eta[sl] += SUR.A.T @ r_inv @ yi
+    cov = np.linalg.inv(info)
+    np.testing.assert_allclose(chain.x, (cov @ eta)[2:], rtol=1e-8)
+    np.testing.assert_allclose(chain.P, cov[2:, 2:], rtol=1e-8)
+    assert len(chain.summaries) == 2 and chain.summaries[1].windows == n - 30
+
+
+def test_float_helpers_equal_numpy() -> None:
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(2, 2))
+    m = a @ a.T + np.eye(2)
+    t = rng.normal(size=(2, 2))
+    v = rng.normal(size=2)
+    sym = (m[0, 0], m[0, 1], m[1, 1])
+    np.testing.assert_allclose(np.array(inv_sym(sym))[[0, 1, 2]], np.linalg.inv(m)[[0, 0, 1], [0, 1, 1]])
+    np.testing.assert_allclose(quad_inv(sym, tuple(v)), v @ np.linalg.solve(m, v))
+    np.testing.assert_allclose(sym_vec(sym, tuple(v)), m @ v)
+    np.testing.assert_allclose(mat_vec(tuple(t.ravel()), tuple(v)), t @ v)
+    np.testing.assert_allclose(
+        np.array(congruence(tuple(t.ravel()), sym)), (t @ m @ t.T)[[0, 0, 1], [0, 1, 1]]
+    )

@@ -1,0 +1,59 @@
+"""Window buffer: per-window counts, means and matched temperatures equal a direct computation."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bridge_shadow.estimate.windows import WindowBuffer
+
+W = 60 * 10**9
+T0 = 1_700_000_040 * 10**9
+
+
+def _data(seed: int = 0) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    stamps = [np.sort(T0 + rng.integers(0, 30 * W, 900)) for _ in range(2)]
+    stamps = [np.unique(s) for s in stamps]
+    values = [2e5 + rng.normal(0, 100, len(s)) for s in stamps]
+    ts = T0 + np.arange(0, 30 * W, 20 * 10**9)
+    ts = np.delete(ts, np.arange(40, 52))  # a 4-minute hole in the temperature
+    tv = 5.0 + np.sin(np.arange(len(ts)) / 7.0)
+    return stamps, values, ts, tv
+
+
+def test_batched_windows_equal_a_direct_per_window_computation() -> None:
+    stamps, values, ts, tv = _data()
+    buf = WindowBuffer(60.0, 30.0, 120.0, "linear", min_samples=3)
+    for c in range(2):
+        assert buf.add_forces(c, stamps[c], values[c]) == 0
+    buf.add_temperature(ts, tv)
+    lasts = [int(s[-1]) for s in stamps]
+    batch = buf.close_until(buf.due_end(max(lasts[0], lasts[1], int(ts[-1])), lasts), lasts)
+    assert len(batch) >= 25
+    for j, k in enumerate(batch.k):
+        for c in range(2):
+            sel = (stamps[c] >= k * W) & (stamps[c] < (k + 1) * W)
+            assert batch.samples[j, c] == sel.sum()
+            np.testing.assert_allclose(batch.force_n[j, c], values[c][sel].mean(), rtol=1e-14)
+            # linear interpolation between bracketing readings (np.interp), held flat beyond them;
+            # a window sees the readings up to its end plus the horizon max(timeout, stale) = 120 s
+            vis = ts < (k + 1) * W + 120 * 10**9
+            matched = np.interp((stamps[c][sel] - T0).astype(float), (ts[vis] - T0).astype(float), tv[vis])
+            np.testing.assert_allclose(batch.temp_c[j, c], matched.mean(), rtol=1e-12)
+            gap = np.minimum(
+                np.abs(stamps[c][sel][:, None] - ts[None, :]).min(axis=1), np.iinfo(np.int64).max
+            )
+            if np.any(gap > 120 * 10**9):
+                assert batch.reason[j] == "stale_temperature"
+    # a window closes once, and later samples of it are late
+    assert buf.add_forces(0, np.array([int(batch.k[0]) * W + 5]), np.array([2e5])) == 1
+
+
+def test_without_any_temperature_windows_are_uncompensated_not_stale() -> None:
+    stamps, values, _, _ = _data(1)
+    buf = WindowBuffer(60.0, 30.0, 120.0)
+    for c in range(2):
+        buf.add_forces(c, stamps[c], values[c])
+    batch = buf.flush([int(s[-1]) for s in stamps])
+    assert len(batch) == 30 and not buf.temp_seen
+    assert np.all(np.isnan(batch.temp_c)) and set(batch.reason) == {""}
