@@ -8,8 +8,8 @@ Per record (``record_level``):
 3. per channel a straight line ``level + rate (t - t_c)`` is fitted to the window means, ``t_c``
    the mean time of the windows (there the level and the rate are uncorrelated);
 4. the uncertainty of the level is the shadow's noise model of window residuals
-   (:class:`bridge_shadow.estimate.noise.WindowNoise`: AR(1) long-run variance of the window
-   means, with the channels' correlation), divided by the number of windows.
+   (:class:`bridge_shadow.estimate.noise.NoiseModel`: AR(1) variance of the mean of a run of
+   window means, with the channels' correlation).
 
 Between the records (``measured_change``): ``dR = level_after - level_before``. The car-free
 baseline drifts within a record (on 2022-04-11 about +0.07 kN/min on some channels while the air
@@ -37,7 +37,8 @@ import numpy as np
 
 from bridge_shadow.calibrate.car import Binned, CarDetection, bin_record, detect_car
 from bridge_shadow.calibrate.errors import CalibrationError
-from bridge_shadow.estimate.noise import WindowNoise
+from bridge_shadow.estimate.noise import NoiseModel
+from bridge_shadow.estimate.sums import Moments
 from bridge_shadow.series import MonitoringData
 
 __all__ = ["BASELINE_CHANGES", "MeasuredChange", "RecordLevel", "measured_change", "record_level"]
@@ -56,7 +57,7 @@ class RecordLevel:
     Attributes:
         t_ns: stamp (UTC ns) of the level: the mean time of the car-free windows.
         level_n: (2,) N, car-free level at ``t_ns`` [south, north].
-        cov_n2: (2, 2) N^2, covariance of ``level_n`` (AR(1) window noise, ``WindowNoise``).
+        cov_n2: (2, 2) N^2, covariance of ``level_n`` (AR(1) window noise, ``NoiseModel``).
         rate_n_per_s: (2,) N/s, drift of the car-free baseline within the record.
         rate_se: (2,) N/s, standard error of the rate (same noise model).
         windows: number of car-free windows. window_s: their length, s.
@@ -140,15 +141,20 @@ def record_level(
     design = np.column_stack([np.ones_like(dt), dt])
     coef, *_ = np.linalg.lstsq(design, w_force, rcond=None)  # (2, 2): [level, rate] x channel
     resid = w_force - design @ coef
-    noise = WindowNoise(np.asarray(PAPER_SIGMA_E_N), adaptive=True, floor=True)
-    index = 0
-    for i, (w, e) in enumerate(zip(wins, resid, strict=True)):
-        if i:  # adjacent windows count as lag-1 pairs; a car excursion between them breaks the chain
-            index += 1 if wins[i - 1][-1] + 1 == w[0] else 2
-        noise.add(e, w_samples[i], index)
-    r_window = noise.R(w_samples.mean(axis=0))  # long-run covariance of one window mean
+    # the shadow's noise model on these residuals: per-sample-equivalent u = sqrt(m) e, lag-1
+    # pairs between adjacent windows (a car excursion between two windows breaks the chain)
+    u = resid * np.sqrt(w_samples)
+    adjacent = np.array([wins[i - 1][-1] + 1 == wins[i][0] for i in range(1, len(wins))], dtype=bool)
+    lag = (u[:-1] * u[1:])[adjacent].sum(axis=0) if len(wins) > 1 else np.zeros(2)
+    moments = Moments(s2=u.T @ u, lag=lag, n=len(wins), n_pairs=int(adjacent.sum()))
+    noise = NoiseModel(np.asarray(PAPER_SIGMA_E_N), adaptive=True, floor=True)
     n_w = len(wins)
-    cov_level = r_window / n_w
+    # one level per record plus a rate: the level as a run of n_w windows, the rate as one more dof
+    noise.update(moments, edf=np.ones(2), segment_windows=np.array([n_w]))
+    m_bar = w_samples.mean(axis=0)
+    scale = np.sqrt(np.outer(m_bar, m_bar))
+    cov_level = noise.run_cov(n_w) / (n_w * scale)  # AR(1) variance of the mean of the run
+    r_window = noise.long_run_cov() / scale  # long-run covariance of one window mean
     sxx = float(np.sum(dt**2))
     rate_se = np.sqrt(np.diag(r_window) / sxx) if sxx > 0 else np.full(2, np.inf)
     temps = np.concatenate([binned.temp_c[w] for w in wins])
@@ -162,7 +168,7 @@ def record_level(
         windows=n_w,
         window_s=per * binned.bin_s,
         phi=noise.phi,
-        sd_n=np.sqrt(np.diag(noise.sample_cov()) / w_samples.mean(axis=0)),
+        sd_n=np.sqrt(np.diag(noise.r1) / m_bar),
         temp_c=temp,
         car=det,
         start_ns=int(binned.start_ns),
