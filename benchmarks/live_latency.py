@@ -36,8 +36,7 @@ PARAMS = [
     "window_s:=0.1",
     "window_min_samples:=10",
     "topic_timeout_s:=0.05",
-    f"spline_warmup_windows:={WARMUP}",
-    f"noise_warmup_windows:={WARMUP}",
+    f"warmup_windows:={WARMUP}",
 ]
 
 

@@ -9,10 +9,11 @@ from bridge_shadow.errors import ConfigError
 from bridge_shadow.estimate import Shadow, ShadowConfig
 from bridge_shadow.estimate.prior import prior_sigma
 from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.paths import config_file
 
 
 def test_rule_from_the_fe_surrogate_and_the_override() -> None:
-    sur = load_surrogate()
+    sur = load_surrogate(config_file("surrogate_fe.yaml"))  # the as-built FE model
     one, both = prior_sigma(sur.A, sur.u0, "one_bearing"), prior_sigma(sur.A, sur.u0, "both")
     # the reaction of a support vanishes at 3 sigma: alone, or with both supports settling together
     np.testing.assert_allclose(sur.u0 - np.diag(sur.A) * 3 * one, 0.0, atol=1e-6)

@@ -127,7 +127,7 @@ def test_the_shadow_takes_a_message_held_across_chunks() -> None:
     data = MonitoringData.from_arrays(
         s, sur.reactions(np.zeros(2)) + rng.normal(0, 50.0, (len(s), 2)), t, np.full(len(t), 8.0)
     )
-    cfg = load_config(None, {"window_min_samples": 2, "spline_warmup_windows": 3, "noise_warmup_windows": 3})
+    cfg = load_config(None, {"window_min_samples": 2, "warmup_windows": 3})
     whole = Shadow(cfg, sur).run(data)
     single = Shadow(cfg, sur).run(data, chunk=1)
     assert whole.used == single.used == {"frc_01": len(s), "frc_02": len(s), "air_temperature": len(t)}

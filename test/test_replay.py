@@ -31,7 +31,8 @@ def test_replay_json_outputs_and_plots(
     cov = np.array(js["posterior"]["covariance_m2"])
     assert mean.shape == (2,) and cov.shape == (2, 2)
     assert np.all(np.isfinite(mean)) and np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0)
-    assert np.all(np.sqrt(np.diag(cov)) < 3e-4)  # the data were informative
+    prior_sd = np.array(js["prior"]["sigma_m"])
+    assert np.all(np.sqrt(np.diag(cov)) < 0.2 * prior_sd)  # the data were informative
     assert js["messages"]["used"] + js["messages"]["rejected"] == js["messages"]["total"]
     assert js["messages_per_s"] > 0 and js["windows"]["updates"] > 1000
     for ch in ("frc_01", "frc_02"):
