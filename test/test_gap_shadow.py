@@ -59,7 +59,7 @@ def test_text_and_report_say_what_each_number_is(demo):
     text = _human(gap)
     before = next(line for line in text.splitlines() if line.strip().startswith("before"))
     after = next(line for line in text.splitlines() if line.strip().startswith("after"))
-    assert "replay" in before and "as built" in before
+    assert "replay" in before and "model in use" in before
     assert "vertical_gradient" in after and "added to the model" in after
     mm = [round(1e3 * v, 3) for v in gap["posterior"]["after"]["mean_m"]]
     assert f"{mm[0]:+.3f} / {mm[1]:+.3f}" in after

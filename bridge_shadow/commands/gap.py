@@ -16,7 +16,7 @@ settlement, plus its uniform thermal case) and the measured central reactions of
          criterion and partial effects; a fit that needs an implausible value is rejected and
          said so; every named effect comes with the effects the two reactions cannot tell from it
   how far  held-out residual RMS before/after per channel, and the shadow's posterior settlements
-         before (the model as built: the answer of `bridge-shadow replay BAG`) and after adding
+         before (the model in use: the answer of `bridge-shadow replay BAG`) and after adding
          the named effects to the model
 
 Model-form effects (bearing_stiffness, connector_stiffness, support_spring, slab_joint_opening)

@@ -4,7 +4,7 @@ One estimator: both come from the online ``Shadow`` pipeline (``bridge_shadow.es
 60 s windows, P-spline compensation, noise model, Kalman update), run exactly as
 ``bridge-shadow replay`` runs it (same parameters, same surrogate, no checkpoint written):
 
-- ``before``: the shadow with the model as built, on the record as it is. It is the answer of
+- ``before``: the shadow with the model in use, on the record as it is. It is the answer of
   ``bridge-shadow replay BAG`` with the same ``--params`` and surrogate.
 - ``after``: the shadow with the named effects added to the model: a model-form effect
   (stiffness, support spring, slab-joint opening) changes the surrogate the shadow uses
@@ -141,7 +141,7 @@ def shadow_posteriors(
     from bridge_shadow.estimate import Shadow
 
     before = _posterior_json(Shadow(config, surrogate).run(data))
-    before["what"] = "the shadow with the model as built (the answer of `bridge-shadow replay` on this bag)"
+    before["what"] = "the shadow with the model in use (the answer of `bridge-shadow replay` on this bag)"
     if change.empty:
         after = dict(before)
         after["what"] = (
