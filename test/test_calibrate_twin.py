@@ -115,3 +115,41 @@ def test_synth_reality_from_a_surrogate_file_and_a_bad_calibration_file(root, tm
     assert main(["calibrate", str(tmp_path / "missing.yaml")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "missing.yaml" in err[0]
+
+
+def _joined(a, b):
+    """One stream of two records (the second after the first), as an import of both would give."""
+    from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+    forces = {
+        ch: ForceSeries(
+            np.r_[a.forces[ch].stamp_ns, b.forces[ch].stamp_ns],
+            np.r_[a.forces[ch].force_n, b.forces[ch].force_n],
+            np.r_[a.forces[ch].frame_id, b.forces[ch].frame_id],
+        )
+        for ch in a.forces
+    }
+    ta, tb = a.temperature, b.temperature
+    temp = TemperatureSeries(
+        np.r_[ta.stamp_ns, tb.stamp_ns],
+        np.r_[ta.temp_c, tb.temp_c],
+        frame_id=np.r_[ta.frame_id, tb.frame_id],
+    )
+    return MonitoringData(forces, temp)
+
+
+def test_the_calibrated_shadow_follows_a_withheld_20mm_lowering(pair, calibrated) -> None:
+    """Online, not in-sample: the before record and the withheld 20 mm record as one stream."""
+    from bridge_shadow.estimate import Shadow, ShadowConfig
+
+    surrogate = load_surrogate(pair["out"])
+    data = _joined(load_record([pair["before"]]), load_record([pair["after_20mm"]]))
+    shadow = Shadow(ShadowConfig(), surrogate)
+    result = shadow.run(data)
+    js = result.to_json()
+    assert len(js["events"]) == 1  # the lowering, and nothing else (the test car crosses both records)
+    step = np.array(js["events"][0]["size_m"])
+    np.testing.assert_allclose(step, [-0.020, -0.020], rtol=0.05)
+    mean, cov = result.mean_m, result.covariance_m2
+    np.testing.assert_allclose(mean, [-0.020, -0.020], rtol=0.05)  # the twin's supports start at 0
+    assert np.all(np.abs(mean + 0.020) < 1.96 * np.sqrt(np.diag(cov)))  # its interval holds the truth

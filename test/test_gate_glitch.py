@@ -133,3 +133,28 @@ def test_the_shadow_takes_a_message_held_across_chunks() -> None:
     assert whole.used == single.used == {"frc_01": len(s), "frc_02": len(s), "air_temperature": len(t)}
     assert whole.rejected == single.rejected
     np.testing.assert_allclose(single.mean_m, whole.mean_m, rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("chunk", [1, 3, 1000])
+def test_an_outage_longer_than_the_jump_limit_loses_nothing(chunk: int) -> None:
+    # a topic at one message a minute, silent for 3 h (> clock_jump_s = 1 h), then on again
+    s = np.r_[np.arange(10), 180 + np.arange(10)].astype(np.int64) * 60 * 10**9
+    gate = TopicGate(None, 0.0, 2.0, 3600 * 10**9, 2)
+    counts: Counter = Counter()
+    taken: list[int] = []
+    for start in range(0, len(s), chunk):
+        part = s[start : start + chunk]
+        ok = gate(part, np.ones(len(part)), None, None, counts)
+        taken += gate.with_released(part[ok], np.ones(int(ok.sum())))[0].tolist()
+    gate.release_held()
+    taken += gate.pop_released()[0].tolist()
+    assert taken == s.tolist() and not counts
+
+
+def test_a_stamp_years_ahead_costs_only_itself() -> None:
+    s = np.array([0, 1, 2, 10**8, 3, 4, 5], dtype=np.int64) * 10**9  # one stamp three years ahead
+    gate = TopicGate(None, 0.0, 2.0, 3600 * 10**9, 2)
+    counts: Counter = Counter()
+    ok = gate(s, np.ones(len(s)), None, None, counts)
+    assert s[ok].tolist() == [0, 10**9, 2 * 10**9, 3 * 10**9, 4 * 10**9, 5 * 10**9]
+    assert counts == Counter({"clock_jump": 1})

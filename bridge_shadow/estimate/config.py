@@ -116,7 +116,7 @@ class ShadowConfig:
     temp_max_c: float = 70.0
     mahalanobis_probability: float = 0.999999
     clock_jump_s: float = 3600.0
-    clock_jump_confirm: int = 100
+    clock_jump_confirm: int = 2
     check_frame_id: bool = True
     temperature_frame_id: str = TEMPERATURE_FRAME
     # checkpoint

@@ -8,9 +8,12 @@ Reasons counted at message level:
 - ``frame_id``: wrong ``header.frame_id`` (an empty one is accepted as unknown).
 - ``duplicate``: same stamp as the last accepted on the topic; ``out_of_order``: older.
 - ``clock_jump``: more than ``clock_jump_s`` away from the topic's last stamp (or from the data
-  clock, for a topic's first message); a forward jump becomes the new time base once
-  ``clock_jump_confirm`` consecutive messages agree. Also a single wild stamp ahead of the
-  stream (see below).
+  clock, for a topic's first message). A forward jump is held, not rejected: once
+  ``clock_jump_confirm`` consecutive messages agree (each within ``clock_jump_s`` of the one
+  before) it is the new time base and the held messages are taken (a data outage longer than
+  ``clock_jump_s`` loses nothing); if the stream falls back to the old time base first, the held
+  messages were wild and are counted here. Also a single wild stamp ahead of the stream (see
+  below).
 - ``late``: force stamp in a window already closed (counted by the shadow).
 
 A single wild stamp costs that one message only. A stamp that steps forward more than
@@ -69,7 +72,8 @@ class TopicGate:
         jump_ns: clock-jump threshold in ns; confirm: messages needed to accept a new time base.
         last_ns: last accepted stamp (None before the first); last_step_ns: the step before it
             (0: unknown).
-        jump_count, jump_last_ns: consecutive jumped messages and the last of them.
+        pending: messages held after a forward jump beyond ``jump_ns``, waiting for confirmation
+            (stamp, value, index in the current call's arrays or -1).
         held_ns, held_value: a message held after a large forward step (None: none held).
 
     """
@@ -81,8 +85,7 @@ class TopicGate:
         self.confirm = int(confirm)
         self.last_ns: int | None = None
         self.last_step_ns = 0
-        self.jump_count = 0
-        self.jump_last_ns = 0
+        self.pending: list[tuple[int, float, int]] = []
         self.held_ns: int | None = None
         self.held_value = float("nan")
         self._held_index = -1  # index of the held message in the current call's arrays, or -1
@@ -139,7 +142,7 @@ class TopicGate:
         keep = np.zeros(n, dtype=bool)
         i = 0
         while i < n:
-            if self.last_ns is not None and self.held_ns is None and self.jump_count == 0:
+            if self.last_ns is not None and self.held_ns is None and not self.pending:
                 # a run of regular messages, decided at once
                 ds = np.diff(s[i:], prepend=np.int64(self.last_ns))
                 prev = np.empty_like(ds)
@@ -159,6 +162,7 @@ class TopicGate:
             i += 1
         if self.held_ns is not None and self._held_index >= 0:
             self._held_index = -1  # still held after this call: released later by value
+        self.pending = [(t, x, -1) for t, x, _ in self.pending]  # likewise
         return keep
 
     def _accept(self, stamp: int) -> None:
@@ -217,23 +221,38 @@ class TopicGate:
                 self.held_ns, self.held_value, self._held_index = stamp, value, i
                 return
         if not jumped:
+            self._drop_pending(counts)  # the stream went on in the old time base
             keep[i] = True
             self._accept(stamp)
-            self.jump_count = 0
             return
-        consistent = self.jump_count > 0 and 0 < stamp - self.jump_last_ns <= self.jump_ns
-        self.jump_count = self.jump_count + 1 if consistent else 1
-        self.jump_last_ns = stamp
-        if self.jump_count >= self.confirm:
-            keep[i] = True
-            self.last_ns = stamp
-            self.last_step_ns = 0  # a new time base: no step known yet
-            self.jump_count = 0
-        else:
-            counts["clock_jump"] += 1
+        if self.pending and not 0 < stamp - self.pending[-1][0] <= self.jump_ns:
+            self._drop_pending(counts)  # not the same new time base: the earlier ones were wild
+        self.pending.append((stamp, value, i))
+        if len(self.pending) >= self.confirm:
+            self._take_pending(keep)
+
+    def _drop_pending(self, counts: Counter) -> None:
+        if self.pending:
+            counts["clock_jump"] += len(self.pending)
+            self.pending = []
+
+    def _take_pending(self, keep: np.ndarray) -> None:
+        """Take the held jumped messages, in order: they are the new time base."""
+        for stamp, value, index in self.pending:
+            if index >= 0:
+                keep[index] = True
+            else:
+                self._released.append((stamp, value))
+        stamps = [t for t, _, _ in self.pending]
+        self.last_ns = stamps[-1]
+        self.last_step_ns = stamps[-1] - stamps[-2] if len(stamps) > 1 else 0
+        self.pending = []
 
     def release_held(self) -> bool:
-        """End of the data: take a held message (``pop_released`` returns it); True if there was one."""
+        """End of the data: take held messages (``pop_released`` returns them); True if there were any."""
+        if self.pending:
+            self._take_pending(np.zeros(0, dtype=bool))
+            return True
         if self.held_ns is None:
             return False
         self._released.append((self.held_ns, self.held_value))
@@ -260,8 +279,8 @@ class TopicGate:
             "last_ns": -1 if self.last_ns is None else self.last_ns,
             "has_last": self.last_ns is not None,
             "last_step_ns": self.last_step_ns,
-            "jump_count": self.jump_count,
-            "jump_last_ns": self.jump_last_ns,
+            "pending_ns": np.array([t for t, _, _ in self.pending], dtype=np.int64),
+            "pending_values": np.array([x for _, x, _ in self.pending], dtype=float),
             "has_held": self.held_ns is not None,
             "held_ns": -1 if self.held_ns is None else self.held_ns,
             "held_value": self.held_value,
@@ -271,8 +290,9 @@ class TopicGate:
         """Restore the state (a checkpoint written before the hold existed has no held message)."""
         self.last_ns = int(state["last_ns"]) if bool(state["has_last"]) else None  # type: ignore[call-overload]
         self.last_step_ns = int(state.get("last_step_ns", 0))  # type: ignore[call-overload]
-        self.jump_count = int(state["jump_count"])  # type: ignore[call-overload]
-        self.jump_last_ns = int(state["jump_last_ns"])  # type: ignore[call-overload]
+        stamps = np.asarray(state.get("pending_ns", []), dtype=np.int64).reshape(-1)
+        values = np.asarray(state.get("pending_values", []), dtype=float).reshape(-1)
+        self.pending = [(int(t), float(x), -1) for t, x in zip(stamps, values, strict=True)]
         held = bool(state.get("has_held", False))
         self.held_ns = int(state["held_ns"]) if held else None  # type: ignore[call-overload]
         self.held_value = float(state["held_value"]) if held else float("nan")  # type: ignore[arg-type]
