@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 from typing import Any
 
 HELP = "replay a monitoring bag through the shadow: posterior settlements, compensation, gating"
@@ -16,9 +15,13 @@ central-support settlements over u = A x + u0.
 By default the bag is decoded vectorized and fed to the pipeline directly; --live plays it through
 the rclpy node in a loopback DDS graph (same pipeline, same posterior). Parameters come from
 config/shadow.yaml or --params. --json prints one object: posterior.mean_m [south, north] (m),
-posterior.covariance_m2 (m^2), messages used and rejected by reason, messages_per_s, spline edf
-and lambda per channel. --out and --plots work in both modes (live: drawn from the node's history
-service and final checkpoint). A progress bar shows on a terminal unless --json.
+posterior.covariance_m2 (m^2), messages used and rejected by reason, spline edf and lambda per
+channel, and the rates: messages_per_s and seconds end to end (from the command's start: imports,
+model, bag read and decode, shadow, --out; not --plots), pipeline_messages_per_s and
+pipeline_seconds for the shadow alone (live: publishing to the node's flush). --out and --plots
+work in both modes (live: drawn from the node's history service and final checkpoint). The direct
+replay streams the bag in bounded memory: --out is written as windows close, and --plots draws at
+most 10,000 windows, evenly spaced over the record. A progress bar shows on a terminal unless --json.
 """
 
 
@@ -36,81 +39,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="OUTBAG", help="write the outputs (mean, covariance, ...) as a bag")
     parser.add_argument("--plots", metavar="DIR", help="write PNG plots (compensation, posterior, ellipse)")
     parser.add_argument("--json", action="store_true", help="print one JSON object (SI units)")
-
-
-def write_outputs(path: str | Path, result: Any, shadow: Any) -> Path:
-    """Write window outputs as a bag: mean, covariance, compensated forces and diagnostics.
-
-    Topic names are the shadow's ``topic_*`` parameters (the contract's by default).
-    """
-    import numpy as np
-
-    from bridge_shadow.bagio import BagOutputWriter
-    from bridge_shadow.contract import (
-        CHANNELS,
-        COMPENSATED_TOPICS,
-        COVARIANCE_LAYOUT_LABELS,
-        COVARIANCE_TOPIC,
-        DIAGNOSTICS_TOPIC,
-        FORCE_FRAMES,
-        MEAN_LAYOUT_LABEL,
-        MEAN_TOPIC,
-        NODE_NAME,
-    )
-
-    levels = {"OK": 0, "WARN": 1, "ERROR": 2}
-    diag = shadow.diagnostics()
-    names = shadow.config.output_topics()
-    with BagOutputWriter(path) as writer:
-        for out in result.outputs:
-            t = int(out.end_ns)
-            writer.write_float64_array(names[MEAN_TOPIC], t, out.mean_m, [MEAN_LAYOUT_LABEL])
-            writer.write_float64_array(
-                names[COVARIANCE_TOPIC], t, out.covariance_m2, list(COVARIANCE_LAYOUT_LABELS)
-            )
-            if np.all(np.isfinite(out.compensated_n)):
-                for c, ch in enumerate(CHANNELS):
-                    writer.write_wrench(
-                        names[COMPENSATED_TOPICS[ch]], t, t, FORCE_FRAMES[ch], out.compensated_n[c]
-                    )
-            values = {
-                "window_end_ns": t,
-                "updated": out.updated,
-                "reason": out.reason,
-                "mean_m": list(out.mean_m),
-                "sigma_m": list(np.sqrt(np.diag(out.covariance_m2))),
-                "force_n": list(out.force_n),
-                "temp_c": list(out.temp_c),
-            }
-            writer.write_diagnostics(
-                DIAGNOSTICS_TOPIC,
-                t,
-                t,
-                [
-                    {
-                        "name": f"{NODE_NAME}: window",
-                        "level": 0 if out.updated else 1,
-                        "message": out.reason or "updated",
-                        "values": values,
-                    }
-                ],
-            )
-        if result.outputs:
-            t = int(result.outputs[-1].end_ns)
-            writer.write_diagnostics(
-                DIAGNOSTICS_TOPIC,
-                t,
-                t,
-                [
-                    {
-                        "name": f"{NODE_NAME}: final",
-                        "level": levels[diag["level"]],
-                        "message": diag["summary"],
-                        "values": {"rejected": diag["rejected"], "spline": diag["spline"]},
-                    }
-                ],
-            )
-    return Path(path)
 
 
 def _summary(js: dict[str, Any]) -> str:
@@ -143,9 +71,23 @@ def _summary(js: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _end_to_end_rate(js: dict[str, Any], started: float) -> None:
+    """Make ``messages_per_s``/``seconds`` end to end; keep the pipeline's own under ``pipeline_*``."""
+    import time
+
+    seconds = time.perf_counter() - started
+    js["pipeline_messages_per_s"] = js["messages_per_s"]
+    js["pipeline_seconds"] = js["seconds"]
+    js["seconds"] = seconds
+    js["messages_per_s"] = js["messages"]["total"] / seconds if seconds > 0 else float("inf")
+
+
 def run(args: argparse.Namespace) -> int:
     """Replay the bag and print the result; exit 0."""
     import sys
+    import time
+
+    started = getattr(args, "started", None) or time.perf_counter()
 
     from bridge_shadow.commands.output import emit_json, progress
     from bridge_shadow.estimate import Shadow, load_config
@@ -160,19 +102,21 @@ def run(args: argparse.Namespace) -> int:
         from bridge_shadow.ros.live_replay import run_live
 
         js = run_live(args.bag, args.params, out=args.out, plots=args.plots, rate=args.rate, progress=show)
+        _end_to_end_rate(js, started)
         if args.json:
             emit_json(js)
         else:
             print(_summary(js))
         return 0
 
-    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.replay_stream import HISTORY_CAPACITY, replay_bag
 
     config = load_config(args.params)
     surrogate = load_surrogate(config.surrogate_path or None)
-    data = read_monitoring(args.bag, topics=config.input_topics())
     shadow = Shadow(config, surrogate)
-    result = shadow.run(data, progress=show)
+    # streamed in bounded memory; outputs go to --out as windows close, --plots keeps a decimated history
+    history = HISTORY_CAPACITY if args.plots else None
+    result, _ = replay_bag(args.bag, shadow, out=args.out, history=history, progress=show)
     js = result.to_json()
     js["bag"] = str(args.bag)
     js["surrogate"] = {
@@ -181,7 +125,8 @@ def run(args: argparse.Namespace) -> int:
         "solver": surrogate.provenance.get("solver", ""),
     }
     if args.out:
-        js["out"] = str(write_outputs(args.out, result, shadow))
+        js["out"] = str(args.out)
+    _end_to_end_rate(js, started)
     if args.plots:
         from bridge_shadow.estimate.plots import write_plots
 
