@@ -15,14 +15,18 @@ own state bounded (its refilter log is capped).
 
 from __future__ import annotations
 
+import queue
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from bridge_shadow.bagio.cdr import concat_frames, frame_value
 from bridge_shadow.contract import CHANNELS
 from bridge_shadow.series import MonitoringData
 
@@ -31,6 +35,7 @@ __all__ = [
     "HISTORY_CAPACITY",
     "FeedChunk",
     "OutputBag",
+    "Prefetch",
     "StreamReplay",
     "WindowHistory",
     "arrival_chunks",
@@ -121,7 +126,8 @@ def _chunk(parts: list[list[tuple[np.ndarray, ...]]], n: int, last: int) -> Feed
         elif len(items) == 1:
             joined.append(items[0][:3])
         else:
-            joined.append(tuple(np.concatenate([it[j] for it in items]) for j in range(3)))
+            stamp, value = (np.concatenate([it[j] for it in items]) for j in range(2))
+            joined.append((stamp, value, concat_frames([it[2] for it in items])))
     return FeedChunk([joined[0], joined[1]], joined[2], n, last)
 
 
@@ -132,7 +138,9 @@ class StreamReplay:
     Attributes:
         messages: input messages fed.
         pipeline_s: wall seconds inside the shadow's methods (ingest, poll, flush).
-        read_s: wall seconds opening, reading and decoding the bag and cutting chunks.
+        read_s: wall seconds the shadow waited for data: opening, reading, decoding the bag and
+            cutting chunks (with a prefetching reader, only what it did not overlap).
+        reader_s: wall seconds of reading work (opening included), overlapped or not.
         write_s: wall seconds handing outputs on (``--out`` bag, plot history).
         windows_out: window outputs produced (all of them, whatever was kept).
         backend: how the bag was read (``sqlite3``, ``mcap`` or ``rosbags``).
@@ -142,9 +150,16 @@ class StreamReplay:
     messages: int = 0
     pipeline_s: float = 0.0
     read_s: float = 0.0
+    reader_s: float = 0.0
     write_s: float = 0.0
     windows_out: int = 0
     backend: str = ""
+
+
+def _frames_arg(frames: np.ndarray) -> np.ndarray | str:
+    """Return the frame_id argument of ``ingest_*``: the value of a uniform view, else the array."""
+    value = frame_value(frames)
+    return frames if value is None else value
 
 
 def feed_shadow(
@@ -178,12 +193,13 @@ def feed_shadow(
         stats.read_s += t1 - t0
         if feed is None:
             break
+        # one frame_id for a whole topic (the usual case) goes in as a str: no work per message
         for c, (stamp, force, frame) in enumerate(feed.forces):
             if len(stamp):
-                shadow.ingest_forces(c, stamp, force, frame)
+                shadow.ingest_forces(c, stamp, force, _frames_arg(frame))
         stamp, temp, frame = feed.temperature
         if len(stamp):
-            shadow.ingest_temperature(stamp, temp, frame)
+            shadow.ingest_temperature(stamp, temp, _frames_arg(frame))
         outs = shadow.poll()
         t2 = clock()
         stats.pipeline_s += t2 - t1
@@ -338,6 +354,67 @@ def _result(shadow: Any, stats: StreamReplay, outputs: list[Any]) -> Any:
     )
 
 
+class Prefetch:
+    """Iterate ``items`` in a background thread, at most ``depth`` items ahead (a context manager).
+
+    Reading and decoding a slice spends most of its time in SQLite, zstd and numpy, which release
+    the GIL, so a reader thread overlaps them with the shadow's work in the main thread. Memory
+    stays bounded: ``depth`` items wait at most. An exception of the reader is raised in the
+    consumer; leaving the block stops the reader and waits for it.
+
+    Attributes:
+        busy_s: wall seconds the reader spent producing items.
+
+    """
+
+    _END = object()
+
+    def __init__(self, items: Iterable[Any], depth: int = 2) -> None:
+        self._items = items
+        self._queue: queue.Queue[tuple[Any, BaseException | None]] = queue.Queue(maxsize=max(int(depth), 1))
+        self._stop = threading.Event()
+        self.busy_s = 0.0
+        self._thread = threading.Thread(target=self._work, name="bridge_shadow-reader", daemon=True)
+
+    def _put(self, item: Any, err: BaseException | None = None) -> bool:
+        while not self._stop.is_set():
+            try:
+                self._queue.put((item, err), timeout=0.05)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def _work(self) -> None:
+        it = iter(self._items)
+        try:
+            while True:
+                t0 = time.perf_counter()
+                item = next(it, self._END)
+                self.busy_s += time.perf_counter() - t0
+                if not self._put(item) or item is self._END:
+                    return
+        except BaseException as err:  # handed to the consumer, raised there
+            self._put(None, err)
+
+    def __enter__(self) -> Prefetch:
+        self._thread.start()
+        return self
+
+    def __iter__(self) -> Iterator[Any]:
+        while True:
+            item, err = self._queue.get()
+            if err is not None:
+                raise err
+            if item is self._END:
+                return
+            yield item
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+
 def replay_bag(
     bag: str | Path,
     shadow: Any,
@@ -348,6 +425,7 @@ def replay_bag(
     chunk: int = DEFAULT_CHUNK,
     batch: int | None = None,
     progress: Callable[[float], None] | None = None,
+    prefetch: bool = False,
 ) -> tuple[Any, StreamReplay]:
     """Replay a bag through ``shadow`` in bounded memory; return its ``ReplayResult`` and timings.
 
@@ -361,10 +439,14 @@ def replay_bag(
         chunk: messages per shadow call.
         batch: messages per bag read (default ``bagio.stream.DEFAULT_BATCH``).
         progress: called with the fraction of the bag's log-time span fed so far.
+        prefetch: read and decode in a background thread (``Prefetch``), two chunks ahead, while
+            the shadow works; the calls into the shadow and their order are the same either way.
 
     Returns:
         ``(result, stats)``: ``result.outputs`` holds the kept window outputs and
-        ``result.seconds`` the time inside the shadow; ``stats`` has the read time too.
+        ``result.seconds`` the time inside the shadow; ``stats`` has the read time too (with
+        ``prefetch``, ``read_s`` is the time the shadow waited for data and ``reader_s`` the
+        reader thread's own time).
 
     Raises:
         BagError: the bag cannot be read (before anything is fed or written).
@@ -393,15 +475,19 @@ def replay_bag(
                 every.extend(outs)
 
         open_s = time.perf_counter() - t0
-        if sink is not None:
-            with sink:
-                stats = feed_shadow(shadow, arrival_chunks(stream, chunk), take, report)
+        with ExitStack() as stack:
+            chunks: Iterable[FeedChunk] = arrival_chunks(stream, chunk)
+            reader = stack.enter_context(Prefetch(chunks)) if prefetch else None
+            if sink is not None:
+                stack.enter_context(sink)
+            stats = feed_shadow(shadow, reader if reader is not None else chunks, take, report)
+            if sink is not None:
                 t1 = time.perf_counter()
                 sink.finish()
-            stats.write_s += time.perf_counter() - t1
-        else:
-            stats = feed_shadow(shadow, arrival_chunks(stream, chunk), take, report)
+                stats.write_s += time.perf_counter() - t1
+        stats.reader_s = reader.busy_s if reader is not None else stats.read_s
         stats.read_s += open_s
+        stats.reader_s += open_s
         stats.backend = stream.backend
     if progress is not None:
         progress(1.0)

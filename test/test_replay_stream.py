@@ -21,7 +21,7 @@ import pytest
 from bridge_shadow.bagio import read_monitoring, write_monitoring
 from bridge_shadow.bagio.stream import MonitoringStream
 from bridge_shadow.contract import CHANNELS
-from bridge_shadow.replay_stream import WindowHistory, arrival_chunks, replay_bag
+from bridge_shadow.replay_stream import Prefetch, WindowHistory, arrival_chunks, replay_bag
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
 T0 = 1_646_667_315_000_000_000
@@ -131,6 +131,28 @@ def test_window_history_stays_bounded_and_evenly_spaced() -> None:
     assert np.all(steps == hist.stride) and hist.kept[0] == 0 and hist.kept[-1] >= 100_000 - hist.stride
 
 
+def test_prefetch_hands_on_items_errors_and_stops() -> None:
+    with Prefetch(range(10), depth=2) as items:
+        assert list(items) == list(range(10))
+
+    def failing():
+        yield 1
+        raise ValueError("bad slice")
+
+    with Prefetch(failing()) as items, pytest.raises(ValueError, match="bad slice"):
+        list(items)
+    produced = []
+
+    def endless():
+        for i in range(10**9):
+            produced.append(i)
+            yield i
+
+    with Prefetch(endless(), depth=2) as items:
+        assert next(iter(items)) == 0
+    assert len(produced) <= 5  # the reader stopped when the consumer left, a bounded number ahead
+
+
 @pytest.mark.parametrize("bag_name", ["baseline_1d", "demo_3d"])
 def test_streamed_replay_equals_in_memory_run(root: Path, bag_name: str) -> None:
     """sqlite3 (baseline_1d) and zstd MCAP (demo_3d): same posterior, windows, rejections, outputs."""
@@ -140,9 +162,11 @@ def test_streamed_replay_equals_in_memory_run(root: Path, bag_name: str) -> None
     bag = root / "bags" / bag_name
     config, surrogate = load_config(None), load_surrogate()
     ref = Shadow(config, surrogate).run(read_monitoring(bag))
-    # a small feed chunk and read batch on the sqlite3 bag: the chunking must not matter
-    chunk, batch = (997, 333) if bag_name == "baseline_1d" else (200_000, None)
-    res, stats = replay_bag(bag, Shadow(config, surrogate), chunk=chunk, batch=batch, keep_all=True)
+    # a small feed chunk and read batch, read in a thread, on the sqlite3 bag: none of it may matter
+    chunk, batch, prefetch = (997, 333, True) if bag_name == "baseline_1d" else (200_000, None, False)
+    res, stats = replay_bag(
+        bag, Shadow(config, surrogate), chunk=chunk, batch=batch, keep_all=True, prefetch=prefetch
+    )
     np.testing.assert_allclose(res.mean_m, ref.mean_m, rtol=1e-12, atol=0)
     np.testing.assert_allclose(res.covariance_m2, ref.covariance_m2, rtol=1e-12, atol=0)
     assert (res.messages, res.windows, res.updates) == (ref.messages, ref.windows, ref.updates)

@@ -4,8 +4,8 @@ A slice is ``[lo, hi)`` in log time, with ``hi`` the timestamp of the ``batch``-
 after ``lo`` (found on the ``timestamp`` index), so no slice holds more than ``batch`` messages
 per file unless one log time alone carries more. For each slice one query returns, per topic,
 the concatenated CDR blobs (``group_concat(data, '')``), the log times as text (offsets from
-``lo``, parsed by numpy) and the longest message: SQLite does the per-row work in C, and Python
-touches each slice a handful of times, never each message.
+``lo``, parsed by ``np.fromstring`` as exact int64) and the longest message: SQLite does the
+per-row work in C, and Python touches each slice a handful of times, never each message.
 
 The rows come in ``timestamp_idx`` order, i.e. (log time, rowid): the same order as one query
 per topic sorted stably by log time (``sqlite_direct``), so slices concatenated give exactly the
@@ -25,16 +25,14 @@ from bridge_shadow.bagio.cdr import RawBlock
 
 __all__ = ["SqliteSlices", "SqliteStreamUnsupported"]
 
-#: Offsets of log times from a slice start parse as float64; exact below 2**53 ns (104 days).
-_EXACT_SPAN_NS = 2**53
-
 
 class SqliteStreamUnsupported(ValueError):
     """The file cannot be streamed by slices (no timestamp index, not UTF-8): use rosbags."""
 
 
 def _connect(file: Path) -> sqlite3.Connection:
-    db = sqlite3.connect(f"file:{file}?immutable=1", uri=True)
+    # opened by the caller, possibly read by its prefetching thread (one thread at a time)
+    db = sqlite3.connect(f"file:{file}?immutable=1", uri=True, check_same_thread=False)
     db.text_factory = bytes  # group_concat of blobs comes back byte for byte
     return db
 
@@ -116,10 +114,7 @@ class _File:
             if tid is None or text is None:
                 out.append(None)
                 continue
-            if hi - lo < _EXACT_SPAN_NS:
-                log = np.fromstring(text, dtype=np.float64, sep=",").astype(np.int64) + lo
-            else:  # a sparse slice spanning months: parse the integers exactly
-                log = np.array(text.split(b","), dtype=np.int64) + lo
+            log = np.fromstring(text, dtype=np.int64, sep=",") + lo  # exact int64 parse
             n = len(log)
             buf = np.frombuffer(blob, dtype=np.uint8)
             if int(longest) * n == len(blob):  # every message of the topic has the longest length
@@ -142,7 +137,7 @@ class _File:
             "WHERE timestamp >= ? AND timestamp < ? AND topic_id = ?",
             (lo, hi, tid),
         ).fetchone()
-        return np.fromstring(text, dtype=np.float64, sep=",").astype(np.int64)
+        return np.fromstring(text, dtype=np.int64, sep=",")
 
     def close(self) -> None:
         self.db.close()

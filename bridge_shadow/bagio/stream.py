@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from bridge_shadow.bagio.cdr import N_FLOATS, CdrFormatError, RawBlock, decode_buffer
+from bridge_shadow.bagio.cdr import N_FLOATS, CdrFormatError, RawBlock, concat_frames, decode_buffer
 from bridge_shadow.bagio.errors import CorruptBagError, MissingTopicError, NotABagError, UnexpectedTypeError
 from bridge_shadow.bagio.mcap_direct import McapLayoutError, mcap_files
 from bridge_shadow.bagio.mcap_stream import McapChunks
@@ -42,9 +42,11 @@ from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 __all__ = ["DEFAULT_BATCH", "MonitoringStream", "iter_monitoring"]
 
 #: Messages per read (SQL slice or rosbags batch); MCAP reads one chunk (about 1 MB) at a time.
-DEFAULT_BATCH = 100_000
+DEFAULT_BATCH = 50_000
 
 _TYPES: tuple[str, ...] = tuple(INPUT_TOPICS.values())  # frc_01, frc_02, air temperature
+#: The float64 fields kept per topic: wrench.force.z; temperature and variance.
+_FIELDS: tuple[tuple[int, ...], ...] = ((2,), (2,), (0, 1))
 
 
 class _Decoded:
@@ -78,7 +80,7 @@ class _Decoded:
             np.concatenate([p.log for p in parts]),
             np.concatenate([p.stamp for p in parts]),
             np.concatenate([p.values for p in parts]),
-            np.concatenate([p.frames for p in parts]),
+            concat_frames([p.frames for p in parts]),
         )
         if len(d) > 1 and np.any(np.diff(d.log) < 0):
             order = np.argsort(d.log, kind="stable")
@@ -102,7 +104,7 @@ class _Pending:
         out: list[_Decoded] = []
         for k, parts in enumerate(self.parts):
             if not parts:
-                out.append(_Decoded.empty(N_FLOATS[_TYPES[k]]))
+                out.append(_Decoded.empty(len(_FIELDS[k])))
                 continue
             d = _Decoded.join(parts)
             i = len(d) if horizon is None else int(np.searchsorted(d.log, horizon, side="left"))
@@ -112,7 +114,7 @@ class _Pending:
         if not any(len(d) for d in out):
             return None
         forces = {
-            ch: ForceSeries(d.stamp, d.values[:, 2], d.frames, d.log)
+            ch: ForceSeries(d.stamp, d.values[:, 0], d.frames, d.log)
             for ch, d in zip(CHANNELS, out, strict=False)
         }
         t = out[2]
@@ -215,13 +217,18 @@ class MonitoringStream:
 
     def _decode(self, blocks: Sequence[RawBlock | None]) -> list[_Decoded | None]:
         out: list[_Decoded | None] = []
-        for name, msgtype, block in zip(self.names, _TYPES, blocks, strict=True):
+        for name, msgtype, fields, block in zip(self.names, _TYPES, _FIELDS, blocks, strict=True):
             if block is None or not len(block.log_ns):
                 out.append(None)
                 continue
             try:
                 stamp, frames, values = decode_buffer(
-                    block.buf, block.starts, block.lengths, N_FLOATS[msgtype]
+                    block.buf,
+                    block.starts,
+                    block.lengths,
+                    N_FLOATS[msgtype],
+                    fields=fields,
+                    compact_frames=True,
                 )
             except CdrFormatError as err:
                 raise CorruptBagError(
