@@ -274,30 +274,50 @@ class OutputBag:
         self.writer.close()
 
     def write(self, outputs: Iterable[Any]) -> None:
-        """Write the messages of each window output (stamp and log time = window end)."""
+        """Write the messages of each window output (stamp and log time = window end).
+
+        The float arrays and compensated forces of a batch of windows are serialized at once
+        (``float64_array_raws``, ``encode_stamped_floats``); messages are written window by
+        window: mean, covariance, compensated frc_01 and frc_02 (when finite), diagnostics.
+        """
+        from bridge_shadow.bagio.cdr import encode_stamped_floats
         from bridge_shadow.contract import (
             COMPENSATED_TOPICS,
             COVARIANCE_LAYOUT_LABELS,
             COVARIANCE_TOPIC,
             DIAGNOSTICS_TOPIC,
+            FLOAT_ARRAY_TYPE,
             FORCE_FRAMES,
+            FORCE_TYPE,
             MEAN_LAYOUT_LABEL,
             MEAN_TOPIC,
             NODE_NAME,
         )
 
+        outs = list(outputs)
+        if not outs:
+            return
         names, writer = self.names, self.writer
-        for out in outputs:
-            t = int(out.end_ns)
-            writer.write_float64_array(names[MEAN_TOPIC], t, out.mean_m, [MEAN_LAYOUT_LABEL])
-            writer.write_float64_array(
-                names[COVARIANCE_TOPIC], t, out.covariance_m2, list(COVARIANCE_LAYOUT_LABELS)
-            )
-            if np.all(np.isfinite(out.compensated_n)):
+        end = np.array([int(o.end_ns) for o in outs], dtype=np.int64)
+        means = writer.float64_array_raws(np.array([o.mean_m for o in outs]), [MEAN_LAYOUT_LABEL])
+        covs = writer.float64_array_raws(
+            np.array([o.covariance_m2 for o in outs]), list(COVARIANCE_LAYOUT_LABELS)
+        )
+        comp = np.array([o.compensated_n for o in outs], dtype=float).reshape(-1, 2)
+        finite = np.flatnonzero(np.all(np.isfinite(comp), axis=1))
+        wrench = np.zeros((len(finite), 6))
+        forces: list[dict[int, bytes]] = []
+        for c, ch in enumerate(CHANNELS):
+            wrench[:, 2] = comp[finite, c]
+            raws = encode_stamped_floats(end[finite], FORCE_FRAMES[ch], wrench)
+            forces.append(dict(zip(finite.tolist(), raws, strict=True)))
+        for i, out in enumerate(outs):
+            t = int(end[i])
+            writer.write_raw(names[MEAN_TOPIC], FLOAT_ARRAY_TYPE, t, means[i])
+            writer.write_raw(names[COVARIANCE_TOPIC], FLOAT_ARRAY_TYPE, t, covs[i])
+            if i in forces[0]:
                 for c, ch in enumerate(CHANNELS):
-                    writer.write_wrench(
-                        names[COMPENSATED_TOPICS[ch]], t, t, FORCE_FRAMES[ch], out.compensated_n[c]
-                    )
+                    writer.write_raw(names[COMPENSATED_TOPICS[ch]], FORCE_TYPE, t, forces[c][i])
             values = {
                 "window_end_ns": t,
                 "updated": out.updated,

@@ -222,3 +222,28 @@ def test_sqlite_stream_refuses_what_it_cannot_order(tmp_path: Path) -> None:
         SqliteSlices(list(copy.glob("*.db3")), ["/bridge/frc_01/force"])
     with SqliteSlices(list(bag.glob("*.db3")), ["/bridge/frc_01/force"]) as slices:
         assert sum(len(b[0].log_ns) for b in slices if b[0] is not None) == 20
+
+
+def test_batched_float_arrays_are_rosbags_bytes(tmp_path: Path) -> None:
+    """``float64_array_raws`` (one template, data patched) equals rosbags' serialization per message."""
+    from bridge_shadow.bagio import BagOutputWriter, get_typestore
+    from bridge_shadow.contract import FLOAT_ARRAY_TYPE
+
+    ts = get_typestore()
+    rng = np.random.default_rng(5)
+    cov = rng.normal(size=(4, 2, 2))
+    with BagOutputWriter(tmp_path / "out") as writer:
+        raws = writer.float64_array_raws(cov, ["row", "col"])
+        flat = writer.float64_array_raws(cov[:, 0, :], [])
+    for k in range(4):
+        dims = [
+            ts.types["std_msgs/msg/MultiArrayDimension"](label=lab, size=2, stride=stride)
+            for lab, stride in (("row", 4), ("col", 2))
+        ]
+        layout = ts.types["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
+        msg = ts.types[FLOAT_ARRAY_TYPE](layout=layout, data=cov[k].ravel())
+        assert raws[k] == bytes(ts.serialize_cdr(msg, FLOAT_ARRAY_TYPE))
+        bare = ts.types[FLOAT_ARRAY_TYPE](
+            layout=ts.types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0), data=cov[k, 0]
+        )
+        assert flat[k] == bytes(ts.serialize_cdr(bare, FLOAT_ARRAY_TYPE))
