@@ -247,3 +247,21 @@ def test_batched_float_arrays_are_rosbags_bytes(tmp_path: Path) -> None:
             layout=ts.types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0), data=cov[k, 0]
         )
         assert flat[k] == bytes(ts.serialize_cdr(bare, FLOAT_ARRAY_TYPE))
+
+
+def test_damaged_mcap_chunk_is_one_bag_error(tmp_path: Path) -> None:
+    """A zstd chunk that no longer decompresses: CorruptBagError from the stream and the whole read."""
+    from bridge_shadow.bagio import CorruptBagError
+    from bridge_shadow.bagio.mcap_stream import McapChunks
+
+    bag = write_monitoring(tmp_path / "bag", _tied_data(n=2000), "mcap", compress=True)
+    (file,) = bag.glob("*.mcap")
+    with McapChunks([file], []) as chunks:
+        chunk = chunks._chunks[0]
+    with open(file, "r+b") as fh:  # the zstd frame header: start, end, size, crc, "zstd", length
+        fh.seek(chunk.body + 8 + 8 + 8 + 4 + 4 + len("zstd") + 8)
+        fh.write(b"\x13" * 8)
+    with pytest.raises(CorruptBagError, match="corrupt"):
+        list(MonitoringStream(bag))
+    with pytest.raises(CorruptBagError, match="corrupt"):
+        read_monitoring(bag)
