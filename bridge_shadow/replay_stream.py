@@ -355,20 +355,25 @@ class OutputBag:
 
 
 def _result(shadow: Any, stats: StreamReplay, outputs: list[Any]) -> Any:
-    """Build the shadow's ``ReplayResult`` after a streamed replay (``seconds``: time in the shadow)."""
+    """Build the shadow's ``ReplayResult`` after a streamed replay (``seconds``: time in the shadow).
+
+    Everything comes from the shadow's public ``posterior`` and ``diagnostics()``, the values
+    ``Shadow.run`` puts in its result.
+    """
     from bridge_shadow.estimate import ReplayResult
 
     mean, cov = shadow.posterior
+    diag = shadow.diagnostics()
     return ReplayResult(
         mean_m=mean,
         covariance_m2=cov,
         messages=stats.messages,
-        used=dict(shadow.used),
-        rejected=shadow.rejected,
-        windows=shadow.n_windows,
-        updates=shadow.filter.n_updates,
-        spline=shadow.spline_info(),
-        noise=shadow.noise_info(),
+        used=dict(diag["used"]),
+        rejected=dict(diag["rejected"]),
+        windows=int(diag["windows"]["closed"]),
+        updates=int(diag["windows"]["updates"]),
+        spline=diag["spline"],
+        noise=diag["noise"],
         outputs=outputs,
         seconds=stats.pipeline_s,
     )

@@ -265,3 +265,42 @@ def test_damaged_mcap_chunk_is_one_bag_error(tmp_path: Path) -> None:
         list(MonitoringStream(bag))
     with pytest.raises(CorruptBagError, match="corrupt"):
         read_monitoring(bag)
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_chunked_read_of_a_bag_written_topic_by_topic(tmp_path: Path, storage: str) -> None:
+    """Read rows stored out of log-time order (each topic written whole, in turn).
+
+    MCAP chunks then overlap in time and sqlite3 rowids are out of log order; the pieces still
+    equal the whole read, in arrival order.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from bridge_shadow.bagio import encode_stamped_floats, get_typestore
+    from bridge_shadow.contract import FORCE_TOPICS, FORCE_TYPE, TEMPERATURE_TOPIC, TEMPERATURE_TYPE
+
+    data = _tied_data(n=16_000)
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    with Writer(tmp_path / "bag", version=9, storage_plugin=plugin) as writer:
+        for ch in reversed(CHANNELS):  # frc_02 first: storage order is not arrival order
+            f = data.forces[ch]
+            conn = writer.add_connection(FORCE_TOPICS[ch], FORCE_TYPE, typestore=get_typestore())
+            values = np.zeros((len(f), 6))
+            values[:, 2] = f.force_n
+            for t, raw in zip(
+                f.log_ns.tolist(), encode_stamped_floats(f.stamp_ns, f.frame_id, values), strict=True
+            ):
+                writer.write(conn, t, raw)
+        t = data.temperature
+        conn = writer.add_connection(TEMPERATURE_TOPIC, TEMPERATURE_TYPE, typestore=get_typestore())
+        raws = encode_stamped_floats(t.stamp_ns, t.frame_id, np.column_stack([t.temp_c, t.variance]))
+        for stamp, raw in zip(t.log_ns.tolist(), raws, strict=True):
+            writer.write(conn, stamp, raw)
+    whole = read_monitoring(tmp_path / "bag")
+    _assert_same(whole, data)
+    with MonitoringStream(tmp_path / "bag", batch=1000) as stream:
+        pieces = list(stream)
+        assert stream.backend == storage
+    _assert_same(_concat(pieces), whole)
+    for a, b in itertools.pairwise(pieces):
+        assert _arrival(a)[1].max() < _arrival(b)[1].min()

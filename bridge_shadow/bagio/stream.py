@@ -29,7 +29,14 @@ from typing import Any
 
 import numpy as np
 
-from bridge_shadow.bagio.cdr import N_FLOATS, CdrFormatError, RawBlock, concat_frames, decode_buffer
+from bridge_shadow.bagio.cdr import (
+    N_FLOATS,
+    CdrFormatError,
+    RawBlock,
+    concat_frames,
+    decode_buffer,
+    frame_value,
+)
 from bridge_shadow.bagio.errors import CorruptBagError, MissingTopicError, NotABagError, UnexpectedTypeError
 from bridge_shadow.bagio.mcap_direct import McapLayoutError, mcap_files
 from bridge_shadow.bagio.mcap_stream import McapChunks
@@ -82,9 +89,10 @@ class _Decoded:
             np.concatenate([p.values for p in parts]),
             concat_frames([p.frames for p in parts]),
         )
-        if len(d) > 1 and np.any(np.diff(d.log) < 0):
+        if len(d) > 1 and np.any(np.diff(d.log) < 0):  # overlapping MCAP chunks
             order = np.argsort(d.log, kind="stable")
-            d = _Decoded(d.log[order], d.stamp[order], d.values[order], d.frames[order])
+            frames = d.frames if frame_value(d.frames) is not None else d.frames[order]
+            d = _Decoded(d.log[order], d.stamp[order], d.values[order], frames)
         return d
 
 
