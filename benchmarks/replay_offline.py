@@ -10,9 +10,10 @@ twin 10 days at a time, since synth cannot hold a year).
 For each bag, in one run:
 
 - ``rosbags raw read``: iterate ``Reader.messages()`` (bytes only) in this process: the baseline;
-- ``replay end to end``: the CLI ``bridge-shadow replay BAG --json`` in a subprocess; its wall time
-  from spawn to exit (interpreter start-up included), its JSON ``messages_per_s`` (from the
-  command's start) and ``pipeline_messages_per_s`` (the shadow alone), and its peak RSS;
+- ``replay end to end``: the CLI ``bridge-shadow replay BAG --json`` in a fresh interpreter; its
+  wall time from spawn to exit (interpreter start-up included), its JSON ``messages_per_s`` (from
+  the command's start) and ``pipeline_messages_per_s`` (the shadow alone), and its peak RSS
+  (``VmHWM`` of the child's own image, read at its exit);
 - ``read + decode``: the streamed reader alone in this process (``MonitoringStream`` cut into
   feed chunks), so that read, decode and shadow add up.
 
@@ -28,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -106,19 +106,36 @@ def write_long_bag(path: Path, days: float, rate: float, storage: str, segment_d
             done += seg
 
 
-def run_child(cmd: list[str]) -> tuple[float, int, str]:
-    """Run a command; return (wall s, peak RSS MB of the child, stdout)."""
+#: Run as ``python -c HWM_WRAP code args...``: the code runs as ``__main__`` and, at exit, the peak
+#: RSS of this process image (``VmHWM``) goes to stderr. ``ru_maxrss`` of a child would not do: it
+#: keeps the high-water mark of the forked copy of this (parent) process from before ``exec``.
+HWM_WRAP = """
+import atexit, sys
+def _hwm():
+    with open("/proc/self/status") as f:
+        kb = [line.split()[1] for line in f if line.startswith("VmHWM:")][0]
+    sys.stderr.write(f"\\nVmHWM_KB {kb}\\n")
+atexit.register(_hwm)
+code, sys.argv = sys.argv[1], sys.argv[2:]
+exec(compile(code, "<benchmark child>", "exec"), {"__name__": "__main__"})
+"""
+CLI = "import sys\nfrom bridge_shadow.cli import main\nsys.exit(main())\n"
+
+
+def run_child(code: str, args: list[str]) -> tuple[float, int, str]:
+    """Run ``code`` with ``args`` in a fresh interpreter; return (wall s, peak RSS MB, stdout)."""
     with tempfile.TemporaryFile("w+") as err:
         t0 = time.perf_counter()
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True)
-        out = proc.stdout.read()
-        _, status, usage = os.wait4(proc.pid, 0)  # this child's own peak RSS
+        proc = subprocess.run(
+            [sys.executable, "-c", HWM_WRAP, code, *args], stdout=subprocess.PIPE, stderr=err, text=True
+        )
         wall = time.perf_counter() - t0
-        proc.returncode = code = os.waitstatus_to_exitcode(status)
-        if code != 0:
-            err.seek(0)
-            raise RuntimeError(f"{' '.join(cmd)} failed ({code}): {err.read().strip()[-500:]}")
-    return wall, usage.ru_maxrss // 1024, out
+        err.seek(0)
+        text = err.read()
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(args)} failed ({proc.returncode}): {text.strip()[-500:]}")
+    hwm = [line.split()[1] for line in text.splitlines() if line.startswith("VmHWM_KB ")]
+    return wall, int(hwm[-1]) // 1024, proc.stdout
 
 
 def read_only(path: Path) -> tuple[int, str]:
@@ -154,7 +171,7 @@ def main() -> None:
         path = make_bag(name.strip(), args.storage)
         t_raw, n = best_of(args.repeat, lambda p=path: rosbags_raw(p))
         t_read, (n_read, backend) = best_of(args.repeat, lambda p=path: read_only(p))
-        wall, rss, out = run_child([str(BIN), "replay", str(path), "--json"])
+        wall, rss, out = run_child(CLI, ["bridge-shadow", "replay", str(path), "--json"])
         js = json.loads(out)
         assert js["messages"]["total"] == n == n_read
         row = {
@@ -173,7 +190,7 @@ def main() -> None:
             "backend": backend,
         }
         if args.in_memory:
-            _, row["rss_in_memory_mb"], _ = run_child([sys.executable, "-c", IN_MEMORY, str(path)])
+            _, row["rss_in_memory_mb"], _ = run_child(IN_MEMORY, ["in-memory", str(path)])
         rows.append(row)
         print(json.dumps(row), file=sys.stderr)
     print(
