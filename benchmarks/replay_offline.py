@@ -141,7 +141,7 @@ def run_child(code: str, args: list[str]) -> tuple[float, int, str]:
 def read_only(path: Path) -> tuple[int, str]:
     """Stream the bag's input topics into feed chunks without the shadow; return (messages, backend)."""
     from bridge_shadow.bagio.stream import MonitoringStream
-    from bridge_shadow.replay_stream import arrival_chunks
+    from bridge_shadow.replay import arrival_chunks
 
     with MonitoringStream(path) as stream:
         n = sum(c.messages for c in arrival_chunks(stream))

@@ -21,7 +21,7 @@ import pytest
 from bridge_shadow.bagio import read_monitoring, write_monitoring
 from bridge_shadow.bagio.stream import MonitoringStream
 from bridge_shadow.contract import CHANNELS
-from bridge_shadow.replay_stream import Prefetch, WindowHistory, arrival_chunks, replay_bag
+from bridge_shadow.replay import Prefetch, WindowHistory, arrival_chunks, replay_bag
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
 T0 = 1_646_667_315_000_000_000

@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
             print(_summary(js))
         return 0
 
-    from bridge_shadow.replay_stream import HISTORY_CAPACITY, replay_bag
+    from bridge_shadow.replay import HISTORY_CAPACITY, replay_bag
 
     config = load_config(args.params)
     surrogate = load_surrogate(config.surrogate_path or None)
