@@ -1,128 +1,218 @@
-"""Offline replay speed and memory: ``bridge-shadow replay`` (direct) against rosbags on one bag.
+"""Offline replay speed and memory: ``bridge-shadow replay BAG`` against rosbags' raw read of the same bag.
 
-Writes a monitoring bag (two 100 Hz force channels and a 1 Hz temperature, a few hundred
-thousand messages) to a temporary folder, then times on the same bag in the same run:
+Bags come from ``bridge-shadow synth`` (the truth twin, sqlite3 by default) into
+``/tmp/bridge_shadow_bench/`` and are reused by later runs. Cases (days of data, so the 60 s
+windows show their cost): forces at 1 Hz over 3 and 30 days, 10 Hz over 3 days, 100 Hz over 6 h
+(synth holds a bag in memory while writing it; 6 h at 100 Hz is 4.3 M messages, about 2.5 GB).
+``--cases 1hz-365d`` replays a year of 1 Hz forces (63 M messages, a 7.5 GB bag written by the
+twin 10 days at a time, since synth cannot hold a year).
 
-- baseline ``rosbags raw read``: iterate ``Reader.messages()`` (bytes only);
-- ``rosbags deserialize``: the same plus ``deserialize_cdr`` of every message;
-- ``replay direct``: ``read_monitoring`` + ``Shadow.run`` (gate, 60 s windows, REML P-spline,
-  adaptive noise, Kalman), i.e. what ``bridge-shadow replay BAG`` does without printing;
-- ``Shadow.run`` alone on the decoded data.
+For each bag, in one run:
 
-Prints msg/s and the ratio to the raw read (goal: replay >= 0.5x raw read). Then the memory of a
-long replay: a day of 20 Hz forces fed in one-minute chunks (``ingest_*`` + ``poll``, as the
-node does), with tracemalloc's current size every 4 hours of data (goal: flat). Usage::
+- ``rosbags raw read``: iterate ``Reader.messages()`` (bytes only) in this process: the baseline;
+- ``replay end to end``: the CLI ``bridge-shadow replay BAG --json`` in a fresh interpreter; its
+  wall time from spawn to exit (interpreter start-up included), its JSON ``messages_per_s`` (from
+  the command's start) and ``pipeline_messages_per_s`` (the shadow alone), and its peak RSS
+  (``VmHWM`` of the child's own image, read at its exit);
+- ``read + decode``: the streamed reader alone in this process (``MonitoringStream`` cut into
+  feed chunks), so that read, decode and shadow add up.
 
-    .venv/bin/python benchmarks/replay_offline.py [--messages N] [--repeat R] [--hours H]
+Goal: end to end >= 0.5x the raw read at 1 Hz and at 100 Hz, and peak RSS flat in the bag's
+length. ``--in-memory`` also runs the former path (``read_monitoring`` + ``Shadow.run``) in a
+subprocess for its peak RSS. Usage::
+
+    .venv/bin/python benchmarks/replay_offline.py [--cases 1hz-3d,1hz-30d,10hz-3d,100hz-6h]
+        [--storage sqlite3|mcap] [--repeat R] [--in-memory]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import subprocess
+import sys
 import tempfile
-import tracemalloc
+import time
 from pathlib import Path
 
-import numpy as np
 from _common import best_of, rosbags_raw
 
-from bridge_shadow.bagio import get_typestore, read_monitoring, write_monitoring
-from bridge_shadow.estimate import Shadow, ShadowConfig
-from bridge_shadow.model.surrogate_file import load_surrogate
-from bridge_shadow.series import MonitoringData
-
-T0 = 1_646_667_300 * 10**9
-
-
-def make_data(n_messages: int, seed: int = 0) -> MonitoringData:
-    """Two 100 Hz force channels and a 1 Hz temperature with a daily swing, about n_messages."""
-    n = int(n_messages / 2.01)
-    rng = np.random.default_rng(seed)
-    stamp = T0 + np.arange(n, dtype=np.int64) * 10_000_000
-    t_stamp = stamp[::100]
-    temp = 8.0 + 6.0 * np.sin(2 * np.pi * (t_stamp - T0) / 86400e9) + rng.normal(0, 0.05, len(t_stamp))
-    t_at = np.interp(stamp, t_stamp, temp)
-    sur = load_surrogate()
-    force = sur.reactions(np.array([7e-4, -7e-4])) + np.c_[300 * t_at, 80 * t_at] + rng.normal(0, 60, (n, 2))
-    return MonitoringData.from_arrays(stamp, force, t_stamp, temp)
+BENCH_DIR = Path("/tmp/bridge_shadow_bench")
+#: name -> (days, force rate Hz)
+CASES: dict[str, tuple[float, float]] = {
+    "1hz-3d": (3.0, 1.0),
+    "1hz-30d": (30.0, 1.0),
+    "10hz-3d": (3.0, 10.0),
+    "100hz-6h": (0.25, 100.0),
+    "1hz-365d": (365.0, 1.0),  # not in the default run: a 7.5 GB bag and about 10 minutes
+}
+DEFAULT_CASES = "1hz-3d,1hz-30d,10hz-3d,100hz-6h"
+BIN = Path(sys.executable).parent / "bridge-shadow"
 
 
-def rosbags_deserialize(path: Path) -> int:
-    from rosbags.rosbag2 import Reader
-
-    deserialize = get_typestore().deserialize_cdr
-    n = 0
-    with Reader(path) as reader:
-        for conn, _t, raw in reader.messages():
-            deserialize(raw, conn.msgtype)
-            n += 1
-    return n
-
-
-def replay(path: Path) -> object:
-    return Shadow(ShadowConfig(), load_surrogate()).run(read_monitoring(path))
+def make_bag(name: str, storage: str) -> Path:
+    """Write (or reuse) the synth bag of a case (a year: the twin 10 days at a time)."""
+    days, rate = CASES[name]
+    path = BENCH_DIR / f"{name}-{storage}"
+    if not (path / "metadata.yaml").is_file():
+        BENCH_DIR.mkdir(parents=True, exist_ok=True)
+        if days > 30:
+            write_long_bag(path, days, rate, storage)
+            return path
+        cmd = [str(BIN), "synth", "--out", str(path), "--days", str(days), "--rate", str(rate), "--seed", "7"]
+        subprocess.run([*cmd, "--storage", storage, "--overwrite"], check=True, stdout=subprocess.DEVNULL)
+    return path
 
 
-def memory_profile(hours: float, rate: int = 20) -> list[tuple[float, float]]:
-    """Feed ``hours`` of data minute by minute; tracemalloc current MB every 4 h of data."""
-    rng = np.random.default_rng(1)
-    sur = load_surrogate()
-    # the kept-window log for refiltering is the only thing that grows; it is capped at
-    # noise_refilter_max_windows (default 20000, about 14 days); 480 here shows the plateau
-    shadow = Shadow(ShadowConfig(noise_refilter_max_windows=480), sur)
-    base = sur.reactions(np.zeros(2))
-    marks: list[tuple[float, float]] = []
-    tracemalloc.start()
-    for minute in range(int(hours * 60)):
-        s0 = T0 + minute * 60 * 10**9
-        stamps = s0 + np.arange(60 * rate, dtype=np.int64) * (10**9 // rate)
-        temp = 8.0 + 6.0 * np.sin(2 * np.pi * minute / 1440.0)
-        for c in range(2):
-            shadow.ingest_forces(
-                c, stamps, base[c] + 300 * temp + rng.normal(0, 60, len(stamps)), f"frc_0{c + 1}"
+def write_long_bag(path: Path, days: float, rate: float, storage: str, segment_days: float = 10.0) -> None:
+    """Write a bag longer than ``synth`` can hold: the twin simulated and written segment by segment.
+
+    Each segment is an independent twin run (own seed, weather restarting at its start), appended
+    to one bag in log-time order; memory is one segment's.
+    """
+    import numpy as np
+
+    from bridge_shadow.bagio import BagOutputWriter, encode_stamped_floats
+    from bridge_shadow.contract import CHANNELS, FORCE_TOPICS, FORCE_TYPE, TEMPERATURE_TOPIC, TEMPERATURE_TYPE
+    from bridge_shadow.twin.simulate import simulate
+
+    start_ns = 1_647_212_400 * 10**9  # 2022-03-14 00:00 Europe/Berlin
+    with BagOutputWriter(path, storage, overwrite=True) as bag:
+        conns = [bag._connection(FORCE_TOPICS[ch], FORCE_TYPE) for ch in CHANNELS]
+        conns.append(bag._connection(TEMPERATURE_TOPIC, TEMPERATURE_TYPE))
+        write = bag._writer.write
+        done = 0.0
+        while done < days:
+            seg = min(segment_days, days - done)
+            data, _ = simulate(seg, rate, seed=int(done), start=start_ns + round(done * 86400e9))
+            raws, logs = [], []
+            for ch in CHANNELS:
+                f = data.forces[ch]
+                values = np.zeros((len(f), 6))
+                values[:, 2] = f.force_n
+                raws.append(encode_stamped_floats(f.stamp_ns, f.frame_id, values))
+                logs.append(f.log_ns)
+            t = data.temperature
+            raws.append(
+                encode_stamped_floats(t.stamp_ns, t.frame_id, np.column_stack([t.temp_c, t.variance]))
             )
-        shadow.ingest_temperature(
-            s0 + np.arange(60, dtype=np.int64) * 10**9, np.full(60, temp), "air_temperature"
+            logs.append(t.log_ns)
+            topic = np.concatenate([np.full(len(x), k) for k, x in enumerate(logs)])
+            pos = np.concatenate([np.arange(len(x)) for x in logs])
+            log = np.concatenate(logs)
+            order = np.argsort(log, kind="stable")
+            for k, i, ti in zip(topic[order].tolist(), pos[order].tolist(), log[order].tolist(), strict=True):
+                write(conns[k], ti, raws[k][i])
+            done += seg
+
+
+#: Run as ``python -c HWM_WRAP code args...``: the code runs as ``__main__`` and, at exit, the peak
+#: RSS of this process image (``VmHWM``) goes to stderr. ``ru_maxrss`` of a child would not do: it
+#: keeps the high-water mark of the forked copy of this (parent) process from before ``exec``.
+HWM_WRAP = """
+import atexit, sys
+def _hwm():
+    with open("/proc/self/status") as f:
+        kb = [line.split()[1] for line in f if line.startswith("VmHWM:")][0]
+    sys.stderr.write(f"\\nVmHWM_KB {kb}\\n")
+atexit.register(_hwm)
+code, sys.argv = sys.argv[1], sys.argv[2:]
+exec(compile(code, "<benchmark child>", "exec"), {"__name__": "__main__"})
+"""
+CLI = "import sys\nfrom bridge_shadow.cli import main\nsys.exit(main())\n"
+
+
+def run_child(code: str, args: list[str]) -> tuple[float, int, str]:
+    """Run ``code`` with ``args`` in a fresh interpreter; return (wall s, peak RSS MB, stdout)."""
+    with tempfile.TemporaryFile("w+") as err:
+        t0 = time.perf_counter()
+        proc = subprocess.run(
+            [sys.executable, "-c", HWM_WRAP, code, *args], stdout=subprocess.PIPE, stderr=err, text=True
         )
-        shadow.poll()
-        if minute % 240 == 239:
-            marks.append(((minute + 1) / 60, tracemalloc.get_traced_memory()[0] / 1e6))
-    tracemalloc.stop()
-    return marks
+        wall = time.perf_counter() - t0
+        err.seek(0)
+        text = err.read()
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(args)} failed ({proc.returncode}): {text.strip()[-500:]}")
+    hwm = [line.split()[1] for line in text.splitlines() if line.startswith("VmHWM_KB ")]
+    return wall, int(hwm[-1]) // 1024, proc.stdout
+
+
+def read_only(path: Path) -> tuple[int, str]:
+    """Stream the bag's input topics into feed chunks without the shadow; return (messages, backend)."""
+    from bridge_shadow.bagio.stream import MonitoringStream
+    from bridge_shadow.replay import arrival_chunks
+
+    with MonitoringStream(path) as stream:
+        n = sum(c.messages for c in arrival_chunks(stream))
+        return n, stream.backend
+
+
+IN_MEMORY = """
+import sys
+from bridge_shadow.bagio import read_monitoring
+from bridge_shadow.estimate import Shadow, load_config
+from bridge_shadow.model.surrogate_file import load_surrogate
+res = Shadow(load_config(None), load_surrogate(None)).run(read_monitoring(sys.argv[1]))
+print(res.windows)
+"""
 
 
 def main() -> None:
-    """Run the benchmark and print the tables."""
+    """Run the cases and print one table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--messages", type=int, default=400_000)
-    parser.add_argument("--repeat", type=int, default=2)
-    parser.add_argument("--hours", type=float, default=24.0)
+    parser.add_argument("--cases", default=DEFAULT_CASES, help=f"comma-separated, of {', '.join(CASES)}")
+    parser.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3")
+    parser.add_argument("--repeat", type=int, default=2, help="raw-read repetitions (best of)")
+    parser.add_argument("--in-memory", action="store_true", help="also the former whole-bag path (RSS)")
     args = parser.parse_args()
-    data = make_data(args.messages)
-    n = data.n_messages
-    with tempfile.TemporaryDirectory(prefix="replay_offline_") as tmp:
-        for storage in ("sqlite3", "mcap"):
-            path = Path(tmp) / storage
-            write_monitoring(path, data, storage)
-            t_raw, n_raw = best_of(args.repeat, lambda p=path: rosbags_raw(p))
-            t_des, n_des = best_of(1, lambda p=path: rosbags_deserialize(p))
-            t_rep, res = best_of(args.repeat, lambda p=path: replay(p))
-            t_run, _ = best_of(args.repeat, lambda: Shadow(ShadowConfig(), load_surrogate()).run(data))
-            assert n_raw == n_des == n == res.messages
-            print(f"{storage}: {n} messages, {res.windows} windows of 60 s")
-            for name, t in (
-                ("rosbags raw read", t_raw),
-                ("rosbags deserialize_cdr", t_des),
-                ("replay direct (read+shadow)", t_rep),
-                ("Shadow.run on decoded data", t_run),
-            ):
-                print(f"  {name:28s} {n / t:12,.0f} msg/s   x{t_raw / t:6.2f} of raw read")
+    rows = []
+    for name in args.cases.split(","):
+        path = make_bag(name.strip(), args.storage)
+        t_raw, n = best_of(args.repeat, lambda p=path: rosbags_raw(p))
+        t_read, (n_read, backend) = best_of(args.repeat, lambda p=path: read_only(p))
+        wall, rss, out = run_child(CLI, ["bridge-shadow", "replay", str(path), "--json"])
+        js = json.loads(out)
+        assert js["messages"]["total"] == n == n_read
+        row = {
+            "case": name,
+            "messages": n,
+            "windows": js["windows"]["closed"],
+            "raw": n / t_raw,
+            "read": n / t_read,
+            "e2e_wall": n / wall,
+            "e2e_json": js["messages_per_s"],
+            "pipeline": js["pipeline_messages_per_s"],
+            "shadow_ms_per_window": 1e3 * js["pipeline_seconds"] / max(js["windows"]["closed"], 1),
+            "shadow_share": js["pipeline_seconds"] / wall,
+            "read_share": t_read / wall,
+            "rss_mb": rss,
+            "backend": backend,
+        }
+        if args.in_memory:
+            _, row["rss_in_memory_mb"], _ = run_child(IN_MEMORY, ["in-memory", str(path)])
+        rows.append(row)
+        print(json.dumps(row), file=sys.stderr)
     print(
-        f"memory over a long replay ({args.hours:g} h of 2 x 20 Hz forces, 1-minute chunks, "
-        "refilter log capped at 480 windows):"
+        f"storage {args.storage}; rates in msg/s, x = ratio to rosbags' raw read of the same bag in this run"
     )
-    for hour, mb in memory_profile(args.hours):
-        print(f"  after {hour:5.1f} h of data: {mb:7.2f} MB traced")
+    cols = (
+        f"{'case':9s} {'msgs':>8s} {'windows':>7s} {'raw read':>9s} {'read+decode':>16s} "
+        f"{'end to end':>16s} {'json e2e':>9s} {'pipeline':>16s} {'shadow ms/win':>13s} "
+        f"{'shadow %':>8s} {'RSS MB':>7s}"
+    )
+    print(cols)
+    for r in rows:
+        raw = r["raw"]
+        line = (
+            f"{r['case']:9s} {r['messages']:8d} {r['windows']:7d} {raw:9,.0f} "
+            f"{r['read']:10,.0f} x{r['read'] / raw:4.2f} {r['e2e_wall']:10,.0f} x{r['e2e_wall'] / raw:4.2f} "
+            f"{r['e2e_json']:9,.0f} {r['pipeline']:10,.0f} x{r['pipeline'] / raw:4.1f} "
+            f"{r['shadow_ms_per_window']:13.3f} {100 * r['shadow_share']:8.0f} {r['rss_mb']:7d}"
+        )
+        if "rss_in_memory_mb" in r:
+            line += f"  (whole-bag path: {r['rss_in_memory_mb']} MB)"
+        print(line)
 
 
 if __name__ == "__main__":

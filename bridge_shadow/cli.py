@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+import time
 from collections.abc import Sequence
 
 from bridge_shadow import __version__
 from bridge_shadow.errors import BridgeShadowError
 
-__all__ = ["COMMANDS", "build_parser", "main"]
+__all__ = ["COMMANDS", "EXIT_BROKEN_PIPE", "build_parser", "main"]
 
 #: Subcommand name -> module implementing it, in the order ``--help`` lists them.
 COMMANDS: dict[str, str] = {
@@ -55,19 +57,50 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; return the process exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+#: Exit code after the reader of stdout went away (``replay BAG | head -1``): 128 + SIGPIPE, what
+#: the shell reports for a tool that the same pipe ended, so ``set -o pipefail`` scripts see it.
+EXIT_BROKEN_PIPE = 128 + 13
+
+
+def _quiet_broken_pipe() -> int:
+    """Point stdout at /dev/null (so the interpreter's last flush cannot fail) and exit 141."""
     try:
-        return int(args._run(args) or 0)
-    except BridgeShadowError as err:
-        text = " ".join(str(err).split())  # one line, whatever a library put in the message
-        print(f"bridge-shadow {args.command}: error: {text}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"bridge-shadow {args.command}: interrupted", file=sys.stderr)
-        return 130
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # stdout without a file descriptor
+        pass
+    return EXIT_BROKEN_PIPE
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; return the process exit code.
+
+    Errors a user can cause print one line and exit 2; a closed stdout pipe ends quietly with
+    ``EXIT_BROKEN_PIPE`` (141), Ctrl-C with 130.
+    """
+    started = time.perf_counter()  # end-to-end rates count from here (replay's messages_per_s)
+    try:
+        parser = build_parser()
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit:  # --help, --version, a usage error: their text must reach the pipe now
+            sys.stdout.flush()
+            raise
+        args.started = started
+        try:
+            code = int(args._run(args) or 0)
+            sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
+            return code
+        except BridgeShadowError as err:
+            text = " ".join(str(err).split())  # one line, whatever a library put in the message
+            print(f"bridge-shadow {args.command}: error: {text}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print(f"bridge-shadow {args.command}: interrupted", file=sys.stderr)
+            return 130
+    except BrokenPipeError:
+        return _quiet_broken_pipe()
 
 
 if __name__ == "__main__":

@@ -35,6 +35,8 @@ def test_replay_json_outputs_and_plots(
     assert np.all(np.sqrt(np.diag(cov)) < 0.2 * prior_sd)  # the data were informative
     assert js["messages"]["used"] + js["messages"]["rejected"] == js["messages"]["total"]
     assert js["messages_per_s"] > 0 and js["windows"]["updates"] > 1000
+    # end to end (bag read, start-up) is slower than the pipeline alone
+    assert js["seconds"] > js["pipeline_seconds"] > 0 and js["pipeline_messages_per_s"] > js["messages_per_s"]
     for ch in ("frc_01", "frc_02"):
         assert js["spline"][ch]["edf"] >= 2.0 and js["spline"][ch]["lambda"] > 0
     # the outputs bag holds the window posteriors, the last equals the JSON

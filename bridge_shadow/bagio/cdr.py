@@ -26,9 +26,12 @@ __all__ = [
     "N_FLOATS",
     "CdrFormatError",
     "RawBlock",
+    "concat_frames",
     "decode_buffer",
     "decode_stamped_floats",
     "encode_stamped_floats",
+    "frame_value",
+    "uniform_frames",
 ]
 
 #: Float64 payload fields after the header, by message type.
@@ -85,17 +88,43 @@ def _field(block: np.ndarray, start: int, dtype: str) -> np.ndarray:
     return np.ascontiguousarray(block[:, start : start + width]).view(dtype).ravel()
 
 
-def _decode_frames(chars: np.ndarray) -> np.ndarray:
-    """Decode ``(n, w) uint8`` NUL-padded strings into an object array, one decode per distinct value."""
+def _decode_frames(chars: np.ndarray) -> np.ndarray | str:
+    """Decode ``(n, w) uint8`` NUL-padded strings, one decode per distinct value.
+
+    Returns the one ``str`` when every message has the same frame_id (the usual case), else an
+    ``(n,)`` object array.
+    """
     n, width = chars.shape
-    if width == 0:
-        return np.full(n, "", dtype=object)
+    if width == 0 or not n:
+        return ""
     if np.array_equal(chars, np.broadcast_to(chars[0], chars.shape)):  # one frame_id: the usual case
-        return np.full(n, bytes(chars[0]).rstrip(b"\0").decode("utf-8", errors="replace"), dtype=object)
+        return bytes(chars[0]).rstrip(b"\0").decode("utf-8", errors="replace")
     fixed = np.ascontiguousarray(chars).view(f"S{width}").ravel()  # numpy strips trailing NULs
     uniq, inverse = np.unique(fixed, return_inverse=True)
     text = np.array([u.decode("utf-8", errors="replace") for u in uniq], dtype=object)
     return text[inverse.ravel()]
+
+
+def uniform_frames(text: str, n: int) -> np.ndarray:
+    """Return ``n`` times the frame_id ``text`` as a read-only ``(n,)`` object view (no copies)."""
+    one = np.empty(1, dtype=object)
+    one[0] = text
+    return np.broadcast_to(one, (n,))
+
+
+def concat_frames(parts: Sequence[np.ndarray]) -> np.ndarray:
+    """Concatenate frame_id arrays, keeping a ``uniform_frames`` view when all hold one value."""
+    values = {frame_value(p) for p in parts if len(p)}
+    if len(values) == 1 and None not in values:
+        return uniform_frames(values.pop(), sum(len(p) for p in parts))  # type: ignore[arg-type]
+    return np.concatenate(parts) if parts else np.empty(0, dtype=object)
+
+
+def frame_value(frames: np.ndarray) -> str | None:
+    """Return the frame_id of an ``uniform_frames`` view (or of any array of one value), else None."""
+    if len(frames) and frames.strides == (0,):
+        return str(frames[0])
+    return None
 
 
 def decode_stamped_floats(raws: Sequence[bytes], n_floats: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -120,19 +149,47 @@ def decode_stamped_floats(raws: Sequence[bytes], n_floats: int) -> tuple[np.ndar
     return decode_buffer(buf, starts, lengths, n_floats)
 
 
-def _gather(buf: np.ndarray, starts: np.ndarray, length: int) -> np.ndarray:
-    """Return the ``(m, length) uint8`` block of messages at ``starts`` (a view when they are packed)."""
-    m = len(starts)
-    if m and int(starts[-1]) - int(starts[0]) == (m - 1) * length and np.all(np.diff(starts) == length):
-        return buf[int(starts[0]) : int(starts[0]) + m * length].reshape(m, length)
-    block = np.empty((m, length), dtype=np.uint8)
-    for j in range(length):  # one vectorized gather per byte column: no Python work per message
-        block[:, j] = buf[starts + j]
-    return block
+class _Messages:
+    """Messages of one length in a buffer: byte columns on demand.
+
+    Packed messages (equally spaced) are one ``(m, L)`` view; scattered ones (e.g. MCAP records
+    of interleaved topics) are gathered one byte column at a time, only the columns asked for:
+    no Python work per message.
+    """
+
+    def __init__(
+        self, buf: np.ndarray, starts: np.ndarray, length: int, block: np.ndarray | None = None
+    ) -> None:
+        self.buf, self.starts, self.length = buf, starts, length
+        m = len(starts)
+        if block is None and m and int(starts[-1]) - int(starts[0]) == (m - 1) * length:
+            if np.all(np.diff(starts) == length):
+                block = buf[int(starts[0]) : int(starts[0]) + m * length].reshape(m, length)
+        self.block = block
+
+    def cols(self, a: int, b: int) -> np.ndarray:
+        """Return bytes ``[a, b)`` of every message as ``(m, b - a) uint8``."""
+        if self.block is not None:
+            return self.block[:, a:b]
+        out = np.empty((len(self.starts), b - a), dtype=np.uint8)
+        for j in range(a, b):
+            out[:, j - a] = self.buf[self.starts + j]
+        return out
+
+    def subset(self, idx: np.ndarray) -> _Messages:
+        """Return the messages at positions ``idx``."""
+        block = None if self.block is None else self.block[idx]
+        return _Messages(self.buf, self.starts[idx], self.length, block)
 
 
 def decode_buffer(
-    buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, n_floats: int
+    buf: np.ndarray,
+    starts: np.ndarray,
+    lengths: np.ndarray,
+    n_floats: int,
+    *,
+    fields: Sequence[int] | None = None,
+    compact_frames: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Decode n messages lying in one byte buffer at ``starts`` with ``lengths`` (see above).
 
@@ -140,14 +197,25 @@ def decode_buffer(
         buf: (N,) uint8 buffer holding the messages (e.g. joined blobs or MCAP chunk records).
         starts, lengths: (n,) int64 offset and size of each message in ``buf``.
         n_floats: number of float64 fields after the header.
+        fields: which float64 fields to return (default all ``n_floats``, in order); e.g.
+            ``[2]`` for ``wrench.force.z`` alone (fewer bytes touched).
+        compact_frames: when every message has one frame_id, return ``frames`` as a read-only
+            ``uniform_frames`` view instead of a filled object array (no work per message).
+
+    Returns:
+        ``stamp_ns`` (n,) int64, ``frame_id`` (n,) object, ``values`` (n, len(fields)) float64.
 
     """
+    fields = list(range(n_floats)) if fields is None else [int(f) for f in fields]
+    if any(not 0 <= f < n_floats for f in fields):
+        raise ValueError(f"fields {fields} outside the {n_floats} float64 fields")
     n = len(starts)
     stamp_ns = np.empty(n, dtype=np.int64)
     frames = np.empty(n, dtype=object)
-    values = np.empty((n, n_floats), dtype=np.float64)
+    values = np.empty((n, len(fields)), dtype=np.float64)
     if n == 0:
         return stamp_ns, frames, values
+    found: list[tuple[np.ndarray, np.ndarray | str]] = []
     starts = np.asarray(starts, dtype=np.int64)
     lengths = np.asarray(lengths, dtype=np.int64)
     if int((starts + lengths).max()) > len(buf) or int(starts.min()) < 0:
@@ -157,46 +225,59 @@ def decode_buffer(
         rows = np.arange(n) if same else np.flatnonzero(lengths == length)
         if length < _HEADER_BYTES + 8 * n_floats:
             raise CdrFormatError(f"message {int(rows[0])} is {length} bytes, too short for the layout")
-        block = _gather(buf, starts[rows], length)
-        if np.any(block[:, 0] != 0) or np.any(block[:, 1] > 1):
-            bad = int(rows[np.flatnonzero((block[:, 0] != 0) | (block[:, 1] > 1))[0]])
+        msgs = _Messages(buf, starts[rows], length)
+        head = msgs.cols(0, _HEADER_BYTES)
+        if np.any(head[:, 0] != 0) or np.any(head[:, 1] > 1):
+            bad = int(rows[np.flatnonzero((head[:, 0] != 0) | (head[:, 1] > 1))[0]])
             raise CdrFormatError(f"message {bad} has an unknown CDR encapsulation")
-        little = block[:, 1] == 1
+        little = head[:, 1] == 1
         if np.all(little):
-            _decode_block(block, rows, n_floats, "<", stamp_ns, frames, values)
+            _decode_block(msgs, head, rows, n_floats, fields, "<", stamp_ns, found, values)
             continue
         for mask, order in ((little, "<"), (~little, ">")):
             if np.any(mask):
-                _decode_block(block[mask], rows[mask], n_floats, order, stamp_ns, frames, values)
+                idx = np.flatnonzero(mask)
+                part = msgs.subset(idx)
+                _decode_block(part, head[idx], rows[idx], n_floats, fields, order, stamp_ns, found, values)
+    texts = {f for _, f in found if isinstance(f, str)}
+    if compact_frames and len(texts) == 1 and all(isinstance(f, str) for _, f in found):
+        return stamp_ns, uniform_frames(texts.pop(), n), values
+    for rows_of, part in found:
+        frames[rows_of] = part
     return stamp_ns, frames, values
 
 
 def _decode_block(
-    block: np.ndarray,
+    msgs: _Messages,
+    head: np.ndarray,
     rows: np.ndarray,
     n_floats: int,
+    fields: list[int],
     order: str,
     stamp_ns: np.ndarray,
-    frames: np.ndarray,
+    found: list[tuple[np.ndarray, np.ndarray | str]],
     values: np.ndarray,
 ) -> None:
-    """Decode a ``(m, L)`` block of one length and byte order into the output rows."""
-    length = block.shape[1]
-    slen = _field(block, 12, order + "u4").astype(np.int64)
+    """Decode messages of one length and byte order (``head``: their first 16 bytes) into the rows.
+
+    Stamps and values go into their arrays; the frame_ids of each group of rows are appended to
+    ``found`` as ``(rows, str or object array)`` for the caller to place.
+    """
+    slen = _field(head, 12, order + "u4").astype(np.int64)
     offset = 4 + _align8(12 + slen)  # first float64; trailing padding up to L is tolerated
-    bad = (slen < 1) | (offset + 8 * n_floats > length)
+    bad = (slen < 1) | (offset + 8 * n_floats > msgs.length)
     if np.any(bad):
         raise CdrFormatError(f"message {int(rows[np.flatnonzero(bad)[0]])} has an inconsistent string length")
-    sec = _field(block, 4, order + "i4").astype(np.int64)
-    nsec = _field(block, 8, order + "u4").astype(np.int64)
+    sec = _field(head, 4, order + "i4").astype(np.int64)
+    nsec = _field(head, 8, order + "u4").astype(np.int64)
     stamp_ns[rows] = sec * _NS + nsec
     same = offset.min() == offset.max()
     for off in [int(offset[0])] if same else np.unique(offset).tolist():
-        sub = slice(None) if same else np.flatnonzero(offset == off)
-        part = block[sub]
-        floats = np.ascontiguousarray(part[:, off : off + 8 * n_floats]).view(order + "f8")
-        values[rows[sub]] = floats.reshape(len(part), n_floats)
-        frames[rows[sub]] = _decode_frames(part[:, _HEADER_BYTES:off])
+        sub = np.arange(len(rows)) if same else np.flatnonzero(offset == off)
+        part = msgs if same else msgs.subset(sub)
+        for k, f in enumerate(fields):
+            values[rows[sub], k] = _field(part.cols(off + 8 * f, off + 8 * f + 8), 0, order + "f8")
+        found.append((rows[sub], _decode_frames(part.cols(_HEADER_BYTES, off))))
 
 
 def encode_stamped_floats(

@@ -58,20 +58,25 @@ def _string(body: bytes, pos: int) -> tuple[str, int]:
 
 
 def _decompress(data: bytes, compression: str, size: int, crc: int) -> bytes:
-    if compression == "":
-        out = data
-    elif compression == "zstd":
-        try:
-            from compression import zstd  # type: ignore[import-not-found]
-        except ImportError:
-            from backports import zstd
-        out = zstd.decompress(data)
-    elif compression == "lz4":
-        from lz4.frame import decompress
+    try:
+        if compression == "":
+            out = data
+        elif compression == "zstd":
+            try:
+                from compression import zstd  # type: ignore[import-not-found]
+            except ImportError:
+                from backports import zstd
+            out = zstd.decompress(data)
+        elif compression == "lz4":
+            from lz4.frame import decompress
 
-        out = decompress(data)
-    else:
-        raise McapLayoutError(f"unknown chunk compression {compression!r}")
+            out = decompress(data)
+        else:
+            raise McapLayoutError(f"unknown chunk compression {compression!r}")
+    except McapLayoutError:
+        raise
+    except Exception as err:  # ZstdError, lz4's RuntimeError: a damaged chunk
+        raise McapLayoutError(f"{compression} chunk does not decompress ({err})") from err
     if len(out) != size:
         raise McapLayoutError("chunk size mismatch")
     if crc and zlib.crc32(out) != crc:

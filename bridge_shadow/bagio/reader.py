@@ -61,6 +61,12 @@ try:  # the sqlite3 back end of rosbags
     _STORAGE_ERRORS = (*_STORAGE_ERRORS, apsw.Error)
 except ImportError:  # pragma: no cover
     pass
+try:  # a damaged zstd chunk of an MCAP file (rosbags decompresses with it too)
+    from backports.zstd import ZstdError
+
+    _STORAGE_ERRORS = (*_STORAGE_ERRORS, ZstdError)
+except ImportError:  # pragma: no cover
+    pass
 
 
 def _reader_error() -> type[BaseException]:

@@ -115,6 +115,7 @@ class BagOutputWriter:
         self._writer: Any = None
         self._stage: Path | None = None
         self._connections: dict[tuple[str, str], Any] = {}
+        self._templates: dict[tuple[tuple[str, ...], tuple[int, ...]], bytes] = {}
         self.counts: dict[str, int] = {}
 
     @property
@@ -275,6 +276,33 @@ class BagOutputWriter:
         layout = ts.types["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
         msg = ts.types[FLOAT_ARRAY_TYPE](layout=layout, data=np.ascontiguousarray(arr.ravel()))
         self.write_message(topic, msg, log_ns)
+
+    def float64_array_raws(self, values: np.ndarray, labels: Sequence[str] = ()) -> list[bytes]:
+        """Serialize many ``Float64MultiArray`` of one shape at once (for ``write_raw``).
+
+        ``values`` is ``(n, *shape)``; each message is byte for byte what ``write_float64_array``
+        writes: rosbags serializes one template, whose trailing float64 data is then replaced.
+        """
+        arr = np.ascontiguousarray(values, dtype="<f8")
+        n, shape = arr.shape[0], arr.shape[1:]
+        if labels and len(labels) != len(shape):
+            raise ValueError(f"{len(labels)} layout labels for arrays of {len(shape)} dimensions")
+        key = (tuple(labels), shape)
+        prefix = self._templates.get(key)
+        if prefix is None:
+            ts = get_typestore()
+            strides = [int(np.prod(shape[i:])) for i in range(len(shape))] if labels else []
+            dims = [
+                ts.types["std_msgs/msg/MultiArrayDimension"](label=str(lab), size=int(size), stride=stride)
+                for lab, size, stride in zip(labels, shape, strides, strict=False)
+            ]
+            layout = ts.types["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
+            size = int(np.prod(shape))
+            msg = ts.types[FLOAT_ARRAY_TYPE](layout=layout, data=np.zeros(size))
+            template = bytes(ts.serialize_cdr(msg, FLOAT_ARRAY_TYPE))
+            prefix = self._templates[key] = template[: len(template) - 8 * size]
+        flat = arr.reshape(n, -1)
+        return [prefix + row.tobytes() for row in flat]
 
     def write_diagnostics(
         self,

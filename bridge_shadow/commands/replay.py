@@ -18,16 +18,20 @@ the rclpy node in a loopback DDS graph (same pipeline, same posterior). Paramete
 config/shadow.yaml or --params; the replay ignores checkpoint_path there (a running node's
 state is never touched) unless --checkpoint PATH names a checkpoint to resume and write. --json
 prints one object: posterior.mean_m [south, north] (m), posterior.covariance_m2 (m^2), messages
-used and rejected by reason, messages_per_s, detected settlement events (time, window, size per
-support in m with covariance and 95 % interval), warnings, the prior in use, spline edf and
-lambda per channel.
+used and rejected by reason, detected settlement events (time, window, size per support in m
+with covariance and 95 % interval), warnings, the prior in use, spline edf and lambda per
+channel, and the rates: messages_per_s and seconds end to end (from the command's start:
+imports, model, bag read and decode, shadow, --out; not --plots), pipeline_messages_per_s and
+pipeline_seconds for the shadow alone (live: publishing to the node's flush).
 
 Nothing fails silently: a missing air-temperature topic runs uncompensated, a topic whose every
 message is rejected is named with the reason and the expected value (WARN lines on stderr and
 "warnings" in the JSON), and a replay in which no window updated the estimate exits with 1.
 
 --out and --plots work in both modes (live: drawn from the node's history service and final
-checkpoint). A progress bar shows on a terminal unless --json.
+checkpoint). The direct replay streams the bag in bounded memory: --out is written as windows
+close, and --plots draws at most 10,000 windows, evenly spaced over the record. A progress bar
+shows on a terminal unless --json.
 
 To watch the topics of a paced live replay (the ros2 command-line tools are not in the venv:
 they are not on the package index), --watch prints the node's latest outputs once a second:
@@ -70,81 +74,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "diagnostics) as they arrive, one line a second on stderr",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object (SI units)")
-
-
-def write_outputs(path: str | Path, result: Any, shadow: Any) -> Path:
-    """Write window outputs as a bag: mean, covariance, compensated forces and diagnostics.
-
-    Topic names are the shadow's ``topic_*`` parameters (the contract's by default).
-    """
-    import numpy as np
-
-    from bridge_shadow.bagio import BagOutputWriter
-    from bridge_shadow.contract import (
-        CHANNELS,
-        COMPENSATED_TOPICS,
-        COVARIANCE_LAYOUT_LABELS,
-        COVARIANCE_TOPIC,
-        DIAGNOSTICS_TOPIC,
-        FORCE_FRAMES,
-        MEAN_LAYOUT_LABEL,
-        MEAN_TOPIC,
-        NODE_NAME,
-    )
-
-    levels = {"OK": 0, "WARN": 1, "ERROR": 2}
-    diag = shadow.diagnostics()
-    names = shadow.config.output_topics()
-    with BagOutputWriter(path) as writer:
-        for out in result.outputs:
-            t = int(out.end_ns)
-            writer.write_float64_array(names[MEAN_TOPIC], t, out.mean_m, [MEAN_LAYOUT_LABEL])
-            writer.write_float64_array(
-                names[COVARIANCE_TOPIC], t, out.covariance_m2, list(COVARIANCE_LAYOUT_LABELS)
-            )
-            if np.all(np.isfinite(out.compensated_n)):
-                for c, ch in enumerate(CHANNELS):
-                    writer.write_wrench(
-                        names[COMPENSATED_TOPICS[ch]], t, t, FORCE_FRAMES[ch], out.compensated_n[c]
-                    )
-            values = {
-                "window_end_ns": t,
-                "updated": out.updated,
-                "reason": out.reason,
-                "mean_m": list(out.mean_m),
-                "sigma_m": list(np.sqrt(np.diag(out.covariance_m2))),
-                "force_n": list(out.force_n),
-                "temp_c": list(out.temp_c),
-            }
-            writer.write_diagnostics(
-                DIAGNOSTICS_TOPIC,
-                t,
-                t,
-                [
-                    {
-                        "name": f"{NODE_NAME}: window",
-                        "level": 0 if out.updated else 1,
-                        "message": out.reason or "updated",
-                        "values": values,
-                    }
-                ],
-            )
-        if result.outputs:
-            t = int(result.outputs[-1].end_ns)
-            writer.write_diagnostics(
-                DIAGNOSTICS_TOPIC,
-                t,
-                t,
-                [
-                    {
-                        "name": f"{NODE_NAME}: final",
-                        "level": levels[diag["level"]],
-                        "message": diag["summary"],
-                        "values": {"rejected": diag["rejected"], "spline": diag["spline"]},
-                    }
-                ],
-            )
-    return Path(path)
 
 
 def _summary(js: dict[str, Any]) -> str:
@@ -216,11 +145,23 @@ def _loud(js: dict[str, Any]) -> int:
         )
         return 1
     return 0
+def _end_to_end_rate(js: dict[str, Any], started: float) -> None:
+    """Make ``messages_per_s``/``seconds`` end to end; keep the pipeline's own under ``pipeline_*``."""
+    import time
+
+    seconds = time.perf_counter() - started
+    js["pipeline_messages_per_s"] = js["messages_per_s"]
+    js["pipeline_seconds"] = js["seconds"]
+    js["seconds"] = seconds
+    js["messages_per_s"] = js["messages"]["total"] / seconds if seconds > 0 else float("inf")
 
 
 def run(args: argparse.Namespace) -> int:
     """Replay the bag and print the result; exit 0."""
     import sys
+    import time
+
+    started = getattr(args, "started", None) or time.perf_counter()
 
     from bridge_shadow.bagio import check_bag_target
     from bridge_shadow.commands.output import emit_json, progress
@@ -254,25 +195,29 @@ def run(args: argparse.Namespace) -> int:
             checkpoint=args.checkpoint,
             watch=args.watch,
         )
+        _end_to_end_rate(js, started)
         if args.json:
             emit_json(js)
         else:
             print(_summary(js))
         return _loud(js)
 
-    from bridge_shadow.bagio import read_monitoring
     from bridge_shadow.contract import INPUT_TOPICS
     from bridge_shadow.estimate.startup import open_shadow
+    from bridge_shadow.replay import HISTORY_CAPACITY, replay_bag
 
     # a params file's checkpoint_path belongs to the live node: never read or written here
     config = load_config(args.params, over).replace(checkpoint_path=args.checkpoint or "")
     surrogate = load_surrogate(config.surrogate_path or None)
     shadow, notes = open_shadow(config, surrogate)  # an unusable checkpoint stops us before the bag
-    # the air temperature may be absent: the shadow then runs uncompensated and says so
-    data = read_monitoring(args.bag, required=list(INPUT_TOPICS)[:2], topics=config.input_topics())
     for line in notes:
         print(f"bridge-shadow replay: {line}", file=sys.stderr)
-    result = shadow.run(data, progress=show)
+    # streamed in bounded memory; outputs go to --out as windows close, --plots keeps a decimated
+    # history; the air temperature may be absent: the shadow then runs uncompensated and says so
+    history = HISTORY_CAPACITY if args.plots else None
+    result, _ = replay_bag(
+        args.bag, shadow, out=args.out, history=history, progress=show, required=list(INPUT_TOPICS)[:2]
+    )
     js = result.to_json()
     js["bag"] = str(args.bag)
     js["surrogate"] = {
@@ -281,7 +226,8 @@ def run(args: argparse.Namespace) -> int:
         "solver": surrogate.provenance.get("solver", ""),
     }
     if args.out:
-        js["out"] = str(write_outputs(args.out, result, shadow))
+        js["out"] = str(args.out)
+    _end_to_end_rate(js, started)
     if args.plots:
         from bridge_shadow.estimate.plots import write_plots
 
