@@ -4,8 +4,13 @@ For each scenario and each of ``--seeds`` seeds, a truth-twin record (forces eve
 weather, AR(1) load-cell noise, dropouts, NaNs) goes through ``Shadow.run`` with the default
 parameters (the drift scenario sets a random walk ``process_noise_m2_per_s``). Two worlds:
 
-- ``--world fe`` (default): the committed surrogate for both the twin and the shadow, whose
-  uniform-temperature response (19 N/K) is the only thermal effect;
+- ``--world fe`` (default): the as-built FE surrogate (``config/surrogate_fe.yaml``, no model
+  uncertainty) for both the twin and the shadow, whose uniform-temperature response (~20 N/K) is
+  the only thermal effect;
+- ``--world calibrated``: the shadow uses the calibrated default surrogate with its model
+  uncertainty (``model_cov``); each seed's twin draws its reality ``(A, u0)`` from that covariance,
+  so the coverage checks that the published interval (filter plus ``model_covariance(x)``) is
+  honest about a model known only to the calibration's precision;
 - ``--world strong``: the closed-form placeholder plus the ``uniform_temperature`` effect at
   300 N/K, so that a step while the air warms is the worst case for confounding. There the paper's
   level (``y - g(T) + ybar``: the settlement that explains the mean force of the windows used) and
@@ -42,7 +47,8 @@ from multiprocessing import Pool
 import numpy as np
 
 from bridge_shadow.estimate import Shadow, ShadowConfig
-from bridge_shadow.model.surrogate_file import load_surrogate, placeholder_surrogate
+from bridge_shadow.model.surrogate_file import Surrogate, load_surrogate, placeholder_surrogate
+from bridge_shadow.paths import config_file
 from bridge_shadow.twin.simulate import simulate
 
 W = 60 * 10**9
@@ -66,10 +72,20 @@ def one(args: tuple[str, int, str]) -> dict:
     name, seed, world = args
     sc = SCENARIOS[name]
     strong = world == "strong"
-    sur = placeholder_surrogate() if strong else load_surrogate()
+    if strong:
+        sur = placeholder_surrogate()
+    elif world == "fe":
+        sur = load_surrogate(config_file("surrogate_fe.yaml"))
+    else:
+        sur = load_surrogate()
+    reality = sur
+    if world == "calibrated" and sur.model_cov is not None:
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 77]))
+        theta = rng.multivariate_normal(np.r_[sur.A.ravel(), sur.u0], sur.model_cov)
+        reality = Surrogate(theta[:4].reshape(2, 2), theta[4:], sur.thermal, dict(sur.provenance))
     effects = {k: v for k, v in sc["effects"].items() if strong or k not in THERMAL}
     data, truth = simulate(
-        days=sc["days"], rate_hz=0.2, seed=seed, surrogate=sur, steps=sc["steps"], effects=effects
+        days=sc["days"], rate_hz=0.2, seed=seed, surrogate=reality, steps=sc["steps"], effects=effects
     )
     res = Shadow(ShadowConfig(**sc.get("config", {})), sur).run(data)
     target = np.asarray(truth["settlement"]["end_m"])
@@ -124,7 +140,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=200)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--only", choices=list(SCENARIOS), action="append")
-    parser.add_argument("--world", choices=("fe", "strong"), default="fe")
+    parser.add_argument("--world", choices=("fe", "calibrated", "strong"), default="fe")
     args = parser.parse_args()
     names = args.only or list(SCENARIOS)
     print(f"{args.seeds} seeds per scenario, forces every 5 s, default parameters, world {args.world}")

@@ -53,6 +53,10 @@ def test_the_lowering_is_one_event_and_the_estimate_follows_it(stream) -> None:
     np.testing.assert_allclose((res.mean_m - first) / implied, 1.0, atol=0.15)
     sd = np.sqrt(np.diag(res.covariance_m2))
     assert np.all(np.abs(res.mean_m - first - implied) < 1.96 * sd)
-    if "calibrat" in str(sur.provenance).lower():  # the calibrated model of the real bridge
-        np.testing.assert_allclose(res.mean_m - first, -10e-3, rtol=0.15)
-        assert np.all(np.abs(res.mean_m - first + 10e-3) < 1.96 * sd)
+    # the default surrogate is the calibrated model of the real bridge: the change is the imposed
+    # 10 mm, and so is the final estimate itself (issue: within 15 %, its interval holding it)
+    assert "calibrat" in str(sur.provenance).lower()
+    np.testing.assert_allclose(res.mean_m - first, -10e-3, rtol=0.15)
+    assert np.all(np.abs(res.mean_m - first + 10e-3) < 1.96 * sd)
+    np.testing.assert_allclose(res.mean_m, -10e-3, rtol=0.15)
+    assert np.all(np.abs(res.mean_m + 10e-3) < 1.96 * sd)
