@@ -36,6 +36,29 @@ class McapLayoutError(ValueError):
     """The MCAP file is not laid out as the fast path expects (or is damaged)."""
 
 
+
+def payload_spans(buf: np.ndarray, rec: np.ndarray, cid: int) -> tuple[np.ndarray, np.ndarray]:
+    """CDR payload starts and lengths (int64, bytes into ``buf``) of the message records at ``rec``.
+
+    ``rec`` are the record offsets a message index gives (into the decompressed chunk data
+    ``buf``); every record is checked to be a message of channel ``cid`` lying inside ``buf``.
+    Raises McapLayoutError otherwise.
+    """
+    if not len(rec):
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    if int(rec.max()) + _MSG_HEAD > len(buf) or int(rec.min()) < 0:
+        raise McapLayoutError("message index points outside its chunk")
+    length = np.zeros(len(rec), dtype=np.int64)
+    for j in range(8):  # u64 record length, little endian
+        length |= buf[rec + 1 + j].astype(np.int64) << (8 * j)
+    cid_at = buf[rec + 9].astype(np.int64) | (buf[rec + 10].astype(np.int64) << 8)
+    if np.any(buf[rec] != _OP_MESSAGE) or np.any(cid_at != cid) or np.any(length < _MSG_HEAD - 9):
+        raise McapLayoutError("message index does not point at messages of its channel")
+    starts, lengths = rec + _MSG_HEAD, length - (_MSG_HEAD - 9)
+    if int((starts + lengths).max()) > len(buf):
+        raise McapLayoutError("message runs past its chunk")
+    return starts, lengths
+
 def mcap_files(path: Path) -> list[Path] | None:
     """Return the MCAP files of a bag (directory without rosbag2 compression, or a bare file)."""
     if path.is_file():
@@ -179,20 +202,7 @@ def read_mcap_topics(
             if items
             else np.empty(0, np.int64)
         )
-        if len(rec):
-            if int(rec.max()) + _MSG_HEAD > len(buf) or int(rec.min()) < 0:
-                raise McapLayoutError("message index points outside its chunk")
-            length = np.zeros(len(rec), dtype=np.int64)
-            for j in range(8):  # u64 record length, little endian
-                length |= buf[rec + 1 + j].astype(np.int64) << (8 * j)
-            cid_at = buf[rec + 9].astype(np.int64) | (buf[rec + 10].astype(np.int64) << 8)
-            if np.any(buf[rec] != _OP_MESSAGE) or np.any(cid_at != cid) or np.any(length < _MSG_HEAD - 9):
-                raise McapLayoutError("message index does not point at messages of its channel")
-            starts, lengths = rec + _MSG_HEAD, length - (_MSG_HEAD - 9)
-            if int((starts + lengths).max()) > len(buf):
-                raise McapLayoutError("message runs past its chunk")
-        else:
-            starts = lengths = np.empty(0, np.int64)
+        starts, lengths = payload_spans(buf, rec, cid)
         order = np.argsort(log, kind="stable") if len(log) > 1 and np.any(np.diff(log) < 0) else slice(None)
         prev = out.get(topic)
         block = RawBlock(log[order], buf, starts[order], lengths[order])

@@ -25,7 +25,6 @@ import numpy as np
 from bridge_shadow.bagio.cdr import RawBlock
 from bridge_shadow.bagio.mcap_direct import (
     _MAGIC,
-    _MSG_HEAD,
     _OP_CHANNEL,
     _OP_CHUNK,
     _OP_FOOTER,
@@ -37,6 +36,7 @@ from bridge_shadow.bagio.mcap_direct import (
     McapLayoutError,
     _decompress,
     _string,
+    payload_spans,
 )
 
 __all__ = ["McapChunks"]
@@ -206,17 +206,7 @@ def _locate(buf: np.ndarray, entries: np.ndarray, cid: int) -> RawBlock:
     """Turn ``(log_time, offset)`` index entries into a block of CDR payloads in ``buf``."""
     log = entries[:, 0].astype(np.int64)
     rec = entries[:, 1].astype(np.int64)
-    if int(rec.max()) + _MSG_HEAD > len(buf) or int(rec.min()) < 0:
-        raise McapLayoutError("message index points outside its chunk")
-    length = np.zeros(len(rec), dtype=np.int64)
-    for j in range(8):  # u64 record length, little endian
-        length |= buf[rec + 1 + j].astype(np.int64) << (8 * j)
-    cid_at = buf[rec + 9].astype(np.int64) | (buf[rec + 10].astype(np.int64) << 8)
-    if np.any(buf[rec] != _OP_MESSAGE) or np.any(cid_at != cid) or np.any(length < _MSG_HEAD - 9):
-        raise McapLayoutError("message index does not point at messages of its channel")
-    starts, lengths = rec + _MSG_HEAD, length - (_MSG_HEAD - 9)
-    if int((starts + lengths).max()) > len(buf):
-        raise McapLayoutError("message runs past its chunk")
+    starts, lengths = payload_spans(buf, rec, cid)
     if len(log) > 1 and np.any(np.diff(log) < 0):
         order = np.argsort(log, kind="stable")
         return RawBlock(log[order], buf, starts[order], lengths[order])

@@ -58,22 +58,9 @@ def _basis(knots: np.ndarray, x: np.ndarray, nu: int = 0) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     if x.size <= _SCALAR_PATH_MAX:
         return _basis_few(knots, x.tolist(), q)
-    # interval i with t_i <= x < t_{i+1}; the right end belongs to the last non-empty interval
-    i = np.clip(np.searchsorted(knots, x, side="right") - 1, _DEGREE, q - 1)
-    n = np.ones((len(x), _DEGREE + 1))
-    left = np.empty((len(x), _DEGREE + 1))
-    right = np.empty((len(x), _DEGREE + 1))
-    for j in range(1, _DEGREE + 1):
-        left[:, j] = x - knots[i + 1 - j]
-        right[:, j] = knots[i + j] - x
-        saved = np.zeros(len(x))
-        for r in range(j):
-            temp = n[:, r] / (right[:, r + 1] + left[:, j - r])
-            n[:, r] = saved + right[:, r + 1] * temp
-            saved = left[:, j - r] * temp
-        n[:, j] = saved
+    first, n = basis_nonzero(knots, x)
     out = np.zeros((len(x), q))
-    cols = (i - _DEGREE)[:, None] + np.arange(_DEGREE + 1)
+    cols = first[:, None] + np.arange(_DEGREE + 1)
     np.put_along_axis(out, cols, n, axis=1)
     return out
 
@@ -235,6 +222,7 @@ def basis_nonzero(knots: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndar
     """
     x = np.asarray(x, dtype=float).ravel()
     q = len(knots) - _DEGREE - 1
+    # interval i with t_i <= x < t_{i+1}; the right end belongs to the last non-empty interval
     i = np.clip(np.searchsorted(knots, x, side="right") - 1, _DEGREE, q - 1)
     n = np.zeros((len(x), _DEGREE + 1))
     n[:, 0] = 1.0
