@@ -45,3 +45,14 @@ def test_parameter_priors_are_consistent() -> None:
         lo, hi = p.relative_bounds()
         assert lo < 0.0 <= hi or (p.upper is not None and hi == pytest.approx(0.0))
         assert p.log_sigma > 0
+
+
+def test_a_step_carries_the_uncertainty_of_A_only() -> None:
+    rng = np.random.default_rng(5)
+    cov = _cov(rng)
+    s = Surrogate(A, U0, model_cov=cov)
+    step = np.array([-10e-3, -10e-3])
+    dy = A @ step  # the measured change of the reactions for this step
+    theta = rng.multivariate_normal(np.r_[A.ravel(), U0], cov, size=20000)
+    steps = np.array([np.linalg.solve(t[:4].reshape(2, 2), dy) for t in theta])  # u0 cancels
+    np.testing.assert_allclose(s.model_covariance(step, with_u0=False), np.cov(steps.T), rtol=0.05)

@@ -46,7 +46,8 @@ def event_records(shadow: Shadow) -> list[EventRecord]:
         if s < len(summaries):
             a, b = summaries[s - 1], summaries[s]
             size = b.x_data - a.x_data
-            cov = a.d_cov + b.d_cov
+            # the data's part, and the model's: a step read through an uncertain A (u0 cancels)
+            cov = a.d_cov + b.d_cov + shadow.surrogate.model_covariance(size, with_u0=False)
         out.append(
             EventRecord(
                 int(e["window"]),

@@ -72,18 +72,19 @@ class Surrogate:
                 raise ConfigError("surrogate model_uncertainty: covariance must be finite and PSD")
             self.model_cov = 0.5 * (cov + cov.T)
 
-    def model_covariance(self, x_m: np.ndarray) -> np.ndarray:
+    def model_covariance(self, x_m: np.ndarray, with_u0: bool = True) -> np.ndarray:
         """Settlement covariance (2, 2) m^2 from the model's own uncertainty at settlement ``x_m``.
 
         Linearized: ``x = A^-1 (y - u0)``, so ``dx = -A^-1 (dA x + du0) = -A^-1 J dtheta`` with
         ``J = [kron(I2, x^T), I2]`` (2 x 6) and ``dtheta`` the perturbation of
         ``[A11, A12, A21, A22, u0_south, u0_north]``; the result is ``A^-1 J C J^T A^-T``.
-        Zero when the surrogate carries no ``model_cov``.
+        ``with_u0=False`` leaves ``du0`` out: the uncertainty of a *change* of settlement ``x_m``
+        (a step), in which ``u0`` cancels. Zero when the surrogate carries no ``model_cov``.
         """
         if self.model_cov is None:
             return np.zeros((2, 2))
         x = np.asarray(x_m, dtype=float).reshape(2)
-        jac = np.hstack([np.kron(np.eye(2), x[None, :]), np.eye(2)])  # (2, 6)
+        jac = np.hstack([np.kron(np.eye(2), x[None, :]), np.eye(2) if with_u0 else np.zeros((2, 2))])
         g = np.linalg.solve(self.A, jac)  # A^-1 J
         cov = g @ self.model_cov @ g.T
         return 0.5 * (cov + cov.T)
