@@ -150,6 +150,7 @@ def test_the_calibrated_shadow_follows_a_withheld_20mm_lowering(pair, calibrated
     assert len(js["events"]) == 1  # the lowering, and nothing else (the test car crosses both records)
     step = np.array(js["events"][0]["size_m"])
     np.testing.assert_allclose(step, [-0.020, -0.020], rtol=0.05)
+    assert js["events"][0]["size_significant95"] and js["events"][0]["size_chi2"] > 100.0
     mean, cov = result.mean_m, result.covariance_m2
     np.testing.assert_allclose(mean, [-0.020, -0.020], rtol=0.05)  # the twin's supports start at 0
     assert np.all(np.abs(mean + 0.020) < 1.96 * np.sqrt(np.diag(cov)))  # its interval holds the truth

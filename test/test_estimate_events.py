@@ -90,3 +90,22 @@ def test_a_slow_ramp_is_data_not_an_event() -> None:
     verdict, events = run(v)
     assert not events
     assert sum(v == "accept" for v in verdict.values()) > 1900  # no lock-out
+
+
+def test_an_event_whose_size_region_holds_zero_says_so() -> None:
+    """The JSON flags a detected change whose settlement size is not significant at 95 %."""
+    from bridge_shadow.estimate.result import EventRecord
+
+    cov = np.array([[1.0, 0.5], [0.5, 2.0]]) * 1e-6  # m^2: sigma 1 and 1.4 mm
+    small = EventRecord(1, 60 * 10**9, 5, np.array([-0.5e-3, 0.4e-3]), cov, 30.0, np.zeros(2))
+    large = EventRecord(1, 60 * 10**9, 5, np.array([-5e-3, -5e-3]), cov, 30.0, np.zeros(2))
+    d2 = small.size_m @ np.linalg.inv(cov) @ small.size_m  # independent of the record's solve
+    assert np.isclose(small.to_json()["size_chi2"], d2, rtol=1e-9)
+    assert not small.to_json()["size_significant95"]
+    assert large.to_json()["size_significant95"]
+    # the threshold is the chi-square quantile, not a number typed from memory
+    from scipy.stats import chi2
+
+    from bridge_shadow.estimate.result import CHI2_2DOF_95
+
+    assert np.isclose(CHI2_2DOF_95, chi2.ppf(0.95, 2), rtol=1e-12)

@@ -114,5 +114,6 @@ def test_events_and_lost_topics_reach_diagnostics() -> None:
     _, inputs, comp, events = statuses(diag, {"frc_01": 0.1, "frc_02": 0.1, "air_temperature": 0.1})
     assert events.level == 1 and events.values["events"] == "1"
     assert "south -1.00" in events.values["event 1"] and "window" in events.values["event 1"]
+    assert "holds zero" not in events.values["event 1"]  # 1 mm is far outside its interval
     assert inputs.level == 1 and "topic air_temperature: all" in inputs.message and "'roof'" in inputs.message
     assert comp.level == 1 and "no air temperature" in comp.message

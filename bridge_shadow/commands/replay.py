@@ -116,6 +116,8 @@ def _summary(js: dict[str, Any]) -> str:
             f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f} mm"
             for side, m, sd in zip(("south", "north"), e["size_m"], e["sigma_m"], strict=True)
         )
+        if not e.get("size_significant95", True):
+            size += " (its 95 % region holds zero: the forces changed, a settlement is not proven)"
         lines.append(f"event {i}: settlement step at window {e['window']} ({_utc(e['time_ns'])}): {size}")
     for ch, sp in js["spline"].items():
         lines.append(

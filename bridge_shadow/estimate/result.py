@@ -45,6 +45,10 @@ class WindowOutput:
     event: bool = False
 
 
+#: 95 % quantile of the chi-square distribution with 2 degrees of freedom (-2 ln 0.05).
+CHI2_2DOF_95 = 5.991464547107979
+
+
 @dataclass
 class EventRecord:
     """A detected settlement event (a step), with its size as the data now say.
@@ -84,7 +88,16 @@ class EventRecord:
             "supports": list(SUPPORTS),
             "glr": float(self.glr),
             "step_n": self.step_n.tolist(),
+            "size_chi2": self.size_chi2(),
+            "size_significant95": bool(self.size_chi2() > CHI2_2DOF_95),
         }
+
+    def size_chi2(self) -> float:
+        """Squared Mahalanobis distance of the size from no change (chi-square, 2 dof, if none)."""
+        try:
+            return float(self.size_m @ np.linalg.solve(self.covariance_m2, self.size_m))
+        except np.linalg.LinAlgError:
+            return float("nan")
 
 
 @dataclass

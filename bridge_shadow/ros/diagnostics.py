@@ -130,7 +130,8 @@ def _events(diag: Mapping[str, Any]) -> Status:
             f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f}"
             for side, m, sd in zip(SUPPORTS, e["size_m"], e["sigma_m"], strict=True)
         )
-        values[f"event {i + 1}"] = f"window {e['window']} (stamp {e['time_ns']} ns): {size} mm (95 %)"
+        note = "" if e.get("size_significant95", True) else "; region holds zero"
+        values[f"event {i + 1}"] = f"window {e['window']} (stamp {e['time_ns']} ns): {size} mm (95 %{note})"
     if not events:
         return Status(f"{NODE_NAME}: events", LEVELS["OK"], "no settlement event", values)
     last = values[f"event {len(events)}"]
