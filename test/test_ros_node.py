@@ -287,3 +287,30 @@ def test_paced_live_replay_keeps_the_bag_pace_and_the_posterior(bag: Path, direc
     assert live["live"]["publish_s"] >= 0.95 * paced_s
     np.testing.assert_allclose(live["posterior"]["mean_m"], direct.mean_m, rtol=1e-12, atol=0)
     assert live["windows"]["updates"] == direct.updates
+
+
+def test_live_replay_of_a_bag_without_temperature_runs_uncompensated(bag: Path, tmp_path: Path) -> None:
+    """As the direct mode: no temperature topic is not an error, it is a loud uncompensated run."""
+    from bridge_shadow.bagio import BagOutputWriter
+    from bridge_shadow.contract import FORCE_TOPICS
+
+    forces_only = tmp_path / "forces_only"
+    with BagOutputWriter(forces_only) as writer:
+        for topic, (log_ns, raws) in read_raw_topics(bag, INPUT_TOPICS).items():
+            if topic in FORCE_TOPICS.values():
+                keep = log_ns < log_ns[0] + 6 * 3600 * 10**9  # six hours are enough to say it
+                writer.write_many_raw(
+                    topic,
+                    INPUT_TOPICS[topic],
+                    log_ns[keep],
+                    [r for r, k in zip(raws, keep, strict=True) if k],
+                )
+    ref = Shadow(load_config(None, OVERRIDES)).run(
+        read_monitoring(forces_only, required=list(INPUT_TOPICS)[:2])
+    )
+    live = run_live(forces_only, overrides=OVERRIDES, timeout_s=TIMEOUT_S)
+    js = ref.to_json()
+    assert js["windows"]["updates"] > 100 and live["windows"] == js["windows"]
+    assert live["windows"]["uncompensated"] == live["windows"]["updates"]
+    assert any("temperature" in w for w in live["warnings"]) and live["warnings"] == js["warnings"]
+    np.testing.assert_allclose(live["posterior"]["mean_m"], ref.mean_m, rtol=1e-12, atol=0)

@@ -70,6 +70,31 @@ class RawBlock:
         data = self.buf.tobytes()
         return [data[s : s + n] for s, n in zip(self.starts.tolist(), self.lengths.tolist(), strict=True)]
 
+    def split(self, i: int) -> tuple[RawBlock, RawBlock]:
+        """Return the first ``i`` messages and the rest (both views of the same buffer)."""
+        head = RawBlock(self.log_ns[:i], self.buf, self.starts[:i], self.lengths[:i])
+        return head, RawBlock(self.log_ns[i:], self.buf, self.starts[i:], self.lengths[i:])
+
+    @staticmethod
+    def concat(blocks: Sequence[RawBlock | None]) -> RawBlock | None:
+        """Join one topic's blocks (None and empty ones skipped), stably sorted by log time."""
+        blocks = [b for b in blocks if b is not None and len(b.log_ns)]
+        if not blocks:
+            return None
+        if len(blocks) == 1:
+            return blocks[0]
+        offsets = np.cumsum([0] + [len(b.buf) for b in blocks[:-1]])
+        block = RawBlock(
+            np.concatenate([b.log_ns for b in blocks]),
+            np.concatenate([b.buf for b in blocks]),
+            np.concatenate([b.starts + off for b, off in zip(blocks, offsets, strict=True)]),
+            np.concatenate([b.lengths for b in blocks]),
+        )
+        if np.all(np.diff(block.log_ns) >= 0):
+            return block
+        order = np.argsort(block.log_ns, kind="stable")
+        return RawBlock(block.log_ns[order], block.buf, block.starts[order], block.lengths[order])
+
     @staticmethod
     def from_raws(log_ns: Sequence[int] | np.ndarray, raws: Sequence[bytes]) -> RawBlock:
         """Pack separate messages into one buffer."""

@@ -191,7 +191,7 @@ class SqliteSlices:
             hi = min(ends) if ends else None
             stop = hi if hi is not None else (self.last_ns or lo) + 1
             per_file = [f.read(lo, stop) for f in live if f.first_ns is not None and f.first_ns < stop]
-            yield [_concat([blocks[k] for blocks in per_file]) for k in range(len(self.topics))]
+            yield [RawBlock.concat([blocks[k] for blocks in per_file]) for k in range(len(self.topics))]
             lo = hi
 
     def close(self) -> None:
@@ -205,21 +205,3 @@ class SqliteSlices:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _concat(blocks: list[RawBlock | None]) -> RawBlock | None:
-    """Join one topic's blocks of several files (file order), stably sorted by log time."""
-    blocks = [b for b in blocks if b is not None and len(b.log_ns)]
-    if not blocks:
-        return None
-    if len(blocks) == 1:
-        return blocks[0]
-    offsets = np.cumsum([0] + [len(b.buf) for b in blocks[:-1]])
-    block = RawBlock(
-        np.concatenate([b.log_ns for b in blocks]),
-        np.concatenate([b.buf for b in blocks]),
-        np.concatenate([b.starts + off for b, off in zip(blocks, offsets, strict=True)]),
-        np.concatenate([b.lengths for b in blocks]),
-    )
-    order = np.argsort(block.log_ns, kind="stable")
-    return RawBlock(block.log_ns[order], block.buf, block.starts[order], block.lengths[order])

@@ -292,6 +292,25 @@ class MonitoringStream:
         if piece is not None:
             yield piece
 
+    def raw_pieces(self) -> Iterator[list[RawBlock | None]]:
+        """Yield the messages undecoded, per topic (None: none in this piece), in arrival order.
+
+        The same pieces as iterating, before decoding: what a player publishes as it reads.
+        """
+        pending: list[list[RawBlock]] = [[] for _ in _TYPES]
+        for blocks, horizon in self._pieces():
+            for parts, block in zip(pending, blocks, strict=True):
+                if block is not None and len(block.log_ns):
+                    parts.append(block)
+            self.peak_pending = max(self.peak_pending, sum(len(b.log_ns) for p in pending for b in p))
+            if self.backend == "sqlite3" or horizon is not None:
+                piece = _take_raw(pending, None if self.backend == "sqlite3" else horizon)
+                if piece is not None:
+                    yield piece
+        piece = _take_raw(pending, None)
+        if piece is not None:
+            yield piece
+
     def close(self) -> None:
         """Close the bag (idempotent)."""
         self._stack.close()
@@ -301,6 +320,21 @@ class MonitoringStream:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _take_raw(pending: list[list[RawBlock]], horizon: int | None) -> list[RawBlock | None] | None:
+    """Hand on the held messages with log time < ``horizon`` (all when None); None if there are none."""
+    out: list[RawBlock | None] = []
+    for k, parts in enumerate(pending):
+        block = RawBlock.concat(parts)
+        if block is None:
+            out.append(None)
+            continue
+        i = len(block.log_ns) if horizon is None else int(np.searchsorted(block.log_ns, horizon, side="left"))
+        head, rest = block.split(i)
+        pending[k] = [rest] if len(rest.log_ns) else []
+        out.append(head if len(head.log_ns) else None)
+    return out if any(b is not None for b in out) else None
 
 
 def iter_monitoring(path: str | Path, **kwargs: Any) -> Iterator[MonitoringData]:

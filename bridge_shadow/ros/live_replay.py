@@ -27,7 +27,7 @@ import tempfile
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -57,7 +57,6 @@ from bridge_shadow.contract import (
     SUPPORTS,
     TEMPERATURE_TOPIC,
 )
-from bridge_shadow.errors import InputError
 from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
 from bridge_shadow.ros.node import (
@@ -198,46 +197,82 @@ class Player:
     ) -> tuple[float, float]:
         """Publish ``raws[topic[j]][pos[j]]`` for j in order; return (first, last) perf_counter times.
 
-        With ``rate`` (a speed factor of log time, 1.0 = real time) the player sleeps to keep pace.
-        With ``in_flight`` it keeps at most that many messages published but not yet taken by the
-        node (asked through its status service after each chunk of ``in_flight / 2``; the answers
-        are awaited one chunk late, so publishing and the node's work overlap), so the node's
-        reliable readers never overflow: an overflowing reader drops samples for the writer to
-        resend at its next heartbeat, which stalls the stream for seconds and lets topics drift.
-        ``progress`` is called with the fraction published, at most every 0.2 s and at the end.
+        One piece of ``publish_pieces`` (see there); ``rate`` needs ``log_ns``.
+        """
+        n = len(topic)
+        logs = np.zeros(n, np.int64) if log_ns is None else np.asarray(log_ns, np.int64)
+        shown = None if progress is None else (lambda sent, _log: progress(sent / max(n, 1)))
+        t_first, t_last, _ = self.publish_pieces(
+            [(topic, pos, raws, logs)], rate if log_ns is not None else None, in_flight, node, shown
+        )
+        return t_first, t_last
+
+    def publish_pieces(
+        self,
+        pieces: Iterable[tuple[np.ndarray, np.ndarray, Sequence[Sequence[bytes]], np.ndarray]],
+        rate: float | None = None,
+        in_flight: int | None = None,
+        node: NodeProcess | None = None,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> tuple[float, float, int]:
+        """Publish pieces ``(topic, pos, raws, log_ns)`` in order, as they come (a streamed bag).
+
+        Each piece publishes ``raws[topic[j]][pos[j]]`` for j in order, with log times ``log_ns``.
+        With ``rate`` (a speed factor of log time, 1.0 = real time) the player sleeps to keep pace
+        with the first message's log time. With ``in_flight`` it keeps at most that many messages
+        published but not yet taken by the node (asked through its status service after each chunk
+        of ``in_flight / 2``; the answers are awaited one chunk late, so publishing and the node's
+        work overlap), so the node's reliable readers never overflow: an overflowing reader drops
+        samples for the writer to resend at its next heartbeat, which stalls the stream for
+        seconds and lets topics drift. ``progress`` is called with the messages sent so far and the
+        last log time, at most every 0.2 s and at the end.
+
+        Returns:
+            perf_counter times of the first and the last publication, and the messages sent.
+
         """
         pubs = [p.publish for p in self.publishers]
-        n = len(topic)
-        step = n if not in_flight else max(int(in_flight) // 2, 1)
-        due = None
-        if rate is not None and log_ns is not None:
-            due = ((np.asarray(log_ns, np.int64) - int(log_ns[0])) / (1e9 * float(rate))).tolist()
-        topics, positions = topic.tolist(), pos.tolist()
         asked: deque[Any] = deque()  # status requests in flight, one sent after each chunk
-        taken = 0
+        taken = sent = 0
+        last_log = 0
+        origin: int | None = None
         t_first = t_shown = time.perf_counter()
-        for start in range(0, n, step):
-            stop = min(start + step, n)
-            # the answer to the request sent after chunk k-2 is usually there by now: pipelined
-            while in_flight and stop - taken > in_flight:
-                if not asked:
+        for topic, pos, raws, log_ns in pieces:
+            n = len(topic)
+            if not n:
+                continue
+            step = n if not in_flight else max(int(in_flight) // 2, 1)
+            due = None
+            if rate is not None:
+                origin = int(log_ns[0]) if origin is None else origin
+                due = ((np.asarray(log_ns, np.int64) - origin) / (1e9 * float(rate))).tolist()
+            topics, positions = topic.tolist(), pos.tolist()
+            for start in range(0, n, step):
+                stop = min(start + step, n)
+                # the answer to the request sent after chunk k-2 is usually there by now: pipelined
+                while in_flight and sent + stop - start - taken > in_flight:
+                    if not asked:
+                        asked.append(self.status_client.call_async(Trigger.Request()))
+                    taken = max(taken, self._answer(asked.popleft(), node)["taken_total"])
+                if due is None:
+                    for i, j in zip(topics[start:stop], positions[start:stop], strict=True):
+                        pubs[i](raws[i][j])
+                else:
+                    for k in range(start, stop):
+                        lag = t_first + due[k] - time.perf_counter()
+                        if lag > 0:
+                            time.sleep(lag)
+                        pubs[topics[k]](raws[topics[k]][positions[k]])
+                sent += stop - start
+                last_log = int(log_ns[stop - 1])
+                if in_flight:
                     asked.append(self.status_client.call_async(Trigger.Request()))
-                taken = max(taken, self._answer(asked.popleft(), node)["taken_total"])
-            if due is None:
-                for i, j in zip(topics[start:stop], positions[start:stop], strict=True):
-                    pubs[i](raws[i][j])
-            else:
-                for k in range(start, stop):
-                    lag = t_first + due[k] - time.perf_counter()
-                    if lag > 0:
-                        time.sleep(lag)
-                    pubs[topics[k]](raws[topics[k]][positions[k]])
-            if in_flight and stop < n:
-                asked.append(self.status_client.call_async(Trigger.Request()))
-            if progress is not None and (stop == n or time.perf_counter() - t_shown >= 0.2):
-                t_shown = time.perf_counter()
-                progress(stop / max(n, 1))
-        return t_first, time.perf_counter()
+                if progress is not None and time.perf_counter() - t_shown >= 0.2:
+                    t_shown = time.perf_counter()
+                    progress(sent, last_log)
+        if progress is not None:
+            progress(sent, last_log)
+        return t_first, time.perf_counter(), sent
 
     def _answer(self, future: Any, node: NodeProcess | None, timeout_s: float = 30.0) -> dict[str, Any]:
         """Wait for a Trigger answer and parse its JSON (``taken_total`` added when ``taken`` is there)."""
@@ -351,22 +386,19 @@ def run_live(
         ``seconds``, ``windows``, ``spline``, ``noise``) plus ``live`` (graph timings, node counters).
 
     """
-    from bridge_shadow.bagio import read_raw_topics
+    from bridge_shadow.bagio.stream import MonitoringStream
     from bridge_shadow.estimate import load_config
     from bridge_shadow.model.surrogate_file import load_surrogate
 
     config = load_config(params_path, overrides)
     surrogate = load_surrogate(config.surrogate_path or None)
     inputs = config.input_topics()
-    data = read_raw_topics(bag, dict(zip(inputs, INPUT_TOPICS.values(), strict=True)))
-    missing = [t for t in inputs if t not in data]
-    if missing:
-        raise InputError(f"{bag}: missing topic(s) {', '.join(missing)}")
-    log_ns = [data[t][0] for t in inputs]
-    raws = [data[t][1] for t in inputs]
-    topic, pos, merged = merge_log_order(log_ns)
-    total = len(topic)
-    with tempfile.TemporaryDirectory(prefix="bridge_shadow_live_") as tmp:
+    # streamed: what is held is one piece of the bag, whatever its length (as in the direct mode,
+    # the air temperature may be absent: the node then runs uncompensated and says so)
+    with (
+        MonitoringStream(bag, topics=inputs, required=list(INPUT_TOPICS)[:2]) as stream,
+        tempfile.TemporaryDirectory(prefix="bridge_shadow_live_") as tmp,
+    ):
         # a fresh checkpoint unless one is named: the replay must not resume an earlier run nor
         # overwrite a running node's state (the params file's checkpoint_path is the node's)
         node_config = config.replace(checkpoint_path=str(checkpoint or Path(tmp) / "checkpoint.npz"))
@@ -374,6 +406,11 @@ def run_live(
         node = NodeProcess(["--ros-args", "--params-file", str(params_file)])
         player = None
         try:
+            first, last = stream.first_ns, stream.last_ns
+            span = max((last or 0) - (first or 0), 1)
+            fraction = None
+            if progress is not None:
+                fraction = lambda _sent, log: progress(min(max(log - (first or 0), 0) / span, 1.0))  # noqa: E731
             t0 = time.perf_counter()
             node.start()
             player = Player(inputs=inputs, outputs=config.output_topics())
@@ -382,8 +419,10 @@ def run_live(
             if watch:
                 from bridge_shadow.ros.watch import TopicWatch
 
-                progress = TopicWatch(player.records)
-            t_first, t_last = player.publish(topic, pos, raws, merged, rate, in_flight, node, progress)
+                watcher = TopicWatch(player.records)
+                fraction = lambda _sent, log: watcher(min(max(log - (first or 0), 0) / span, 1.0))  # noqa: E731
+            pieces = _merged_pieces(stream)
+            t_first, t_last, total = player.publish_pieces(pieces, rate, in_flight, node, fraction)
             wait_until(lambda: player.taken(node) >= total, timeout_s, f"the node to take {total} messages")
             report = player.flush(node, timeout_s)
             t_done = time.perf_counter()
@@ -465,6 +504,16 @@ def run_live(
     if plots is not None:
         js["plots"] = [str(p) for p in plot_paths]
     return js
+
+
+def _merged_pieces(
+    stream: Any,
+) -> Iterator[tuple[np.ndarray, np.ndarray, list[list[bytes]], np.ndarray]]:
+    """Yield the bag's pieces as ``publish_pieces`` takes them: arrival order, raw bytes per topic."""
+    empty = np.empty(0, np.int64)
+    for blocks in stream.raw_pieces():
+        topic, pos, merged = merge_log_order([empty if b is None else b.log_ns for b in blocks])
+        yield topic, pos, [[] if b is None else b.raws() for b in blocks], merged
 
 
 def _plot_live(
