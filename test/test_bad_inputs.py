@@ -137,6 +137,9 @@ CLI_CASES = {
         "surrogate", *FE_CASES_MESH, "--model", "{w}/adir", "--out", "{w}/s.yaml",
     ],
     "surrogate --set unknown": ["surrogate", *FE_CASES_MESH, "--set", "bogus=1", "--out", "{w}/s.yaml"],
+    "calibrate --check random bytes": ["calibrate", "--check", "{w}/random.bin"],
+    "calibrate --check a directory": ["calibrate", "--check", "{w}/adir"],
+    "calibrate --check with --out": ["calibrate", "--check", "{w}/random.bin", "--out", "{w}/s.yaml"],
 }
 
 

@@ -103,6 +103,26 @@ def test_calibrated_surrogate_maps_a_withheld_20mm_lowering_within_5_percent(pai
     assert np.abs(np.linalg.solve(fe.A, change.dR_n) / -0.020 - 1.0).max() > 0.15
 
 
+def test_check_passes_the_calibrated_surrogate_on_the_withheld_lowering_and_fails_the_as_built(
+    pair, calibrated, root, tmp_path, capsys
+) -> None:
+    """``calibrate --check`` on a later pair: what a user runs when the next lowering is recorded."""
+    later = {"name": "later_20mm", "before": str(pair["before"]), "after": str(pair["after_20mm"])}
+    spec = tmp_path / "later.yaml"
+    spec.write_text(
+        yaml.safe_dump({"pairs": [{**later, "imposed_m": [-0.02, -0.02], "imposed_sd_m": [1e-4, 1e-4]}]})
+    )
+    capsys.readouterr()
+    assert main(["calibrate", str(spec), "--check", str(pair["out"]), "--json"]) == 0
+    p = json.loads(capsys.readouterr().out)["pairs"][0]
+    assert abs(p["common_error_rel"]) < 0.05 and p["held95"] == [True, True] and p["consistent95"]
+    assert min(p["model_sigma_m"]) > 0  # the calibrated model's own uncertainty is in the interval
+    fe = root / "config" / "surrogate_fe.yaml"
+    assert main(["calibrate", str(spec), "--check", str(fe)]) == 1
+    text = capsys.readouterr().out
+    assert "MISSES" in text and "NOT consistent" in text and "no model uncertainty" in text
+
+
 def test_synth_reality_from_a_surrogate_file_and_a_bad_calibration_file(root, tmp_path, capsys) -> None:
     fe = root / "config" / "surrogate_fe.yaml"
     bag = tmp_path / "bag"

@@ -27,11 +27,19 @@ identifiability report says which); every other direction stays at its prior.
 
 Nothing is written without --out. Progress goes to stderr.
 
+--check SURROGATE scores a surrogate on the file's pairs instead of calibrating (no FE solve):
+x = A^-1 dR with its 95 % interval (the measurement and the surrogate's model uncertainty)
+against the imposed settlement, per support and in the common mode. List a later record pair
+(before, after, imposed_m) in a file of your own to check the calibrated model on it; exit 1
+when an interval misses the imposed value.
+
 examples:
   bridge-shadow calibrate                                    # report on the real pair
   bridge-shadow calibrate --out config/surrogate.yaml        # the committed default surrogate
   bridge-shadow calibrate --json --only support_springs --only slab_joint_opening
   bridge-shadow calibrate my_pairs.yaml --mesh coarse --out /tmp/cal.yaml --report /tmp/cal
+  bridge-shadow calibrate --check config/surrogate.yaml      # the default surrogate on the pair
+  bridge-shadow calibrate later_pairs.yaml --check config/surrogate_fe.yaml
 """
 
 
@@ -68,6 +76,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="override a parameter of the bridge model before calibrating (repeatable), SI units",
     )
     parser.add_argument("--report", type=Path, default=None, metavar="DIR", help="write figures here")
+    parser.add_argument(
+        "--check",
+        type=Path,
+        default=None,
+        metavar="SURROGATE",
+        help="score this surrogate YAML on the file's pairs instead of calibrating (exit 1 on a miss)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
@@ -94,6 +109,8 @@ def run(args: argparse.Namespace) -> int:
         if args.choose not in spec.explanations and args.choose != "best":
             raise InputError(f"--choose {args.choose}: not an explanation ({', '.join(spec.explanations)})")
         spec.choose = args.choose
+    if args.check is not None:
+        return _check(args, spec)
     cfg = load_bridge_config(args.model, parse_overrides(args.overrides))
     result = calibrate(spec, cfg, only=args.only, report=lambda f, s: progress(f, "calibrate"))
     doc = result.to_dict()
@@ -117,3 +134,25 @@ def run(args: argparse.Namespace) -> int:
         for f in doc.get("figures", []):
             print(f"wrote {f}", file=sys.stderr)
     return 0
+
+
+def _check(args: argparse.Namespace, spec: object) -> int:
+    """``--check``: read every pair through the given surrogate; 1 when an interval misses."""
+    from bridge_shadow.calibrate.check import check_pair, check_text
+    from bridge_shadow.calibrate.run import measure_pairs
+    from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.errors import InputError
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    calibrating = [n for n in ("out", "report", "only", "choose", "model", "mesh") if getattr(args, n)]
+    if calibrating or args.overrides:
+        names = ", ".join(f"--{n}" for n in calibrating) or "--set"
+        raise InputError(f"--check scores a surrogate and calibrates nothing: drop {names}")
+    surrogate = load_surrogate(args.check)
+    pairs = measure_pairs(spec, report=lambda f, s: progress(f, "records"))
+    checks = [check_pair(p.name, p.change, surrogate, p.imposed_m, p.imposed_sd_m) for p in pairs]
+    if args.json:
+        emit_json({"surrogate": str(args.check), "pairs": [c.to_dict() for c in checks]})
+    else:
+        print(check_text(checks, str(args.check)))
+    return 0 if all(all(c.held()) for c in checks) else 1
