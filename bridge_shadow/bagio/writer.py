@@ -355,7 +355,7 @@ def write_monitoring(
     Ties in log time keep the order frc_01, frc_02, temperature. Every topic gets a connection,
     even when its series is empty. ``compress`` (mcap only) zstd-compresses the MCAP chunks
     (about 3.5x smaller bags). ``extra_files`` (name -> text) go into the bag directory with it
-    (a twin's ``truth.yaml``): the bag appears complete with them, or not at all.
+    (a twin's ground-truth file): the bag appears complete with them, or not at all.
 
     Returns:
         the bag path.
