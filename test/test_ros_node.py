@@ -289,7 +289,9 @@ def test_paced_live_replay_keeps_the_bag_pace_and_the_posterior(bag: Path, direc
     assert live["windows"]["updates"] == direct.updates
 
 
-def test_live_replay_of_a_bag_without_temperature_runs_uncompensated(bag: Path, tmp_path: Path) -> None:
+def test_live_replay_of_a_bag_without_temperature_runs_uncompensated(
+    bag: Path, tmp_path: Path, capfd
+) -> None:
     """As the direct mode: no temperature topic is not an error, it is a loud uncompensated run."""
     from bridge_shadow.bagio import BagOutputWriter
     from bridge_shadow.contract import FORCE_TOPICS
@@ -314,3 +316,10 @@ def test_live_replay_of_a_bag_without_temperature_runs_uncompensated(bag: Path, 
     assert live["windows"]["uncompensated"] == live["windows"]["updates"]
     assert any("temperature" in w for w in live["warnings"]) and live["warnings"] == js["warnings"]
     np.testing.assert_allclose(live["posterior"]["mean_m"], ref.mean_m, rtol=1e-12, atol=0)
+    # and the command line says so in its summary, as the direct replay does (no traceback)
+    from bridge_shadow.cli import main
+
+    capfd.readouterr()
+    assert main(["replay", str(forces_only), "--live"]) == 0
+    out, err = capfd.readouterr()
+    assert "lambda inf" in out and "WARN: no air temperature" in err

@@ -120,8 +120,10 @@ def _summary(js: dict[str, Any]) -> str:
             size += " (its 95 % region holds zero: the forces changed, a settlement is not proven)"
         lines.append(f"event {i}: settlement step at window {e['window']} ({_utc(e['time_ns'])}): {size}")
     for ch, sp in js["spline"].items():
+        # JSON carries a non-finite lambda (no curve: no temperature) as null (the live node's report)
+        lam = float("inf") if sp["lambda"] is None else sp["lambda"]
         lines.append(
-            f"compensation {ch}: edf {sp['edf']:.2f}, lambda {sp['lambda']:.3g}, "
+            f"compensation {ch}: edf {sp['edf']:.2f}, lambda {lam:.3g}, "
             f"level {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
         )
     return "\n".join(lines)
