@@ -323,3 +323,34 @@ def test_live_replay_of_a_bag_without_temperature_runs_uncompensated(
     assert main(["replay", str(forces_only), "--live"]) == 0
     out, err = capfd.readouterr()
     assert "lambda inf" in out and "WARN: no air temperature" in err
+
+
+@pytest.mark.realdata
+def test_live_replay_of_the_real_lowering_ends_at_the_direct_posterior(
+    munich_data: Path, tmp_path: Path
+) -> None:
+    """Every window closes before the end here, so the final refit must reach the topics on its own."""
+    from bridge_shadow.bagio import write_monitoring
+    from bridge_shadow.importers import import_csv
+
+    folder = munich_data / "Settlements"
+    data, _ = import_csv(
+        [
+            folder / "UniBw_2022-04-11_ref_support_load_01ForceAt100Hz.csv.zip",
+            folder / "UniBw_2022-04-11_support_load_01ForceAt100Hz.csv.zip",
+            folder / "TemperatureData2022-04-11.zip",
+        ]
+    )
+    bag = write_monitoring(tmp_path / "real", data)
+    direct = Shadow(load_config()).run(read_monitoring(bag))
+    live = run_live(bag, out=tmp_path / "out", timeout_s=TIMEOUT_S)
+    assert len(direct.events) == 1 and live["events"][0]["window"] == direct.events[0].window
+    np.testing.assert_allclose(live["posterior"]["mean_m"], direct.mean_m, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(live["posterior"]["covariance_m2"], direct.covariance_m2, rtol=1e-12, atol=0)
+    # what a subscriber saw last is that final posterior: one message more than the windows
+    raw = read_raw_topics(tmp_path / "out", {MEAN_TOPIC: FLOAT_ARRAY_TYPE})[MEAN_TOPIC][1]
+    assert len(raw) == live["live"]["windows_published"] + 1
+    from std_msgs.msg import Float64MultiArray
+
+    last, _ = array_from_msg(deserialize_message(raw[-1], Float64MultiArray))
+    np.testing.assert_allclose(last, direct.mean_m, rtol=1e-12, atol=0)

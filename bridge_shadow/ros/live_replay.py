@@ -431,13 +431,14 @@ def run_live(
             if got != total:
                 raise NodeError(f"the node received {got} of {total} messages")
             n_out = int(counters["windows_published"])
+            n_post = int(counters["posteriors_published"])  # the windows', and the flush's refit
             wait_until(
-                lambda: player.received(MEAN_TOPIC) >= n_out and player.received(COVARIANCE_TOPIC) >= n_out,
+                lambda: player.received(MEAN_TOPIC) >= n_post and player.received(COVARIANCE_TOPIC) >= n_post,
                 timeout_s,
-                f"{n_out} posterior messages",
+                f"{n_post} posterior messages",
                 node.check_alive,
             )
-            if n_out:
+            if n_post:
                 mean, _ = array_from_msg(player.last(MEAN_TOPIC))
                 cov, _ = array_from_msg(player.last(COVARIANCE_TOPIC))
             else:

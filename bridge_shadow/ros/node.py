@@ -189,6 +189,8 @@ class ShadowNode(Node):
         received: raw messages taken per input topic key.
         malformed: raw messages that could not be decoded (dropped).
         windows_published: window outputs published so far.
+        posteriors_published: posterior (mean, covariance) pairs published so far: one per window,
+            and one more at a flush whose final refit moved the posterior after the last window.
 
     """
 
@@ -207,6 +209,8 @@ class ShadowNode(Node):
         self.received = [0, 0, 0]
         self.malformed = 0
         self.windows_published = 0
+        self.posteriors_published = 0
+        self._last_posterior: tuple[np.ndarray, np.ndarray] | None = None
         self.quiet_flushes = 0
         self._warned: set[str] = set()
         self.history: deque[Any] = deque(maxlen=HISTORY_WINDOWS)
@@ -413,14 +417,20 @@ class ShadowNode(Node):
         self.drain(everything=True)
         outputs = self.shadow.flush()
         self._publish(outputs)
+        # the flush's refit (lambda reselected) lands on its last output; when every window had
+        # closed before, no output carries it, so the final posterior goes out on its own
+        final = self.shadow.posterior
+        if self._last_posterior is not None and not all(
+            np.array_equal(a, b) for a, b in zip(final, self._last_posterior, strict=True)
+        ):
+            self._publish_posterior(*final)
         self._next_end_ns = self._window_end()
         return len(outputs)
 
     # -- output ----------------------------------------------------------------------------
     def _publish(self, outputs: list[Any]) -> None:
         for out in outputs:
-            self._pub_mean.publish(convert.mean_msg(out.mean_m))
-            self._pub_cov.publish(convert.covariance_msg(out.covariance_m2))
+            self._publish_posterior(out.mean_m, out.covariance_m2)
             if np.all(np.isfinite(out.compensated_n)):
                 for c, ch in enumerate(CHANNELS):
                     self._pub_comp[c].publish(
@@ -428,6 +438,12 @@ class ShadowNode(Node):
                     )
             self.windows_published += 1
             self.history.append(out)
+
+    def _publish_posterior(self, mean_m: np.ndarray, covariance_m2: np.ndarray) -> None:
+        self._pub_mean.publish(convert.mean_msg(mean_m))
+        self._pub_cov.publish(convert.covariance_msg(covariance_m2))
+        self._last_posterior = (np.array(mean_m, float), np.array(covariance_m2, float))
+        self.posteriors_published += 1
 
     def report(self) -> dict[str, Any]:
         """``Shadow.diagnostics()`` plus the node's counters (SI units, plain data)."""
@@ -437,6 +453,7 @@ class ShadowNode(Node):
             "received": dict(zip(keys, self.received, strict=True)),
             "malformed": self.malformed,
             "windows_published": self.windows_published,
+            "posteriors_published": self.posteriors_published,
             "quiet_flushes": self.quiet_flushes,
             "arrival_age_s": self._ages(),
         }
