@@ -22,12 +22,10 @@ import argparse
 import numpy as np
 
 from bridge_shadow.estimate import Shadow, ShadowConfig
-from bridge_shadow.estimate.batch import paper_batch
+from bridge_shadow.estimate.batch import paper_batch_of_run
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 from bridge_shadow.twin.simulate import simulate
-
-W = 60 * 10**9
 
 
 def prefix(data: MonitoringData, end_ns: int) -> MonitoringData:
@@ -43,21 +41,7 @@ def prefix(data: MonitoringData, end_ns: int) -> MonitoringData:
 
 def batch_of(shadow: Shadow, res) -> tuple[np.ndarray, np.ndarray]:
     """Return the paper's batch posterior on the windows ``res`` used (the shadow's lambda, prior)."""
-    h = res.history()
-    used = h["updated"]
-    sur = shadow.surrogate
-    b = paper_batch(
-        h["end_ns"][used] // W - 1,
-        h["samples"][used],
-        h["force_n"][used],
-        h["temp_c"][used],
-        sur.A,
-        sur.u0,
-        np.diag(shadow.prior_sigma_m**2),
-        lam=shadow.fit.lam,
-        kappa=shadow.fit.kappa,
-        slope_fe=sur.thermal.get("uniform", np.zeros(2)),
-    )
+    b = paper_batch_of_run(shadow, res)
     return b.mean_m, b.covariance_m2
 
 

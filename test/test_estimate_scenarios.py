@@ -14,7 +14,7 @@ import pytest
 from scipy.signal import lfilter
 
 from bridge_shadow.estimate import Shadow, ShadowConfig
-from bridge_shadow.estimate.batch import paper_batch
+from bridge_shadow.estimate.batch import paper_batch_of_run
 from bridge_shadow.model.surrogate_file import placeholder_surrogate
 from bridge_shadow.series import MonitoringData
 from bridge_shadow.twin.simulate import simulate
@@ -97,21 +97,7 @@ def test_steps_from_a_tenth_of_a_millimetre_to_five_centimetres(size_m: float) -
 def test_a_record_without_events_ends_at_the_papers_batch_posterior() -> None:
     shadow, res, _ = _run(effects=THERMAL, days=1.5, seed=3)
     assert not res.events and res.updates > 2000
-    h = res.history()
-    used = h["updated"]
-    fit = shadow.fit
-    batch = paper_batch(
-        h["end_ns"][used] // W - 1,
-        h["samples"][used],
-        h["force_n"][used],
-        h["temp_c"][used],
-        SUR.A,
-        SUR.u0,
-        np.diag(shadow.prior_sigma_m**2),
-        lam=fit.lam,
-        kappa=fit.kappa,
-        slope_fe=SUR.thermal["uniform"],
-    )
+    batch = paper_batch_of_run(shadow, res)
     np.testing.assert_allclose(res.mean_m, batch.mean_m, rtol=1e-8)
     np.testing.assert_allclose(res.covariance_m2, batch.covariance_m2, rtol=1e-8)
     np.testing.assert_allclose(shadow.noise.r1, batch.r1, rtol=1e-8)

@@ -77,16 +77,23 @@ class RawBlock:
 
     @staticmethod
     def concat(blocks: Sequence[RawBlock | None]) -> RawBlock | None:
-        """Join one topic's blocks (None and empty ones skipped), stably sorted by log time."""
+        """Join one topic's blocks (None and empty ones skipped), stably sorted by log time.
+
+        Blocks that are views of one buffer keep it; others are copied into a new one.
+        """
         blocks = [b for b in blocks if b is not None and len(b.log_ns)]
         if not blocks:
             return None
         if len(blocks) == 1:
             return blocks[0]
-        offsets = np.cumsum([0] + [len(b.buf) for b in blocks[:-1]])
+        if all(b.buf is blocks[0].buf for b in blocks):  # views of one buffer: join the indexes only
+            buf, offsets = blocks[0].buf, [0] * len(blocks)
+        else:
+            buf = np.concatenate([b.buf for b in blocks])
+            offsets = np.cumsum([0] + [len(b.buf) for b in blocks[:-1]]).tolist()
         block = RawBlock(
             np.concatenate([b.log_ns for b in blocks]),
-            np.concatenate([b.buf for b in blocks]),
+            buf,
             np.concatenate([b.starts + off for b, off in zip(blocks, offsets, strict=True)]),
             np.concatenate([b.lengths for b in blocks]),
         )

@@ -5,7 +5,8 @@ Chunk records (optionally zstd/lz4 compressed), and each chunk is followed by on
 record per channel: an array of ``(log_time u64, offset u64)`` into the uncompressed chunk. Reading
 those arrays with ``np.frombuffer`` places every message without a Python step per message; the
 CDR payload is then decoded in place (``cdr.decode_buffer``). Only top-level records (a few per
-megabyte) are walked in Python.
+megabyte) are walked in Python, by ``mcap_stream.McapChunks``; ``read_mcap_topics`` reads its
+chunks whole. This module holds the record layout both share.
 
 Anything unexpected (no message index, an offset that does not point at a Message record of
 its channel, an unknown compression, a bad magic) raises ``McapLayoutError``; the caller then
@@ -36,7 +37,6 @@ class McapLayoutError(ValueError):
     """The MCAP file is not laid out as the fast path expects (or is damaged)."""
 
 
-
 def payload_spans(buf: np.ndarray, rec: np.ndarray, cid: int) -> tuple[np.ndarray, np.ndarray]:
     """CDR payload starts and lengths (int64, bytes into ``buf``) of the message records at ``rec``.
 
@@ -58,6 +58,7 @@ def payload_spans(buf: np.ndarray, rec: np.ndarray, cid: int) -> tuple[np.ndarra
     if int((starts + lengths).max()) > len(buf):
         raise McapLayoutError("message runs past its chunk")
     return starts, lengths
+
 
 def mcap_files(path: Path) -> list[Path] | None:
     """Return the MCAP files of a bag (directory without rosbag2 compression, or a bare file)."""
@@ -107,113 +108,46 @@ def _decompress(data: bytes, compression: str, size: int, crc: int) -> bytes:
     return out
 
 
-def _read_file(
-    file: Path,
-    chunks: list[bytes],
-    index: dict[int, list[tuple[int, np.ndarray]]],
-    channels: dict[int, tuple[str, int]],
-    schemas: dict[int, str],
-) -> int:
-    """Walk the top-level records of one file; collect chunks, message indexes, channels, schemas.
-
-    Returns the message count of the file's Statistics record.
-    """
-    data = file.read_bytes()
-    if not (data.startswith(_MAGIC) and data.endswith(_MAGIC)):
-        raise McapLayoutError("bad magic (truncated file?)")
-    pos, end = len(_MAGIC), len(data) - len(_MAGIC)
-    current = -1
-    count = -1
-    while pos < end:
-        op, length = _REC.unpack_from(data, pos)
-        body_start = pos + 9
-        pos = body_start + length
-        if pos > end:
-            raise McapLayoutError("record runs past the end of the file")
-        if op == _OP_CHUNK:
-            body = data[body_start:pos]
-            usize, crc = struct.unpack_from("<QI", body, 16)
-            compression, p = _string(body, 28)
-            (clen,) = struct.unpack_from("<Q", body, p)
-            chunks.append(_decompress(body[p + 8 : p + 8 + clen], compression, usize, crc))
-            current = len(chunks) - 1
-        elif op == _OP_INDEX:
-            if current < 0:
-                raise McapLayoutError("message index before any chunk")
-            (cid, nbytes) = struct.unpack_from("<HI", data, body_start)
-            entries = np.frombuffer(data, dtype="<u8", count=nbytes // 8, offset=body_start + 6).reshape(
-                -1, 2
-            )
-            index.setdefault(cid, []).append((current, entries))
-        elif op == _OP_CHANNEL:
-            cid, sid = struct.unpack_from("<HH", data, body_start)
-            topic, _ = _string(data, body_start + 4)
-            channels[cid] = (topic, sid)
-        elif op == _OP_SCHEMA:
-            (sid,) = struct.unpack_from("<H", data, body_start)
-            schemas[sid], _ = _string(data, body_start + 2)
-        elif op == _OP_STATISTICS:
-            (count,) = struct.unpack_from("<Q", data, body_start)
-        elif op == _OP_MESSAGE:
-            raise McapLayoutError("message outside a chunk")
-        elif op == _OP_FOOTER:
-            break
-    if count < 0:
-        raise McapLayoutError("no statistics record")
-    return count
-
-
 def read_mcap_topics(
     files: list[Path], topics: Collection[str]
 ) -> tuple[dict[str, RawBlock], dict[str, str]]:
     """Locate every message of the given topics; returns ``{topic: RawBlock}`` and ``{topic: type}``.
 
+    The whole-bag form of ``mcap_stream.McapChunks`` (one walker of the records for both): every
+    chunk is read, and the topics' blocks share one buffer.
+
     Raises:
         McapLayoutError: layout not handled here or damaged file (fall back to rosbags).
 
     """
-    chunks: list[bytes] = []
-    index: dict[int, list[tuple[int, np.ndarray]]] = {}
-    channels: dict[int, tuple[str, int]] = {}
-    schemas: dict[int, str] = {}
-    expected = 0
+    from bridge_shadow.bagio.mcap_stream import McapChunks  # it builds on this module
+
+    names = list(topics)
+    bufs: list[np.ndarray] = []
+    parts: list[list[RawBlock]] = [[] for _ in names]
+    offset = 0
     try:
-        for file in files:
-            expected += _read_file(file, chunks, index, channels, schemas)
+        with McapChunks(files, names) as source:
+            types = source.types
+            for blocks, _ in source:
+                held = [b for b in blocks if b is not None]
+                if not held:
+                    continue
+                for k, b in enumerate(blocks):
+                    if b is not None:
+                        parts[k].append(RawBlock(b.log_ns, b.buf, b.starts + offset, b.lengths))
+                bufs.append(held[0].buf)  # one chunk: its topics' blocks share its buffer
+                offset += len(held[0].buf)
     except (struct.error, UnicodeDecodeError, ValueError, OSError) as err:
         if isinstance(err, McapLayoutError):
             raise
         raise McapLayoutError(str(err)) from err
-    starts_of_chunk = np.cumsum([0] + [len(c) for c in chunks])
-    buf = np.frombuffer(b"".join(chunks), dtype=np.uint8)
-    types = {topic: schemas.get(sid, "") for topic, sid in channels.values()}
-    if any(cid not in channels for cid in index):
-        raise McapLayoutError("message index of an unknown channel")
-    if sum(len(e) for items in index.values() for _, e in items) != expected:
-        raise McapLayoutError("message indexes do not cover every message")
+    buf = np.concatenate(bufs) if bufs else np.empty(0, np.uint8)
     out: dict[str, RawBlock] = {}
-    for cid, (topic, _) in channels.items():
-        if topic not in topics:
+    for name, blocks in zip(names, parts, strict=True):
+        if name not in types:
             continue
-        items = index.get(cid, [])
-        log = np.concatenate([e[:, 0] for _, e in items]).astype(np.int64) if items else np.empty(0, np.int64)
-        rec = (
-            np.concatenate([e[:, 1].astype(np.int64) + starts_of_chunk[k] for k, e in items])
-            if items
-            else np.empty(0, np.int64)
-        )
-        starts, lengths = payload_spans(buf, rec, cid)
-        order = np.argsort(log, kind="stable") if len(log) > 1 and np.any(np.diff(log) < 0) else slice(None)
-        prev = out.get(topic)
-        block = RawBlock(log[order], buf, starts[order], lengths[order])
-        if prev is not None:  # two channels of one topic: merge in log-time order
-            log2 = np.concatenate([prev.log_ns, block.log_ns])
-            merge = np.argsort(log2, kind="stable")
-            block = RawBlock(
-                log2[merge],
-                buf,
-                np.concatenate([prev.starts, block.starts])[merge],
-                np.concatenate([prev.lengths, block.lengths])[merge],
-            )
-        out[topic] = block
+        none = np.empty(0, np.int64)
+        joined = RawBlock.concat([RawBlock(b.log_ns, buf, b.starts, b.lengths) for b in blocks])
+        out[name] = joined if joined is not None else RawBlock(none, buf, none, none)
     return out, types

@@ -20,7 +20,7 @@ chunk or batch (plus messages of overlapping MCAP chunks, none in a bag written 
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import ExitStack
 from itertools import islice
 from operator import attrgetter
@@ -97,43 +97,50 @@ class _Decoded:
 
 
 class _Pending:
-    """Decoded messages not yet handed on, per topic; ``take(horizon)`` returns those before it."""
+    """Messages not yet handed on, per topic; ``take(horizon)`` returns those before it.
 
-    def __init__(self) -> None:
-        self.parts: list[list[_Decoded]] = [[] for _ in _TYPES]
+    Holds one kind of per-topic block (``_Decoded`` or ``RawBlock``): ``join`` concatenates a
+    topic's blocks in log-time order, ``log`` gives a block's log times; blocks have ``split(i)``.
+    """
 
-    def add(self, decoded: Sequence[_Decoded | None]) -> None:
-        for parts, d in zip(self.parts, decoded, strict=True):
-            if d is not None and len(d):
-                parts.append(d)
+    def __init__(self, join: Callable[[list[Any]], Any], log: Callable[[Any], np.ndarray]) -> None:
+        self.parts: list[list[Any]] = [[] for _ in _TYPES]
+        self._join, self._log = join, log
 
-    def take(self, horizon: int | None) -> MonitoringData | None:
-        """Return the messages with log time < ``horizon`` (all when None) as one piece, or None."""
-        out: list[_Decoded] = []
+    def add(self, blocks: Sequence[Any]) -> None:
+        for parts, b in zip(self.parts, blocks, strict=True):
+            if b is not None and len(self._log(b)):
+                parts.append(b)
+
+    def take(self, horizon: int | None) -> list[Any] | None:
+        """Return per topic the messages with log time < ``horizon`` (all when None), or None if none."""
+        out: list[Any] = []
         for k, parts in enumerate(self.parts):
             if not parts:
-                out.append(_Decoded.empty(len(_FIELDS[k])))
+                out.append(None)
                 continue
-            d = _Decoded.join(parts)
-            i = len(d) if horizon is None else int(np.searchsorted(d.log, horizon, side="left"))
-            head, rest = d.split(i)
-            self.parts[k] = [rest] if len(rest) else []
-            out.append(head)
-        if not any(len(d) for d in out):
-            return None
-        forces = {
-            ch: ForceSeries(d.stamp, d.values[:, 0], d.frames, d.log)
-            for ch, d in zip(CHANNELS, out, strict=False)
-        }
-        t = out[2]
-        return MonitoringData(
-            forces, TemperatureSeries(t.stamp, t.values[:, 0], t.values[:, 1], t.frames, t.log)
-        )
+            block = self._join(parts)
+            log = self._log(block)
+            i = len(log) if horizon is None else int(np.searchsorted(log, horizon, side="left"))
+            head, rest = block.split(i)
+            self.parts[k] = [rest] if i < len(log) else []
+            out.append(head if i else None)
+        return out if any(b is not None for b in out) else None
 
     @property
     def size(self) -> int:
         """Messages held."""
-        return sum(len(d) for parts in self.parts for d in parts)
+        return sum(len(self._log(b)) for parts in self.parts for b in parts)
+
+
+def _monitoring(decoded: list[_Decoded | None]) -> MonitoringData:
+    """One piece as ``MonitoringData`` (an absent topic: an empty series)."""
+    out = [_Decoded.empty(len(f)) if d is None else d for d, f in zip(decoded, _FIELDS, strict=True)]
+    forces = {}
+    for ch, d in zip(CHANNELS, out[:2], strict=True):
+        forces[ch] = ForceSeries(d.stamp, d.values[:, 0], d.frames, d.log)
+    t = out[2]
+    return MonitoringData(forces, TemperatureSeries(t.stamp, t.values[:, 0], t.values[:, 1], t.frames, t.log))
 
 
 class MonitoringStream:
@@ -278,11 +285,10 @@ class MonitoringStream:
             # rosbags yields in log-time order: messages at the last log time may continue
             yield blocks, int(logs[-1])
 
-    def __iter__(self) -> Iterator[MonitoringData]:
-        """Yield the pieces in arrival order (each holds at least one message)."""
-        pending = _Pending()
+    def _in_arrival_order(self, pending: _Pending, prepare: Callable[[Any], Any]) -> Iterator[list[Any]]:
+        """Hand on what is held as soon as nothing later in the bag can come before it."""
         for blocks, horizon in self._pieces():
-            pending.add(self._decode(blocks))
+            pending.add(prepare(blocks))
             self.peak_pending = max(self.peak_pending, pending.size)
             if self.backend == "sqlite3" or horizon is not None:
                 piece = pending.take(None if self.backend == "sqlite3" else horizon)
@@ -292,24 +298,18 @@ class MonitoringStream:
         if piece is not None:
             yield piece
 
+    def __iter__(self) -> Iterator[MonitoringData]:
+        """Yield the pieces in arrival order (each holds at least one message)."""
+        pending = _Pending(_Decoded.join, attrgetter("log"))
+        for piece in self._in_arrival_order(pending, self._decode):
+            yield _monitoring(piece)
+
     def raw_pieces(self) -> Iterator[list[RawBlock | None]]:
         """Yield the messages undecoded, per topic (None: none in this piece), in arrival order.
 
         The same pieces as iterating, before decoding: what a player publishes as it reads.
         """
-        pending: list[list[RawBlock]] = [[] for _ in _TYPES]
-        for blocks, horizon in self._pieces():
-            for parts, block in zip(pending, blocks, strict=True):
-                if block is not None and len(block.log_ns):
-                    parts.append(block)
-            self.peak_pending = max(self.peak_pending, sum(len(b.log_ns) for p in pending for b in p))
-            if self.backend == "sqlite3" or horizon is not None:
-                piece = _take_raw(pending, None if self.backend == "sqlite3" else horizon)
-                if piece is not None:
-                    yield piece
-        piece = _take_raw(pending, None)
-        if piece is not None:
-            yield piece
+        yield from self._in_arrival_order(_Pending(RawBlock.concat, attrgetter("log_ns")), list)
 
     def close(self) -> None:
         """Close the bag (idempotent)."""
@@ -320,21 +320,6 @@ class MonitoringStream:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _take_raw(pending: list[list[RawBlock]], horizon: int | None) -> list[RawBlock | None] | None:
-    """Hand on the held messages with log time < ``horizon`` (all when None); None if there are none."""
-    out: list[RawBlock | None] = []
-    for k, parts in enumerate(pending):
-        block = RawBlock.concat(parts)
-        if block is None:
-            out.append(None)
-            continue
-        i = len(block.log_ns) if horizon is None else int(np.searchsorted(block.log_ns, horizon, side="left"))
-        head, rest = block.split(i)
-        pending[k] = [rest] if len(rest.log_ns) else []
-        out.append(head if len(head.log_ns) else None)
-    return out if any(b is not None for b in out) else None
 
 
 def iter_monitoring(path: str | Path, **kwargs: Any) -> Iterator[MonitoringData]:

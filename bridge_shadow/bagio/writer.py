@@ -389,7 +389,7 @@ def write_monitoring(
         write = bag._writer.write
         for i, ti, tk in zip(order.tolist(), log_ns[order].tolist(), topic_idx[order].tolist(), strict=True):
             write(conns[tk], ti, raws[i])
-        for topic, idx in zip(topics, range(len(topics)), strict=True):
+        for idx, topic in enumerate(topics):
             bag.counts[topic] = int(np.count_nonzero(topic_idx == idx))
         for name, text in (extra_files or {}).items():
             (bag.staged_path / name).write_text(text, encoding="utf-8")

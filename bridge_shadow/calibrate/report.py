@@ -168,6 +168,16 @@ def summary_text(result: CalibrationResult) -> str:
     return "\n".join(lines)
 
 
+def _save(fig: Any, path: Path) -> Path:
+    """Lay out, write and close a figure."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def write_figures(result: CalibrationResult, out_dir: str | Path) -> list[Path]:
     """Draw ``calibration_records.png`` and ``calibration_explanations.png`` into ``out_dir``."""
     import matplotlib
@@ -224,11 +234,7 @@ def write_figures(result: CalibrationResult, out_dir: str | Path) -> list[Path]:
         " (south / north); test car shaded",
         fontsize=10,
     )
-    fig.tight_layout()
-    path = out / "calibration_records.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    files.append(path)
+    files.append(_save(fig, out / "calibration_records.png"))
 
     rows = result.table()
     names = [r["name"] for r in rows]
@@ -252,9 +258,5 @@ def write_figures(result: CalibrationResult, out_dir: str | Path) -> list[Path]:
         "explanations of the 10 mm lowering: evidence, and what each implies for the south-north split",
         fontsize=10,
     )
-    fig.tight_layout()
-    path = out / "calibration_explanations.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    files.append(path)
+    files.append(_save(fig, out / "calibration_explanations.png"))
     return files

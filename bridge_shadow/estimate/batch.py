@@ -23,13 +23,14 @@ The choices the online shadow makes are made here too, so that the comparison is
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from bridge_shadow.estimate.noise import ar1_factor
 from bridge_shadow.estimate.spline import _basis, clamped_knots, gram_penalty, gram_slope
 
-__all__ = ["BatchResult", "paper_batch"]
+__all__ = ["BatchResult", "paper_batch", "paper_batch_of_run"]
 
 
 @dataclass
@@ -161,6 +162,28 @@ def paper_batch(
     cov = np.linalg.inv(info)
     cov = 0.5 * (cov + cov.T)
     return BatchResult(cov @ eta, cov, beta, level, r1, phi, edf)
+
+
+def paper_batch_of_run(shadow: Any, result: Any) -> BatchResult:
+    """Run the paper's batch method on the windows a ``Shadow`` run used, with its lambda and prior.
+
+    The reference the online posterior is compared with (``result`` is the run's ``ReplayResult``).
+    """
+    h = result.history()
+    used = h["updated"]
+    sur = shadow.surrogate
+    return paper_batch(
+        h["end_ns"][used] // round(shadow.config.window_s * 1e9) - 1,
+        h["samples"][used],
+        h["force_n"][used],
+        h["temp_c"][used],
+        sur.A,
+        sur.u0,
+        np.diag(shadow.prior_sigma_m**2),
+        lam=shadow.fit.lam,
+        kappa=shadow.fit.kappa,
+        slope_fe=sur.thermal.get("uniform", np.zeros(2)),
+    )
 
 
 def _g(knots: np.ndarray, t: np.ndarray, beta: np.ndarray, lo: float, hi: float) -> np.ndarray:

@@ -7,7 +7,7 @@ predictions come from fits that never saw the held-out day (or block, for record
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -191,6 +191,34 @@ class CvResult:
         return float(1.0 - self.sse_after.sum() / self.sse_before.sum())
 
 
+def held_out(
+    resid: np.ndarray,
+    valid: np.ndarray,
+    fold: np.ndarray,
+    predict: Callable[[np.ndarray, np.ndarray], np.ndarray],
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Predict each fold from a fit on the others: ``predict(train, hold)`` gives ``pred[hold]``.
+
+    Returns the held-out predictions (NaN where a fold had no training data) and the
+    ``CvResult`` scores ``sse_before``, ``sse_after`` and ``n_heldout`` per channel.
+    """
+    pred = np.full(resid.shape, np.nan)
+    for f in np.unique(fold[fold >= 0]):
+        hold = fold == f
+        train = valid & ~hold[:, None]
+        if train.any():
+            pred[hold] = predict(train, hold)
+    held = valid & np.isfinite(pred)
+    r0 = np.where(held, resid, 0.0)
+    r1 = np.where(held, resid - np.nan_to_num(pred), 0.0)
+    scores = {
+        "sse_before": np.sum(r0**2, axis=0),
+        "sse_after": np.sum(r1**2, axis=0),
+        "n_heldout": held.sum(axis=0),
+    }
+    return pred, scores
+
+
 def cross_validate(
     alts: Sequence[np.ndarray],
     resid: np.ndarray,
@@ -213,23 +241,16 @@ def cross_validate(
         lo[p - n_new :] = [b[0] for b in bounds]
         hi[p - n_new :] = [b[1] for b in bounds]
         box = (lo, hi)
-    pred = np.full(resid.shape, np.nan)
-    for f in np.unique(fold[fold >= 0]):
-        hold = fold == f
-        train = valid & ~hold[:, None]
-        if not train.any():
-            continue
+
+    def predict(train: np.ndarray, hold: np.ndarray) -> np.ndarray:
         i, beta, _ = fit_best(alts, resid, train, box)
-        pred[hold] = alts[i][hold] @ beta
-    held = valid & np.isfinite(pred)
-    r0 = np.where(held, resid, 0.0)
-    r1 = np.where(held, resid - np.nan_to_num(pred), 0.0)
+        return alts[i][hold] @ beta
+
+    pred, scores = held_out(resid, valid, fold, predict)
     i, beta, sse = fit_best(alts, resid, valid, box)
     return CvResult(
         pred_cv=pred,
-        sse_before=np.sum(r0**2, axis=0),
-        sse_after=np.sum(r1**2, axis=0),
-        n_heldout=held.sum(axis=0),
+        **scores,
         grid_index=i,
         beta=beta,
         pred_full=alts[i] @ beta,

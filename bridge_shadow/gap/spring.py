@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bridge_shadow.gap.fit import CvResult
+from bridge_shadow.gap.fit import CvResult, held_out
 
 __all__ = ["SpringFit", "SpringModel", "best_spring", "cross_validate_spring", "spring_change"]
 
@@ -235,23 +235,15 @@ def cross_validate_spring(
     Returns the ``CvResult`` (``beta`` = the compliances (2,), ``grid_index`` = the choice,
     ``pred_part`` = the spring's own change) and the all-data ``SpringFit``.
     """
-    pred = np.full(resid.shape, np.nan)
-    for f in np.unique(fold[fold >= 0]):
-        hold = fold == f
-        train = valid & ~hold[:, None]
-        if not train.any():
-            continue
-        _, fit = best_spring(model, alts, resid, train, c_max, extra)
-        pred[hold] = fit.pred[hold]
-    held = valid & np.isfinite(pred)
-    r0 = np.where(held, resid, 0.0)
-    r1 = np.where(held, resid - np.nan_to_num(pred), 0.0)
+
+    def predict(train: np.ndarray, hold: np.ndarray) -> np.ndarray:
+        return best_spring(model, alts, resid, train, c_max, extra)[1].pred[hold]
+
+    pred, scores = held_out(resid, valid, fold, predict)
     i, fit = best_spring(model, alts, resid, valid, c_max, extra)
     cv = CvResult(
         pred_cv=pred,
-        sse_before=np.sum(r0**2, axis=0),
-        sse_after=np.sum(r1**2, axis=0),
-        n_heldout=held.sum(axis=0),
+        **scores,
         grid_index=i,
         beta=fit.c.copy(),
         pred_full=fit.pred,
