@@ -103,7 +103,7 @@ def _summary(js: dict[str, Any]) -> str:
     if messages:
         lines.append("rejected messages: " + ", ".join(f"{k} {v}" for k, v in messages.items()))
     if windows:
-        lines.append("windows not used: " + ", ".join(f"{k} {v}" for k, v in windows.items()))
+        lines.append("windows not used: " + ", ".join(_windows_text(k, v, js) for k, v in windows.items()))
     prior = js.get("prior", {})
     if prior:
         lines.append(
@@ -118,7 +118,24 @@ def _summary(js: dict[str, Any]) -> str:
         )
         if not e.get("size_significant95", True):
             size += " (its 95 % region holds zero: the forces changed, a settlement is not proven)"
-        lines.append(f"event {i}: settlement step at window {e['window']} ({_utc(e['time_ns'])}): {size}")
+        what = {"gap": "change across a gap", "held_run": "change at the end of a held run"}.get(
+            e.get("kind", "step"), "settlement step"
+        )
+        lines.append(f"event {i}: {what} at {e.get('time', _utc(e['time_ns']))}: {size}")
+    for i, c in enumerate(js.get("unconfirmed_changes", []), 1):
+        size = ", ".join(
+            f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f} mm"
+            for side, m, sd in zip(("south", "north"), c["size_m"], c["sigma_m"], strict=True)
+        )
+        if c["kind"] == "run_in_data":
+            how = f"a run of {c['windows']} windows without a step's jump, used as data"
+        else:
+            where = f"after a gap of {c['gap_s'] / 3600.0:.1f} h" if c["kind"] == "gap" else "a held run"
+            how = f"{where}, change probability {c['change_probability']:.3g}"
+        lines.append(f"unconfirmed change {i} at {c['time']} ({how}): {size}")
+    state = js["posterior"].get("state", {})
+    if state.get("text"):
+        lines.append(f"the posterior stands for {state['text']}")
     for ch, sp in js["spline"].items():
         # JSON carries a non-finite lambda (no curve: no temperature) as null (the live node's report)
         lam = float("inf") if sp["lambda"] is None else sp["lambda"]
@@ -127,6 +144,15 @@ def _summary(js: dict[str, Any]) -> str:
             f"level {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
         )
     return "\n".join(lines)
+
+
+def _windows_text(reason: str, count: int, js: dict[str, Any]) -> str:
+    """``outlier 2 (at ...)``: the count of one reason with the windows' times (first and last of many)."""
+    times = [w["time"] for w in js.get("rejected_windows", []) if w["reason"] == reason]
+    if not times:
+        return f"{reason} {count}"
+    shown = ", ".join(times) if len(times) <= 3 else f"{times[0]} ... {times[-1]}"
+    return f"{reason} {count} ({shown})"
 
 
 def _utc(stamp_ns: int) -> str:

@@ -109,6 +109,9 @@ class ShadowConfig:
     event_confirm_windows: int = 4
     event_max_pending: int = 15
     event_jump_rule: str = "both"
+    gap_s: float = 600.0
+    change_prior_probability: float = 0.5
+    change_confirm_probability: float = 0.999
     # gating
     force_min_n: float = 1.0
     force_max_n: float = 5.0e6
@@ -170,6 +173,7 @@ class ShadowConfig:
             self.event_max_pending > self.event_confirm_windows,
             "event_max_pending must exceed event_confirm_windows",
         )
+        need(self.gap_s >= self.window_s, "gap_s must be at least window_s")
         topics = [*self.input_topics(), *self.output_topics().values()]
         for name in _TOPIC_FIELDS:
             value = getattr(self, name)

@@ -12,23 +12,31 @@ freedom.
    covariance ``V_j = F(n_j) o R1 / m + n_j^2 A P A'``, with ``F(n) = n f(n)`` the AR(1) variance of a
    sum of ``n`` windows (``noise.ar1_factor``: a slow wander of autocorrelated noise is not a step).
    The test statistic is ``T_j = s_j' V_j^-1 s_j`` and the step estimate ``s_j / n_j``.
-3. **Decision** after each pending window:
+3. **Decision** after each pending window, by one rule:
 
-   - *event*: the best candidate ``j*`` (largest ``T_j`` among those whose windows scatter around
-     the step like noise, ``sum (v_i - step)' S1^-1 (v_i - step)`` below the chi-square bound, with
-     at least ``event_confirm_windows`` windows) has ``T_j* > h_event`` (``event_probability``),
-     *and* the innovation jumps there: from the window before ``j*`` to one of the next three,
-     ``v_b - v_a`` exceeds ``h_event`` under its AR(1) covariance (variance ``2 (1 - phi^d) R`` per
-     channel, the channels correlated as in ``R``) and twice the largest jump seen between ordinary
-     neighbouring windows lately. A slow wander of autocorrelated noise drifts, a step jumps. The
-     windows from ``j*`` on start a new segment; windows before it are handled as in *transient*;
+   - a candidate *qualifies* when its windows scatter around the step like noise
+     (``sum (v_i - step)' S1^-1 (v_i - step)`` below the chi-square bound), ``T_j > h_event``
+     (``event_probability``), at least ``event_confirm_windows`` windows follow its start, and the
+     innovation *jumps* there: from the window before ``j`` to one of the next ``JUMP_LOOKAHEAD``
+     windows, ``v_b - v_a`` exceeds ``h_jump`` under its AR(1) covariance (variance
+     ``2 (1 - phi^d) R`` per channel, the channels correlated as in ``R``) and ``JUMP_OVER_SEEN``
+     times the largest jump seen between ordinary neighbouring windows lately. A slow wander of
+     autocorrelated noise drifts, a step jumps;
+   - *event*: among the qualifying candidates, the change time is the one under which the whole
+     run is most likely (windows before it scatter around no change, windows from it on around
+     the step: the smallest ``sum_{i<j} d2(v_i, 0) + sum_{i>=j} d2(v_i, step_j)``). Choosing the
+     change time and qualifying use the same criteria, so a run that qualifies is never lost to a
+     neighbouring start that does not. The windows from ``j*`` on start a new segment; windows
+     before it are handled as in *transient*;
    - *transient*: the latest window is back (closer to no change than to the step of the whole
      run): the earlier pending windows were a passing excursion, such as a test car. Those beyond
      ``h_outlier`` (``mahalanobis_probability``) are rejected as outliers, the others are ordinary
-     windows; the latest window is judged afresh;
-   - after ``event_max_pending`` windows a decision is forced: an event if a candidate qualifies,
-     otherwise the whole run is ordinary windows (a long excursion that is not a step, such as a
-     drift the model has no process noise for, is data, not outliers): no lock-out.
+     windows; the latest window is judged afresh. Only a run that came back loses windows;
+   - *unconfirmed change*: a run that has not come back but must be decided without a qualifying
+     candidate (after ``event_max_pending`` windows, at the end of the data, or at the start of a
+     gap, see ``close_run``) is never rejected: it starts a *provisional* segment at its most
+     likely change time, whose jump is uncertain (the shadow weighs "changed" against "not
+     changed" by the data, ``segments``), and the shadow reports it.
 
 While the noise model rests on few windows, its variance is uncertain: detection uses it inflated
 by ``dof / chi2_dof(0.05)`` (its one-sided 95 % bound; ``dof`` the fit's residual degrees of
@@ -41,6 +49,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -49,12 +58,41 @@ from scipy import special, stats
 from bridge_shadow.estimate.noise import ar1_factor
 from bridge_shadow.estimate.small import Sym, Vec, quad_inv
 
-__all__ = ["JUMP_MEMORY", "JUMP_OVER_SEEN", "ChangeDetector", "Decision", "Pending"]
+__all__ = ["JUMP_LOOKAHEAD", "JUMP_MEMORY", "JUMP_OVER_SEEN", "ChangeDetector", "Decision", "Pending"]
 
 #: An event's jump must exceed this many times the largest jump seen between ordinary windows.
+#:
+#: Derivation: without a change a jump statistic is ``c X`` with ``X`` chi-square(2) (exponential,
+#: mean 2) and ``c`` the factor by which the noise model misjudges the scatter (1 when it is right;
+#: above 1 early in a record or on a real bridge whose residuals are not AR(1)). The largest of the
+#: ``n`` ordinary jumps remembered is ``c M_n``. With ``U = exp(-M_n / 2)``, ``U`` is the minimum of
+#: ``n`` uniforms, and ``P(c X > f c M_n) = E[U^f] = n B(f + 1, n) = Gamma(f + 1) n! / (n + f)!``:
+#: the false-jump probability of the rule does not depend on ``c`` at all. With ``f = 2`` and the
+#: ``n ~ 1 / (1 - JUMP_MEMORY) = 100`` windows remembered it is ``2 / (101 * 102) = 1.9e-4`` per
+#: window, the order of the trigger's ``1 - event_trigger_probability = 1e-3``: a misjudged noise
+#: scale cannot raise events faster than that, while a true step of a few sigma clears ``2 M_n``
+#: (``test_estimate_events`` pins both sides). ``f = 1`` would allow 1 % per window.
 JUMP_OVER_SEEN = 2.0
-#: Per window, the largest ordinary jump is forgotten by this factor (a half-life of 70 windows).
+#: Per window, the largest ordinary jump is forgotten by this factor (a half-life of 70 windows,
+#: about ``n = 100`` windows remembered in the derivation above).
 JUMP_MEMORY = 0.99
+#: The jump test compares the window before a candidate start with this many windows from it on.
+#:
+#: Derivation: a step inside window ``j`` (not at its boundary) puts only a fraction of itself into
+#: ``v_j``; the full step shows in ``v_{j+1}``. A change that takes up to two windows (lowering a
+#: support with jacks, a minute or two) shows fully in ``v_{j+2}``. Three windows cover both; the
+#: test ``test_a_two_window_ramp_needs_the_look_ahead`` pins it.
+JUMP_LOOKAHEAD = 3
+
+
+@lru_cache(maxsize=8)
+def _scatter_bounds(probability: float) -> tuple[float, ...]:
+    """Return chi-square quantiles with ``2 i`` degrees of freedom at index ``i``.
+
+    The bound of the scatter of ``i + 1`` windows around their mean, whose step is estimated from
+    them; index 0 is never a bound.
+    """
+    return (np.inf, *(float(stats.chi2.ppf(probability, 2 * k)) for k in range(1, 64)))
 
 
 def _arr(m: Sym) -> np.ndarray:
@@ -78,14 +116,19 @@ class Pending:
 
 @dataclass
 class Decision:
-    """What to do with held windows, in this order: reject, accept before, start an event, accept.
+    """What to do with held windows, in this order: reject, accept before, start a segment, accept.
 
     Attributes:
-        reject: payloads rejected as outliers.
-        accept_before: payloads that are ordinary windows of the current segment (before an event).
-        event: payloads that start a new segment (None: no event).
-        step_n: (2,) N, estimated step of the innovations (event only).
-        glr: the test statistic of the event (NaN otherwise).
+        reject: payloads rejected as outliers (a short excursion that came back).
+        accept_before: payloads that are ordinary windows of the current segment (before a change).
+        event: payloads that start a new segment after a confirmed event (None: no event).
+        change: payloads that start a provisional segment: an unconfirmed change at the end of a
+            run that ended with the data or at a gap (None: none).
+        unconfirmed: payloads of a run that reached ``event_max_pending`` without qualifying: they
+            are also in ``accept_before`` (ordinary data), and the shadow reports the change.
+        step_n: (2,) N, estimated step of the innovations (event or change only).
+        step_cov_n2: (2, 2) N^2, its covariance (an unconfirmed change only).
+        glr: the test statistic of the event or change (NaN otherwise).
         accept: payloads that are ordinary windows after the event (or without one).
 
     """
@@ -93,7 +136,10 @@ class Decision:
     reject: list[Any] = field(default_factory=list)
     accept_before: list[Any] = field(default_factory=list)
     event: list[Any] | None = None
+    change: list[Any] | None = None
+    unconfirmed: list[Any] | None = None
     step_n: np.ndarray | None = None
+    step_cov_n2: np.ndarray | None = None
     glr: float = float("nan")
     accept: list[Any] = field(default_factory=list)
 
@@ -105,6 +151,8 @@ class _Candidate:
     step: np.ndarray
     consistent: bool
     jump: float
+    cost: float  # -2 log-likelihood of the whole run with the change at j (up to a constant)
+    n_after: int
 
 
 class ChangeDetector:
@@ -135,9 +183,7 @@ class ChangeDetector:
         )
         self.confirm = int(confirm)
         self.max_pending = int(max_pending)
-        self._chi2_bound = [np.inf] + [
-            float(stats.chi2.ppf(consistency_probability, 2 * k)) for k in range(1, 64)
-        ]
+        self._chi2_bound = _scatter_bounds(float(consistency_probability))
         self.pending: list[Pending] = []
         self.prev: Pending | None = None
         self.max_jump = 0.0  # largest jump statistic between ordinary neighbours (slowly forgotten)
@@ -191,28 +237,40 @@ class ChangeDetector:
         if self._d2(item, np.zeros(2)) < self._d2(item, cands[0].step):
             return self._transient()  # back to where the run started from: it was passing by
         best = self._best(cands)
-        n_after = len(self.pending) - best.j
-        if self._qualifies(best) and best.consistent and n_after >= self.confirm:
+        if best is not None:
             return self._event(best)
         if len(self.pending) >= self.max_pending:
-            forced = max(self._candidates(), key=lambda c: c.glr if self._qualifies(c) else -1.0)
-            if self._qualifies(forced):
-                return self._event(forced)
-            return self._release_all(reject_outliers=False)
+            return self._unconfirmed(cands, provisional=False)  # stayed away unqualified: data, reported
         return Decision()
 
-    def flush(self) -> Decision:
-        """End of data: decide on what is held (an event needs the confirmation windows)."""
+    def close_run(self) -> Decision:
+        """Decide on what is held because the run ends here: at the end of the data or a gap.
+
+        A run that is held has not come back (its last window was closer to the step than to no
+        change), so it is an event if a candidate qualifies, and an unconfirmed change otherwise:
+        never outliers.
+        """
         if not self.pending:
             return Decision()
-        best = self._best()
-        if self._qualifies(best) and best.consistent and len(self.pending) - best.j >= self.confirm:
+        cands = self._candidates()
+        best = self._best(cands)
+        if best is not None:
             return self._event(best)
-        return self._release_all(reject_outliers=len(self.pending) < self.max_pending)
+        return self._unconfirmed(cands, provisional=True)
+
+    def flush(self) -> Decision:
+        """End of data: decide on what is held (``close_run``)."""
+        return self.close_run()
 
     # -- internals ------------------------------------------------------------------------------
     def _qualifies(self, c: _Candidate) -> bool:
-        return c.glr > self.h_event and c.jump > max(self.h_jump, JUMP_OVER_SEEN * self.max_jump)
+        """Return whether ``c`` passes the one rule of an event's change time (module docstring)."""
+        return (
+            c.consistent
+            and c.n_after >= self.confirm
+            and c.glr > self.h_event
+            and c.jump > max(self.h_jump, JUMP_OVER_SEEN * self.max_jump)
+        )
 
     def _note_jump(self, k: int, v: Vec, r_window: Sym) -> None:
         """Track the largest jump statistic between neighbouring ordinary windows (slowly forgotten).
@@ -254,7 +312,7 @@ class ChangeDetector:
         return p
 
     def _jump(self, j: int) -> float:
-        """Largest jump statistic from the window before ``j`` to each of the next three windows.
+        """Largest jump statistic from the window before ``j`` to each of the next ``JUMP_LOOKAHEAD``.
 
         An AR(1) wander moves little between neighbours: on channel ``c``, ``v_b - v_a`` has the
         variance ``(1 - phi_c^d) (R_a + R_b)_cc`` for windows ``d`` apart (the estimate's own error
@@ -265,7 +323,7 @@ class ChangeDetector:
         if ref is None:
             return np.inf
         best = 0.0
-        for b in self.pending[j : j + 3]:
+        for b in self.pending[j : j + JUMP_LOOKAHEAD]:
             r = ref.r_window + b.r_window
             sd = np.sqrt(np.diag(r))
             scale = sd * np.sqrt(np.maximum(1.0 - self.phi ** (b.k - ref.k), 1e-6))
@@ -275,13 +333,14 @@ class ChangeDetector:
         return best
 
     def _candidates(self) -> list[_Candidate]:
-        """Every start ``j`` of the pending run with its GLR, step, scatter check and jump test."""
+        """Every start ``j`` of the pending run: GLR, step, scatter check, jump test, run likelihood."""
         vs = np.array([p.v for p in self.pending])
         n = len(vs)
         out = []
         r_mean = np.mean([p.r_window for p in self.pending], axis=0)
         apa = self.pending[-1].apa
         sums = np.cumsum(vs[::-1], axis=0)[::-1]  # s_j = sum_{i >= j} v_i
+        before = np.concatenate([[0.0], np.cumsum([self._d2(p, np.zeros(2)) for p in self.pending])])
         for j in range(n):
             nj = n - j
             f = ar1_factor(self.phi, nj)
@@ -291,15 +350,14 @@ class ChangeDetector:
             step = s / nj
             scatter = sum(self._d2(p, step) for p in self.pending[j:])
             bound = self._chi2_bound[min(nj - 1, len(self._chi2_bound) - 1)]
-            out.append(_Candidate(j, t, step, bool(scatter <= bound), self._jump(j)))
+            cost = float(before[j] + scatter)  # windows before j at no change, from j on at the step
+            out.append(_Candidate(j, t, step, bool(scatter <= bound), self._jump(j), cost, nj))
         return out
 
-    def _best(self, cands: list[_Candidate] | None = None) -> _Candidate:
-        cands = self._candidates() if cands is None else cands
-        good = [c for c in cands if c.consistent and c.jump > self.h_jump] or [
-            c for c in cands if c.consistent
-        ]
-        return max(good or cands, key=lambda c: c.glr)
+    def _best(self, cands: list[_Candidate]) -> _Candidate | None:
+        """Return the most likely change time if it qualifies (None otherwise: wait, or unconfirmed)."""
+        c = min(cands, key=lambda c: c.cost)
+        return c if self._qualifies(c) else None
 
     def _split_ordinary(self, items: list[Pending]) -> tuple[list[Any], list[Any]]:
         """(rejected, ordinary) payloads among held windows judged as no change."""
@@ -331,10 +389,29 @@ class ChangeDetector:
             reject=reject, accept_before=ordinary, event=[p.payload for p in after], step_n=c.step, glr=c.glr
         )
 
-    def _release_all(self, reject_outliers: bool = True) -> Decision:
-        items, self.pending = self.pending, []
-        if not reject_outliers:  # a long excursion that is not a step is data, not outliers
-            self.prev = items[-1]
-            return Decision(accept_before=[p.payload for p in items])
-        reject, ordinary = self._split_ordinary(items)
-        return Decision(reject=reject, accept_before=ordinary)
+    def _unconfirmed(self, cands: list[_Candidate], provisional: bool) -> Decision:
+        """Decide a run that stayed away without qualifying: an unconfirmed change at its likeliest start.
+
+        ``provisional`` (the run ends at the end of the data or at a gap): its windows start a
+        provisional segment, weighed "changed" against "not changed" by the data. Otherwise (after
+        ``event_max_pending`` windows inside the data) they are ordinary windows of the current
+        segment, as a long excursion that is not a step is data, and the change is reported.
+        """
+        c = min(cands, key=lambda c: c.cost)
+        common = {"step_n": c.step, "glr": c.glr, "step_cov_n2": self._step_cov(c)}
+        before, after = self.pending[: c.j], self.pending[c.j :]
+        self.pending = []
+        ordinary = [p.payload for p in before]  # a run that stayed away loses no window
+        run = [p.payload for p in after]
+        if provisional:
+            self.prev = None  # innovations after the change refer to a new estimate
+            return Decision(accept_before=ordinary, change=run, **common)
+        self.prev = after[-1]
+        return Decision(accept_before=ordinary + run, unconfirmed=run, **common)
+
+    def _step_cov(self, c: _Candidate) -> np.ndarray:
+        """Covariance (2, 2) N^2 of candidate ``c``'s step (the mean of its windows' innovations)."""
+        after = self.pending[c.j :]
+        r_mean = np.mean([p.r_window for p in after], axis=0)
+        f = ar1_factor(self.phi, c.n_after)  # V_j / n_j^2 of the GLR
+        return np.sqrt(np.outer(f, f)) * r_mean / c.n_after + after[-1].apa

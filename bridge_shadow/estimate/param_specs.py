@@ -120,6 +120,9 @@ SPECS: dict[str, ParamSpec] = {
     "event_probability": ParamSpec("-", low=0.0, high=1.0, low_open=True, high_open=True),
     "event_confirm_windows": _ge(1),
     "event_max_pending": _ge(2),
+    "gap_s": _gt0("s"),
+    "change_prior_probability": ParamSpec("-", low=0.0, high=1.0, low_open=True, high_open=True),
+    "change_confirm_probability": ParamSpec("-", low=0.5, high=1.0, low_open=True, high_open=True),
     "event_jump_rule": ParamSpec(choices=("one_bearing", "both", "prior")),
     # gating
     "force_min_n": ParamSpec("N"),

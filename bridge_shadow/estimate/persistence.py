@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 
 __all__ = ["restore_shadow", "shadow_state"]
 
-_VERSION = 2
+_VERSION = 3
 _NONE = -(2**62)
 _FIT_FIELDS = ("beta", "lam", "edf", "level", "dof", "minv", "t_lo", "t_hi", "kappa", "mbar", "sbar", "n")
 
@@ -141,6 +141,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "i0": np.array([w.i0 for w in queue], np.int64).reshape(-1, 2),
             "bv": np.array([w.bv for w in queue], float).reshape(-1, 2, 4),
             "event_end": np.array([w.event_end for w in queue], bool),
+            "seg": np.array([w.seg for w in queue], np.int64),
             "warm": np.array([index[id(w)] for w in shadow._warm], np.int64),
         },
         "rows": {
@@ -158,7 +159,12 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
                 for e in shadow.events
             ]
         ),
+        "gaps": json.dumps(shadow.gaps),
+        "confirmed_at": json.dumps([[k, v] for k, v in shadow.confirmed_at.items()]),
+        "unconfirmed_runs": json.dumps(shadow.unconfirmed_runs),
+        "recent_rejected": json.dumps(list(shadow.recent_rejected)),
         "scalars": {
+            "last_usable_k": _opt(shadow._last_usable_k),
             "n_windows": shadow.n_windows,
             "uncompensated": shadow.uncompensated,
             "warm": int(shadow.warm),
@@ -224,6 +230,7 @@ def restore_shadow(
         )
         w.action = actions[i]
         w.event_end = bool(np.asarray(q["event_end"]).ravel()[i])
+        w.seg = int(np.asarray(q["seg"]).ravel()[i])
         queue.append(w)
     shadow._queue.extend(queue)
     shadow._warm = [queue[int(i)] for i in np.asarray(q["warm"]).ravel()]
@@ -274,7 +281,12 @@ def restore_shadow(
     shadow.events = [
         {**e, "step_n": np.asarray(e["step_n"], float)} for e in json.loads(str(state["events"]))
     ]
+    shadow.gaps = [{k: int(v) for k, v in g.items()} for g in json.loads(str(state["gaps"]))]
+    shadow.confirmed_at = {int(k): int(v) for k, v in json.loads(str(state["confirmed_at"]))}
+    shadow.unconfirmed_runs = list(json.loads(str(state["unconfirmed_runs"])))
+    shadow.recent_rejected.extend((int(k), str(r)) for k, r in json.loads(str(state["recent_rejected"])))
     sc = state["scalars"]
+    shadow._last_usable_k = _unopt(sc["last_usable_k"])
     shadow.n_windows = int(sc["n_windows"])
     shadow.uncompensated = int(sc["uncompensated"])
     shadow.warm = bool(int(sc["warm"]))

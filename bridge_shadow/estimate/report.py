@@ -13,7 +13,8 @@ import numpy as np
 
 from bridge_shadow.contract import CHANNELS, SUPPORTS
 from bridge_shadow.estimate.inputs import TOPIC_KEYS
-from bridge_shadow.estimate.result import EventRecord, ReplayResult, WindowOutput
+from bridge_shadow.estimate.result import ChangeRecord, EventRecord, ReplayResult, WindowOutput
+from bridge_shadow.timefmt import iso_utc
 
 if TYPE_CHECKING:
     from bridge_shadow.estimate.shadow import Shadow
@@ -22,10 +23,13 @@ __all__ = [
     "NOISE_FULL_DAY_S",
     "diagnostics",
     "event_records",
+    "gaps",
     "noise_info",
+    "posterior_state",
     "prior_info",
     "replay_result",
     "spline_info",
+    "unconfirmed_changes",
     "warnings",
 ]
 
@@ -35,31 +39,166 @@ NOISE_FULL_DAY_S = 86_400.0
 _NS = 1_000_000_000
 
 
+def _segment_change(shadow: Shadow, s: int) -> tuple[np.ndarray, np.ndarray, float, int] | None:
+    """Size (2,) m and covariance (2, 2) m^2 of the change into segment ``s``, its probability, windows.
+
+    The size is the segment's data estimate minus the chained state before it; its covariance adds
+    the calibration's uncertainty of a change read through ``A`` (``u0`` cancels). The current
+    segment is read from the online state, older ones from the last refresh (None before one).
+    """
+    f = shadow.filter
+    if s <= 0 or s >= len(f.starts):
+        return None
+    if s == len(f.starts) - 1:
+        x_d, d_cov, x_b, p_b = f.current_measurement()
+        prob, n = f.change_probability, f.current_windows
+    elif s < len(f.summaries):
+        sm = f.summaries[s]
+        x_d, d_cov, x_b, p_b = sm.x_data, sm.d_cov, sm.x_before, sm.P_before
+        prob, n = sm.change_probability, sm.windows
+    else:
+        return None
+    size = x_d - x_b
+    if not np.all(np.isfinite(size)):
+        return np.full(2, np.nan), np.full((2, 2), np.nan), prob, n
+    return size, d_cov + p_b + shadow.surrogate.model_covariance(size, with_u0=False), prob, n
+
+
+def _confirmed(shadow: Shadow, s: int) -> bool:
+    """Whether provisional segment ``s``'s change is confirmed now (reported as an event)."""
+    p, n = shadow.filter.segment_probability(s)
+    cfg = shadow.config
+    return n >= cfg.event_confirm_windows and p >= cfg.change_confirm_probability
+
+
+def _provisional(shadow: Shadow) -> list[int]:
+    return [s for s, pi in enumerate(shadow.filter.change_prior) if 0.0 < pi < 1.0]
+
+
 def event_records(shadow: Shadow) -> list[EventRecord]:
-    """Return the detected events with their size and covariance as the data now say (last refit)."""
+    """Return the events: steps the detector confirmed, and changes at gaps the data confirm now.
+
+    Each with its size and covariance as the data now say (the last refit; the current segment
+    online).
+    """
     out = []
-    summaries = getattr(shadow.filter, "summaries", [])
+    nan2, nan22 = np.full(2, np.nan), np.full((2, 2), np.nan)
     for i, e in enumerate(shadow.events):
-        s = i + 1
-        size = np.full(2, np.nan)
-        cov = np.full((2, 2), np.nan)
-        if s < len(summaries):
-            a, b = summaries[s - 1], summaries[s]
-            size = b.x_data - a.x_data
-            # the data's part, and the model's: a step read through an uncertain A (u0 cancels)
-            cov = a.d_cov + b.d_cov + shadow.surrogate.model_covariance(size, with_u0=False)
+        s = int(e.get("segment", i + 1))
+        change = _segment_change(shadow, s)
+        size, cov = (nan2, nan22) if change is None else change[:2]
+        k = int(e["window"])
         out.append(
             EventRecord(
-                int(e["window"]),
-                int(e["window"]) * shadow._w_ns,
+                k,
+                k * shadow._w_ns,
                 int(e["detected_window"]),
                 size,
                 cov,
                 float(e["glr"]),
                 np.asarray(e["step_n"], float),
+                str(e.get("kind", "step")),
             )
         )
+    f = shadow.filter
+    for s in _provisional(shadow):
+        change = _segment_change(shadow, s)
+        if change is None or not _confirmed(shadow, s):
+            continue
+        size, cov = change[:2]
+        k = f.starts[s]
+        chi2 = float(size @ np.linalg.solve(cov, size)) if np.all(np.isfinite(cov)) else float("nan")
+        detected = shadow.confirmed_at.get(k, shadow._last_judged)
+        out.append(EventRecord(k, k * shadow._w_ns, detected, size, cov, chi2, shadow.A @ size, f.kinds[s]))
+    return sorted(out, key=lambda e: e.window)
+
+
+def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
+    """Return the possible changes not confirmed, in time order, with what each would mean.
+
+    Provisional segments (a gap, or a held run that ended with the data or at a gap; the posterior
+    weighs them by their change probability) and runs that reached ``event_max_pending`` without
+    qualifying as a step (used as data of the current state; reported with their significance).
+    """
+    f = shadow.filter
+    gap_s = {g["segment"]: (g["to_k"] - g["from_k"] - 1) * shadow.config.window_s for g in shadow.gaps}
+    out = []
+    for s in _provisional(shadow):
+        change = _segment_change(shadow, s)
+        if change is None or _confirmed(shadow, s):
+            continue
+        size, cov, prob, n = change
+        k = f.starts[s]
+        gap = gap_s.get(s, 0.0)
+        out.append(ChangeRecord(k, k * shadow._w_ns, f.kinds[s], float(prob), int(n), size, cov, gap))
+    a_inv = np.linalg.inv(shadow.A)
+    for r in shadow.unconfirmed_runs:  # runs used as data: their change read through A
+        size = a_inv @ np.asarray(r["step_n"], float)
+        cov = a_inv @ np.asarray(r["step_cov_n2"], float) @ a_inv.T
+        cov = cov + shadow.surrogate.model_covariance(size, with_u0=False)
+        k = int(r["window"])
+        significant = bool(r["glr"] > shadow.detector.h_event)
+        n = int(r["windows"])
+        nan = float("nan")
+        out.append(ChangeRecord(k, k * shadow._w_ns, "run_in_data", nan, n, size, cov, 0.0, significant))
+    return sorted(out, key=lambda c: c.window)
+
+
+def gaps(shadow: Shadow) -> list[dict[str, Any]]:
+    """Return the gaps in the usable windows: from, to (ISO and ns), length, what the data say since.
+
+    ``change_probability`` is the posterior probability that the settlement changed in the gap
+    (0 once merged: the data said no change), ``confirmed`` whether that is an event now.
+    """
+    out = []
+    for g in shadow.gaps:
+        s = g["segment"]
+        start_ns, end_ns = (g["from_k"] + 1) * shadow._w_ns, g["to_k"] * shadow._w_ns
+        prob = 0.0 if s < 0 else shadow.filter.segment_probability(s)[0]
+        out.append(
+            {
+                "from_ns": start_ns,
+                "from": iso_utc(start_ns),
+                "to_ns": end_ns,
+                "to": iso_utc(end_ns),
+                "duration_s": (end_ns - start_ns) / _NS,
+                "change_probability": float(prob),
+                "confirmed": bool(s >= 0 and _confirmed(shadow, s)),
+                "merged": bool(s < 0),
+            }
+        )
     return out
+
+
+def posterior_state(shadow: Shadow) -> dict[str, Any]:
+    """Return which state the posterior stands for: the current segment, since when, how sure."""
+    f = shadow.filter
+    if not f.starts:
+        return {"kind": "prior", "text": "the prior: no window has been used"}
+    s = len(f.starts) - 1
+    since = f.starts[s] * shadow._w_ns
+    kind = f.kinds[s]
+    prob = f.change_probability
+    state = {"kind": kind, "since_ns": since, "since": iso_utc(since), "segment": s}
+    if kind == "start":
+        state["text"] = f"the state since the first window ({iso_utc(since)})"
+    elif kind in ("gap", "held_run"):
+        state["change_probability"] = float(prob)
+        how = "confirmed" if _confirmed(shadow, s) else "not confirmed"
+        if kind == "gap":
+            w_h = shadow.config.window_s / 3600.0
+            hours = [(g["to_k"] - g["from_k"] - 1) * w_h for g in shadow.gaps if g["segment"] == s]
+            after = f"after a gap of {hours[0]:.1f} h" if hours else "after a gap"
+        else:
+            after = "where a held run ended without confirming a step"
+        state["text"] = (
+            f"the state since {iso_utc(since)}, {after}: changed with probability {prob:.3g} ({how}); "
+            "the posterior is the mixture of both outcomes"
+        )
+    else:
+        what = {"event": "the settlement step", "drift": "the drift block starting"}.get(kind, kind)
+        state["text"] = f"the state since {what} at {iso_utc(since)}"
+    return state
 
 
 def warnings(shadow: Shadow) -> list[str]:
@@ -76,6 +215,26 @@ def warnings(shadow: Shadow) -> list[str]:
             out.append(line)
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")
+    for c in unconfirmed_changes(shadow):
+        if not c.likely:
+            continue
+        where = {
+            "gap": f"after a gap of {c.gap_s / 3600.0:.1f} h",
+            "held_run": "a run of held windows at the end of the data or before a gap",
+            "run_in_data": "a run that stayed away without a step's jump",
+        }[c.kind]
+        size = ", ".join(
+            f"{side} {1e3 * m:+.2f} ± {1.96e3 * sd:.2f} mm"
+            for side, m, sd in zip(SUPPORTS, c.size_m, np.sqrt(np.diag(c.covariance_m2)), strict=True)
+        )
+        if c.kind == "run_in_data":
+            how = f"{c.windows} windows, used as data of the current state"
+        else:
+            how = (
+                f"probability {c.change_probability:.3g}, {c.windows} windows since; "
+                "the posterior weighs it by that probability"
+            )
+        out.append(f"unconfirmed settlement change at {iso_utc(c.time_ns)} ({where}): {size} ({how})")
     return out
 
 
@@ -165,6 +324,13 @@ def diagnostics(shadow: Shadow, now_ns: int | None = None) -> dict[str, Any]:
         "noise": noise_info(shadow),
         "prior": prior_info(shadow),
         "events": [e.to_json() for e in event_records(shadow)],
+        "unconfirmed_changes": [c.to_json() for c in unconfirmed_changes(shadow)],
+        "gaps": gaps(shadow),
+        "state": posterior_state(shadow),
+        "recent_rejected_windows": [
+            {"time_ns": k * shadow._w_ns, "time": iso_utc(k * shadow._w_ns), "window": k, "reason": r}
+            for k, r in shadow.recent_rejected
+        ],
         "warnings": lines,
         "windows": {
             "closed": shadow.n_windows,
@@ -197,4 +363,7 @@ def replay_result(shadow: Shadow, outputs: list[WindowOutput], messages: int, se
         warnings=warnings(shadow),
         prior=prior_info(shadow),
         uncompensated_windows=shadow.uncompensated,
+        changes=unconfirmed_changes(shadow),
+        state=posterior_state(shadow),
+        gaps=gaps(shadow),
     )

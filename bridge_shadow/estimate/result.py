@@ -9,8 +9,9 @@ import numpy as np
 
 from bridge_shadow.contract import SUPPORTS
 from bridge_shadow.estimate.gate import MESSAGE_REASONS
+from bridge_shadow.timefmt import iso_utc
 
-__all__ = ["EventRecord", "ReplayResult", "WindowOutput"]
+__all__ = ["ChangeRecord", "EventRecord", "ReplayResult", "WindowOutput", "rejected_windows"]
 
 
 @dataclass
@@ -49,6 +50,25 @@ class WindowOutput:
 CHI2_2DOF_95 = 5.991464547107979
 
 
+def _size_json(size_m: np.ndarray, cov: np.ndarray) -> dict[str, Any]:
+    """``size_m``, its covariance, sd, 95 % interval and the supports' names (SI)."""
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return {
+        "size_m": size_m.tolist(),
+        "covariance_m2": cov.tolist(),
+        "sigma_m": sd.tolist(),
+        "interval95_m": [[float(m - 1.96 * s), float(m + 1.96 * s)] for m, s in zip(size_m, sd, strict=True)],
+        "supports": list(SUPPORTS),
+    }
+
+
+def _chi2(size_m: np.ndarray, cov: np.ndarray) -> float:
+    try:
+        return float(size_m @ np.linalg.solve(cov, size_m))
+    except np.linalg.LinAlgError:
+        return float("nan")
+
+
 @dataclass
 class EventRecord:
     """A detected settlement event (a step), with its size as the data now say.
@@ -57,10 +77,14 @@ class EventRecord:
         window: first window index of the new segment (the estimated change time).
         time_ns: start of that window, ns since the epoch (UTC).
         detected_window: window index at which the event was confirmed.
-        size_m: (2,) m, settlement change [south, north] (new segment minus the previous one).
+        size_m: (2,) m, settlement change [south, north] (the new segment's data minus the state
+            before it).
         covariance_m2: (2, 2) m^2, covariance of ``size_m``.
-        glr: the detector's test statistic at confirmation (chi-square, 2 dof, without a change).
+        glr: the test statistic at confirmation (chi-square, 2 dof, without a change).
         step_n: (2,) N, the innovation step estimated at confirmation.
+        kind: ``step`` (found in the data by the step detector), ``gap`` (a change across a gap
+            in the data, confirmed by the record after it) or ``held_run`` (an unconfirmed change
+            that later data confirmed).
 
     """
 
@@ -71,21 +95,17 @@ class EventRecord:
     covariance_m2: np.ndarray
     glr: float
     step_n: np.ndarray
+    kind: str = "step"
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready record (SI units)."""
-        sd = np.sqrt(np.clip(np.diag(self.covariance_m2), 0.0, None))
         return {
             "time_ns": int(self.time_ns),
+            "time": iso_utc(self.time_ns),
             "window": int(self.window),
             "detected_window": int(self.detected_window),
-            "size_m": self.size_m.tolist(),
-            "covariance_m2": self.covariance_m2.tolist(),
-            "sigma_m": sd.tolist(),
-            "interval95_m": [
-                [float(m - 1.96 * s), float(m + 1.96 * s)] for m, s in zip(self.size_m, sd, strict=True)
-            ],
-            "supports": list(SUPPORTS),
+            "kind": self.kind,
+            **_size_json(self.size_m, self.covariance_m2),
             "glr": float(self.glr),
             "step_n": self.step_n.tolist(),
             "size_chi2": self.size_chi2(),
@@ -94,10 +114,75 @@ class EventRecord:
 
     def size_chi2(self) -> float:
         """Squared Mahalanobis distance of the size from no change (chi-square, 2 dof, if none)."""
-        try:
-            return float(self.size_m @ np.linalg.solve(self.covariance_m2, self.size_m))
-        except np.linalg.LinAlgError:
-            return float("nan")
+        return _chi2(self.size_m, self.covariance_m2)
+
+
+@dataclass
+class ChangeRecord:
+    """A possible settlement change that is not confirmed: where the data cannot tell yet.
+
+    A gap in the data (the supports may have moved while nothing was measured), or a run of held
+    windows that ended (at ``event_max_pending``, a gap or the end of the data) away from the
+    estimate without confirming a step. The shadow weighs both outcomes by the data; the posterior
+    is their mixture.
+
+    Attributes:
+        window: first window after the possible change; time_ns: its start, ns (UTC).
+        kind: ``gap``, ``held_run`` (a provisional segment) or ``run_in_data`` (a run that reached
+            ``event_max_pending`` without a step's jump: used as ordinary data and reported).
+        change_probability: posterior probability that the settlement changed there (NaN for a
+            ``run_in_data``, which is not weighed).
+        windows: windows since (in its segment).
+        size_m: (2,) m, the change if there was one (the segment's data minus the state before).
+        covariance_m2: (2, 2) m^2, its covariance.
+        gap_s: length of the gap before it, s (0 for a held run).
+        significant: for a ``run_in_data``: its GLR passed the event threshold (None otherwise).
+
+    """
+
+    window: int
+    time_ns: int
+    kind: str
+    change_probability: float
+    windows: int
+    size_m: np.ndarray
+    covariance_m2: np.ndarray
+    gap_s: float = 0.0
+    significant: bool | None = None
+
+    @property
+    def likely(self) -> bool:
+        """Whether the warnings report it: a change more likely than not, or a significant run."""
+        if self.significant is not None:
+            return self.significant
+        return bool(self.change_probability > 0.5)
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready record (SI units)."""
+        return {
+            "time_ns": int(self.time_ns),
+            "time": iso_utc(self.time_ns),
+            "window": int(self.window),
+            "kind": self.kind,
+            "change_probability": None if np.isnan(p := self.change_probability) else float(p),
+            "likely": self.likely,
+            "windows": int(self.windows),
+            "gap_s": float(self.gap_s),
+            **_size_json(self.size_m, self.covariance_m2),
+            "size_chi2": _chi2(self.size_m, self.covariance_m2),
+        }
+
+
+def rejected_windows(outputs: list[WindowOutput]) -> list[dict[str, Any]]:
+    """Return the windows among ``outputs`` that did not join the estimate: time (start) and reason."""
+    out = []
+    for o in outputs:
+        if o.updated:
+            continue
+        start_ns = int(o.end_ns) // (int(o.index) + 1) * int(o.index)  # end = (k + 1) W exactly
+        when = {"time_ns": start_ns, "time": iso_utc(start_ns)}
+        out.append({**when, "window": int(o.index), "reason": o.reason})
+    return out
 
 
 @dataclass
@@ -119,6 +204,9 @@ class ReplayResult:
     warnings: list[str] = field(default_factory=list)
     prior: dict[str, Any] = field(default_factory=dict)
     uncompensated_windows: int = 0
+    changes: list[ChangeRecord] = field(default_factory=list)
+    state: dict[str, Any] = field(default_factory=dict)
+    gaps: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def messages_per_s(self) -> float:
@@ -139,6 +227,10 @@ class ReplayResult:
             "updated": np.array([o.updated for o in outs], dtype=bool),
         }
 
+    def rejected_windows(self) -> list[dict[str, Any]]:
+        """Every window that closed with data but did not join the estimate: its time and reason."""
+        return rejected_windows(self.outputs)
+
     def to_json(self) -> dict[str, Any]:
         """Return the replay JSON object (contract keys first)."""
         return {
@@ -147,6 +239,7 @@ class ReplayResult:
                 "covariance_m2": self.covariance_m2.tolist(),
                 "sigma_m": np.sqrt(np.diag(self.covariance_m2)).tolist(),
                 "supports": list(SUPPORTS),
+                "state": dict(self.state),
             },
             "messages": {
                 "total": self.messages,
@@ -163,6 +256,9 @@ class ReplayResult:
                 "uncompensated": self.uncompensated_windows,
             },
             "events": [e.to_json() for e in self.events],
+            "unconfirmed_changes": [c.to_json() for c in self.changes],
+            "gaps": list(self.gaps),
+            "rejected_windows": self.rejected_windows(),
             "warnings": list(self.warnings),
             "prior": dict(self.prior),
             "spline": self.spline,

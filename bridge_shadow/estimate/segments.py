@@ -27,10 +27,31 @@ compensated windows (the centred curve drops out of the sum).
 
 Between refreshes the current segment is updated window by window with the same formulas (its
 ``M``, ``Z`` kept as small arrays), so every window has its posterior at once.
+
+**Provisional segments** (a gap in the data, or a held run that ended without confirmation) start
+where the settlement *may* have changed: their jump is ``0`` with probability ``1 - pi`` and
+``N(0, J)`` with probability ``pi`` (``change_prior_probability``). This is the two-model
+(step / no step) case of an interacting-multiple-model filter, collapsed after each segment
+(generalized pseudo-Bayes of order 1): with the previous posterior ``N(m, P)`` and the segment's
+measurement ``x_d ~ N(x, D)``,
+
+    L0 = N(x_d; m, P + D),   L1 = N(x_d; m, P + J + D)        the data's likelihood either way
+    p  = pi L1 / (pi L1 + (1 - pi) L0)                           the change probability
+    x_h, P_h = the Kalman update of N(m, P [+ J]) with x_d       h = 0 (no change), 1 (change)
+    x = (1 - p) x_0 + p x_1
+    P = (1 - p) P_0 + p P_1 + p (1 - p) (x_1 - x_0)(x_1 - x_0)'
+
+so the posterior is honest in both outcomes: a real change of any size pulls ``p`` to 1 and the
+estimate to the new state; no change keeps ``p`` small (the Occam factor ``sqrt(|P+J+D| /
+|P+D|)``) and the estimate pooled, widened by what a change could still be. ``p`` is recomputed
+at every refresh from the current curve and noise model. The shadow reports the change as
+confirmed (an event) while ``p`` is at least ``change_confirm_probability``, and merges the
+segment into the one before it (no change) once ``p`` is at most one minus that (``Shadow``).
 """
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -40,10 +61,10 @@ from filterpy.kalman import KalmanFilter
 
 from bridge_shadow.estimate.compensation import CompensationFit
 from bridge_shadow.estimate.noise import NoiseModel
-from bridge_shadow.estimate.small import Sym, Vec, congruence, inv_sym, mat_vec, sym_vec
+from bridge_shadow.estimate.small import Sym, Vec, congruence, inv_sym, mat_vec, quad_inv, sym_vec
 from bridge_shadow.estimate.sums import FitSums
 
-__all__ = ["SegmentChain", "SegmentSummary"]
+__all__ = ["SegmentChain", "SegmentSummary", "mixture_update"]
 
 
 @dataclass
@@ -56,6 +77,11 @@ class SegmentSummary:
         x_data: (2,) data-only estimate ``x_d`` (NaN without windows).
         d_cov: (2, 2) its covariance ``D``.
         x: (2,) chained posterior mean; P: (2, 2) its covariance.
+        kind: ``start``, ``event``, ``gap``, ``held_run`` (an unconfirmed change) or ``drift``.
+        change_probability: probability that the settlement changed at the segment's start (1 for
+            events and drift blocks, ``p`` for a provisional segment, NaN for the first segment).
+        x_before: (2,) the chained posterior of the previous segment (NaN for the first);
+        P_before: (2, 2) its covariance.
 
     """
 
@@ -65,6 +91,47 @@ class SegmentSummary:
     d_cov: np.ndarray
     x: np.ndarray
     P: np.ndarray
+    kind: str = "start"
+    change_probability: float = float("nan")
+    x_before: np.ndarray = field(default_factory=lambda: np.full(2, np.nan))
+    P_before: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
+
+
+def _log_normal(r: Vec, s: Sym) -> float:
+    """``log N(r; 0, S)`` for a 2-vector ``r`` and a symmetric positive definite ``S`` (floats)."""
+    det = s[0] * s[2] - s[1] * s[1]
+    return -0.5 * (quad_inv(s, r) + math.log(det)) - math.log(2.0 * math.pi)
+
+
+def mixture_update(
+    m: Vec, p0: Sym, p1: Sym, prior: float, x_d: Vec | None, d: Sym | None
+) -> tuple[Vec, Sym, float]:
+    """Two-hypothesis update of ``N(m, p0)`` (no change) and ``N(m, p1)`` (change), collapsed.
+
+    ``prior`` is the probability of a change before the data; ``x_d ~ N(x, d)`` is the segment's
+    measurement (None: no data yet). Returns the collapsed mean, covariance and the posterior
+    change probability (the module docstring's formulas, on floats).
+    """
+    if x_d is None or d is None:
+        widened = tuple(a + prior * (b - a) for a, b in zip(p0, p1, strict=True))
+        return m, (widened[0], widened[1], widened[2]), prior
+    r = (x_d[0] - m[0], x_d[1] - m[1])
+    s0 = (p0[0] + d[0], p0[1] + d[1], p0[2] + d[2])
+    s1 = (p1[0] + d[0], p1[1] + d[1], p1[2] + d[2])
+    log_odds = math.log(prior / (1.0 - prior)) + _log_normal(r, s1) - _log_normal(r, s0)
+    p = 1.0 / (1.0 + math.exp(-log_odds)) if log_odds > -700.0 else 0.0
+    x0, c0 = _combine_f(m, p0, x_d, d)
+    x1, c1 = _combine_f(m, p1, x_d, d)
+    q = 1.0 - p
+    dx = (x1[0] - x0[0], x1[1] - x0[1])
+    w = p * q
+    x = (q * x0[0] + p * x1[0], q * x0[1] + p * x1[1])
+    cov = (
+        q * c0[0] + p * c1[0] + w * dx[0] * dx[0],
+        q * c0[1] + p * c1[1] + w * dx[0] * dx[1],
+        q * c0[2] + p * c1[2] + w * dx[1] * dx[1],
+    )
+    return x, cov, p
 
 
 def _segment_measurement(
@@ -114,6 +181,11 @@ class SegmentChain:
     Attributes:
         A: (2, 2) N/m; prior_cov: (2, 2) m^2 (``Sigma_X``); jump_cov: (2, 2) m^2 (``J``).
         starts: first window index of every segment (``starts[0]`` is the first window seen).
+        kinds: per segment, ``start``, ``event``, ``gap``, ``held_run`` or ``drift``.
+        jumps: per segment, the covariance it certainly opens (m^2): ``J`` for an event, ``Q dt``
+            for a drift block, 0 (or ``Q dt``) for a provisional segment.
+        change_prior: per segment, the prior probability ``pi`` of its uncertain jump ``J`` (0 for
+            none, which is every segment that is not provisional).
         summaries: per segment, the last refresh's ``SegmentSummary``.
         n_updates: windows used.
         x: (2,) m and P: (2, 2) m^2, the current posterior (properties over float state).
@@ -126,13 +198,19 @@ class SegmentChain:
         self.prior_cov = np.asarray(prior_cov, float).reshape(2, 2)
         self.jump_cov = np.asarray(jump_cov, float).reshape(2, 2)
         self.starts: list[int] = []
-        self.jumps: list[np.ndarray] = []  # covariance opened at each segment start (m^2)
+        self.kinds: list[str] = []
+        self.jumps: list[np.ndarray] = []  # covariance opened for certain at each segment start (m^2)
+        self.change_prior: list[float] = []  # probability of a further jump J (provisional segments)
         self.summaries: list[SegmentSummary] = []
         self.n_updates = 0
         self._atf = (float(self.A[0, 0]), float(self.A[1, 0]), float(self.A[0, 1]), float(self.A[1, 1]))
-        self._m0f: Vec = (0.0, 0.0)  # prior of the current segment
+        self._m0f: Vec = (0.0, 0.0)  # prior of the current segment (no change, for a provisional one)
         self._p0f: Sym = _sym(self.prior_cov)
+        self._p1f: Sym = self._p0f  # its prior covariance after a change (provisional segment)
+        self._pi = 0.0  # prior change probability of the current segment (0: not provisional)
+        self._p = float("nan")  # posterior change probability of the current segment
         self._beta_covf: Sym = (0.0, 0.0, 0.0)  # curve term of the current segment (x space)
+        self._before: tuple[Vec, Sym] = ((math.nan, math.nan), (math.nan, math.nan, math.nan))
         self._noise: NoiseModel | None = None
         self._online = _Online()
         self._x: Vec = self._m0f
@@ -153,33 +231,89 @@ class SegmentChain:
         """Index of the current segment (0 before the first window)."""
         return max(len(self.starts) - 1, 0)
 
+    @property
+    def provisional(self) -> bool:
+        """Whether the current segment's start is an unconfirmed change (a gap or a held run)."""
+        return 0.0 < self._pi < 1.0
+
+    @property
+    def change_probability(self) -> float:
+        """Posterior probability that the settlement changed at the current segment's start.
+
+        1 after a confirmed event or a drift block, ``p`` for a provisional segment, NaN for the
+        first segment.
+        """
+        if not self.starts or len(self.starts) == 1:
+            return float("nan")
+        return self._p if self.provisional else 1.0
+
+    @property
+    def current_windows(self) -> int:
+        """Windows in the current segment (online count)."""
+        return self._online.n
+
     # -- events ---------------------------------------------------------------------------------
     def start(self, k: int) -> None:
         """Open the first segment at window ``k`` (once)."""
         if not self.starts:
             self.starts.append(int(k))
+            self.kinds.append("start")
             self.jumps.append(np.zeros((2, 2)))
+            self.change_prior.append(0.0)
 
-    def open_segment(self, k: int, jump_cov: np.ndarray | None = None) -> None:
+    def open_segment(
+        self, k: int, jump_cov: np.ndarray | None = None, kind: str = "event", change_prior: float = 0.0
+    ) -> None:
         """Open a new segment from window ``k``.
 
-        Its prior is the last posterior plus ``J`` (an event) or ``jump_cov`` (a random-walk block).
+        Its prior is the last posterior plus ``J`` (an event), plus ``jump_cov`` (a random-walk
+        block), or, with ``0 < change_prior < 1`` (a provisional segment: ``gap``, ``held_run``),
+        plus ``jump_cov`` (default 0) for certain and ``J`` with probability ``change_prior``.
         """
-        jump = self.jump_cov if jump_cov is None else np.asarray(jump_cov, float).reshape(2, 2)
+        provisional = 0.0 < change_prior < 1.0
+        if jump_cov is None:
+            jump = np.zeros((2, 2)) if provisional else self.jump_cov
+        else:
+            jump = np.asarray(jump_cov, float).reshape(2, 2)
         self.jumps.append(jump)
+        self.kinds.append(kind)
+        self.change_prior.append(float(change_prior) if provisional else 0.0)
         j = _sym(jump)
+        jj = _sym(self.jump_cov)
+        self._before = (self._x, self._P)
         self._m0f = self._x
         self._p0f = (self._P[0] + j[0], self._P[1] + j[1], self._P[2] + j[2])
+        self._p1f = (self._p0f[0] + jj[0], self._p0f[1] + jj[1], self._p0f[2] + jj[2])
+        self._pi = self.change_prior[-1]
         self._beta_covf = (0.0, 0.0, 0.0)
         self.starts.append(int(k))
         self._online = _Online()
-        self._x, self._P = self._m0f, self._p0f
+        self._update_current()
+
+    def segment_probability(self, s: int) -> tuple[float, int]:
+        """Change probability at segment ``s``'s start, and its windows (the current one online)."""
+        if s == len(self.starts) - 1:
+            return self.change_probability, self._online.n
+        if 0 < s < len(self.summaries):
+            return self.summaries[s].change_probability, self.summaries[s].windows
+        return float("nan"), 0
+
+    def remove_segment(self, s: int) -> None:
+        """Drop the start of segment ``s`` (its windows belong to ``s - 1`` now); refresh after it."""
+        if not 0 < s < len(self.starts):
+            return
+        for seq in (self.starts, self.kinds, self.jumps, self.change_prior):
+            del seq[s]
+        if s < len(self.summaries):
+            del self.summaries[s]
+        if s == len(self.starts):  # it was the current segment: the previous one goes on
+            self._pi = self.change_prior[-1]
 
     def restart_current(self) -> None:
         """Forget the current segment's windows online (they are re-added one by one)."""
         self.n_updates -= self._online.n
         self._online = _Online()
-        self._x, self._P = self._m0f, self._p0f
+        self._update_current()
 
     # -- windows --------------------------------------------------------------------------------
     def predict_floats(self, end_ns: int) -> tuple[Vec, Sym]:
@@ -208,14 +342,13 @@ class SegmentChain:
         self.n_updates += 1
         self._update_current()
 
-    def _update_current(self) -> None:
-        """Update the current segment's posterior from its running sums (the module's formulas, on floats)."""
+    def _current_data(self) -> tuple[Vec, Sym] | None:
+        """``(x_d, D)`` of the current segment from its running sums (None without usable windows)."""
         on = self._online
+        if on.n == 0 or on.M[0] <= 0.0 or on.M[2] <= 0.0:
+            return None
         if self._noise is None:
             raise RuntimeError("refresh the chain with a noise model before adding windows")
-        if on.n == 0 or on.M[0] <= 0.0 or on.M[2] <= 0.0:
-            self._x, self._P = self._m0f, self._p0f
-            return
         k00, k01, k11 = inv_sym(self._noise.run_cov_floats(on.n))  # K = Rs^-1
         M, Z = on.M, on.Z
         at = self._atf
@@ -224,8 +357,31 @@ class SegmentChain:
         lam_inv = inv_sym(info)
         x_d = sym_vec(lam_inv, eta)
         bc = self._beta_covf
-        d = (lam_inv[0] + bc[0], lam_inv[1] + bc[1], lam_inv[2] + bc[2])
-        self._x, self._P = _combine_f(self._m0f, self._p0f, x_d, d)
+        return x_d, (lam_inv[0] + bc[0], lam_inv[1] + bc[1], lam_inv[2] + bc[2])
+
+    def _update_current(self) -> None:
+        """Update the current segment's posterior from its running sums (the module's formulas, on floats)."""
+        data = self._current_data()
+        if 0.0 < self._pi < 1.0:
+            x_d, d = data if data is not None else (None, None)
+            self._x, self._P, self._p = mixture_update(self._m0f, self._p0f, self._p1f, self._pi, x_d, d)
+        elif data is None:
+            self._x, self._P = self._m0f, self._p0f
+        else:
+            self._x, self._P = _combine_f(self._m0f, self._p0f, *data)
+
+    def current_measurement(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Return the current segment's ``x_d`` (2,) m and ``D`` (2, 2) m^2, and the previous posterior.
+
+        The previous segment's chained posterior (before this segment's jump): mean (2,) m and
+        covariance (2, 2) m^2 (NaN for the first segment). ``x_d`` and ``D`` are NaN without data.
+        """
+        data = self._current_data()
+        if data is None:
+            x_d, d = np.full(2, np.nan), np.full((2, 2), np.nan)
+        else:
+            x_d, d = np.array(data[0]), _arr(data[1])
+        return x_d, d, np.array(self._before[0]), _arr(self._before[1])
 
     # -- exact recomputation ----------------------------------------------------------------------
     def use_noise(self, noise: NoiseModel) -> None:
@@ -244,28 +400,48 @@ class SegmentChain:
         self.summaries = []
         n_seg = len(self.starts)
         for s in range(n_seg):
+            x_before, p_before = kf.x[:, 0].copy(), kf.P.copy()  # segment s - 1's posterior
             if s > 0:
                 kf.predict(Q=self.jumps[s])  # x_s = x_{s-1} + j_s
+            pi = self.change_prior[s]
+            mixed = 0.0 < pi < 1.0
+            m0, p0 = (float(kf.x[0, 0]), float(kf.x[1, 0])), _sym(kf.P)
+            p1 = _sym(kf.P + self.jump_cov) if mixed else p0
             if s == n_seg - 1:
-                self._m0f, self._p0f = (float(kf.x[0, 0]), float(kf.x[1, 0])), _sym(kf.P)
+                self._m0f, self._p0f, self._p1f, self._pi = m0, p0, p1, pi
                 self._beta_covf = (0.0, 0.0, 0.0)
+                if s > 0:
+                    self._before = ((float(x_before[0]), float(x_before[1])), _sym(p_before))
             n_s = int(sums.ns[s]) if s < sums.n_segments else 0
             x_d, d_cov = np.full(2, np.nan), np.full((2, 2), np.nan)
+            meas = None
             if n_s:
                 K = np.linalg.inv(noise.run_cov(n_s))
                 M, Z = self._sums_mz(sums, fit, s)
                 meas = _segment_measurement(self.A, K, M, Z)
-                if meas is not None:
-                    x_d, lam_inv = meas
-                    beta_cov = self.a_inv @ np.diag(sigma2 * fit.beta_variance_factor(sums, s)) @ self.a_inv.T
-                    d_cov = lam_inv + beta_cov
-                    if s == n_seg - 1:
-                        self._beta_covf = _sym(beta_cov)
-                    # update with the segment's measurement (z as a column: filterpy 2.0.0 shape bug)
-                    kf.update(x_d.reshape(2, 1), R=d_cov, H=np.eye(2))
-                    kf.P = 0.5 * (kf.P + kf.P.T)
+            if meas is not None:
+                x_d, lam_inv = meas
+                beta_cov = self.a_inv @ np.diag(sigma2 * fit.beta_variance_factor(sums, s)) @ self.a_inv.T
+                d_cov = lam_inv + beta_cov
+                if s == n_seg - 1:
+                    self._beta_covf = _sym(beta_cov)
+            prob = float("nan") if s == 0 else 1.0
+            if mixed:
+                xd = None if meas is None else (float(x_d[0]), float(x_d[1]))
+                x_m, p_m, prob = mixture_update(m0, p0, p1, pi, xd, None if meas is None else _sym(d_cov))
+                kf.x = np.array([[x_m[0]], [x_m[1]]])
+                kf.P = _arr(p_m)
+            elif meas is not None:
+                # update with the segment's measurement (z as a column: filterpy 2.0.0 shape bug)
+                kf.update(x_d.reshape(2, 1), R=d_cov, H=np.eye(2))
+                kf.P = 0.5 * (kf.P + kf.P.T)
+            if s == 0:
+                x_before, p_before = np.full(2, np.nan), np.full((2, 2), np.nan)
             self.summaries.append(
-                SegmentSummary(self.starts[s], n_s, x_d, d_cov, kf.x[:, 0].copy(), kf.P.copy())
+                SegmentSummary(
+                    self.starts[s], n_s, x_d, d_cov, kf.x[:, 0].copy(), kf.P.copy(),
+                    self.kinds[s], prob, x_before, p_before,
+                )
             )
         if n_seg:
             n_last = int(sums.ns[n_seg - 1]) if n_seg - 1 < sums.n_segments else 0
@@ -273,6 +449,7 @@ class SegmentChain:
                 _Online.from_arrays(*self._sums_mz(sums, fit, n_seg - 1), n_last) if n_last else _Online()
             )
             self._x, self._P = (float(kf.x[0, 0]), float(kf.x[1, 0])), _sym(kf.P)
+            self._p = self.summaries[-1].change_probability
         self.n_updates = int(sums.n)
 
     @staticmethod
@@ -297,37 +474,57 @@ class SegmentChain:
     # -- state ----------------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
         """Plain-data state (the summaries are recomputed at the next refresh)."""
+        sm = self.summaries
         return {
             "starts": np.asarray(self.starts, np.int64),
+            "kinds": json.dumps(self.kinds),
             "jumps": np.asarray(self.jumps, float).reshape(-1, 2, 2),
+            "change_prior": np.asarray(self.change_prior, float),
             "n_updates": self.n_updates,
             "m0": np.array(self._m0f),
             "p0": _arr(self._p0f),
+            "p1": _arr(self._p1f),
+            "pi": self._pi,
+            "p": self._p,
             "beta_cov": _arr(self._beta_covf),
+            "before_x": np.array(self._before[0]),
+            "before_P": _arr(self._before[1]),
             "online_M": self._online.arrays()[0],
             "online_Z": self._online.arrays()[1],
             "online_n": self._online.n,
             "x": self.x,
             "P": self.P,
             "summaries": {
-                "start_k": np.array([s.start_k for s in self.summaries], np.int64),
-                "windows": np.array([s.windows for s in self.summaries], np.int64),
-                "x_data": np.array([s.x_data for s in self.summaries]).reshape(-1, 2),
-                "d_cov": np.array([s.d_cov for s in self.summaries]).reshape(-1, 2, 2),
-                "x": np.array([s.x for s in self.summaries]).reshape(-1, 2),
-                "P": np.array([s.P for s in self.summaries]).reshape(-1, 2, 2),
+                "start_k": np.array([s.start_k for s in sm], np.int64),
+                "windows": np.array([s.windows for s in sm], np.int64),
+                "x_data": np.array([s.x_data for s in sm]).reshape(-1, 2),
+                "d_cov": np.array([s.d_cov for s in sm]).reshape(-1, 2, 2),
+                "x": np.array([s.x for s in sm]).reshape(-1, 2),
+                "P": np.array([s.P for s in sm]).reshape(-1, 2, 2),
+                "kind": json.dumps([s.kind for s in sm]),
+                "change_probability": np.array([s.change_probability for s in sm], float),
+                "x_before": np.array([s.x_before for s in sm]).reshape(-1, 2),
+                "P_before": np.array([s.P_before for s in sm]).reshape(-1, 2, 2),
             },
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore the state."""
         self.starts = [int(k) for k in np.asarray(state["starts"]).ravel()]
+        self.kinds = list(json.loads(str(state["kinds"])))
         self.jumps = list(np.asarray(state["jumps"], float).reshape(-1, 2, 2))
+        self.change_prior = [float(p) for p in np.asarray(state["change_prior"], float).ravel()]
         self.n_updates = int(state["n_updates"])
         m0 = np.asarray(state["m0"], float).reshape(2)
         self._m0f = (float(m0[0]), float(m0[1]))
         self._p0f = _sym(np.asarray(state["p0"], float).reshape(2, 2))
+        self._p1f = _sym(np.asarray(state["p1"], float).reshape(2, 2))
+        self._pi = float(state["pi"])
+        self._p = float(state["p"])
         self._beta_covf = _sym(np.asarray(state["beta_cov"], float).reshape(2, 2))
+        bx = np.asarray(state["before_x"], float).reshape(2)
+        before_p = _sym(np.asarray(state["before_P"], float).reshape(2, 2))
+        self._before = ((float(bx[0]), float(bx[1])), before_p)
         self._online = _Online.from_arrays(
             np.asarray(state["online_M"], float).reshape(2, 2),
             np.asarray(state["online_Z"], float).reshape(2, 2),
@@ -337,15 +534,20 @@ class SegmentChain:
         self._x = (float(x[0]), float(x[1]))
         self._P = _sym(np.asarray(state["P"], float).reshape(2, 2))
         sm = state["summaries"]
+        kinds = json.loads(str(sm["kind"]))
         self.summaries = [
-            SegmentSummary(int(k), int(n), xd, d, x, P)
-            for k, n, xd, d, x, P in zip(
+            SegmentSummary(int(k), int(n), xd, d, x, P, kd, float(pr), xb, pb)
+            for k, n, xd, d, x, P, kd, pr, xb, pb in zip(
                 np.asarray(sm["start_k"]).ravel(),
                 np.asarray(sm["windows"]).ravel(),
                 np.asarray(sm["x_data"], float).reshape(-1, 2),
                 np.asarray(sm["d_cov"], float).reshape(-1, 2, 2),
                 np.asarray(sm["x"], float).reshape(-1, 2),
                 np.asarray(sm["P"], float).reshape(-1, 2, 2),
+                kinds,
+                np.asarray(sm["change_probability"], float).ravel(),
+                np.asarray(sm["x_before"], float).reshape(-1, 2),
+                np.asarray(sm["P_before"], float).reshape(-1, 2, 2),
                 strict=True,
             )
         ]

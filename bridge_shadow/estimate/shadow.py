@@ -52,7 +52,7 @@ from bridge_shadow.estimate.inputs import TOPIC_KEYS, TopicLedger
 from bridge_shadow.estimate.noise import NoiseModel
 from bridge_shadow.estimate.prior import configured_prior_sigma, prior_sigma
 from bridge_shadow.estimate.report import NOISE_FULL_DAY_S
-from bridge_shadow.estimate.result import EventRecord, ReplayResult, WindowOutput
+from bridge_shadow.estimate.result import ChangeRecord, EventRecord, ReplayResult, WindowOutput
 from bridge_shadow.estimate.segments import SegmentChain
 from bridge_shadow.estimate.small import congruence, quad_inv
 from bridge_shadow.estimate.sums import FitSums, WindowRows, residual_moments
@@ -68,13 +68,16 @@ _NS = 1_000_000_000
 _CURVE_BLOCK = 64
 #: A refit comes early when a window's temperature lies this far outside the fitted range (K).
 _RANGE_MARGIN_K = 0.5
+#: Rejected windows (time and reason) kept for ``/diagnostics``; replay lists every one.
+RECENT_REJECTED = 50
 
 
 class Window:
     """A closed window on its way to an output (slots: this is the per-window hot path).
 
-    ``action`` is None while undecided, then ``invalid``, ``warm``, ``accept``, ``reject`` or
-    ``event`` (the first window of a new segment).
+    ``action`` is None while undecided, then ``invalid``, ``warm``, ``accept``, ``reject``,
+    ``event`` (the first window of a new segment) or ``change`` (the first window of a provisional
+    segment: an unconfirmed change).
     """
 
     __slots__ = (
@@ -89,6 +92,7 @@ class Window:
         "k",
         "reason",
         "samples",
+        "seg",
         "temp",
     )
 
@@ -114,6 +118,7 @@ class Window:
         self.g = (0.0, 0.0)  # the centred curve at this window's temperature, N
         self.gvar = (0.0, 0.0)  # the curve's own variance there, N^2
         self.g_fit = -1  # the fit that ``g`` comes from
+        self.seg = -1  # the segment of a warm-up window (set on arrival; -1 otherwise)
 
 
 class Shadow:
@@ -209,6 +214,12 @@ class Shadow:
         a_inv = np.linalg.inv(self.A)
         self._systematic = a_inv @ np.diag(sys_sd**2) @ a_inv.T
         self.events: list[dict[str, Any]] = []
+        self.unconfirmed_runs: list[dict[str, Any]] = []  # runs at event_max_pending, used as data
+        self.recent_rejected: deque[tuple[int, str]] = deque(maxlen=RECENT_REJECTED)  # (window, reason)
+        self.confirmed_at: dict[int, int] = {}  # provisional segment start -> window that confirmed it
+        self.gaps: list[dict[str, int]] = []  # {"from_k", "to_k", "segment"}: gaps in usable windows
+        self._gap_k = max(1, round(config.gap_s / config.window_s))  # missing windows that make a gap
+        self._last_usable_k: int | None = None
         self.n_windows = 0
         self.uncompensated = 0
         self.warm = False
@@ -377,7 +388,11 @@ class Shadow:
                 continue
             if not self.filter.starts:
                 self.filter.start(w.k)
+            elif self._last_usable_k is not None and w.k - self._last_usable_k - 1 >= self._gap_k:
+                outputs.extend(self._open_gap(w))
+            self._last_usable_k = w.k
             if not self.warm:
+                w.seg = self.filter.segment
                 self._warm.append(w)
                 if len(self._warm) >= self.config.warmup_windows:
                     self._finish_warmup()
@@ -402,6 +417,78 @@ class Shadow:
             w.g = (gw[0], gw[1])
             w.gvar = (vw[0], vw[1])
             w.g_fit = self._fit_id
+
+    # -- gaps and provisional segments ---------------------------------------------------------
+    def _drift_jump(self, k: int) -> np.ndarray | None:
+        """``Q dt`` from the current segment's start to window ``k`` (None without process noise)."""
+        if not self.drifting:
+            return None
+        return self._block_jump * ((k - self.filter.starts[-1]) / self._block_k)
+
+    def _open_gap(self, w: Window) -> list[WindowOutput]:
+        """Window ``w`` follows a gap: decide what is held, then start a provisional segment at ``w``.
+
+        The supports may have moved while no data came: a run held before the gap is decided now
+        (an event or an unconfirmed change, never outliers), the windows before ``w`` are applied
+        to the state before the gap, and ``w`` opens a segment whose jump is uncertain
+        (``change_prior_probability``; ``segments`` weighs both outcomes by the data).
+        """
+        outputs: list[WindowOutput] = []
+        if self.warm:
+            outputs.extend(self._apply(self.detector.close_run()))
+            outputs.extend(self._drain())
+        gap = {"from_k": int(self._last_usable_k or w.k), "to_k": w.k, "segment": self.filter.segment + 1}
+        self.gaps.append(gap)
+        self.filter.open_segment(
+            w.k, self._drift_jump(w.k), kind="gap", change_prior=self.config.change_prior_probability
+        )
+        self.detector.prev = None  # innovations after the gap refer to a new estimate
+        return outputs
+
+    def _settle_provisional(self, now_k: int, merge: bool = False) -> bool:
+        """Note provisional segments the data have decided; merge the unchanged ones; True if merged.
+
+        With at least ``event_confirm_windows`` windows, a change probability of at least
+        ``change_confirm_probability`` confirms the change (it is reported as an event from then
+        on, with ``now_k`` as the window that confirmed it; the posterior stays the mixture, which
+        by then is the new state's). With ``merge`` (at refits), one of at most
+        ``1 - change_confirm_probability`` joins the segment before it: unchanged, its windows are
+        that state's, one level and one measurement, as if there had been no gap. By the same
+        likelihood-ratio bound, a true change drawn from the jump prior is merged at most that
+        often. Only a merge is final: a confirmation that later data (a noise model that has seen
+        more) no longer support is reported as unconfirmed again.
+        """
+        f = self.filter
+        cfg = self.config
+        for s in range(len(f.starts) - 1, 0, -1):
+            if not 0.0 < f.change_prior[s] < 1.0:
+                continue
+            p, n = f.segment_probability(s)
+            if n < cfg.event_confirm_windows:
+                continue
+            if p >= cfg.change_confirm_probability:
+                self.confirmed_at.setdefault(f.starts[s], int(now_k))
+            elif merge and p <= 1.0 - cfg.change_confirm_probability:
+                self._merge_segment(s)
+                return True  # the chain is stale now: refit before judging the next one
+        return False
+
+    def _merge_segment(self, s: int) -> None:
+        """Segment ``s`` did not change: its windows join segment ``s - 1`` (indices after it shift)."""
+        self._flush_rows()
+        self.sums.merge_into_previous(s)
+        self.filter.remove_segment(s)
+        for e in self.events:
+            if int(e.get("segment", -1)) > s:
+                e["segment"] = int(e["segment"]) - 1
+        for g in self.gaps:
+            if g["segment"] == s:
+                g["segment"] = -1  # merged: no change across this gap
+            elif g["segment"] > s:
+                g["segment"] -= 1
+        for w in (*self._queue, *self._warm):
+            if w.seg >= s:
+                w.seg -= 1
 
     # -- judging and applying ---------------------------------------------------------------------
     def _curve(self, w: Window) -> tuple[float, float]:
@@ -457,6 +544,23 @@ class Shadow:
                     "detected_window": self._last_judged,
                     "glr": decision.glr,
                     "step_n": np.asarray(decision.step_n, float),
+                    "segment": -1,  # set when the segment opens (``_drain``)
+                    "kind": "step",
+                }
+            )
+        if decision.change:
+            decision.change[0].action = "change"
+            for w in decision.change[1:]:
+                w.action = "accept"
+        if decision.unconfirmed:
+            self.unconfirmed_runs.append(
+                {
+                    "window": decision.unconfirmed[0].k,
+                    "detected_window": self._last_judged,
+                    "windows": len(decision.unconfirmed),
+                    "glr": float(decision.glr),
+                    "step_n": np.asarray(decision.step_n, float).tolist(),
+                    "step_cov_n2": np.asarray(decision.step_cov_n2, float).tolist(),
                 }
             )
         for w in decision.accept:
@@ -471,15 +575,28 @@ class Shadow:
             w = q.popleft()
             action = w.action
             if action == "invalid":
+                self.recent_rejected.append((w.k, w.reason))
                 outputs.append(self._output(w, np.full(2, np.nan), False, w.reason))
             elif action == "reject":
                 self.counts["outlier"] += 1
+                self.recent_rejected.append((w.k, "outlier"))
                 outputs.append(self._output(w, np.full(2, np.nan), False, "outlier"))
             elif action == "warm":
                 outputs.append(self._accept(w, add_rows=False))
             else:
                 if action == "event":
-                    self.filter.open_segment(w.k)
+                    self.filter.open_segment(w.k, self._drift_jump(w.k))
+                    for e in reversed(self.events):
+                        if e["window"] == w.k:
+                            e["segment"] = self.filter.segment
+                            break
+                elif action == "change":
+                    self.filter.open_segment(
+                        w.k,
+                        self._drift_jump(w.k),
+                        kind="held_run",
+                        change_prior=self.config.change_prior_probability,
+                    )
                 outputs.append(self._accept(w, event=action == "event"))
         return outputs
 
@@ -489,10 +606,12 @@ class Shadow:
         end_ns = (w.k + 1) * self._w_ns
         if self.drifting and add_rows and not event and w.k >= self.filter.starts[-1] + self._block_k:
             # a random walk, piecewise constant: a new block opens the covariance by Q dt
-            dt_blocks = (w.k - self.filter.starts[-1]) / self._block_k
-            self.filter.open_segment(w.k, self._block_jump * dt_blocks)
+            self.filter.open_segment(w.k, self._drift_jump(w.k), kind="drift")
         z = (float(w.force[0]) - self._u0f[0] - g0, float(w.force[1]) - self._u0f[1] - g1)
-        self.filter.accept(end_ns, w.samples, z)
+        if w.seg < 0 or w.seg == self.filter.segment:  # a warm-up window of an earlier segment is in the sums
+            self.filter.accept(end_ns, w.samples, z)
+            if self.filter.provisional:
+                self._settle_provisional(w.k)  # a confirmation is noted at once (merges at refits)
         self._last_ok = w
         if add_rows:
             y = w.force - self.u0
@@ -514,7 +633,7 @@ class Shadow:
         self.warm = True
         for w in warm:
             y = w.force - self.u0
-            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, 0))
+            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, max(w.seg, 0)))
             self._n_accepted += 1
         self._refit(reselect=True, online=False)
         self._refit(reselect=True, online=False)  # the slope prior, weighed with the noise just learned
@@ -540,22 +659,31 @@ class Shadow:
         )
 
     def _refit(self, reselect: bool = False, online: bool = True) -> None:
-        """Refit the curve (``lambda`` too if ``reselect``), the noise model and the settlement."""
+        """Refit the curve (``lambda`` too if ``reselect``), the noise model and the settlement.
+
+        Provisional segments the data have decided are then confirmed (an event) or merged into the
+        segment before them (no change), and the fit is repeated after a merge.
+        """
         self._flush_rows()
         cfg = self.config
-        lam = None if reselect or not np.all(np.isfinite(self.lam)) else self.lam
-        fit = self.compensation.fit(self.sums, lam, self.compensation.slope_weight(np.diag(self.noise.r1)))
-        self.fit = fit
-        self._fit_id += 1
-        self._set_range(fit)
-        if lam is None:
-            self.lam = fit.lam
-            self._lambda_at = max(
-                int(self.sums.n * cfg.lambda_reselect_growth), self.sums.n + cfg.refit_windows
-            )
-        moments = residual_moments(self.sums, fit.beta, fit.level)
-        self.noise.update(moments, fit.edf, self.sums.ns)
-        self.filter.refresh(self.sums, fit, self.noise)
+        detected = self._last_judged if self._last_judged >= 0 else (self._last_usable_k or 0)
+        while True:
+            lam = None if reselect or not np.all(np.isfinite(self.lam)) else self.lam
+            kappa = self.compensation.slope_weight(np.diag(self.noise.r1))
+            fit = self.compensation.fit(self.sums, lam, kappa)
+            self.fit = fit
+            self._fit_id += 1
+            self._set_range(fit)
+            if lam is None:
+                self.lam = fit.lam
+                self._lambda_at = max(
+                    int(self.sums.n * cfg.lambda_reselect_growth), self.sums.n + cfg.refit_windows
+                )
+            moments = residual_moments(self.sums, fit.beta, fit.level)
+            self.noise.update(moments, fit.edf, self.sums.ns)
+            self.filter.refresh(self.sums, fit, self.noise)
+            if not self._settle_provisional(detected, merge=True):
+                break  # else one level fewer: fit again
         if not online:
             self.filter.restart_current()
         self.detector.set_noise(self.noise.phi, float(np.min(self.noise.dof)))
@@ -613,6 +741,10 @@ class Shadow:
     def event_records(self) -> list[EventRecord]:
         """Return the detected events with their size and covariance as the data now say."""
         return report.event_records(self)
+
+    def unconfirmed_changes(self) -> list[ChangeRecord]:
+        """Return the possible changes not confirmed (gaps, held runs) with their probability and size."""
+        return report.unconfirmed_changes(self)
 
     def warnings(self) -> list[str]:
         """Return what a user must hear about (one line each): silent failures made loud."""

@@ -272,6 +272,21 @@ class FitSums:
                     full.i0[a, c][ab], full.bv[a, c][ab], full.i0[b, c][ab], full.bv[b, c][ab], p[ab], q
                 )
 
+    def merge_into_previous(self, s: int) -> None:
+        """Make segment ``s`` part of segment ``s - 1`` (later segments move down by one).
+
+        The sums are additive, so the merged segment's sums are those of its windows; a lag-1 pair
+        across the former boundary (adjacent windows only, never across a gap) stays uncounted.
+        """
+        if not 0 < s < self.n_segments:
+            return
+        for name in self._SEG:
+            a = getattr(self, name)
+            a[s - 1] += a[s]
+            setattr(self, name, np.delete(a, s, axis=0))
+        if self.prev is not None and int(self.prev.seg[0]) >= s:
+            self.prev.seg = self.prev.seg - 1
+
     # -- state ----------------------------------------------------------------------------------
     def state_dict(self) -> dict[str, object]:
         """Plain-data state."""
@@ -379,3 +394,4 @@ def residual_moments(sums: FitSums, beta: np.ndarray, level: np.ndarray) -> Mome
         + (l0 * l1) @ sums.X1s
     )
     return Moments(s2, lag, sums.n, sums.n_pairs)
+

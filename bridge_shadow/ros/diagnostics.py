@@ -131,12 +131,29 @@ def _events(diag: Mapping[str, Any]) -> Status:
             for side, m, sd in zip(SUPPORTS, e["size_m"], e["sigma_m"], strict=True)
         )
         note = "" if e.get("size_significant95", True) else "; region holds zero"
-        values[f"event {i + 1}"] = f"window {e['window']} (stamp {e['time_ns']} ns): {size} mm (95 %{note})"
-    if not events:
+        kind = e.get("kind", "step")
+        values[f"event {i + 1}"] = f"{kind} at {e.get('time', e['time_ns'])}: {size} mm (95 %{note})"
+    changes = diag.get("unconfirmed_changes", [])
+    for i, c in enumerate(changes):
+        size = ", ".join(
+            f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f}"
+            for side, m, sd in zip(SUPPORTS, c["size_m"], c["sigma_m"], strict=True)
+        )
+        p = c.get("change_probability")
+        how = "used as data" if p is None else f"probability {p:.3g}"
+        values[f"unconfirmed {i + 1}"] = f"{c['kind']} at {c['time']}: {size} mm (95 %; {how})"
+    state = diag.get("state", {})
+    if state.get("text"):
+        values["posterior stands for"] = state["text"]
+    likely = [c for c in changes if c.get("likely")]
+    if not events and not likely:
         return Status(f"{NODE_NAME}: events", LEVELS["OK"], "no settlement event", values)
-    last = values[f"event {len(events)}"]
-    message = f"{len(events)} settlement event(s); last: {last}"
-    return Status(f"{NODE_NAME}: events", LEVELS["WARN"], message, values)
+    parts = []
+    if events:
+        parts.append(f"{len(events)} settlement event(s); last: {values[f'event {len(events)}']}")
+    if likely:
+        parts.append(f"{len(likely)} unconfirmed change(s); last at {likely[-1]['time']}")
+    return Status(f"{NODE_NAME}: events", LEVELS["WARN"], "; ".join(parts), values)
 
 
 def statuses(

@@ -57,6 +57,7 @@ from bridge_shadow.contract import (
     SUPPORTS,
     TEMPERATURE_TOPIC,
 )
+from bridge_shadow.estimate.result import rejected_windows
 from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
 from bridge_shadow.ros.node import (
@@ -443,10 +444,9 @@ def run_live(
                 cov, _ = array_from_msg(player.last(COVARIANCE_TOPIC))
             else:
                 mean, cov = np.asarray(report["mean_m"]), np.asarray(report["covariance_m2"])
+            history = player.history(node, timeout_s)  # the node keeps a week of windows
             plot_paths = (
-                _plot_live(plots, player.history(node, timeout_s), report, node_config, surrogate)
-                if plots is not None
-                else []
+                _plot_live(plots, history, report, node_config, surrogate) if plots is not None else []
             )
             code = node.stop()
             if code != 0:
@@ -464,6 +464,7 @@ def run_live(
             "covariance_m2": cov.tolist(),
             "sigma_m": np.sqrt(np.diag(cov)).tolist(),
             "supports": list(SUPPORTS),
+            "state": report["state"],
         },
         "messages": {
             "total": total,
@@ -480,6 +481,9 @@ def run_live(
             "uncompensated": report["windows"]["uncompensated"],
         },
         "events": report["events"],
+        "unconfirmed_changes": report["unconfirmed_changes"],
+        "gaps": report["gaps"],
+        "rejected_windows": rejected_windows(history),
         "warnings": report["warnings"],
         "prior": report["prior"],
         "spline": report["spline"],

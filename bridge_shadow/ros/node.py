@@ -469,7 +469,8 @@ class ShadowNode(Node):
         self.drain()
         diag = self.shadow.diagnostics()
         for line in diag["warnings"]:  # what must not pass silently also reaches the log (stderr)
-            key = re.sub(r"[0-9]+", "#", line)  # the same warning with other counts is not new
+            # the same warning with other counts is not new; an unconfirmed change is one per time
+            key = line.split(" (")[0] if line.startswith("unconfirmed") else re.sub(r"[0-9]+", "#", line)
             if key not in self._warned:
                 self._warned.add(key)
                 self.get_logger().warn(line)

@@ -1,0 +1,132 @@
+"""Load-test days: steps between records hours apart, on real records and in the twin (issue 19).
+
+Two studies, each printed as rates:
+
+- **real**: every stream the two public records of 2022-04-11 make (``twin.real_records``): the
+  reference or the 10 mm record first, then either record placed 1.25 h, 3.5 h, 4 h (with the air
+  temperature of 6.5 h) or 24 h (of 7.5 h) later with a step of 0, 10, 20, 30 or 10/20 mm added
+  through the calibrated A; the new state as the last record, in the middle (a third record at the
+  same state follows), or after a record of the old state. 240 streams. Per stream: one event at
+  each record whose state changed, no window of a changed record rejected, the final estimate
+  within 10 % of the truth (or 1 mm), and its 95 % interval holding it.
+- **twin**: ``twin.loadtest.load_test_day`` over ``--seeds`` seeds, with the sun (a 4 K vertical
+  difference at full clear sky) and without it: every step an event at its record, no car-free
+  window of a new state rejected, the final estimate within 10 %, the 95 % interval holding it.
+
+Usage::
+
+    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin] [--verbose]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from bridge_shadow.estimate import Shadow, load_config
+from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.paths import shared_data_dir
+from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
+from bridge_shadow.twin.loadtest_score import score_day
+from bridge_shadow.twin.real_records import Piece, build
+
+W = 60 * 10**9
+PLACES = {"1.25 h": (1.25, None), "3.5 h": (3.5, None), "4 h": (4.0, 6.5), "24 h": (24.0, 7.5)}
+STEPS = {
+    "0": (0.0, 0.0),
+    "10": (-0.01, -0.01),
+    "20": (-0.02, -0.02),
+    "30": (-0.03, -0.03),
+    "10/20": (-0.01, -0.02),
+}
+
+
+def real_streams():
+    """Yield (name, pieces) for every real-record stream of the study."""
+    for first in ("ref", "lowered"):
+        for later in ("ref", "lowered"):
+            for place, (at, temp_at) in PLACES.items():
+                for step_name, step in STEPS.items():
+                    new = Piece(later, at, step, temp_at)
+                    same = tuple(np.asarray(new.truth_m()) - np.asarray(Piece(first, 0.0).truth_m()))
+                    after = at + 1.5 if at < 8 else at + 1.0
+                    base = f"{first} > {later} -{step_name} mm at {place}"
+                    yield f"{base}, last", [Piece(first, 0.0), new]
+                    yield f"{base}, middle", [Piece(first, 0.0), new, Piece(first, after, same, 6.0)]
+                    yield f"{base}, old between", [Piece(first, 0.0), Piece(first, 0.45), new]
+
+
+def real_study(verbose: bool) -> None:
+    folder = shared_data_dir() / "Settlements"
+    sur = load_surrogate()
+    counts = np.zeros(4, int)
+    n = 0
+    t0 = time.perf_counter()
+    for name, pieces in real_streams():
+        sc = build(folder, sur.A, pieces)
+        res = Shadow(load_config(), sur).run(sc.data)
+        truth = sc.truth_m
+        events_ok = [e.window for e in res.events] == [sc.starts_ns[i] // W for i in sc.changes()]
+        bounds = [*sc.starts_ns, 2**62]
+        changed = [(bounds[i], bounds[i + 1]) for i in sc.changes()]
+        lost = sum(
+            1 for o in res.outputs if o.reason == "outlier" and any(a <= o.end_ns < b + W for a, b in changed)
+        )
+        err = res.mean_m - truth
+        sd = np.sqrt(np.diag(res.covariance_m2))
+        within = bool(np.all(np.abs(err) <= np.maximum(0.1 * np.abs(truth), 1e-3)))
+        covered = bool(np.all(np.abs(err) <= 1.96 * sd))
+        counts += [events_ok, lost == 0, within, covered]
+        n += 1
+        if verbose or not (events_ok and not lost and within and covered):
+            print(
+                f"  {name:45s} events {len(res.events)}/{len(sc.changes())} lost {lost} "
+                f"error {np.round(1e3 * err, 2)} mm, 95 % +-{np.round(1.96e3 * sd, 1)} mm"
+            )
+    print(f"real records: {n} streams in {time.perf_counter() - t0:.0f} s")
+    labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
+    for label, c in zip(labels, counts, strict=True):
+        print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
+
+
+def twin_study(seeds: int, verbose: bool) -> None:
+    sur = load_surrogate()
+    for sun in (4.0, 0.0):
+        t0 = time.perf_counter()
+        scores = []
+        for seed in range(seeds):
+            data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun), sur)
+            s = score_day(Shadow(load_config(), sur).run(data), truth)
+            scores.append(s)
+            if verbose or not s.passed:
+                err = np.round(1e3 * s.error_m, 2)
+                print(f"  seed {seed}: events {s.events_right} lost {s.lost_windows} error {err} mm")
+        rates = {
+            "events right": np.mean([s.events_right for s in scores]),
+            "no window lost": np.mean([not s.lost_windows for s in scores]),
+            "within 10 %": np.mean([s.within_10pct for s in scores]),
+            "95 % holds": np.mean([s.covered for s in scores]),
+        }
+        err = np.array([s.error_m for s in scores]) * 1e3
+        print(f"twin load-test day, sun {sun:g} K: {seeds} seeds in {time.perf_counter() - t0:.0f} s")
+        for label, r in rates.items():
+            print(f"  {label:16s} {r:.3f}")
+        print(f"  final error mean {np.round(err.mean(axis=0), 2)} mm, sd {np.round(err.std(axis=0), 2)} mm")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seeds", type=int, default=200)
+    ap.add_argument("--only", choices=("real", "twin"))
+    ap.add_argument("--verbose", action="store_true")
+    args = ap.parse_args()
+    if args.only != "twin":
+        real_study(args.verbose)
+    if args.only != "real":
+        twin_study(args.seeds, args.verbose)
+
+
+if __name__ == "__main__":
+    main()

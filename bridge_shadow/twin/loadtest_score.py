@@ -1,0 +1,78 @@
+"""Score a shadow's replay of a twin load-test day against the day's truth (for tests and benchmarks).
+
+The criteria of issue 19 for one seed: every step found as an event at the right record (the first
+record with data after the change), no car-free window of a new state rejected, the final estimate
+within 10 % of the truth, and whether the 95 % interval holds it (a rate over seeds).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import pairwise
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.estimate.result import ReplayResult
+
+__all__ = ["DayScore", "score_day"]
+
+
+@dataclass(frozen=True)
+class DayScore:
+    """One seed's result.
+
+    Attributes:
+        events_right: one event per change, each inside the record where the new state begins.
+        lost_windows: car-free windows of a new state rejected as outliers.
+        within_10pct: the final estimate within 10 % of the true final settlement (per support).
+        covered: the final 95 % interval holds the truth on both supports.
+        error_m: (2,) final estimate minus truth, m; sigma_m: (2,) its published sd, m.
+
+    """
+
+    events_right: bool
+    lost_windows: int
+    within_10pct: bool
+    covered: bool
+    error_m: np.ndarray
+    sigma_m: np.ndarray
+
+    @property
+    def passed(self) -> bool:
+        """The per-seed criteria (coverage is a rate over seeds)."""
+        return self.events_right and not self.lost_windows and self.within_10pct
+
+
+def score_day(res: ReplayResult, truth: dict[str, Any], window_s: float = 60.0) -> DayScore:
+    """Score ``res`` (a replay of ``load_test_day``'s stream) against its ``truth``."""
+    w = round(window_s * 1e9)
+    starts, ends = truth["record_start_ns"], truth["record_end_ns"]
+    x = np.asarray(truth["record_x_m"], float)
+    used = [o.end_ns for o in res.outputs if o.updated]
+    with_data = [i for i in range(len(starts)) if any(starts[i] < t <= ends[i] + w for t in used)]
+    changes = [(starts[b], ends[b]) for a, b in pairwise(with_data) if np.any(np.abs(x[b] - x[a]) > 1e-9)]
+    found = sorted(e.time_ns for e in res.events)
+    events_right = len(found) == len(changes) and all(
+        a - w < t < b for t, (a, b) in zip(found, changes, strict=True)
+    )
+    car = truth["stops"]
+
+    def car_on(end_ns: int) -> bool:
+        return any(t0 < end_ns and t1 > end_ns - w for t0, t1, _, _ in car)
+
+    first_change = changes[0][0] if changes else 2**62
+    lost = sum(
+        1 for o in res.outputs if o.reason == "outlier" and o.end_ns > first_change and not car_on(o.end_ns)
+    )
+    end = x[with_data[-1]] if with_data else x[-1]
+    err = res.mean_m - end
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    return DayScore(
+        events_right,
+        lost,
+        bool(np.all(np.abs(err) <= 0.1 * np.abs(end))),
+        bool(np.all(np.abs(err) <= 1.96 * sd)),
+        err,
+        sd,
+    )

@@ -1,0 +1,145 @@
+"""Load-test days built from the two real records of 2022-04-11 (read from ../shared, never copied).
+
+Scenarios for tests and benchmarks (``test/test_loadtest_days.py``,
+``benchmarks/loadtest_days.py``); the twin's own load-test day is ``twin.loadtest``.
+
+The public data hold two 12-minute records of the central-support forces: the reference state
+(08:36 local) and the state after the whole central support was lowered by 10 mm (09:20), each with
+the test car crossing and parked on the bridge, plus the day's air temperature (08:36-17:49). A
+scenario places copies of them on a time line, cut or whole, hours apart, adds a further
+settlement step through the calibrated surrogate (forces + A dx), and pairs each copy with the
+real air temperature of the hour it is placed at (or of another hour, when it is placed beyond the
+day). The car's pattern and the bridge's own wander stay as they were recorded: only reality
+shows them.
+
+Truth of a piece (for scoring only): the record's own state (0 for the reference, -10 mm at both
+bearings for the lowered record) plus the added step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from bridge_shadow.contract import CHANNELS
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+__all__ = ["RECORDS", "Piece", "Scenario", "build", "load_records"]
+
+NS = 1_000_000_000
+HOUR_NS = 3600 * NS
+#: The two public records (file names in ``Settlements/``) and their imposed state [south, north] m.
+RECORDS = {
+    "ref": ("UniBw_2022-04-11_ref_support_load_01ForceAt100Hz.csv.zip", (0.0, 0.0)),
+    "lowered": ("UniBw_2022-04-11_support_load_01ForceAt100Hz.csv.zip", (-0.01, -0.01)),
+}
+TEMPERATURE_ZIP = "TemperatureData2022-04-11.zip"
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One record placed in a scenario.
+
+    Attributes:
+        record: ``ref`` or ``lowered``.
+        at_h: start of the copy, hours after the reference record's start (08:36 local).
+        step_m: settlement added through the surrogate [south, north], m (on top of the record's).
+        temp_at_h: take the air temperature of this hour (same reference) instead of the copy's own
+            (None: its own; required when the copy lies beyond the day's temperature record).
+        cut_min: keep only minutes ``[a, b)`` of the record (None: the whole record).
+
+    """
+
+    record: str
+    at_h: float
+    step_m: tuple[float, float] = (0.0, 0.0)
+    temp_at_h: float | None = None
+    cut_min: tuple[float, float] | None = None
+
+    def truth_m(self) -> np.ndarray:
+        """Return the true settlement of the copy [south, north], m."""
+        return np.asarray(RECORDS[self.record][1], float) + np.asarray(self.step_m, float)
+
+
+@dataclass
+class Scenario:
+    """A built scenario: the stream and what it should give (scoring only)."""
+
+    data: MonitoringData
+    pieces: tuple[Piece, ...]
+    starts_ns: list[int]
+
+    #: Hours after the reference record's start with a continuous air-temperature record (the
+    #: day's files leave gaps of minutes to half an hour between them).
+    TEMPERATURE_HOURS = ((0.0, 0.9), (1.14, 4.1), (5.62, 8.6))
+
+    @property
+    def truth_m(self) -> np.ndarray:
+        """True settlement at the end of the stream, m."""
+        return self.pieces[-1].truth_m()
+
+    def changes(self) -> list[int]:
+        """Return the indices of the pieces whose state differs from the one before (events)."""
+        return [
+            i
+            for i in range(1, len(self.pieces))
+            if np.max(np.abs(self.pieces[i].truth_m() - self.pieces[i - 1].truth_m())) > 1e-9
+        ]
+
+
+@lru_cache(maxsize=2)
+def load_records(folder: Path) -> tuple[dict[str, MonitoringData], TemperatureSeries]:
+    """Import the two force records and the day's air temperature (cached per folder)."""
+    from bridge_shadow.importers import import_csv
+
+    recs = {name: import_csv([folder / fname])[0] for name, (fname, _) in RECORDS.items()}
+    temp = import_csv([folder / TEMPERATURE_ZIP])[0].temperature
+    return recs, temp
+
+
+def build(folder: Path, A: np.ndarray, pieces: tuple[Piece, ...] | list[Piece]) -> Scenario:
+    """Build the stream of ``pieces`` (in the given order, which must be increasing in ``at_h``).
+
+    ``A`` (2, 2) N/m maps each piece's added step to forces.
+    """
+    recs, temp = load_records(Path(folder))
+    t_ref = int(recs["ref"].forces[CHANNELS[0]].stamp_ns[0])
+    forces: dict[str, list[ForceSeries]] = {ch: [] for ch in CHANNELS}
+    t_parts: list[tuple[np.ndarray, np.ndarray]] = []
+    starts = []
+    for p in pieces:
+        rec = recs[p.record]
+        t0 = int(rec.forces[CHANNELS[0]].stamp_ns[0])
+        shift = t_ref + round(p.at_h * HOUR_NS) - t0
+        d_force = np.asarray(A, float) @ np.asarray(p.step_m, float)
+        lo, hi = (-np.inf, np.inf) if p.cut_min is None else (p.cut_min[0] * 60 * NS, p.cut_min[1] * 60 * NS)
+        for c, ch in enumerate(CHANNELS):
+            s = rec.forces[ch]
+            keep = (s.stamp_ns - t0 >= lo) & (s.stamp_ns - t0 < hi)
+            moved = ForceSeries(s.stamp_ns[keep] + shift, s.force_n[keep] + d_force[c], s.frame_id[keep])
+            forces[ch].append(moved)
+        first = int(forces[CHANNELS[0]][-1].stamp_ns[0])
+        last = int(max(f[-1].stamp_ns[-1] for f in forces.values()))
+        starts.append(first)
+        # the air temperature over the copy (plus a minute either side): its own hour's, or another's
+        src = 0 if p.temp_at_h is None else t_ref + round(p.temp_at_h * HOUR_NS) - first
+        sel = (temp.stamp_ns >= first - 60 * NS + src) & (temp.stamp_ns <= last + 60 * NS + src)
+        if not np.any(sel) or np.max(np.diff(temp.stamp_ns[sel]), initial=0) > 120 * NS:
+            raise ValueError(f"no continuous air temperature for {p}: give temp_at_h, an hour that has it")
+        t_parts.append((temp.stamp_ns[sel] - src, temp.temp_c[sel]))
+    merged = {ch: _concat(forces[ch]) for ch in CHANNELS}
+    ts = np.concatenate([t for t, _ in t_parts])
+    tv = np.concatenate([v for _, v in t_parts])
+    order = np.argsort(ts, kind="stable")
+    return Scenario(MonitoringData(merged, TemperatureSeries(ts[order], tv[order])), tuple(pieces), starts)
+
+
+def _concat(parts: list[ForceSeries]) -> ForceSeries:
+    return ForceSeries(
+        np.concatenate([p.stamp_ns for p in parts]),
+        np.concatenate([p.force_n for p in parts]),
+        np.concatenate([p.frame_id for p in parts]),
+    )

@@ -1,0 +1,241 @@
+"""Load-test days and records hours apart: a real settlement is never lost (issue 19).
+
+Built from the two real records of 2022-04-11 (``real_scenarios``: the reference and the 10 mm
+record, cut, shifted by hours, with steps added through the calibrated ``A``, each paired with the
+air temperature of the hour it is placed at), and from the twin's load-test day
+(``twin.loadtest``: 12-minute records hours apart, a parked test car, the sun on the deck). Only
+reality showed the failure: the reference record followed by a later record at a new state ended
+at the old state, every window of the new state rejected as an outlier, exit 0.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bridge_shadow.estimate import Shadow, load_config
+from bridge_shadow.estimate.result import ReplayResult
+from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.twin.real_records import Piece, Scenario, build
+
+W = 60 * 10**9
+#: (hour the later record is placed at, hour whose air temperature it gets; None: its own)
+SPACINGS = {"1 h": (1.25, None), "4 h": (4.0, 6.5), "24 h": (24.0, 7.5)}
+STEPS = {"none": (0.0, 0.0), "10 mm": (-0.01, -0.01), "20 mm": (-0.02, -0.02), "10/20 mm": (-0.01, -0.02)}
+
+
+@pytest.fixture(scope="module")
+def folder(munich_data: Path) -> Path:
+    return munich_data / "Settlements"
+
+
+@pytest.fixture(scope="module")
+def surrogate():
+    return load_surrogate()
+
+
+def replay(sc: Scenario, surrogate) -> tuple[Shadow, ReplayResult]:
+    shadow = Shadow(load_config(), surrogate)
+    return shadow, shadow.run(sc.data)
+
+
+def check(sc: Scenario, res: ReplayResult) -> None:
+    """The issue's criteria on one stream (scoring against the scenario's truth only here)."""
+    truth = sc.truth_m
+    # one event at the first window of every record whose state differs from the one before
+    assert [e.window for e in res.events] == [sc.starts_ns[i] // W for i in sc.changes()], res.events
+    # no window of a changed record is thrown away
+    bounds = [*sc.starts_ns, 2**62]
+    changed = [(bounds[i], bounds[i + 1]) for i in sc.changes()]
+    lost = [
+        o
+        for o in res.outputs
+        if o.reason == "outlier" and any(a <= o.end_ns < b + W for a, b in changed)
+    ]
+    assert not lost
+    # the right state, with a 95 % interval that holds it
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    err = res.mean_m - truth
+    assert np.all(np.abs(err) <= 1.96 * sd), (err, sd)
+    assert np.all(np.abs(err) <= np.maximum(0.1 * np.abs(truth), 1e-3)), (err, truth)
+
+
+@pytest.mark.realdata
+def test_the_new_state_four_hours_later_is_one_event_not_outliers(folder: Path, surrogate) -> None:
+    """The issue's case: the reference record, then the same record four hours later, 20 mm lower."""
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0), Piece("ref", 4.0, (-0.02, -0.02), temp_at_h=6.5)])
+    _, res = replay(sc, surrogate)
+    check(sc, res)
+    assert res.rejected["outlier"] == 0
+    assert res.events[0].kind == "gap"
+    assert res.state["kind"] == "gap" and res.state["change_probability"] > 0.999
+    js = res.to_json()
+    assert js["gaps"][0]["confirmed"] and js["gaps"][0]["duration_s"] > 3 * 3600
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("first", ["ref", "lowered"])
+@pytest.mark.parametrize("spacing", list(SPACINGS))
+@pytest.mark.parametrize("step", list(STEPS))
+def test_the_two_records_in_either_order_end_at_the_right_state(
+    folder: Path, surrogate, first: str, spacing: str, step: str
+) -> None:
+    """Either order, any spacing, any step added to the later record, three ways.
+
+    The new state as the last record, in the middle (a third record at the same state follows),
+    and with a record of the old state in between.
+    """
+    later = "lowered" if first == "ref" else "ref"
+    at, temp_at = SPACINGS[spacing]
+    new = Piece(later, at, STEPS[step], temp_at)
+    same = np.asarray(new.truth_m()) - np.asarray(Piece(first, 0.0).truth_m())
+    variants = {
+        "last": [Piece(first, 0.0), new],
+        "middle": [Piece(first, 0.0), new, Piece(first, at + 1.5 if at < 8 else at + 1.0, tuple(same), 6.0)],
+        "old state between": [Piece(first, 0.0), Piece(first, 0.45), new],
+    }
+    for name, pieces in variants.items():
+        sc = build(folder, surrogate.A, pieces)
+        _, res = replay(sc, surrogate)
+        try:
+            check(sc, res)
+        except AssertionError as err:
+            raise AssertionError(f"{name}: {err}") from None
+
+
+@pytest.mark.realdata
+def test_a_new_state_too_short_to_confirm_is_an_unconfirmed_change(folder: Path, surrogate) -> None:
+    """The data end two minutes into the new state: reported with its size, never thrown away."""
+    short = Piece("ref", 4.0, (-0.02, -0.02), 6.5, cut_min=(0.0, 2.5))
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0), short])
+    shadow, res = replay(sc, surrogate)
+    assert not res.events and res.rejected["outlier"] == 0
+    js = res.to_json()
+    (change,) = js["unconfirmed_changes"]
+    assert change["kind"] == "gap" and change["likely"] and change["windows"] < 4
+    lo, hi = np.array(change["interval95_m"]).T
+    assert np.all((lo < -0.02) & (-0.02 < hi))  # its size interval holds the 20 mm
+    assert any("unconfirmed settlement change" in w for w in js["warnings"])
+    state = js["posterior"]["state"]
+    assert state["kind"] == "gap" and "unconfirmed" in state["text"]
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    assert np.all(np.abs(res.mean_m - sc.truth_m) <= 1.96 * sd)  # the mixture holds the new state
+    diag = shadow.diagnostics()
+    assert diag["level"] == "WARN" and "unconfirmed" in diag["message"]
+
+
+@pytest.mark.realdata
+def test_every_rejected_window_is_listed_with_its_time_and_reason(folder: Path, surrogate) -> None:
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0, cut_min=(0.0, 6.0)), Piece("ref", 0.15)])
+    _, res = replay(sc, surrogate)
+    js = res.to_json()
+    listed = js["rejected_windows"]
+    not_used = [o for o in res.outputs if not o.updated]
+    reasons = {w["reason"] for w in listed}
+    assert len(listed) == len(not_used) == sum(v for k, v in js["rejected"].items() if k in reasons)
+    for w, o in zip(listed, not_used, strict=True):
+        assert w["reason"] == o.reason and w["window"] == o.index and w["time_ns"] == o.index * W
+        assert w["time"].endswith("Z") and w["time"][:4] == "2022"
+
+
+def _twin_day(seed: int, sun_k: float):
+    from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
+    from bridge_shadow.twin.loadtest_score import score_day
+
+    sur = load_surrogate()
+    data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun_k), sur)
+    return score_day(Shadow(load_config(), sur).run(data), truth)
+
+
+@pytest.mark.slow
+def test_twin_load_test_days_find_every_step_and_keep_every_window() -> None:
+    """The twin's load-test day over 100 seeds: every step an event, no window lost, honest intervals.
+
+    Four 12-minute records (08:36, 09:20, 13:30, 15:00), 10 mm lower each time, the test car
+    parked at two or three places in every record, the sun on the deck (a 4 K vertical difference
+    at full clear sky). Every step is an event at its record, no car-free window of a new state is
+    rejected, the final 95 % interval holds the truth in at least 90 % of the days. Without the
+    sun the final estimate is within 10 % of the truth on every day; with it, the afternoon records
+    carry the sun's unmodelled reaction (2-3 mm at -30 mm), which the interval holds but the 10 %
+    does not always (``benchmarks/loadtest_days.py`` prints both).
+    """
+    sunny = [_twin_day(seed, 4.0) for seed in range(100)]
+    assert all(s.events_right for s in sunny), [i for i, s in enumerate(sunny) if not s.events_right]
+    assert not any(s.lost_windows for s in sunny)
+    assert np.mean([s.covered for s in sunny]) >= 0.9
+    clear = [_twin_day(seed, 0.0) for seed in range(30)]
+    assert all(s.passed for s in clear), [i for i, s in enumerate(clear) if not s.passed]
+    assert np.mean([s.covered for s in clear]) >= 0.9
+
+
+def _cut(data, t_ns: int, after: bool):
+    """The messages stamped before ``t_ns`` (or from it on)."""
+    from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+    def keep(stamps):
+        return stamps >= t_ns if after else stamps < t_ns
+
+    forces = {}
+    for ch, f in data.forces.items():
+        m = keep(f.stamp_ns)
+        forces[ch] = ForceSeries(f.stamp_ns[m], f.force_n[m], f.frame_id[m], f.log_ns[m])
+    t = data.temperature
+    m = keep(t.stamp_ns)
+    temp = TemperatureSeries(t.stamp_ns[m], t.temp_c[m], t.variance[m], t.frame_id[m], t.log_ns[m])
+    return MonitoringData(forces, temp)
+
+
+@pytest.mark.realdata
+def test_checkpoint_and_resume_keep_the_held_windows_and_the_open_change(
+    folder: Path, surrogate, tmp_path: Path
+) -> None:
+    """Stopped and resumed while the detector holds a car's windows, or inside a provisional segment."""
+    pieces = [
+        Piece("ref", 0.0),
+        Piece("ref", 4.0, (-0.02, -0.02), 6.5),
+        Piece("lowered", 6.0, (-0.01, -0.01), 7.0),
+    ]
+    sc = build(folder, surrogate.A, pieces)
+    cfg = load_config(None, {"checkpoint_path": str(tmp_path / "shadow.npz")})
+    whole = Shadow(cfg, surrogate).run(sc.data)
+    assert [e.window for e in whole.events] == [sc.starts_ns[1] // W]
+    second = sc.starts_ns[1]
+    for minutes in (2.5, 5.5, 9.5):  # one window after the gap; while the parked car's windows are held
+        cut = second + round(minutes * 60e9)
+        a = Shadow(cfg, surrogate)
+        a.run(_cut(sc.data, cut, after=False), flush=False)
+        held = len(a.detector.pending)
+        a.save_checkpoint()
+        b = Shadow.resume(tmp_path / "shadow.npz", cfg, surrogate)
+        assert len(b.detector.pending) == held and b.filter.kinds == a.filter.kinds
+        res = b.run(_cut(sc.data, cut, after=True))
+        np.testing.assert_allclose(res.mean_m, whole.mean_m, rtol=1e-9, atol=0.0)
+        np.testing.assert_allclose(res.covariance_m2, whole.covariance_m2, rtol=1e-9, atol=0.0)
+        assert [e.window for e in res.events] == [e.window for e in whole.events]
+        assert b.rejected == whole.rejected
+
+
+@pytest.mark.realdata
+@pytest.mark.ros
+def test_live_replay_of_records_hours_apart_follows_the_new_state_as_direct(
+    folder: Path, surrogate, tmp_path: Path
+) -> None:
+    """The node sees the data stop for hours and come back at a new state: the same answer as direct."""
+    pytest.importorskip("rclpy")
+    from bridge_shadow.bagio import read_monitoring, write_monitoring
+    from bridge_shadow.ros.live_replay import run_live
+
+    short = Piece("ref", 4.0, (-0.02, -0.02), 6.5, cut_min=(0.0, 2.5))
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0), short])
+    bag = write_monitoring(tmp_path / "day", sc.data)
+    direct = Shadow(load_config()).run(read_monitoring(bag)).to_json()
+    live = run_live(bag, timeout_s=60.0)
+    np.testing.assert_allclose(live["posterior"]["mean_m"], direct["posterior"]["mean_m"], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(
+        live["posterior"]["covariance_m2"], direct["posterior"]["covariance_m2"], rtol=1e-12, atol=0
+    )
+    assert live["unconfirmed_changes"] == direct["unconfirmed_changes"]
+    assert live["posterior"]["state"] == direct["posterior"]["state"]
+    assert live["rejected"] == direct["rejected"] and live["rejected"]["outlier"] == 0
