@@ -351,3 +351,27 @@ def test_a_calibrated_surrogates_model_uncertainty_joins_the_published_covarianc
     np.testing.assert_allclose(
         wide.outputs[-1].covariance_m2, plain.outputs[-1].covariance_m2 + extra, rtol=1e-12
     )
+
+
+@pytest.mark.parametrize(("outage_min", "kind"), [(5, "step"), (30, "gap")])
+def test_gap_s_decides_whether_an_outage_is_a_gap(outage_min: int, kind: str) -> None:
+    """``gap_s`` (600 s) decides: a step the detector finds, or a change at a gap.
+
+    A change during a short outage is a step the detector finds at the first window after it;
+    across a longer one it is a change at a gap, weighed by the next data.
+    """
+    data = synthetic(minutes=150, rate=2, seed=5)
+    cut_lo, cut_hi = T0 + 80 * 60 * S, T0 + (80 + outage_min) * 60 * S
+    forces = {}
+    for c, ch in enumerate(CHANNELS):
+        f = data.forces[ch]
+        y = f.force_n + (f.stamp_ns >= cut_hi) * (placeholder_surrogate().A[c] @ np.array([-1e-3, -1e-3]))
+        keep = (f.stamp_ns < cut_lo) | (f.stamp_ns >= cut_hi)
+        forces[ch] = ForceSeries(f.stamp_ns[keep], y[keep], f.frame_id[keep])
+    data = MonitoringData(forces, data.temperature)
+    shadow = Shadow(small_config(), placeholder_surrogate())
+    res = shadow.run(data)
+    assert [(e.kind, e.window) for e in res.events] == [(kind, cut_hi // (60 * S))]
+    assert len(shadow.gaps) == (kind == "gap")
+    sd = np.sqrt(np.diag(res.events[0].covariance_m2))
+    np.testing.assert_allclose(res.events[0].size_m, [-1e-3, -1e-3], atol=4 * sd.max())

@@ -104,3 +104,58 @@ def test_float_helpers_equal_numpy() -> None:
     np.testing.assert_allclose(
         np.array(congruence(tuple(t.ravel()), sym)), (t @ m @ t.T)[[0, 0, 1], [0, 1, 1]]
     )
+
+
+def test_a_provisional_segment_is_the_exact_mixture_of_changed_and_unchanged() -> None:
+    """After a gap the posterior is the two-hypothesis mixture, computed here from every window.
+
+    Independent implementation: the evidence of all windows under "no change" (one x for both
+    segments) and "change" (x2 = x1 + j, j ~ N(0, J)) from the dense joint Gaussians, the posterior
+    of each, and the moments of their mixture with the prior probability 0.3 of a change.
+    """
+    from scipy.stats import multivariate_normal
+
+    n, n1 = 60, 35
+    seg = (np.arange(n) >= n1).astype(int)
+    jump = np.diag([2e-3, 3e-3]) ** 2
+    for shift, seed in ((0.0, 1), (4e-4, 2), (2e-3, 3)):  # no change, a small one, a clear one
+        rows, sums, fit, noise = _setup(n, np.zeros(n, int), seed=seed)  # one state throughout
+        rows.seg = seg.astype(np.int64)
+        rows.y[seg == 1] += SUR.A @ np.array([shift, -shift])  # ... unless it changes across the gap
+        sums = FitSums(sums.q)
+        sums.add(rows)
+        chain = SegmentChain(SUR.A, PRIOR, jump)
+        chain.start(0)
+        chain.open_segment(n1, kind="gap", change_prior=0.3)
+        chain.refresh(sums, fit, noise)
+        # window covariances: the segment's AR(1) run covariance over the samples of each window
+        blocks = []
+        for s in range(2):
+            rs = noise.run_cov(int((seg == s).sum()))
+            blocks += [rs / np.sqrt(np.outer(mi, mi)) for mi in rows.m[seg == s]]
+        R = np.zeros((2 * n, 2 * n))
+        for i, b in enumerate(blocks):
+            R[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = b
+        y = rows.y.ravel()
+        H1 = np.zeros((2 * n, 4))
+        for i, s in enumerate(seg):
+            H1[2 * i : 2 * i + 2, 2 * s : 2 * s + 2] = SUR.A
+        H0 = H1[:, :2] + H1[:, 2:]  # one x for both segments
+        prior1 = np.block([[PRIOR, PRIOR], [PRIOR, PRIOR + jump]])
+        moments, evidence = [], []
+        for H, prior in ((H0, PRIOR), (H1, prior1)):
+            evidence.append(multivariate_normal(np.zeros(2 * n), H @ prior @ H.T + R).logpdf(y))
+            r_inv = np.linalg.inv(R)  # information form: well conditioned, unlike inverting S
+            post = np.linalg.inv(np.linalg.inv(prior) + H.T @ r_inv @ H)
+            moments.append(((post @ H.T @ r_inv @ y)[-2:], post[-2:, -2:]))
+        p = 1.0 / (1.0 + (0.7 / 0.3) * np.exp(evidence[0] - evidence[1]))
+        (x0, c0), (x1, c1) = moments
+        mean = (1 - p) * x0 + p * x1
+        cov = (1 - p) * c0 + p * c1 + p * (1 - p) * np.outer(x1 - x0, x1 - x0)
+        np.testing.assert_allclose(chain.change_probability, p, rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(chain.x, mean, rtol=1e-6, atol=1e-12)
+        np.testing.assert_allclose(chain.P, cov, rtol=1e-6, atol=1e-16)
+        if shift == 0.0:
+            assert p < 0.2
+        if shift == 2e-3:
+            assert p > 0.999
