@@ -119,7 +119,7 @@ def test_a_new_state_too_short_to_confirm_is_an_unconfirmed_change(folder: Path,
     assert np.all((lo < -0.02) & (-0.02 < hi))  # its size interval holds the 20 mm
     assert any("unconfirmed settlement change" in w for w in js["warnings"])
     state = js["posterior"]["state"]
-    assert state["kind"] == "gap" and "unconfirmed" in state["text"]
+    assert state["kind"] == "gap" and "not confirmed" in state["text"]
     sd = np.sqrt(np.diag(res.covariance_m2))
     assert np.all(np.abs(res.mean_m - sc.truth_m) <= 1.96 * sd)  # the mixture holds the new state
     diag = shadow.diagnostics()

@@ -128,7 +128,7 @@ def _summary(js: dict[str, Any]) -> str:
             for side, m, sd in zip(("south", "north"), c["size_m"], c["sigma_m"], strict=True)
         )
         if c["kind"] == "run_in_data":
-            how = f"a run of {c['windows']} windows without a step's jump, used as data"
+            how = f"a run of {c['windows']} windows until {c['until']} without a step's jump, used as data"
         else:
             where = f"after a gap of {c['gap_s'] / 3600.0:.1f} h" if c["kind"] == "gap" else "a held run"
             how = f"{where}, change probability {c['change_probability']:.3g}"

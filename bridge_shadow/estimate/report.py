@@ -136,11 +136,10 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         size = a_inv @ np.asarray(r["step_n"], float)
         cov = a_inv @ np.asarray(r["step_cov_n2"], float) @ a_inv.T
         cov = cov + shadow.surrogate.model_covariance(size, with_u0=False)
-        k = int(r["window"])
+        k, n, until = int(r["window"]), int(r["windows"]), (int(r["until_window"]) + 1) * shadow._w_ns
         significant = bool(r["glr"] > shadow.detector.h_event)
-        n = int(r["windows"])
-        nan = float("nan")
-        out.append(ChangeRecord(k, k * shadow._w_ns, "run_in_data", nan, n, size, cov, 0.0, significant))
+        t = k * shadow._w_ns
+        out.append(ChangeRecord(k, t, "run_in_data", float("nan"), n, size, cov, 0.0, significant, until))
     return sorted(out, key=lambda c: c.window)
 
 
@@ -228,7 +227,8 @@ def warnings(shadow: Shadow) -> list[str]:
             for side, m, sd in zip(SUPPORTS, c.size_m, np.sqrt(np.diag(c.covariance_m2)), strict=True)
         )
         if c.kind == "run_in_data":
-            how = f"{c.windows} windows, used as data of the current state"
+            until = iso_utc(c.until_ns or c.time_ns)
+            how = f"{c.windows} windows until {until}, used as data of the current state"
         else:
             how = (
                 f"probability {c.change_probability:.3g}, {c.windows} windows since; "

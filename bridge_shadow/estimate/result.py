@@ -137,6 +137,7 @@ class ChangeRecord:
         covariance_m2: (2, 2) m^2, its covariance.
         gap_s: length of the gap before it, s (0 for a held run).
         significant: for a ``run_in_data``: its GLR passed the event threshold (None otherwise).
+        until_ns: for a ``run_in_data``: the end of its last window, ns (None otherwise).
 
     """
 
@@ -149,6 +150,7 @@ class ChangeRecord:
     covariance_m2: np.ndarray
     gap_s: float = 0.0
     significant: bool | None = None
+    until_ns: int | None = None
 
     @property
     def likely(self) -> bool:
@@ -168,6 +170,7 @@ class ChangeRecord:
             "likely": self.likely,
             "windows": int(self.windows),
             "gap_s": float(self.gap_s),
+            **({} if (u := self.until_ns) is None else {"until_ns": int(u), "until": iso_utc(u)}),
             **_size_json(self.size_m, self.covariance_m2),
             "size_chi2": _chi2(self.size_m, self.covariance_m2),
         }

@@ -553,19 +553,31 @@ class Shadow:
             for w in decision.change[1:]:
                 w.action = "accept"
         if decision.unconfirmed:
-            self.unconfirmed_runs.append(
-                {
-                    "window": decision.unconfirmed[0].k,
-                    "detected_window": self._last_judged,
-                    "windows": len(decision.unconfirmed),
-                    "glr": float(decision.glr),
-                    "step_n": np.asarray(decision.step_n, float).tolist(),
-                    "step_cov_n2": np.asarray(decision.step_cov_n2, float).tolist(),
-                }
-            )
+            self._note_run(decision)
         for w in decision.accept:
             w.action = "accept"
         return []
+
+    def _note_run(self, decision: Decision) -> None:
+        """Report a run that reached ``event_max_pending`` without a step (its windows are data).
+
+        A run that starts where the last reported one ended continues the same excursion (a wander
+        that went on for hours reaches the forced decision again and again): one report, its
+        window count grown, its size the latest.
+        """
+        run = decision.unconfirmed or []
+        record = {
+            "detected_window": self._last_judged,
+            "until_window": run[-1].k,
+            "glr": float(decision.glr),
+            "step_n": np.asarray(decision.step_n, float).tolist(),
+            "step_cov_n2": np.asarray(decision.step_cov_n2, float).tolist(),
+        }
+        last = self.unconfirmed_runs[-1] if self.unconfirmed_runs else None
+        if last is not None and run[0].k - last["until_window"] <= self.detector.confirm:
+            last.update(record, windows=last["windows"] + len(run), glr=max(last["glr"], record["glr"]))
+        else:
+            self.unconfirmed_runs.append({"window": run[0].k, "windows": len(run), **record})
 
     def _drain(self) -> list[WindowOutput]:
         """Apply the decided windows at the head of the queue in order; return their outputs."""
