@@ -278,17 +278,6 @@ def test_topic_parameters_rename_the_node_graph(bag: Path, direct, tmp_path: Pat
     assert MEAN_TOPIC not in out and len(out[RENAMED["topic_mean"]][1]) == len(direct.outputs)
 
 
-def test_paced_live_replay_keeps_the_bag_pace_and_the_posterior(bag: Path, direct) -> None:
-    """``rate`` paces publishing by the bag's log times; the posterior does not change."""
-    log = np.concatenate([t for t, _ in read_raw_topics(bag, INPUT_TOPICS).values()])
-    rate = 20_000.0
-    paced_s = (log.max() - log.min()) / 1e9 / rate  # about 4.3 s for one day
-    live = run_live(bag, overrides=OVERRIDES, rate=rate, timeout_s=TIMEOUT_S)
-    assert live["live"]["publish_s"] >= 0.95 * paced_s
-    np.testing.assert_allclose(live["posterior"]["mean_m"], direct.mean_m, rtol=1e-12, atol=0)
-    assert live["windows"]["updates"] == direct.updates
-
-
 def test_live_replay_of_a_bag_without_temperature_runs_uncompensated(
     bag: Path, tmp_path: Path, capfd
 ) -> None:
