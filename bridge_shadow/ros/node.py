@@ -534,8 +534,9 @@ def parameter_descriptor(name: str, kind: str) -> ParameterDescriptor:
 
     Type, description (the comment of config/shadow.yaml, unit, constraint, role), the constraint
     in words, and the range where both ends are finite. Parameters that cannot change while the
-    node runs are read-only; the live ones take an integer for a real (dynamic typing, the
-    set-parameters callback then checks the value).
+    node runs are read-only; the live ones take an integer for a real (dynamic typing) and carry
+    no range: the set-parameters callback checks the value and says why it refuses one (rclpy's
+    own range check would answer first, without the reason).
     """
     spec = SPECS.get(name)
     live = spec is not None and spec.live
@@ -547,7 +548,7 @@ def parameter_descriptor(name: str, kind: str) -> ParameterDescriptor:
         read_only=not live,
         dynamic_typing=live,
     )
-    if spec is not None and spec.low is not None and spec.high is not None:
+    if spec is not None and not live and spec.low is not None and spec.high is not None:
         if kind == "float":
             descriptor.floating_point_range = [
                 FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)
