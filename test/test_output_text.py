@@ -87,7 +87,7 @@ def test_watch_line_shows_the_latest_outputs() -> None:
     put(DIAGNOSTICS_TOPIC, diagnostic_array([Status("bridge_shadow: settlement", 1, "warming up")], end_ns))
     line = watch_line(records, 0.42)
     assert line == (
-        "[ 42%] window to 2022-03-14 07:00 UTC: south +0.700 ± 0.020 mm, north -0.690 ± 0.039 mm"
+        "[ 42%] window to 2022-03-14T07:00Z: south +0.700 ± 0.020 mm, north -0.690 ± 0.039 mm"
         " | compensated 238.91 / 238.87 kN | settlement WARN | 2 windows"
     )
     import io
