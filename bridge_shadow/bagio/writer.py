@@ -55,7 +55,7 @@ def _check_target(path: Path, overwrite: bool) -> None:
     if not path.exists() and not path.is_symlink():
         return
     if not overwrite:
-        raise BagExistsError(f"{path}: exists already, not overwriting it")
+        raise BagExistsError(f"{path}: exists already; pass --force to replace it")
     if path.is_dir() and not path.is_symlink():
         entries = list(path.iterdir())
         looks_like_bag = all(e.is_file() and e.name.endswith(_BAG_FILE_SUFFIXES) for e in entries) and (

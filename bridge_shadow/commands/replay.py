@@ -57,6 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="with --live: publish at X times the bag's pace (1 = real time; default: as fast as taken)",
     )
     parser.add_argument("--out", metavar="OUTBAG", help="write the outputs (mean, covariance, ...) as a bag")
+    parser.add_argument("--force", action="store_true", help="replace an existing bag at --out")
     parser.add_argument("--plots", metavar="DIR", help="write PNG plots (compensation, posterior, ellipse)")
     parser.add_argument(
         "--checkpoint",
@@ -78,6 +79,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _summary(js: dict[str, Any]) -> str:
     import numpy as np
+
+    from bridge_shadow.timefmt import iso_utc
 
     mean = np.array(js["posterior"]["mean_m"])
     cov = np.array(js["posterior"]["covariance_m2"])
@@ -118,21 +121,21 @@ def _summary(js: dict[str, Any]) -> str:
         )
         if not e.get("size_significant95", True):
             size += " (its 95 % region holds zero: the forces changed, a settlement is not proven)"
-        lines.append(f"event {i}: settlement step at window {e['window']} ({_utc(e['time_ns'])}): {size}")
+        lines.append(f"event {i}: settlement step at {iso_utc(e['time_ns'])}: {size}")
     for ch, sp in js["spline"].items():
         # JSON carries a non-finite lambda (no curve: no temperature) as null (the live node's report)
         lam = float("inf") if sp["lambda"] is None else sp["lambda"]
         lines.append(
-            f"compensation {ch}: edf {sp['edf']:.2f}, lambda {lam:.3g}, "
+            f"compensation {ch}: {sp['edf']:.2f} effective degrees of freedom, lambda {lam:.3g} °C³, "
             f"level {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
         )
+    sur = js.get("surrogate") or {}
+    if sur.get("condition_number") is not None:
+        lines.append(
+            f"surrogate: {sur.get('solver') or 'unknown solver'}, "
+            f"condition number of A {sur['condition_number']:.3g}"
+        )
     return "\n".join(lines)
-
-
-def _utc(stamp_ns: int) -> str:
-    import datetime as dt
-
-    return dt.datetime.fromtimestamp(stamp_ns / 1e9, dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 
 
 def _loud(js: dict[str, Any]) -> int:
@@ -168,20 +171,23 @@ def run(args: argparse.Namespace) -> int:
     started = getattr(args, "started", None) or time.perf_counter()
 
     from bridge_shadow.bagio import check_bag_target
-    from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.commands.output import progress
     from bridge_shadow.errors import InputError
     from bridge_shadow.estimate import load_config
+    from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
     from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.model.surrogate_file import load_surrogate
 
     show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "replay"))
-    if args.rate is not None and (not args.live or not (0 < args.rate < float("inf"))):
-        raise InputError("--rate needs --live and a positive, finite speed factor")
+    if args.rate is not None:
+        if not args.live:
+            raise InputError("--rate needs --live (it paces the publishing to the node)")
+        check_value("--rate", args.rate, "float", VALUE_SPECS["rate"])
     if args.watch and not args.live:
         raise InputError("--watch needs --live (it shows the node's topics)")
     # the outputs are checked before the replay runs, so a bad path costs no time
     if args.out:
-        check_bag_target(args.out)
+        check_bag_target(args.out, args.force)
     if args.plots:
         check_output_dir(args.plots, "plot directory")
     over = {"surrogate_path": str(Path(args.surrogate).resolve())} if args.surrogate else None
@@ -192,6 +198,7 @@ def run(args: argparse.Namespace) -> int:
             args.bag,
             args.params,
             out=args.out,
+            overwrite=args.force,
             plots=args.plots,
             rate=args.rate,
             overrides=over,
@@ -200,11 +207,7 @@ def run(args: argparse.Namespace) -> int:
             watch=args.watch,
         )
         _end_to_end_rate(js, started)
-        if args.json:
-            emit_json(js)
-        else:
-            print(_summary(js))
-        return _loud(js)
+        return _report(js, args.json)
 
     from bridge_shadow.contract import INPUT_TOPICS
     from bridge_shadow.estimate.startup import open_shadow
@@ -220,15 +223,17 @@ def run(args: argparse.Namespace) -> int:
     # history; the air temperature may be absent: the shadow then runs uncompensated and says so
     history = HISTORY_CAPACITY if args.plots else None
     result, _ = replay_bag(
-        args.bag, shadow, out=args.out, history=history, progress=show, required=list(INPUT_TOPICS)[:2]
+        args.bag,
+        shadow,
+        out=args.out,
+        overwrite=args.force,
+        history=history,
+        progress=show,
+        required=list(INPUT_TOPICS)[:2],
     )
     js = result.to_json()
     js["bag"] = str(args.bag)
-    js["surrogate"] = {
-        "A": surrogate.A.tolist(),
-        "u0": surrogate.u0.tolist(),
-        "solver": surrogate.provenance.get("solver", ""),
-    }
+    js["surrogate"] = surrogate.summary()
     if args.out:
         js["out"] = str(args.out)
     _end_to_end_rate(js, started)
@@ -236,7 +241,19 @@ def run(args: argparse.Namespace) -> int:
         from bridge_shadow.estimate.plots import write_plots
 
         js["plots"] = [str(p) for p in write_plots(args.plots, result, shadow)]
-    if args.json:
+    return _report(js, args.json)
+
+
+def _report(js: dict[str, Any], as_json: bool) -> int:
+    """Check that the result is finite, print it (JSON or text), say what must not pass silently."""
+    from bridge_shadow.commands.output import emit_json, require_finite
+
+    post = js["posterior"]
+    numbers = {"posterior.mean_m": post["mean_m"], "posterior.covariance_m2": post["covariance_m2"]}
+    for i, e in enumerate(js.get("events", []), 1):
+        numbers[f"events[{i}].size_m"] = e["size_m"]
+    require_finite(numbers, "posterior")
+    if as_json:
         emit_json(js)
     else:
         print(_summary(js))
