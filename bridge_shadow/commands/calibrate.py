@@ -149,7 +149,7 @@ def _check(args: argparse.Namespace, spec: object) -> int:
     """``--check``: read every pair through the given surrogate; 1 when an interval misses."""
     from bridge_shadow.calibrate.check import check_pair, check_text
     from bridge_shadow.calibrate.run import measure_pairs
-    from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.commands.output import emit_json, progress, require_finite
     from bridge_shadow.errors import InputError
     from bridge_shadow.model.surrogate_file import load_surrogate
 
@@ -161,6 +161,10 @@ def _check(args: argparse.Namespace, spec: object) -> int:
     surrogate = load_surrogate(args.check)
     pairs = measure_pairs(spec, report=lambda f, s: progress(f, "records"))
     checks = [check_pair(p.name, p.change, surrogate, p.imposed_m, p.imposed_sd_m) for p in pairs]
+    require_finite(
+        {f"{c.name}: {key}": c.to_dict()[key] for c in checks for key in ("x_m", "covariance_m2")},
+        "settlement read through the surrogate",
+    )
     if args.json:
         emit_json({"surrogate": str(args.check), "pairs": [c.to_dict() for c in checks]})
     else:

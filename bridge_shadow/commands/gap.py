@@ -188,7 +188,7 @@ def _human(summary: dict) -> str:
 def run(args: argparse.Namespace) -> int:
     """Read the bag, diagnose, print, and write the report."""
     from bridge_shadow.bagio import read_monitoring
-    from bridge_shadow.commands.output import emit_json
+    from bridge_shadow.commands.output import emit_json, require_finite
     from bridge_shadow.estimate.param_specs import SPECS, check_value
     from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.gap.diagnose import diagnose
@@ -216,6 +216,12 @@ def run(args: argparse.Namespace) -> int:
         surrogate_path=config.surrogate_path or None,
     )
     summary = dict(dg.summary)
+    post = summary.get("posterior", {})
+    if post.get("computed"):  # the shadow's answers before and after: never printed as NaN
+        require_finite(
+            {f"posterior.{k}.{q}": post[k][q] for k in ("before", "after") for q in ("mean_m", "sigma_m")},
+            "posterior",
+        )
     summary["bag"] = str(args.bag)
     summary["surrogate_file"] = config.surrogate_path or "config/surrogate.yaml"
     if args.report:

@@ -87,7 +87,16 @@ def _summary(js: dict[str, Any]) -> str:
     sd = np.sqrt(np.diag(cov))
     rho = cov[0, 1] / (sd[0] * sd[1]) if sd.all() else float("nan")
     msgs = js["messages"]
+    resumed = js.get("resumed")
     lines = [
+        *(
+            [
+                f"resumed from a checkpoint of {resumed['windows']} windows ({resumed['updates']} updates, "
+                f"{resumed['messages_used']} messages used): the counts below are this run's"
+            ]
+            if resumed
+            else []
+        ),
         "posterior settlement (positive upward, 95% interval):",
         *(
             f"  {name:5s} {1e3 * m:+8.3f} mm ± {1e3 * 1.96 * s:.3f} mm"
@@ -129,12 +138,6 @@ def _summary(js: dict[str, Any]) -> str:
             f"compensation {ch}: {sp['edf']:.2f} effective degrees of freedom, lambda {lam:.3g} °C³, "
             f"level {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
         )
-    sur = js.get("surrogate") or {}
-    if sur.get("condition_number") is not None:
-        lines.append(
-            f"surrogate: {sur.get('solver') or 'unknown solver'}, "
-            f"condition number of A {sur['condition_number']:.3g}"
-        )
     return "\n".join(lines)
 
 
@@ -145,9 +148,10 @@ def _loud(js: dict[str, Any]) -> int:
     for line in js.get("warnings", []):
         print(f"bridge-shadow replay: WARN: {line}", file=sys.stderr)
     if not js["windows"]["updates"]:
+        what = "the checkpoint's" if js.get("resumed") else "the prior"
         print(
-            "bridge-shadow replay: error: no window updated the estimate (the posterior printed is the "
-            "prior); see the WARN lines and the rejected counts",
+            f"bridge-shadow replay: error: no window updated the estimate (the posterior printed is {what}); "
+            "see the WARN lines and the rejected counts",
             file=sys.stderr,
         )
         return 1
@@ -176,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.estimate import load_config
     from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
     from bridge_shadow.fileio import check_output_dir
-    from bridge_shadow.model.surrogate_file import load_surrogate
+    from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 
     show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "replay"))
     if args.rate is not None:
@@ -191,9 +195,19 @@ def run(args: argparse.Namespace) -> int:
     if args.plots:
         check_output_dir(args.plots, "plot directory")
     over = {"surrogate_path": str(Path(args.surrogate).resolve())} if args.surrogate else None
+    # a params file's checkpoint_path belongs to the live node: never read or written here
+    config = load_config(args.params, over).replace(checkpoint_path=args.checkpoint or "")
+    surrogate = load_surrogate(config.surrogate_path or None)  # a bad file stops us here, one line
+    if not args.json:
+        # the first line leaves at once: a reader that takes it and goes (`| head -1`) ends the
+        # replay with exit 141 when the result is written, as any tool whose pipe was closed
+        mode = " (live)" if args.live else ""
+        used = describe_surrogate(surrogate, config.surrogate_path or None)
+        print(f"replay {args.bag}{mode}: surrogate {used}", flush=True)
     if args.live:
         from bridge_shadow.ros.live_replay import run_live
 
+        before = _resumed_counts(config, surrogate, args.checkpoint)
         js = run_live(
             args.bag,
             args.params,
@@ -206,6 +220,8 @@ def run(args: argparse.Namespace) -> int:
             checkpoint=args.checkpoint,
             watch=args.watch,
         )
+        if before is not None:
+            _this_run(js, before)
         _end_to_end_rate(js, started)
         return _report(js, args.json)
 
@@ -213,12 +229,10 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.estimate.startup import open_shadow
     from bridge_shadow.replay import HISTORY_CAPACITY, replay_bag
 
-    # a params file's checkpoint_path belongs to the live node: never read or written here
-    config = load_config(args.params, over).replace(checkpoint_path=args.checkpoint or "")
-    surrogate = load_surrogate(config.surrogate_path or None)
     shadow, notes = open_shadow(config, surrogate)  # an unusable checkpoint stops us before the bag
     for line in notes:
         print(f"bridge-shadow replay: {line}", file=sys.stderr)
+    before = _counts(shadow) if shadow.n_windows else None  # resumed: count this run apart
     # streamed in bounded memory; outputs go to --out as windows close, --plots keeps a decimated
     # history; the air temperature may be absent: the shadow then runs uncompensated and says so
     history = HISTORY_CAPACITY if args.plots else None
@@ -232,6 +246,8 @@ def run(args: argparse.Namespace) -> int:
         required=list(INPUT_TOPICS)[:2],
     )
     js = result.to_json()
+    if before is not None:
+        _this_run(js, before)
     js["bag"] = str(args.bag)
     js["surrogate"] = surrogate.summary()
     if args.out:
@@ -242,6 +258,52 @@ def run(args: argparse.Namespace) -> int:
 
         js["plots"] = [str(p) for p in write_plots(args.plots, result, shadow)]
     return _report(js, args.json)
+
+
+def _counts(shadow: Any) -> dict[str, Any]:
+    """Return what a (resumed) shadow has counted: messages used and rejected, windows, updates."""
+    return {
+        "used": dict(shadow.used),
+        "rejected": dict(shadow.rejected),
+        "windows": int(shadow.n_windows),
+        "updates": int(shadow.n_updates),
+        "uncompensated": int(shadow.uncompensated),
+    }
+
+
+def _resumed_counts(config: Any, surrogate: Any, checkpoint: str | None) -> dict[str, Any] | None:
+    """Return the counts of the checkpoint the live node will resume (None: it starts fresh)."""
+    if not checkpoint or not Path(checkpoint).is_file():
+        return None
+    from bridge_shadow.estimate import Shadow
+
+    shadow = Shadow.resume(Path(checkpoint), config, surrogate)  # unusable: the error the node would give
+    return _counts(shadow) if shadow.n_windows else None
+
+
+def _this_run(js: dict[str, Any], before: dict[str, Any]) -> None:
+    """Make the counts of a resumed replay this run's (the shadow's own go on from the checkpoint).
+
+    Without this, ``messages.total`` (this run's) sat beside ``used`` and ``rejected`` counted
+    since the checkpoint's first window, which could add up to more than the messages read.
+    ``resumed`` keeps what the checkpoint held.
+    """
+    from bridge_shadow.estimate.gate import MESSAGE_REASONS
+
+    msgs = js["messages"]
+    for topic, n in before["used"].items():
+        msgs["used_by_topic"][topic] = msgs["used_by_topic"].get(topic, 0) - n
+    msgs["used"] = int(sum(msgs["used_by_topic"].values()))
+    for reason, n in before["rejected"].items():
+        js["rejected"][reason] = js["rejected"].get(reason, 0) - n
+    msgs["rejected"] = int(sum(v for k, v in js["rejected"].items() if k in MESSAGE_REASONS))
+    for key, name in (("closed", "windows"), ("updates", "updates"), ("uncompensated", "uncompensated")):
+        js["windows"][key] -= before[name]
+    js["resumed"] = {
+        "windows": before["windows"],
+        "updates": before["updates"],
+        "messages_used": int(sum(before["used"].values())),
+    }
 
 
 def _report(js: dict[str, Any], as_json: bool) -> int:

@@ -39,6 +39,7 @@ __all__ = [
     "THERMAL_CASES",
     "Surrogate",
     "check_surrogate",
+    "describe_surrogate",
     "load_surrogate",
     "placeholder_surrogate",
     "save_surrogate",
@@ -217,6 +218,23 @@ def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = 
         raise ConfigError(f"{file}: not a valid surrogate file ({err})") from None
     check_surrogate(surrogate, str(file))
     return surrogate
+
+
+def describe_surrogate(surrogate: Surrogate, path: str | Path | None = None) -> str:
+    """Say for people which surrogate is in use: its file (``path``, else the default), solver, condition.
+
+    ``path`` is what ``load_surrogate`` was given (None: ``config/surrogate.yaml``, or the
+    closed-form placeholder when that file does not exist).
+    """
+    if path:
+        source = str(path)
+    elif config_file("surrogate.yaml").is_file():
+        source = str(config_file("surrogate.yaml"))
+    else:
+        source = "none found: the closed-form placeholder"
+    solver = surrogate.provenance.get("solver", "")
+    cond = f"condition number of A {surrogate.condition_number:.3g}"
+    return f"{source} ({solver + ', ' if solver else ''}{cond})"
 
 
 def check_surrogate(surrogate: Surrogate, where: str = "surrogate") -> float:

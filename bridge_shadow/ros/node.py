@@ -116,7 +116,7 @@ from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.estimate import ShadowConfig, WindowOutput, load_config
 from bridge_shadow.estimate.param_specs import SPECS, constraint_text, describe, kind_of
 from bridge_shadow.estimate.startup import open_shadow
-from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 from bridge_shadow.paths import config_file
 from bridge_shadow.ros import convert
 from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
@@ -562,17 +562,10 @@ def parameter_descriptor(name: str, kind: str) -> ParameterDescriptor:
 
 def startup_lines(config: ShadowConfig, surrogate: Any, params_files: Sequence[str] = ()) -> list[str]:
     """Return what the node says at start: surrogate, parameter files, topics, checkpoint."""
-    if config.surrogate_path:
-        source = config.surrogate_path
-    elif config_file("surrogate.yaml").is_file():
-        source = str(config_file("surrogate.yaml"))
-    else:
-        source = "none found: the closed-form placeholder"
-    solver = surrogate.provenance.get("solver", "")
     files = ", ".join(params_files) if params_files else "none (defaults only)"
     outs = config.output_topics()
     return [
-        f"surrogate: {source}" + (f" ({solver})" if solver else ""),
+        f"surrogate: {describe_surrogate(surrogate, config.surrogate_path or None)}",
         f"parameters: defaults {config_file('shadow.yaml')}; parameter files: {files}",
         f"inputs: {', '.join(config.input_topics())}",
         f"outputs: {', '.join(outs.values())} (every {config.diagnostics_period_s:g} s)",
