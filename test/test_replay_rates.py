@@ -83,3 +83,47 @@ def test_live_replay_at_several_rates_ends_at_the_direct_posterior(synth_bag) ->
         np.testing.assert_allclose(
             [e["size_m"] for e in live["events"]], [e["size_m"] for e in direct["events"]], rtol=1e-9
         )
+
+
+@pytest.mark.ros
+def test_live_replay_keeps_dds_on_loopback_itself(monkeypatch, tmp_path: Path) -> None:
+    """Outside make (no ROS_* set), --live keeps DDS on loopback in a domain of its own.
+
+    Before rclpy starts it confines this process and the node alike; an explicit range is kept.
+    """
+    pytest.importorskip("rclpy")
+    from bridge_shadow.bagio import BagError
+    from bridge_shadow.ros.live_replay import run_live
+
+    monkeypatch.delenv("ROS_AUTOMATIC_DISCOVERY_RANGE")
+    monkeypatch.delenv("ROS_DOMAIN_ID", raising=False)
+    with pytest.raises(BagError):  # the bag is opened after the confinement, before any rclpy work
+        run_live(tmp_path / "missing")
+    import os
+
+    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    assert 20 <= int(os.environ["ROS_DOMAIN_ID"]) < 220
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")  # a monitoring network's choice
+    with pytest.raises(BagError):
+        run_live(tmp_path / "missing")
+    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
+
+
+@pytest.mark.ros
+def test_a_discovery_timeout_says_where_it_looked(monkeypatch) -> None:
+    pytest.importorskip("rclpy")
+    from bridge_shadow.ros.launcher import NodeError
+    from bridge_shadow.ros.live_replay import _discover
+
+    class Deaf:
+        def wait_for_node(self, node: object, timeout_s: float) -> float:
+            raise NodeError(f"timed out after {timeout_s:g} s waiting for the bridge_shadow node to appear")
+
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")
+    monkeypatch.setenv("ROS_DOMAIN_ID", "7")
+    with pytest.raises(NodeError) as err:
+        _discover(Deaf(), None, 60.0)  # type: ignore[arg-type]
+    text = str(err.value)
+    assert "\n" not in text and text.startswith("timed out after 60 s")
+    assert "ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET, ROS_DOMAIN_ID=7" in text
+    assert "unset ROS_AUTOMATIC_DISCOVERY_RANGE" in text
