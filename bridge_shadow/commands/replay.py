@@ -29,9 +29,12 @@ message is rejected is named with the reason and the expected value (WARN lines 
 "warnings" in the JSON), and a replay in which no window updated the estimate exits with 1.
 
 --out and --plots work in both modes (live: drawn from the node's history service and final
-checkpoint). The direct replay streams the bag in bounded memory: --out is written as windows
-close, and --plots draws at most 10,000 windows, evenly spaced over the record. A progress bar
-shows on a terminal unless --json.
+checkpoint); --out never replaces an existing bag without --force. The text output's first line
+(the bag and the surrogate in use, with the condition number of A) is printed before the work.
+Outside make, --live keeps DDS on loopback in a domain of its own unless
+ROS_AUTOMATIC_DISCOVERY_RANGE is set. The direct replay streams the bag in bounded memory: --out
+is written as windows close, and --plots draws at most 10,000 windows, evenly spaced over the
+record. A progress bar shows on a terminal unless --json.
 
 To watch the topics of a paced live replay (the ros2 command-line tools are not in the venv:
 they are not on the package index), --watch prints the node's latest outputs once a second:
