@@ -108,6 +108,15 @@ def scratch(tmp_path_factory, root: Path) -> Path:
     return w
 
 
+#: The broken surrogate files of the scratch directory: case -> (file stem, what the error says).
+BAD_SURROGATES = {
+    "singular A": ("singular", "A must be positive definite"),
+    "NaN in A": ("nan", "A must be finite"),
+    "inf in A": ("inf", "A must be finite"),
+    "asymmetric A": ("asymmetric", "A must be symmetric"),
+    "unknown key": ("surrogate_typo", "unknown key 'thermal_cases' (did you mean thermal?)"),
+}
+
 CLI_CASES = {
     # replay: inputs
     "replay missing bag": ["replay", "{w}/missing"],
@@ -179,11 +188,10 @@ CLI_CASES = {
     "calibrate --check a directory": ["calibrate", "--check", "{w}/adir"],
     "calibrate --check with --out": ["calibrate", "--check", "{w}/random.bin", "--out", "{w}/s.yaml"],
     # 22: a surrogate is checked where it is loaded, by every command
-    "replay --surrogate singular A": ["replay", "{w}/bag", "--surrogate", "{w}/singular.yaml"],
-    "replay --surrogate NaN in A": ["replay", "{w}/bag", "--surrogate", "{w}/nan.yaml"],
-    "replay --surrogate inf in A": ["replay", "{w}/bag", "--surrogate", "{w}/inf.yaml"],
-    "replay --surrogate asymmetric A": ["replay", "{w}/bag", "--surrogate", "{w}/asymmetric.yaml"],
-    "replay --surrogate unknown key": ["replay", "{w}/bag", "--surrogate", "{w}/surrogate_typo.yaml"],
+    **{
+        f"replay --surrogate {what}": ["replay", "{w}/bag", "--surrogate", f"{{w}}/{file}.yaml"]
+        for what, (file, _) in BAD_SURROGATES.items()
+    },
     "replay params surrogate singular": ["replay", "{w}/bag", "--params", "{w}/singular_params.yaml"],
     "replay --live --surrogate singular": ["replay", "{w}/bag", "--live", "--surrogate", "{w}/singular.yaml"],
     "calibrate --check singular A": ["calibrate", "--check", "{w}/singular.yaml"],
@@ -224,11 +232,7 @@ CLI_CASES = {
 
 #: What the one line must say, where it matters which parameter or problem it names.
 EXPECT = {
-    "replay --surrogate singular A": "A must be positive definite",
-    "replay --surrogate NaN in A": "A must be finite",
-    "replay --surrogate inf in A": "A must be finite",
-    "replay --surrogate asymmetric A": "A must be symmetric",
-    "replay --surrogate unknown key": "unknown key 'thermal_cases' (did you mean thermal?)",
+    **{f"replay --surrogate {what}": message for what, (_, message) in BAD_SURROGATES.items()},
     "replay params surrogate singular": "A must be positive definite",
     "replay --live --surrogate singular": "A must be positive definite",
     "calibrate --check singular A": "A must be positive definite",
