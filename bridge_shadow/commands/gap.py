@@ -119,10 +119,9 @@ def _fmt_params(params: dict[str, Any]) -> str:
         elif v is None:
             parts.append(f"{k.split(' ')[0]} rigid")
         elif k == "at [ns]":
-            import datetime as dt
+            from bridge_shadow.timefmt import iso_utc
 
-            stamp = dt.datetime.fromtimestamp(int(v) / 1e9, dt.timezone.utc)
-            parts.append(f"at {stamp:%Y-%m-%d %H:%M} UTC")
+            parts.append(f"at {iso_utc(int(v))}")
         else:
             parts.append(f"{k.split(' ')[0]} {v}")
     return ", ".join(parts)
