@@ -186,7 +186,7 @@ def test_bad_parameter_exits_2_with_one_line() -> None:
         assert node.proc is not None
         assert node.proc.wait(TIMEOUT_S) == 2
         out = node.output()
-    assert "window_s must be a finite number > 0, not -1.0" in out
+    assert "window_s must be a finite number in (0, 86400], not -1.0" in out
     assert "Traceback" not in out
 
 
