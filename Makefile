@@ -18,14 +18,20 @@ DEMO_BAG ?= bags/demo_3d
 
 venv: $(STAMP)
 
+# pip's own output (hundreds of lines of build warnings on a fresh venv) goes to a log; the
+# terminal gets one line now and the log's tail only if the install fails.
+INSTALL_LOG := $(VENV)/install.log
+
 $(STAMP): setup.py setup.cfg pyproject.toml package.xml
-	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[ros,test,fast]"
-	touch $(STAMP)
+	@echo "setting up $(VENV): python packages (about a minute, first run only; log $(INSTALL_LOG))"
+	@$(PYTHON) -m venv $(VENV)
+	@{ $(PY) -m pip install --upgrade pip && $(PY) -m pip install -e ".[ros,test,fast]"; } \
+		> $(INSTALL_LOG) 2>&1 || { tail -n 20 $(INSTALL_LOG); echo "pip failed: see $(INSTALL_LOG)"; exit 1; }
+	@touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/bridge-shadow replay $(DEMO_BAG)
+	@echo "replaying $(DEMO_BAG) through the shadow (bridge-shadow replay $(DEMO_BAG))"
+	@$(VENV)/bin/bridge-shadow replay $(DEMO_BAG)
 
 test: $(STAMP)
 	$(PY) -m pytest
@@ -36,9 +42,10 @@ lint: $(STAMP)
 # Regenerate the generated model files after config/bridge.yaml, config/calibration.yaml or the FE
 # code change: the uncalibrated FE surrogate, the calibrated default surrogate (with the README's
 # calibration figures) and the bundled bags (made with the default surrogate). Commit the results.
+# They replace the committed files on purpose, hence --force.
 models: $(STAMP)
-	$(VENV)/bin/bridge-shadow surrogate --out config/surrogate_fe.yaml
-	$(VENV)/bin/bridge-shadow calibrate --out config/surrogate.yaml --report docs
+	$(VENV)/bin/bridge-shadow surrogate --out config/surrogate_fe.yaml --force
+	$(VENV)/bin/bridge-shadow calibrate --out config/surrogate.yaml --report docs --force
 	$(MAKE) bags
 
 # Rebuild every bag from its command in bags/README.md (the one place the commands are written).

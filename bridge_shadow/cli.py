@@ -8,16 +8,19 @@ Parsing and printing only; the work lives in the functional core. Each subcomman
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
+import signal
 import sys
+import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from bridge_shadow import __version__
 from bridge_shadow.errors import BridgeShadowError
 
-__all__ = ["COMMANDS", "EXIT_BROKEN_PIPE", "build_parser", "main"]
+__all__ = ["COMMANDS", "EXIT_BROKEN_PIPE", "EXIT_TERMINATED", "Terminated", "build_parser", "main"]
 
 #: Subcommand name -> module implementing it, in the order ``--help`` lists them.
 COMMANDS: dict[str, str] = {
@@ -62,6 +65,37 @@ def build_parser() -> argparse.ArgumentParser:
 EXIT_BROKEN_PIPE = 128 + 13
 
 
+#: Exit code after SIGTERM: 128 + 15, what a shell reports for a process the signal ended.
+EXIT_TERMINATED = 128 + signal.SIGTERM
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is, so that it unwinds as after Ctrl-C.
+
+    A KeyboardInterrupt, so every writer's cleanup (``fileio.atomic_write``, the staged bag
+    writer, a node process) runs as it does on Ctrl-C: temporary files are removed and nothing
+    half-written is left at a final path. Python's default for SIGTERM ends the process at once,
+    without any of that.
+    """
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated
+
+
+@contextlib.contextmanager
+def _sigterm_unwinds() -> Iterator[None]:
+    """Turn SIGTERM into ``Terminated`` while the command runs (main thread only), then restore."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _quiet_broken_pipe() -> int:
     """Point stdout at /dev/null (so the interpreter's last flush cannot fail) and exit 141."""
     try:
@@ -77,7 +111,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the process exit code.
 
     Errors a user can cause print one line and exit 2; a closed stdout pipe ends quietly with
-    ``EXIT_BROKEN_PIPE`` (141), Ctrl-C with 130.
+    ``EXIT_BROKEN_PIPE`` (141), Ctrl-C with 130 and SIGTERM with ``EXIT_TERMINATED`` (143), each
+    after the interrupted writers removed their temporary files.
     """
     started = time.perf_counter()  # end-to-end rates count from here (replay's messages_per_s)
     try:
@@ -89,13 +124,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         args.started = started
         try:
-            code = int(args._run(args) or 0)
-            sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
+            with _sigterm_unwinds():
+                code = int(args._run(args) or 0)
+                sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
             return code
         except BridgeShadowError as err:
             text = " ".join(str(err).split())  # one line, whatever a library put in the message
             print(f"bridge-shadow {args.command}: error: {text}", file=sys.stderr)
             return 2
+        except Terminated:
+            print(f"bridge-shadow {args.command}: terminated (SIGTERM)", file=sys.stderr)
+            return EXIT_TERMINATED
         except KeyboardInterrupt:
             print(f"bridge-shadow {args.command}: interrupted", file=sys.stderr)
             return 130

@@ -1,6 +1,6 @@
 """Exceptions the command line turns into one readable line and a non-zero exit."""
 
-__all__ = ["BridgeShadowError", "ConfigError", "InputError"]
+__all__ = ["BridgeShadowError", "ConfigError", "InputError", "ResultError"]
 
 
 class BridgeShadowError(Exception):
@@ -13,3 +13,7 @@ class ConfigError(BridgeShadowError):
 
 class InputError(BridgeShadowError):
     """An input file or argument cannot be used (wrong format, out of range, ...)."""
+
+
+class ResultError(BridgeShadowError):
+    """A computed result is not finite: an error, never printed as if it were a result."""

@@ -3,10 +3,18 @@
 Each case runs through the command line (``bridge_shadow.cli.main``) or the node
 (``bridge_shadow.ros.node.main``; three cases through the installed ``bridge_shadow_node``
 process itself) in a scratch directory holding the inputs (a file, a directory, random bytes, a
-bag, a checkpoint, parameter files). Asserted for every case: a non-zero exit, exactly one
-non-empty line on stderr (no traceback), and no input or state file changed or added: every file
-of the scratch directory, the bundled bag and ``config/`` hash the same before and after, and
-no file (a stray ``.tmp``, a half-written bag, an empty plot directory) was left behind.
+bag, a checkpoint, parameter files, broken surrogates, a calibration file, a bridge model).
+Asserted for every case: a non-zero exit, exactly one non-empty line on stderr (no traceback),
+and no input or state file changed or added: every file of the scratch directory, the bundled
+bag and ``config/`` hash the same before and after, and no file (a stray ``.tmp``, a
+half-written bag, an empty plot directory) was left behind. Where it matters which parameter or
+problem the line names (``window_s: 1e12`` must not blame ``drift_block_s``), ``EXPECT`` says what
+the line must hold.
+
+The cases of issue 22 are marked ``# 22`` below; its other points are tested where they live:
+interrupted writers (``test_interrupted_writers.py``), ``| head -1`` exiting 141
+(``test_replay_stream.py``), a resumed replay's counts (``test_output_text.py``), ``--live``'s
+discovery and rates (``test_replay_rates.py``, ``test_interrupted_writers.py``).
 """
 
 from __future__ import annotations
@@ -67,8 +75,47 @@ def scratch(tmp_path_factory, root: Path) -> Path:
     Shadow(load_config()).save_checkpoint(w / "state.npz")
     _params(w / "w30.yaml", window_s=30.0, checkpoint_path=str(w / "state.npz"))
     (w / "truncated.npz").write_bytes((w / "state.npz").read_bytes()[:500])
+    # surrogates that must be refused where they are loaded (22): A singular, NaN, inf, asymmetric
+    good = yaml.safe_load((root / "config" / "surrogate_fe.yaml").read_text())
+    base = {"A": good["A"], "u0": good["u0"], "thermal": good["thermal"]}
+    a11 = good["A"][0][0]
+    for name, a in {
+        "singular": [[a11, a11], [a11, a11]],
+        "nan": [[float("nan"), 0.0], [0.0, a11]],
+        "inf": [[float("inf"), 0.0], [0.0, a11]],
+        "asymmetric": [[a11, -0.5 * a11], [-0.6 * a11, a11]],
+    }.items():
+        (w / f"{name}.yaml").write_text(yaml.safe_dump({**base, "A": a}))
+    (w / "surrogate_typo.yaml").write_text(yaml.safe_dump({**base, "thermal_cases": base["thermal"]}))
+    _params(w / "singular_params.yaml", surrogate_path=str(w / "singular.yaml"))
+    _params(w / "prior_1e300.yaml", prior_sigma_m=[1e300, 1e300])
+    _params(w / "prior_1e150.yaml", prior_sigma_m=[1e150, 1e150])
+    _params(w / "window_1e12.yaml", window_s=1e12)
+    pair = {
+        "name": "p",
+        "before": "Settlements/UniBw_2022-04-11_ref_support_load_01ForceAt100Hz.csv.zip",
+        "after": "Settlements/UniBw_2022-04-11_support_load_01ForceAt100Hz.csv.zip",
+        "imposed_m": [-0.01, -0.01],
+        "imposed_sd_m": [5e-4, 5e-4],
+    }
+    (w / "cal_window.yaml").write_text(yaml.safe_dump({"window_s": -10, "pairs": [pair]}))
+    (w / "cal_typo.yaml").write_text(yaml.safe_dump({"windw_s": 10, "pairs": [pair]}))
+    (w / "cal_pair_typo.yaml").write_text(yaml.safe_dump({"pairs": [{**pair, "imposed_mm": [-10, -10]}]}))
+    model = (root / "config" / "bridge.yaml").read_text()
+    (w / "bridge_typo.yaml").write_text(model.replace("  bearing_stiffness:", "  bearing_stifness:", 1))
+    # an existing surrogate: --out must not replace it without --force (22)
+    (w / "existing.yaml").write_text((root / "config" / "surrogate_fe.yaml").read_text())
     return w
 
+
+#: The broken surrogate files of the scratch directory: case -> (file stem, what the error says).
+BAD_SURROGATES = {
+    "singular A": ("singular", "A must be positive definite"),
+    "NaN in A": ("nan", "A must be finite"),
+    "inf in A": ("inf", "A must be finite"),
+    "asymmetric A": ("asymmetric", "A must be symmetric"),
+    "unknown key": ("surrogate_typo", "unknown key 'thermal_cases' (did you mean thermal?)"),
+}
 
 CLI_CASES = {
     # replay: inputs
@@ -140,14 +187,91 @@ CLI_CASES = {
     "calibrate --check random bytes": ["calibrate", "--check", "{w}/random.bin"],
     "calibrate --check a directory": ["calibrate", "--check", "{w}/adir"],
     "calibrate --check with --out": ["calibrate", "--check", "{w}/random.bin", "--out", "{w}/s.yaml"],
+    # 22: a surrogate is checked where it is loaded, by every command
+    **{
+        f"replay --surrogate {what}": ["replay", "{w}/bag", "--surrogate", f"{{w}}/{file}.yaml"]
+        for what, (file, _) in BAD_SURROGATES.items()
+    },
+    "replay params surrogate singular": ["replay", "{w}/bag", "--params", "{w}/singular_params.yaml"],
+    "replay --live --surrogate singular": ["replay", "{w}/bag", "--live", "--surrogate", "{w}/singular.yaml"],
+    "calibrate --check singular A": ["calibrate", "--check", "{w}/singular.yaml"],
+    "calibrate --check NaN in A": ["calibrate", "--check", "{w}/nan.yaml"],
+    "gap --surrogate singular A": ["gap", "{w}/bag", "--surrogate", "{w}/singular.yaml"],
+    "gap --surrogate asymmetric A": ["gap", "{w}/bag", "--surrogate", "{w}/asymmetric.yaml"],
+    "synth --reality-surrogate singular": [
+        "synth", "--out", "{w}/new", "--days", "0.01", "--reality-surrogate", "{w}/singular.yaml",
+    ],
+    # 22: every parameter has a physical range, named in the message
+    "replay params prior_sigma_m 1e300": ["replay", "{w}/bag", "--params", "{w}/prior_1e300.yaml"],
+    "replay params prior_sigma_m 1e150": ["replay", "{w}/bag", "--params", "{w}/prior_1e150.yaml"],
+    "replay params window_s 1e12": ["replay", "{w}/bag", "--params", "{w}/window_1e12.yaml"],
+    "calibrate file window_s -10": ["calibrate", "{w}/cal_window.yaml"],
+    "calibrate --check file window_s -10": [
+        "calibrate", "{w}/cal_window.yaml", "--check", "{w}/existing.yaml",
+    ],
+    "calibrate file unknown key": ["calibrate", "{w}/cal_typo.yaml"],
+    "calibrate file unknown pair key": ["calibrate", "{w}/cal_pair_typo.yaml"],
+    "surrogate --model unknown key": ["surrogate", *FE_CASES_MESH, "--model", "{w}/bridge_typo.yaml"],
+    "surrogate --set in MPa": ["surrogate", *FE_CASES_MESH, "--set", "E_concrete=34000"],
+    "surrogate --set typo": ["surrogate", *FE_CASES_MESH, "--set", "bearing_stifness=2e9"],
+    "gap --window a year": ["gap", "{w}/bag", "--window", "3.2e7"],
+    "replay --live --rate 1e12": ["replay", "{w}/bag", "--live", "--rate", "1e12"],
+    "synth --days 1e6": ["synth", "--out", "{w}/new", "--days", "1e6"],
+    "synth --step in mm": ["synth", "--out", "{w}/new", "--days", "0.01", "--step", "0.5:-10:-10"],
+    # 22: --out never replaces a file without --force
+    "surrogate --out existing surrogate": ["surrogate", *FE_CASES_MESH, "--out", "{w}/existing.yaml"],
+    "calibrate --out existing surrogate": ["calibrate", "--out", "{w}/existing.yaml"],
+    "import-csv --out existing bag": [
+        "import-csv", "{w}/tiny.csv", "--date", "2022-03-07", "--out", "{w}/bag",
+    ],
+    # 22: import-csv refuses a date it cannot settle; gap --imposed outside the record
+    "import-csv ambiguous date": ["import-csv", "{w}/tiny.csv", "--out", "{w}/new"],
+    "gap --imposed before the record": ["gap", "{w}/bag", "--imposed", "2020-01-01T00:00=-0.01,-0.01"],
+    "gap --imposed after the record": ["gap", "{w}/bag", "--imposed", "+30=-0.01,-0.01"],
+}
+
+#: What the one line must say, where it matters which parameter or problem it names.
+EXPECT = {
+    **{f"replay --surrogate {what}": message for what, (_, message) in BAD_SURROGATES.items()},
+    "replay params surrogate singular": "A must be positive definite",
+    "replay --live --surrogate singular": "A must be positive definite",
+    "calibrate --check singular A": "A must be positive definite",
+    "calibrate --check NaN in A": "A must be finite",
+    "gap --surrogate singular A": "A must be positive definite",
+    "gap --surrogate asymmetric A": "A must be symmetric",
+    "synth --reality-surrogate singular": "A must be positive definite",
+    "replay params prior_sigma_m 1e300": "prior_sigma_m must be two finite numbers [south, north], each in",
+    "replay params prior_sigma_m 1e150": "prior_sigma_m must be",
+    "replay params window_s 1e12": "window_s must be a finite number in (0, 86400], not 1000000000000.0",
+    "calibrate file window_s -10": "window_s must be a finite number in [0.1, 600], not -10",
+    "calibrate --check file window_s -10": "window_s must be a finite number in [0.1, 600], not -10",
+    "calibrate file unknown key": "unknown key 'windw_s' (did you mean window_s?)",
+    "calibrate file unknown pair key": "unknown key 'imposed_mm' (did you mean imposed_m?)",
+    "surrogate --model unknown key": "unknown key 'bearing_stifness' (did you mean bearing_stiffness?)",
+    "surrogate --set in MPa": "E_concrete must lie in",
+    "surrogate --set typo": "did you mean bearing_stiffness?",
+    "gap --window a year": "--window must be a finite number in (0, 86400]",
+    "replay --live --rate 1e12": "--rate must be",
+    "synth --days 1e6": "--days must be",
+    "synth --step in mm": "SOUTH must be a finite number in (-1, 1)",
+    "surrogate --out existing surrogate": "pass --force to replace it",
+    "calibrate --out existing surrogate": "pass --force to replace it",
+    "import-csv --out existing bag": "pass --force to replace it",
+    "import-csv ambiguous date": "could also be 2022-07-03",
+    "gap --imposed before the record": "outside the record",
+    "gap --imposed after the record": "outside the record",
 }
 
 
-def _check(code: int, err: str, before: dict[str, str], after: dict[str, str]) -> None:
+def _check(
+    code: int, err: str, before: dict[str, str], after: dict[str, str], expect: str | None = None
+) -> None:
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert code != 0
     assert len(lines) == 1, err
     assert "Traceback" not in err
+    if expect is not None:
+        assert expect in lines[0], lines[0]
     assert after == before, sorted(set(after.items()) ^ set(before.items()))
 
 
@@ -164,7 +288,7 @@ def test_cli_case_gives_one_line_and_changes_nothing(case: str, scratch: Path, r
     err = out.err
     if code == 2 and err.startswith("usage:"):  # argparse: usage lines, then the one error line
         err = err.splitlines()[-1]
-    _check(code, err, before, _tree(*watched))
+    _check(code, err, before, _tree(*watched), EXPECT.get(case))
 
 
 NODE_CASES = {
@@ -185,6 +309,17 @@ NODE_CASES = {
     "checkpoint a directory": ["-p", "checkpoint_path:={w}/adir"],
     "checkpoint under a file": ["-p", "checkpoint_path:={w}/afile/state.npz"],
     "checkpoint of other parameters": ["--params-file", "{w}/w30.yaml"],
+    # 22
+    "surrogate singular": ["-p", "surrogate_path:={w}/singular.yaml"],
+    "surrogate NaN in A": ["-p", "surrogate_path:={w}/nan.yaml"],
+    "prior_sigma_m 1e300": ["-p", "prior_sigma_m:=[1.0e300, 1.0e300]"],
+    "window_s 1e12": ["-p", "window_s:=1.0e12"],
+}
+NODE_EXPECT = {
+    "surrogate singular": "A must be positive definite",
+    "surrogate NaN in A": "A must be finite",
+    "prior_sigma_m 1e300": "prior_sigma_m must be",
+    "window_s 1e12": "window_s must be a finite number in (0, 86400]",
 }
 
 
@@ -205,7 +340,7 @@ def test_node_case_gives_one_line_and_changes_nothing(case: str, scratch: Path, 
         code = node_main(argv)
     finally:
         watchdog.cancel()
-    _check(code, capfd.readouterr().err, before, _tree(*watched))
+    _check(code, capfd.readouterr().err, before, _tree(*watched), NODE_EXPECT.get(case))
 
 
 @pytest.mark.ros

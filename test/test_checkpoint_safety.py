@@ -177,13 +177,16 @@ def test_replay_checkpoint_option_resumes_and_refuses_other_parameters(small_bag
     assert main(["replay", str(small_bag), "--params", str(params), "--checkpoint", str(ckpt), "--json"]) == 0
     first = json.loads(capsys.readouterr().out)
     assert ckpt.is_file()
-    # the same bag again, resumed: every message is older than the saved state, none is used twice
-    assert main(["replay", str(small_bag), "--params", str(params), "--checkpoint", str(ckpt), "--json"]) == 0
+    # the same bag again, resumed: every message is older than the saved state, none is used twice;
+    # no window of this run updates the estimate (exit 1), and the counts say so: this run's are
+    # zero, what the checkpoint holds is under "resumed"
+    assert main(["replay", str(small_bag), "--params", str(params), "--checkpoint", str(ckpt), "--json"]) == 1
     out = capsys.readouterr()
     again = json.loads(out.out)
     assert "resumed from" in out.err
-    assert again["windows"]["closed"] == first["windows"]["closed"]
-    assert again["messages"]["used"] == first["messages"]["used"]  # counts carry over
+    assert again["windows"]["closed"] == 0 and again["messages"]["used"] == 0
+    assert again["resumed"]["windows"] == first["windows"]["closed"]
+    assert again["resumed"]["messages_used"] == first["messages"]["used"]
     before = _digest(ckpt)
     other = _params(tmp_path / "q.yaml", window_s=30.0)
     assert main(["replay", str(small_bag), "--params", str(other), "--checkpoint", str(ckpt)]) == 2

@@ -76,6 +76,10 @@ def test_surrogate_out_never_replaces_a_file_that_is_not_a_surrogate(tmp_path: P
     with pytest.raises(InputError, match="not a surrogate file; refusing to overwrite it"):
         save_surrogate(placeholder_surrogate(), notes)
     assert notes.read_text() == "bridge_shadow:\n  ros__parameters: {}\n"
+    with pytest.raises(InputError, match="not a surrogate file; refusing to overwrite it"):
+        save_surrogate(placeholder_surrogate(), notes, force=True)  # not even with --force
     path = save_surrogate(placeholder_surrogate(), tmp_path / "s.yaml")
-    save_surrogate(placeholder_surrogate(), path)  # a surrogate may be rewritten
+    with pytest.raises(InputError, match="exists already; pass --force to replace it"):
+        save_surrogate(placeholder_surrogate(), path)
+    save_surrogate(placeholder_surrogate(), path, force=True)  # a surrogate may be rewritten, if asked
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.yaml", "s.yaml"]

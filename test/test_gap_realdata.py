@@ -29,7 +29,7 @@ def reference_bag(munich_data: Path, tmp_path_factory: pytest.TempPathFactory) -
     """2022-03-07 16:35-16:45 reference state (100 Hz forces, no temperature file) as a bag."""
     bag = tmp_path_factory.mktemp("gap_real") / "ref"
     source = munich_data / "ReferenceState/ReferenceStateForceAt100Hz.csv.zip"
-    _run(["import-csv", str(source), "--out", str(bag)])
+    _run(["import-csv", str(source), "--out", str(bag), "--date", "2022-03-07"])
     return bag
 
 

@@ -48,7 +48,10 @@ def april(munich_data: Path) -> tuple[list[str], MonitoringData]:
 
 
 def test_reference_record_first_sample_si_and_utc(munich_data: Path) -> None:
-    data, report = import_csv([munich_data / REF])
+    # 2022-03-07 could be 2022-07-03 swapped, and nothing in the file says which: the date is given
+    with pytest.raises(InputError, match=r"could also be 2022-07-03 .*--date 2022-03-07 or --date 2022-07"):
+        import_csv([munich_data / REF])
+    data, report = import_csv([munich_data / REF], date_hint=date(2022, 3, 7))
     f1, f2 = data.forces["frc_01"], data.forces["frc_02"]
     assert f1.force_n[0] == pytest.approx(2.6023853125e5, rel=1e-15)
     assert f2.force_n[0] == pytest.approx(2.20779578125e5, rel=1e-15)
@@ -101,9 +104,20 @@ def test_date_swap_evidence_without_a_dated_name(munich_data: Path, tmp_path: Pa
     # a stamp date in the future
     _, report = import_csv([plain], today=date(2022, 6, 1))
     assert report.date_fixes[0]["evidence"] == "date in the future"
-    # no evidence: kept as written; --date fixes it; a contradicting --date is an error
-    data, report = import_csv([plain])
+    # no evidence: refused with the hint, or kept as written when asked; --date fixes it; a
+    # contradicting --date is an error
+    with pytest.raises(InputError, match=r"could also be 2022-04-11 .*--date 2022-11-04 or --date 2022-04"):
+        import_csv([plain])
+    data, report = import_csv([plain], ambiguous="as_written")
     assert report.date_fixes == [] and data.forces["frc_01"].stamp_ns[0] == _ns("2022-11-04T07:36:24.897")
+    # a file date settles it the other way too: stamps 2022-03-07 in a file written on 2022-04-01
+    # cannot be 2022-07-03
+    march = tmp_path / "march.zip"
+    rows = "Time (-),FRC-01 (kN),FRC-02 (kN)\n2022-03-07 16:35:00.000,260.1,221.2\n"
+    with zipfile.ZipFile(march, "w") as z:
+        z.writestr(zipfile.ZipInfo("force.csv", date_time=(2022, 4, 1, 9, 0, 0)), rows)
+    data, report = import_csv([march])
+    assert report.date_fixes == [] and data.forces["frc_01"].stamp_ns[0] == _ns("2022-03-07T15:35:00")
     data, report = import_csv([plain], date_hint=date(2022, 4, 11))
     assert data.forces["frc_01"].stamp_ns[0] == _ns("2022-04-11T06:36:24.897")
     with pytest.raises(InputError, match="--date 2022-04-12"):
@@ -226,10 +240,10 @@ def test_cli_round_trip_both_storages(april, tmp_path: Path, storage: str, capsy
         )
         checked += 1
     assert checked > (72000 * 2 + 28330) // 11
-    # a second run without --overwrite is a one-line user error
+    # a second run without --force is a one-line user error
     assert main(["import-csv", *files, "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert "--overwrite" in err and err.count("\n") == 1
+    assert "pass --force to replace it" in err and err.count("\n") == 1
 
 
 def test_cli_rejects_foreign_csv(munich_data: Path, tmp_path: Path, capsys) -> None:

@@ -1,4 +1,9 @@
-"""Adjoint sensitivities (no extra solve) against finite differences of full FE solves (coarse mesh)."""
+"""Adjoint sensitivities (no extra solve) against finite differences of full FE solves.
+
+Here the support spring is an FE element (in the calibration it is applied in closed form:
+``test_calibrate_derivatives.py`` checks all 14 parameters that way). The derivatives are exact on
+any mesh, so both use the same mesh coarser than ``coarse`` (``ROUGH``) to keep the solves cheap.
+"""
 
 from __future__ import annotations
 
@@ -24,7 +29,16 @@ H = 1e-3  # relative step of the central difference in log(p)
 
 @pytest.fixture(scope="module")
 def case():
-    cfg = load_bridge_config().with_overrides(POINT)
+    import copy
+
+    from test_calibrate_derivatives import ROUGH
+
+    from bridge_shadow.model.config import BridgeConfig
+
+    built = load_bridge_config()
+    data = copy.deepcopy(built.data)
+    data["mesh"]["coarse"] = dict(ROUGH)
+    cfg = BridgeConfig(data, built.path, built.sha256).with_overrides(POINT)
     base = solve_bridge(cfg, "coarse")
     return cfg, base, parameter_derivatives(cfg, base, NAMES, "coarse")
 

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 import numpy as np
 import pytest
 
@@ -87,7 +90,7 @@ def test_watch_line_shows_the_latest_outputs() -> None:
     put(DIAGNOSTICS_TOPIC, diagnostic_array([Status("bridge_shadow: settlement", 1, "warming up")], end_ns))
     line = watch_line(records, 0.42)
     assert line == (
-        "[ 42%] window to 2022-03-14 07:00 UTC: south +0.700 ± 0.020 mm, north -0.690 ± 0.039 mm"
+        "[ 42%] window to 2022-03-14T07:00Z: south +0.700 ± 0.020 mm, north -0.690 ± 0.039 mm"
         " | compensated 238.91 / 238.87 kN | settlement WARN | 2 windows"
     )
     import io
@@ -98,3 +101,34 @@ def test_watch_line_shows_the_latest_outputs() -> None:
     watch(0.2)  # within the period: not shown
     watch(1.0)  # the end: always shown
     assert len(out.getvalue().splitlines()) == 2
+
+
+def test_a_resumed_replay_counts_this_run(root, tmp_path) -> None:
+    """Resume, then replay: the counts add up (used + rejected = messages read), the rest is ``resumed``."""
+    import json
+
+    from bridge_shadow.cli import main
+
+    bag, ckpt = str(root / "bags" / "baseline_1d"), str(tmp_path / "state.npz")
+    first = tmp_path / "first.json"
+    with first.open("w") as fh, contextlib.redirect_stdout(fh):
+        assert main(["replay", bag, "--checkpoint", ckpt, "--json"]) == 0
+    fresh = json.loads(first.read_text())
+    assert "resumed" not in fresh
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):  # the same bag again: every message is old news now
+        assert main(["replay", bag, "--checkpoint", ckpt, "--json"]) == 1  # no window updated
+    again = json.loads(out.getvalue())
+    msgs = again["messages"]
+    assert msgs["used"] + msgs["rejected"] == msgs["total"] == fresh["messages"]["total"]
+    assert msgs["used"] == 0 and again["windows"]["closed"] == again["windows"]["updates"] == 0
+    assert again["resumed"] == {
+        "windows": fresh["windows"]["closed"],
+        "updates": fresh["windows"]["updates"],
+        "messages_used": fresh["messages"]["used"],
+    }
+    # the posterior is the checkpoint's (the end-of-record refit runs once more: rounding)
+    np.testing.assert_allclose(again["posterior"]["mean_m"], fresh["posterior"]["mean_m"], rtol=1e-9)
+    text = _summary(again)
+    assert text.startswith(f"resumed from a checkpoint of {fresh['windows']['closed']} windows")
+    assert f"messages: {msgs['total']} in, 0 used, {msgs['total']} rejected" in text

@@ -246,6 +246,27 @@ def test_closed_stdout_pipe_ends_quietly(root: Path, args: list[str]) -> None:
     assert proc.returncode == 141 or (args == ["--help"] and proc.returncode == 0)
 
 
+def test_head_1_takes_the_first_line_and_the_replay_ends_with_141(root: Path) -> None:
+    """``replay BAG | head -1`` exits 141, as the README says.
+
+    The first line (what is replayed, with which model) leaves at once, the reader takes it and
+    goes; the result, written when the replay is done, meets the closed pipe.
+    """
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "bridge_shadow.cli", "replay", "bags/baseline_1d"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=root,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    first = proc.stdout.readline()  # head -1
+    proc.stdout.close()
+    assert first.startswith("replay bags/baseline_1d: surrogate ")
+    assert proc.wait(120) == 141
+    assert proc.stderr.read() == ""
+
+
 def test_sqlite_stream_refuses_what_it_cannot_order(tmp_path: Path) -> None:
     """No timestamp index: the slice reader is not used (rosbags streams it; see the read test)."""
     from bridge_shadow.bagio.sqlite_stream import SqliteSlices, SqliteStreamUnsupported

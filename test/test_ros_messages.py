@@ -75,7 +75,7 @@ def test_statuses_carry_posterior_in_mm_and_counts(diag: dict) -> None:
     assert inputs.level == 0
     assert inputs.values["rejected nonfinite"] == str(diag["rejected"]["nonfinite"]) != "0"
     assert inputs.values["rejected malformed"] == "3"
-    assert comp.values["frc_02 lambda"] == f"{diag['spline']['frc_02']['lambda']:.4g}"
+    assert comp.values["frc_02 lambda [C^3]"] == f"{diag['spline']['frc_02']['lambda']:.4g}"
     assert events.level == 0 and events.values["events"] == "0"
     msg = diagnostic_array([est, inputs, comp, events], 5_000_000_001)
     assert [s.level for s in msg.status] == [bytes([est.level]), b"\x00", bytes([comp.level]), b"\x00"]
@@ -92,7 +92,7 @@ def test_input_levels_follow_arrival_age(diag: dict) -> None:
 
 
 def test_events_and_lost_topics_reach_diagnostics() -> None:
-    """A detected step is a WARN status naming its window and size; a topic lost to its frame id too."""
+    """A detected step is a WARN status naming its time and size; a topic lost to its frame id too."""
     from bridge_shadow.model.surrogate_file import placeholder_surrogate
     from bridge_shadow.series import MonitoringData, TemperatureSeries
 
@@ -113,7 +113,11 @@ def test_events_and_lost_topics_reach_diagnostics() -> None:
     diag = shadow.diagnostics()
     _, inputs, comp, events = statuses(diag, {"frc_01": 0.1, "frc_02": 0.1, "air_temperature": 0.1})
     assert events.level == 1 and events.values["events"] == "1"
-    assert "south -1.00" in events.values["event 1"] and "window" in events.values["event 1"]
+    from bridge_shadow.timefmt import iso_utc
+
+    # the time of the step in ISO 8601 (2023-11-14T22:54Z), not a window index
+    assert "south -1.00" in events.values["event 1"] and "window" not in events.values["event 1"]
+    assert f"at {iso_utc(diag['events'][0]['time_ns'])}:" in events.values["event 1"]
     assert "holds zero" not in events.values["event 1"]  # 1 mm is far outside its interval
     assert inputs.level == 1 and "topic air_temperature: all" in inputs.message and "'roof'" in inputs.message
     assert comp.level == 1 and "no air temperature" in comp.message

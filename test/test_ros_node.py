@@ -186,7 +186,7 @@ def test_bad_parameter_exits_2_with_one_line() -> None:
         assert node.proc is not None
         assert node.proc.wait(TIMEOUT_S) == 2
         out = node.output()
-    assert "window_s must be a finite number > 0, not -1.0" in out
+    assert "window_s must be a finite number in (0, 86400], not -1.0" in out
     assert "Traceback" not in out
 
 
@@ -276,17 +276,6 @@ def test_topic_parameters_rename_the_node_graph(bag: Path, direct, tmp_path: Pat
     wanted = {RENAMED["topic_mean"]: FLOAT_ARRAY_TYPE, MEAN_TOPIC: FLOAT_ARRAY_TYPE}
     out = read_raw_topics(tmp_path / "out", wanted)
     assert MEAN_TOPIC not in out and len(out[RENAMED["topic_mean"]][1]) == len(direct.outputs)
-
-
-def test_paced_live_replay_keeps_the_bag_pace_and_the_posterior(bag: Path, direct) -> None:
-    """``rate`` paces publishing by the bag's log times; the posterior does not change."""
-    log = np.concatenate([t for t, _ in read_raw_topics(bag, INPUT_TOPICS).values()])
-    rate = 20_000.0
-    paced_s = (log.max() - log.min()) / 1e9 / rate  # about 4.3 s for one day
-    live = run_live(bag, overrides=OVERRIDES, rate=rate, timeout_s=TIMEOUT_S)
-    assert live["live"]["publish_s"] >= 0.95 * paced_s
-    np.testing.assert_allclose(live["posterior"]["mean_m"], direct.mean_m, rtol=1e-12, atol=0)
-    assert live["windows"]["updates"] == direct.updates
 
 
 def test_live_replay_of_a_bag_without_temperature_runs_uncompensated(

@@ -103,8 +103,10 @@ def test_settlement_drift_summary_in_truth(synth_bag) -> None:
     [
         (["--effect", "scour=1"], "unknown effect scour; valid effects: " + ", ".join(EFFECT_NAMES)),
         (["--effect", "traffic"], "expected NAME=VALUE"),
-        (["--days", "0"], "days must be positive"),
-        (["--rate", "-1"], "rate must be positive"),
+        (["--days", "0"], "--days must be a finite number in (0, 366], not 0.0"),
+        (["--days", "1e6"], "--days must be a finite number in (0, 366]"),  # the twin holds it in memory
+        (["--rate", "-1"], "--rate must be a finite number in (0, 1000], not -1.0"),
+        (["--step", "1:-2:0"], "SOUTH must be a finite number in (-1, 1), not -2.0"),  # m, not mm
         (["--step", "1:2"], "expected DAY:SOUTH:NORTH"),
         (["--compress"], "mcap storage only"),
         (["--start", "yesterday"], "not an ISO 8601"),
@@ -117,14 +119,16 @@ def test_cli_errors_are_one_line(tmp_path: Path, capsys, extra: list[str], messa
     assert not (tmp_path / "x").exists()
 
 
-def test_existing_bag_needs_overwrite(tmp_path: Path, capsys) -> None:
+def test_existing_bag_needs_force(tmp_path: Path, capsys) -> None:
     out = str(tmp_path / "bag")
     base = ["synth", "--out", out, "--days", "0.05", "--rate", "0.1"]
     assert main(base) == 0
     assert main([*base, "--seed", "1"]) == 2
-    assert "--overwrite" in capsys.readouterr().err
-    assert main([*base, "--seed", "1", "--overwrite"]) == 0
+    assert "pass --force to replace it" in capsys.readouterr().err
+    assert main([*base, "--seed", "1", "--force"]) == 0
     assert read_truth(out)["seed"] == 1
+    assert main([*base, "--seed", "2", "--overwrite"]) == 0  # the older name of --force
+    assert read_truth(out)["seed"] == 2
 
 
 def test_help_lists_the_effects(capsys) -> None:

@@ -55,7 +55,7 @@ def _check_target(path: Path, overwrite: bool) -> None:
     if not path.exists() and not path.is_symlink():
         return
     if not overwrite:
-        raise BagExistsError(f"{path}: exists already, not overwriting it")
+        raise BagExistsError(f"{path}: exists already; pass --force to replace it")
     if path.is_dir() and not path.is_symlink():
         entries = list(path.iterdir())
         looks_like_bag = all(e.is_file() and e.name.endswith(_BAG_FILE_SUFFIXES) for e in entries) and (
@@ -140,9 +140,11 @@ class BagOutputWriter:
 
                 self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
             self._writer.open()
-        except (WriterError, OSError) as err:
+        except BaseException as err:  # also an interrupt while opening: no stage is left behind
             self._discard()
-            raise BagError(f"{self.path}: cannot create bag: {err}") from None
+            if isinstance(err, (WriterError, OSError)):
+                raise BagError(f"{self.path}: cannot create bag: {err}") from None
+            raise
         return self
 
     def __exit__(
@@ -185,7 +187,12 @@ class BagOutputWriter:
             _check_target(self.path, self._overwrite)  # it may have appeared while we wrote
             old = self._stage / f".old-{self.path.name}"  # removed with the stage directory
             os.replace(self.path, old)
-        os.replace(self.staged_path, self.path)
+        try:
+            os.replace(self.staged_path, self.path)
+        except BaseException:  # an error or an interrupt between the two renames: the old bag returns
+            if old is not None and not (self.path.exists() or self.path.is_symlink()):
+                os.replace(old, self.path)
+            raise
         self._discard()
 
     def _discard(self) -> None:

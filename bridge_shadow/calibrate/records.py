@@ -37,8 +37,15 @@ def _is_bag(path: Path) -> bool:
     return path.is_dir() or path.suffix in (".db3", ".mcap")
 
 
-def load_record(paths: Sequence[str | Path], base: Path | None = None) -> MonitoringData:
-    """Read a record given as one bag or as CSV/zip files (forces and, optionally, temperature)."""
+def load_record(
+    paths: Sequence[str | Path], base: Path | None = None, *, dated: bool = True
+) -> MonitoringData:
+    """Read a record given as one bag or as CSV/zip files (forces and, optionally, temperature).
+
+    ``dated``: the record's calendar date matters (a pair's records: the time between them); a
+    force file whose month and day could be swapped, with nothing to settle it, is then refused
+    (``import_csv``). False reads it as written (a reference record: only its levels enter).
+    """
     files = [resolve_path(p, base) for p in paths]
     if not files:
         raise CalibrationError("a record needs at least one file or bag")
@@ -51,7 +58,12 @@ def load_record(paths: Sequence[str | Path], base: Path | None = None) -> Monito
         from bridge_shadow.bagio import read_monitoring
 
         return read_monitoring(bags[0], required=list(FORCE_TOPICS.values()))
+    from bridge_shadow.errors import InputError
     from bridge_shadow.importers import import_csv
 
-    data, _ = import_csv(list(files))
+    try:
+        data, _ = import_csv(list(files), ambiguous="refuse" if dated else "as_written")
+    except InputError as err:
+        hint = "convert the record with `bridge-shadow import-csv --date ...` and list the bag instead"
+        raise CalibrationError(f"{err}; {hint}") from None
     return data

@@ -169,12 +169,17 @@ def summary_text(result: CalibrationResult) -> str:
 
 
 def _save(fig: Any, path: Path) -> Path:
-    """Lay out, write and close a figure."""
+    """Lay out, write (atomically: temporary file, then rename) and close a figure."""
     import matplotlib.pyplot as plt
 
+    from bridge_shadow.fileio import atomic_write
+
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        with atomic_write(path, "figure") as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -187,9 +192,9 @@ def write_figures(result: CalibrationResult, out_dir: str | Path) -> list[Path]:
 
     from bridge_shadow.calibrate.car import bin_record
     from bridge_shadow.calibrate.records import load_record
+    from bridge_shadow.fileio import output_dir
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(out_dir, "figure directory")
     files = []
     spec = result.spec
     ps = spec.pairs[0]

@@ -112,8 +112,8 @@ class CalibrationResult:
         }
 
 
-def _record_level(paths: list[str], spec: CalibrationSpec) -> RecordLevel:
-    return record_level(load_record(paths, spec.base_dir), window_s=spec.window_s)
+def _record_level(paths: list[str], spec: CalibrationSpec, dated: bool = True) -> RecordLevel:
+    return record_level(load_record(paths, spec.base_dir, dated=dated), window_s=spec.window_s)
 
 
 def measure_pairs(spec: CalibrationSpec, report: Progress | None = None) -> list[PairData]:
@@ -169,7 +169,7 @@ def calibrate(
     pairs = measure_pairs(spec, lambda f, s: tick(0.05 * f, s))
     ref_level, ref_n = None, spec.reference_reactions_n
     if spec.reference_record:
-        ref_level = _record_level(spec.reference_record, spec)
+        ref_level = _record_level(spec.reference_record, spec, dated=False)  # only its levels enter
         ref_n = ref_level.level_n
     store = SolutionStore()
     explanations: dict[str, Explanation] = {}

@@ -18,7 +18,10 @@ Keys (SI units)::
       support_springs: [support_spring_south, support_spring_north]
     choose: best                        # the explanation written to the surrogate: best evidence, or a name
 
-Relative paths resolve against the file's directory, then the shared data directory.
+Relative paths resolve against the file's directory, then the shared data directory. Every key
+is checked: an unknown one is an error with the key meant (``keys.check_keys``), and each number
+must lie in its physical range (``estimate.param_specs.VALUE_SPECS``: a settlement under a metre,
+the jacks' accuracy in (0, 0.1] m, car-free windows of 0.1 to 600 s), named in the message.
 """
 
 from __future__ import annotations
@@ -34,10 +37,27 @@ import yaml
 
 from bridge_shadow.calibrate.change import BASELINE_CHANGES
 from bridge_shadow.calibrate.errors import CalibrationError
+from bridge_shadow.errors import ConfigError
+from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
+from bridge_shadow.keys import check_keys
 from bridge_shadow.model.config import MESH_LEVELS
 from bridge_shadow.model.parameters import PARAMETERS
 
-__all__ = ["DEFAULT_EXPLANATIONS", "CalibrationSpec", "PairSpec", "load_spec", "spec_from_dict"]
+__all__ = [
+    "DEFAULT_EXPLANATIONS",
+    "FILE_KEYS",
+    "PAIR_KEYS",
+    "REFERENCE_KEYS",
+    "CalibrationSpec",
+    "PairSpec",
+    "load_spec",
+    "spec_from_dict",
+]
+
+#: The keys of a calibration file, of one of its pairs and of its reference (module docstring).
+FILE_KEYS = ("mesh", "baseline_change", "window_s", "pairs", "reference", "explanations", "choose")
+PAIR_KEYS = ("name", "before", "after", "imposed_m", "imposed_sd_m")
+REFERENCE_KEYS = ("name", "record", "reactions_n")
 
 #: The candidate explanations compared by default: name -> calibrated parameters (``all``: every
 #: parameter with a prior). The imposed-settlement errors are estimated in every one of them.
@@ -114,14 +134,16 @@ class CalibrationSpec:
             raise CalibrationError(f"pair names must be unique, got {names}")
 
 
-def _vec2(value: Any, what: str) -> np.ndarray:
+def _checked(what: str, value: Any, kind: str, spec: str) -> Any:
+    """Return ``value`` checked against ``VALUE_SPECS[spec]``; CalibrationError naming ``what``."""
     try:
-        arr = np.asarray(value, float).reshape(2)
-    except (TypeError, ValueError):
-        raise CalibrationError(f"{what} must be [south, north] numbers, got {value!r}") from None
-    if not np.all(np.isfinite(arr)):
-        raise CalibrationError(f"{what} must be finite, got {value!r}")
-    return arr
+        return check_value(what, value, kind, VALUE_SPECS[spec])
+    except ConfigError as err:
+        raise CalibrationError(str(err)) from None
+
+
+def _vec2(value: Any, what: str, spec: str) -> np.ndarray:
+    return np.asarray(_checked(what, value, "float_pair", spec), float)
 
 
 def _paths(value: Any, what: str) -> list[str]:
@@ -154,6 +176,7 @@ def spec_from_dict(data: Mapping[str, Any], base_dir: Path | None = None) -> Cal
     """Build a spec from plain data (the YAML's content)."""
     if not isinstance(data, Mapping):
         raise CalibrationError("the calibration file must be a mapping")
+    check_keys(data, FILE_KEYS, "calibration file", error=CalibrationError)
     raw_pairs = data.get("pairs")
     if not isinstance(raw_pairs, Sequence) or not raw_pairs:
         raise CalibrationError("pairs: need a list of record pairs (before, after, imposed_m, imposed_sd_m)")
@@ -162,34 +185,34 @@ def spec_from_dict(data: Mapping[str, Any], base_dir: Path | None = None) -> Cal
         if not isinstance(p, Mapping):
             raise CalibrationError(f"pairs[{i}] must be a mapping")
         name = str(p.get("name", f"pair_{i}"))
+        check_keys(p, PAIR_KEYS, f"pair {name}", error=CalibrationError)
         for key in ("before", "after", "imposed_m", "imposed_sd_m"):
             if key not in p:
                 raise CalibrationError(f"pair {name}: missing {key}")
-        sd = _vec2(p["imposed_sd_m"], f"pair {name}: imposed_sd_m")
-        if np.any(sd <= 0):
-            raise CalibrationError(f"pair {name}: imposed_sd_m must be positive (the jacks are never exact)")
         pairs.append(
             PairSpec(
                 name,
                 _paths(p["before"], f"pair {name}: before"),
                 _paths(p["after"], f"pair {name}: after"),
-                _vec2(p["imposed_m"], f"pair {name}: imposed_m"),
-                sd,
+                _vec2(p["imposed_m"], f"pair {name}: imposed_m", "settlement_m"),
+                # positive: the jacks are never exact
+                _vec2(p["imposed_sd_m"], f"pair {name}: imposed_sd_m", "imposed_sd_m"),
             )
         )
     ref = data.get("reference") or {}
     if not isinstance(ref, Mapping):
         raise CalibrationError("reference must be a mapping with record or reactions_n")
+    check_keys(ref, REFERENCE_KEYS, "reference", error=CalibrationError)
     return CalibrationSpec(
         pairs=pairs,
         mesh=str(data.get("mesh", "default")),
         baseline_change=str(data.get("baseline_change", "uncertainty")),
-        window_s=float(data.get("window_s", 10.0)),
+        window_s=_checked("window_s", data.get("window_s", 10.0), "float", "calibration_window_s"),
         explanations=_explanations(data.get("explanations")),
         choose=str(data.get("choose", "best")),
         reference_name=str(ref.get("name", "reference")) if ref else "",
         reference_record=_paths(ref["record"], "reference.record") if "record" in ref else [],
-        reference_reactions_n=_vec2(ref["reactions_n"], "reference.reactions_n")
+        reference_reactions_n=_vec2(ref["reactions_n"], "reference.reactions_n", "reactions_n")
         if "reactions_n" in ref
         else None,
         base_dir=base_dir,
@@ -207,7 +230,10 @@ def load_spec(path: str | Path) -> CalibrationSpec:
         data = yaml.safe_load(raw)
     except yaml.YAMLError as err:
         raise CalibrationError(f"{file}: not valid YAML ({err})") from err
-    spec = spec_from_dict(data, file.resolve().parent)
+    try:
+        spec = spec_from_dict(data, file.resolve().parent)
+    except CalibrationError as err:
+        raise CalibrationError(f"{file}: {err}") from None
     spec.path = file
     spec.sha256 = hashlib.sha256(raw).hexdigest()
     return spec

@@ -49,6 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "spec", nargs="?", type=Path, default=None, help="calibration file (default config/calibration.yaml)"
     )
     parser.add_argument("--out", type=Path, default=None, help="write the calibrated surrogate YAML here")
+    parser.add_argument("--force", action="store_true", help="replace an existing surrogate file at --out")
     parser.add_argument(
         "--mesh", default=None, metavar="LEVEL", help="coarse, default or fine (overrides the file)"
     )
@@ -111,6 +112,14 @@ def run(args: argparse.Namespace) -> int:
         spec.choose = args.choose
     if args.check is not None:
         return _check(args, spec)
+    # the outputs are checked before the FE solves: a bad path costs no minutes
+    from bridge_shadow.fileio import check_output_dir
+    from bridge_shadow.model.surrogate_file import surrogate_target
+
+    if args.out is not None:
+        surrogate_target(args.out, create=False, force=args.force)
+    if args.report is not None:
+        check_output_dir(args.report, "figure directory")
     cfg = load_bridge_config(args.model, parse_overrides(args.overrides))
     result = calibrate(spec, cfg, only=args.only, report=lambda f, s: progress(f, "calibrate"))
     doc = result.to_dict()
@@ -121,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
             "# thermal N/K; sensitivities per unit relative change of the parameter;\n"
             "# model_uncertainty: covariance of [A, u0] (N/m, N).\n"
         )
-        write_surrogate(result.run, args.out, header=header)
+        write_surrogate(result.run, args.out, header=header, force=args.force)
         doc["written_to"] = str(args.out)
     if args.report is not None:
         doc["figures"] = [str(p) for p in write_figures(result, args.report)]
@@ -140,17 +149,22 @@ def _check(args: argparse.Namespace, spec: object) -> int:
     """``--check``: read every pair through the given surrogate; 1 when an interval misses."""
     from bridge_shadow.calibrate.check import check_pair, check_text
     from bridge_shadow.calibrate.run import measure_pairs
-    from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.commands.output import emit_json, progress, require_finite
     from bridge_shadow.errors import InputError
     from bridge_shadow.model.surrogate_file import load_surrogate
 
-    calibrating = [n for n in ("out", "report", "only", "choose", "model", "mesh") if getattr(args, n)]
+    options = ("out", "force", "report", "only", "choose", "model", "mesh")
+    calibrating = [n for n in options if getattr(args, n)]
     if calibrating or args.overrides:
         names = ", ".join(f"--{n}" for n in calibrating) or "--set"
         raise InputError(f"--check scores a surrogate and calibrates nothing: drop {names}")
     surrogate = load_surrogate(args.check)
     pairs = measure_pairs(spec, report=lambda f, s: progress(f, "records"))
     checks = [check_pair(p.name, p.change, surrogate, p.imposed_m, p.imposed_sd_m) for p in pairs]
+    require_finite(
+        {f"{c.name}: {key}": c.to_dict()[key] for c in checks for key in ("x_m", "covariance_m2")},
+        "settlement read through the surrogate",
+    )
     if args.json:
         emit_json({"surrogate": str(args.check), "pairs": [c.to_dict() for c in checks]})
     else:

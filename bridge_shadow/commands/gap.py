@@ -63,8 +63,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--window", type=float, default=60.0, metavar="S", help="window length in s (60)")
 
 
-def parse_imposed(items: list[str], first_ns: int) -> list[tuple[int, float, float]]:
-    """``WHEN=SOUTH,NORTH`` strings -> ``(t_ns, dx_south_m, dx_north_m)``; InputError when malformed."""
+def parse_imposed(
+    items: list[str], first_ns: int, last_ns: int | None = None
+) -> list[tuple[int, float, float]]:
+    """``WHEN=SOUTH,NORTH`` strings -> ``(t_ns, dx_south_m, dx_north_m)``; InputError when malformed.
+
+    A step must lie inside the record, ``(first_ns, last_ns]`` when ``last_ns`` is given: a step
+    before the first sample or after the last one changes nothing the data can show.
+    """
     import datetime as dt
     from zoneinfo import ZoneInfo
 
@@ -90,6 +96,13 @@ def parse_imposed(items: list[str], first_ns: int) -> list[tuple[int, float, flo
             ) from None
         if not all(abs(v) < 1.0 for v in (south, north)):
             raise InputError(f"--imposed {item!r}: a settlement of a metre or more is not a settlement (m)")
+        if last_ns is not None and not first_ns < t_ns <= last_ns:
+            from bridge_shadow.timefmt import iso_utc
+
+            raise InputError(
+                f"--imposed {item!r}: {iso_utc(t_ns)} is outside the record "
+                f"({iso_utc(first_ns)} to {iso_utc(last_ns)}): the data cannot show that step"
+            )
         out.append((t_ns, south, north))
     return out
 
@@ -106,10 +119,9 @@ def _fmt_params(params: dict[str, Any]) -> str:
         elif v is None:
             parts.append(f"{k.split(' ')[0]} rigid")
         elif k == "at [ns]":
-            import datetime as dt
+            from bridge_shadow.timefmt import iso_utc
 
-            stamp = dt.datetime.fromtimestamp(int(v) / 1e9, dt.timezone.utc)
-            parts.append(f"at {stamp:%Y-%m-%d %H:%M} UTC")
+            parts.append(f"at {iso_utc(int(v))}")
         else:
             parts.append(f"{k.split(' ')[0]} {v}")
     return ", ".join(parts)
@@ -174,25 +186,23 @@ def _human(summary: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Read the bag, diagnose, print, and write the report."""
-    import math
-
     from bridge_shadow.bagio import read_monitoring
-    from bridge_shadow.commands.output import emit_json
-    from bridge_shadow.errors import InputError
+    from bridge_shadow.commands.output import emit_json, require_finite
+    from bridge_shadow.estimate.param_specs import SPECS, check_value
     from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.gap.diagnose import diagnose
     from bridge_shadow.gap.posterior import shadow_config
     from bridge_shadow.model.surrogate_file import load_surrogate
 
-    if not (args.window > 0 and math.isfinite(args.window)):
-        raise InputError("--window must be a positive, finite number of seconds")
+    check_value("--window", args.window, "float", SPECS["window_s"])  # the shadow's window_s range
     if args.report:
         check_output_dir(args.report, "--report directory")  # before the work
     config = shadow_config(args.params, args.surrogate)
     surrogate = load_surrogate(config.surrogate_path or None)
     data = read_monitoring(args.bag, topics=config.input_topics())
     first = min(int(s.stamp_ns.min()) for s in data.forces.values() if len(s))
-    imposed = parse_imposed(args.imposed, first)
+    last = max(int(s.stamp_ns.max()) for s in data.forces.values() if len(s))
+    imposed = parse_imposed(args.imposed, first, last)
     dg = diagnose(
         data,
         surrogate,
@@ -205,6 +215,12 @@ def run(args: argparse.Namespace) -> int:
         surrogate_path=config.surrogate_path or None,
     )
     summary = dict(dg.summary)
+    post = summary.get("posterior", {})
+    if post.get("computed"):  # the shadow's answers before and after: never printed as NaN
+        require_finite(
+            {f"posterior.{k}.{q}": post[k][q] for k in ("before", "after") for q in ("mean_m", "sigma_m")},
+            "posterior",
+        )
     summary["bag"] = str(args.bag)
     summary["surrogate_file"] = config.surrogate_path or "config/surrogate.yaml"
     if args.report:

@@ -40,33 +40,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="YYYY-MM-DD",
         help="true recording date of the force files",
     )
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing output bag")
+    parser.add_argument(
+        "--force", "--overwrite", dest="force", action="store_true", help="replace an existing bag at --out"
+    )
     parser.add_argument("--compress", action="store_true", help="zstd-compressed chunks (mcap storage only)")
     parser.add_argument("--json", action="store_true", help="print one JSON summary object")
 
 
 def run(args: argparse.Namespace) -> int:
     """Import, write the bag, print the summary."""
-    from bridge_shadow.bagio import BagExistsError, check_bag_target, write_monitoring
+    from bridge_shadow.bagio import check_bag_target, write_monitoring
     from bridge_shadow.commands.output import emit_json
     from bridge_shadow.errors import InputError
     from bridge_shadow.importers import import_csv
 
     if args.compress and args.storage != "mcap":
         raise InputError("--compress needs --storage mcap")
-    try:
-        check_bag_target(args.out, args.overwrite)  # before reading the records
-    except BagExistsError as err:
-        if args.overwrite:
-            raise
-        raise BagExistsError(f"{err} (pass --overwrite to replace it)") from None
+    check_bag_target(args.out, args.force)  # before reading the records
     data, report = import_csv(args.files, date_hint=args.date)
-    try:
-        out = write_monitoring(args.out, data, args.storage, overwrite=args.overwrite, compress=args.compress)
-    except BagExistsError as err:
-        if args.overwrite:
-            raise
-        raise BagExistsError(f"{err} (pass --overwrite to replace it)") from None
+    out = write_monitoring(args.out, data, args.storage, overwrite=args.force, compress=args.compress)
     summary = {"out": str(out), "storage": args.storage, **report.as_dict()}
     if args.json:
         emit_json(summary)

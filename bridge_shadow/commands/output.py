@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["emit_json", "jsonable", "progress"]
+__all__ = ["emit_json", "jsonable", "progress", "require_finite"]
 
 
 def jsonable(obj: Any) -> Any:
@@ -25,6 +25,23 @@ def jsonable(obj: Any) -> Any:
     if isinstance(obj, float) and not math.isfinite(obj):
         return None
     return obj
+
+
+def require_finite(values: dict[str, Any], what: str = "result") -> None:
+    """Raise ResultError (one line) when any of the named numbers is NaN or infinite.
+
+    ``values`` maps a name (``posterior.mean_m``) to a number or array-like of numbers (None, as
+    JSON writes a non-finite float, counts as non-finite). A command checks its result with this
+    before printing it, so a NaN posterior is never printed with exit 0.
+    """
+    from bridge_shadow.errors import ResultError
+
+    for name, value in values.items():
+        flat = np.asarray(jsonable(value), dtype=object).ravel()
+        arr = np.array([np.nan if v is None else float(v) for v in flat])
+        if not np.all(np.isfinite(arr)):
+            shown = np.array2string(arr, precision=4)
+            raise ResultError(f"the {what} is not finite ({name} = {shown}); nothing is reported as a result")
 
 
 def emit_json(obj: dict[str, Any]) -> None:

@@ -29,9 +29,12 @@ message is rejected is named with the reason and the expected value (WARN lines 
 "warnings" in the JSON), and a replay in which no window updated the estimate exits with 1.
 
 --out and --plots work in both modes (live: drawn from the node's history service and final
-checkpoint). The direct replay streams the bag in bounded memory: --out is written as windows
-close, and --plots draws at most 10,000 windows, evenly spaced over the record. A progress bar
-shows on a terminal unless --json.
+checkpoint); --out never replaces an existing bag without --force. The text output's first line
+(the bag and the surrogate in use, with the condition number of A) is printed before the work.
+Outside make, --live keeps DDS on loopback in a domain of its own unless
+ROS_AUTOMATIC_DISCOVERY_RANGE is set. The direct replay streams the bag in bounded memory: --out
+is written as windows close, and --plots draws at most 10,000 windows, evenly spaced over the
+record. A progress bar shows on a terminal unless --json.
 
 To watch the topics of a paced live replay (the ros2 command-line tools are not in the venv:
 they are not on the package index), --watch prints the node's latest outputs once a second:
@@ -57,6 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="with --live: publish at X times the bag's pace (1 = real time; default: as fast as taken)",
     )
     parser.add_argument("--out", metavar="OUTBAG", help="write the outputs (mean, covariance, ...) as a bag")
+    parser.add_argument("--force", action="store_true", help="replace an existing bag at --out")
     parser.add_argument("--plots", metavar="DIR", help="write PNG plots (compensation, posterior, ellipse)")
     parser.add_argument(
         "--checkpoint",
@@ -79,12 +83,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _summary(js: dict[str, Any]) -> str:
     import numpy as np
 
+    from bridge_shadow.timefmt import iso_utc
+
     mean = np.array(js["posterior"]["mean_m"])
     cov = np.array(js["posterior"]["covariance_m2"])
     sd = np.sqrt(np.diag(cov))
     rho = cov[0, 1] / (sd[0] * sd[1]) if sd.all() else float("nan")
     msgs = js["messages"]
+    resumed = js.get("resumed")
     lines = [
+        *(
+            [
+                f"resumed from a checkpoint of {resumed['windows']} windows ({resumed['updates']} updates, "
+                f"{resumed['messages_used']} messages used): the counts below are this run's"
+            ]
+            if resumed
+            else []
+        ),
         "posterior settlement (positive upward, 95% interval):",
         *(
             f"  {name:5s} {1e3 * m:+8.3f} mm ± {1e3 * 1.96 * s:.3f} mm"
@@ -121,7 +136,7 @@ def _summary(js: dict[str, Any]) -> str:
         what = {"gap": "change across a gap", "held_run": "change at the end of a held run"}.get(
             e.get("kind", "step"), "settlement step"
         )
-        lines.append(f"event {i}: {what} at {e.get('time', _utc(e['time_ns']))}: {size}")
+        lines.append(f"event {i}: {what} at {iso_utc(e['time_ns'])}: {size}")
     for i, c in enumerate(js.get("unconfirmed_changes", []), 1):
         size = ", ".join(
             f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f} mm"
@@ -140,7 +155,7 @@ def _summary(js: dict[str, Any]) -> str:
         # JSON carries a non-finite lambda (no curve: no temperature) as null (the live node's report)
         lam = float("inf") if sp["lambda"] is None else sp["lambda"]
         lines.append(
-            f"compensation {ch}: edf {sp['edf']:.2f}, lambda {lam:.3g}, "
+            f"compensation {ch}: {sp['edf']:.2f} effective degrees of freedom, lambda {lam:.3g} °C³, "
             f"level {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
         )
     return "\n".join(lines)
@@ -155,12 +170,6 @@ def _windows_text(reason: str, count: int, js: dict[str, Any]) -> str:
     return f"{reason} {count} ({shown})"
 
 
-def _utc(stamp_ns: int) -> str:
-    import datetime as dt
-
-    return dt.datetime.fromtimestamp(stamp_ns / 1e9, dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-
-
 def _loud(js: dict[str, Any]) -> int:
     """WARN lines on stderr for what must not pass silently; the exit code (1 when nothing updated)."""
     import sys
@@ -168,9 +177,10 @@ def _loud(js: dict[str, Any]) -> int:
     for line in js.get("warnings", []):
         print(f"bridge-shadow replay: WARN: {line}", file=sys.stderr)
     if not js["windows"]["updates"]:
+        what = "the checkpoint's" if js.get("resumed") else "the prior"
         print(
-            "bridge-shadow replay: error: no window updated the estimate (the posterior printed is the "
-            "prior); see the WARN lines and the rejected counts",
+            f"bridge-shadow replay: error: no window updated the estimate (the posterior printed is {what}); "
+            "see the WARN lines and the rejected counts",
             file=sys.stderr,
         )
         return 1
@@ -194,30 +204,44 @@ def run(args: argparse.Namespace) -> int:
     started = getattr(args, "started", None) or time.perf_counter()
 
     from bridge_shadow.bagio import check_bag_target
-    from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.commands.output import progress
     from bridge_shadow.errors import InputError
     from bridge_shadow.estimate import load_config
+    from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
     from bridge_shadow.fileio import check_output_dir
-    from bridge_shadow.model.surrogate_file import load_surrogate
+    from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 
     show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "replay"))
-    if args.rate is not None and (not args.live or not (0 < args.rate < float("inf"))):
-        raise InputError("--rate needs --live and a positive, finite speed factor")
+    if args.rate is not None:
+        if not args.live:
+            raise InputError("--rate needs --live (it paces the publishing to the node)")
+        check_value("--rate", args.rate, "float", VALUE_SPECS["rate"])
     if args.watch and not args.live:
         raise InputError("--watch needs --live (it shows the node's topics)")
     # the outputs are checked before the replay runs, so a bad path costs no time
     if args.out:
-        check_bag_target(args.out)
+        check_bag_target(args.out, args.force)
     if args.plots:
         check_output_dir(args.plots, "plot directory")
     over = {"surrogate_path": str(Path(args.surrogate).resolve())} if args.surrogate else None
+    # a params file's checkpoint_path belongs to the live node: never read or written here
+    config = load_config(args.params, over).replace(checkpoint_path=args.checkpoint or "")
+    surrogate = load_surrogate(config.surrogate_path or None)  # a bad file stops us here, one line
+    if not args.json:
+        # the first line leaves at once: a reader that takes it and goes (`| head -1`) ends the
+        # replay with exit 141 when the result is written, as any tool whose pipe was closed
+        mode = " (live)" if args.live else ""
+        used = describe_surrogate(surrogate, config.surrogate_path or None)
+        print(f"replay {args.bag}{mode}: surrogate {used}", flush=True)
     if args.live:
         from bridge_shadow.ros.live_replay import run_live
 
+        before = _resumed_counts(config, surrogate, args.checkpoint)
         js = run_live(
             args.bag,
             args.params,
             out=args.out,
+            overwrite=args.force,
             plots=args.plots,
             rate=args.rate,
             overrides=over,
@@ -225,36 +249,36 @@ def run(args: argparse.Namespace) -> int:
             checkpoint=args.checkpoint,
             watch=args.watch,
         )
+        if before is not None:
+            _this_run(js, before)
         _end_to_end_rate(js, started)
-        if args.json:
-            emit_json(js)
-        else:
-            print(_summary(js))
-        return _loud(js)
+        return _report(js, args.json)
 
     from bridge_shadow.contract import INPUT_TOPICS
     from bridge_shadow.estimate.startup import open_shadow
     from bridge_shadow.replay import HISTORY_CAPACITY, replay_bag
 
-    # a params file's checkpoint_path belongs to the live node: never read or written here
-    config = load_config(args.params, over).replace(checkpoint_path=args.checkpoint or "")
-    surrogate = load_surrogate(config.surrogate_path or None)
     shadow, notes = open_shadow(config, surrogate)  # an unusable checkpoint stops us before the bag
     for line in notes:
         print(f"bridge-shadow replay: {line}", file=sys.stderr)
+    before = _counts(shadow) if shadow.n_windows else None  # resumed: count this run apart
     # streamed in bounded memory; outputs go to --out as windows close, --plots keeps a decimated
     # history; the air temperature may be absent: the shadow then runs uncompensated and says so
     history = HISTORY_CAPACITY if args.plots else None
     result, _ = replay_bag(
-        args.bag, shadow, out=args.out, history=history, progress=show, required=list(INPUT_TOPICS)[:2]
+        args.bag,
+        shadow,
+        out=args.out,
+        overwrite=args.force,
+        history=history,
+        progress=show,
+        required=list(INPUT_TOPICS)[:2],
     )
     js = result.to_json()
+    if before is not None:
+        _this_run(js, before)
     js["bag"] = str(args.bag)
-    js["surrogate"] = {
-        "A": surrogate.A.tolist(),
-        "u0": surrogate.u0.tolist(),
-        "solver": surrogate.provenance.get("solver", ""),
-    }
+    js["surrogate"] = surrogate.summary()
     if args.out:
         js["out"] = str(args.out)
     _end_to_end_rate(js, started)
@@ -262,7 +286,65 @@ def run(args: argparse.Namespace) -> int:
         from bridge_shadow.estimate.plots import write_plots
 
         js["plots"] = [str(p) for p in write_plots(args.plots, result, shadow)]
-    if args.json:
+    return _report(js, args.json)
+
+
+def _counts(shadow: Any) -> dict[str, Any]:
+    """Return what a (resumed) shadow has counted: messages used and rejected, windows, updates."""
+    return {
+        "used": dict(shadow.used),
+        "rejected": dict(shadow.rejected),
+        "windows": int(shadow.n_windows),
+        "updates": int(shadow.n_updates),
+        "uncompensated": int(shadow.uncompensated),
+    }
+
+
+def _resumed_counts(config: Any, surrogate: Any, checkpoint: str | None) -> dict[str, Any] | None:
+    """Return the counts of the checkpoint the live node will resume (None: it starts fresh)."""
+    if not checkpoint or not Path(checkpoint).is_file():
+        return None
+    from bridge_shadow.estimate import Shadow
+
+    shadow = Shadow.resume(Path(checkpoint), config, surrogate)  # unusable: the error the node would give
+    return _counts(shadow) if shadow.n_windows else None
+
+
+def _this_run(js: dict[str, Any], before: dict[str, Any]) -> None:
+    """Make the counts of a resumed replay this run's (the shadow's own go on from the checkpoint).
+
+    Without this, ``messages.total`` (this run's) sat beside ``used`` and ``rejected`` counted
+    since the checkpoint's first window, which could add up to more than the messages read.
+    ``resumed`` keeps what the checkpoint held.
+    """
+    from bridge_shadow.estimate.gate import MESSAGE_REASONS
+
+    msgs = js["messages"]
+    for topic, n in before["used"].items():
+        msgs["used_by_topic"][topic] = msgs["used_by_topic"].get(topic, 0) - n
+    msgs["used"] = int(sum(msgs["used_by_topic"].values()))
+    for reason, n in before["rejected"].items():
+        js["rejected"][reason] = js["rejected"].get(reason, 0) - n
+    msgs["rejected"] = int(sum(v for k, v in js["rejected"].items() if k in MESSAGE_REASONS))
+    for key, name in (("closed", "windows"), ("updates", "updates"), ("uncompensated", "uncompensated")):
+        js["windows"][key] -= before[name]
+    js["resumed"] = {
+        "windows": before["windows"],
+        "updates": before["updates"],
+        "messages_used": int(sum(before["used"].values())),
+    }
+
+
+def _report(js: dict[str, Any], as_json: bool) -> int:
+    """Check that the result is finite, print it (JSON or text), say what must not pass silently."""
+    from bridge_shadow.commands.output import emit_json, require_finite
+
+    post = js["posterior"]
+    numbers = {"posterior.mean_m": post["mean_m"], "posterior.covariance_m2": post["covariance_m2"]}
+    for i, e in enumerate(js.get("events", []), 1):
+        numbers[f"events[{i}].size_m"] = e["size_m"]
+    require_finite(numbers, "posterior")
+    if as_json:
         emit_json(js)
     else:
         print(_summary(js))

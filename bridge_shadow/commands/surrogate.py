@@ -47,6 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out", type=Path, default=None, help="write the surrogate YAML here (default: write nothing)"
     )
+    parser.add_argument("--force", action="store_true", help="replace an existing surrogate file at --out")
     parser.add_argument("--vtk", type=Path, default=None, metavar="DIR", help="write mesh + deflected shapes")
     parser.add_argument("--png", type=Path, default=None, help="write a 3D view of the model")
     parser.add_argument("--no-sensitivities", action="store_true", help="skip the stiffness sensitivities")
@@ -84,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.model.surrogate_file import surrogate_target
 
     if args.out is not None:
-        surrogate_target(args.out, create=False)
+        surrogate_target(args.out, create=False, force=args.force)
     if args.png is not None:
         check_output_file(args.png, "model picture")
     if args.vtk is not None:
@@ -94,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     )
     out = args.out
     if out is not None:
-        write_surrogate(run_, out)
+        write_surrogate(run_, out, force=args.force)
     doc = run_.document()
     doc["provenance"]["written_to"] = str(out) if out is not None else None
     if args.vtk is not None:

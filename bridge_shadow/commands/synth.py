@@ -108,7 +108,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--compress", action="store_true", help="zstd-compress the MCAP chunks (mcap only, ~3.5x smaller)"
     )
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing bag")
+    parser.add_argument(
+        "--force", "--overwrite", dest="force", action="store_true", help="replace an existing bag at --out"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object with the summary")
 
 
@@ -116,6 +118,7 @@ def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
     import math
 
     from bridge_shadow.errors import InputError
+    from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
 
     steps = []
     for item in items:
@@ -123,8 +126,10 @@ def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
             day, south, north = (float(v) for v in item.split(":"))
         except ValueError:
             raise InputError(f"--step {item!r}: expected DAY:SOUTH:NORTH (days, m, m)") from None
-        if not all(math.isfinite(v) for v in (day, south, north)) or day < 0:
-            raise InputError(f"--step {item!r}: DAY must be >= 0 and every value finite")
+        if not math.isfinite(day) or day < 0:
+            raise InputError(f"--step {item!r}: DAY must be a finite number >= 0")
+        for side, value in (("SOUTH", south), ("NORTH", north)):
+            check_value(f"--step {item!r}: {side}", value, "float", VALUE_SPECS["settlement_m"])
         steps.append((day, south, north))
     return steps
 
@@ -152,23 +157,22 @@ def _bag_bytes(path: Any) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate, write the bag and its truth, print a summary."""
-    from pathlib import Path
-
     from bridge_shadow.bagio import check_bag_target
     from bridge_shadow.commands.output import emit_json
-    from bridge_shadow.errors import InputError
+    from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
     from bridge_shadow.twin.bag import write_twin_bag
     from bridge_shadow.twin.simulate import parse_effects
     from bridge_shadow.twin.truth import truth_path
 
-    if Path(args.out).exists() and not args.overwrite:
-        raise InputError(f"{args.out}: exists already (use --overwrite to replace it)")
-    check_bag_target(args.out, args.overwrite)  # before the simulation
+    check_value("--days", args.days, "float", VALUE_SPECS["days"])
+    check_value("--rate", args.rate, "float", VALUE_SPECS["rate_hz"])
+    check_value("--temp-rate", args.temp_rate, "float", VALUE_SPECS["rate_hz"])
+    check_bag_target(args.out, args.force)  # before the simulation
     reality_kw = _reality(args)
     out, truth = write_twin_bag(
         args.out,
         storage=args.storage,
-        overwrite=args.overwrite,
+        overwrite=args.force,
         compress=args.compress,
         days=args.days,
         rate_hz=args.rate,

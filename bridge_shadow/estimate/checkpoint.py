@@ -15,7 +15,6 @@ file is never overwritten here: the caller stops, or sets it aside (``set_aside`
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import tempfile
@@ -80,10 +79,6 @@ def _unflatten(flat: dict[str, np.ndarray]) -> dict[str, Any]:
     return fix(root)
 
 
-def _tmp_name(file: Path) -> Path:
-    return file.with_name(f".{file.name}.{os.getpid()}.tmp")
-
-
 def check_target(path: str | Path) -> Path:
     """Check at start that a checkpoint can be written at ``path``; CheckpointError if not.
 
@@ -109,25 +104,21 @@ def save_state(state: dict[str, Any], path: str | Path) -> Path:
         CheckpointError: the file cannot be written (no temporary file is left behind).
 
     """
+    from bridge_shadow.errors import InputError
+    from bridge_shadow.fileio import atomic_write
+
     file = Path(path)
     if file.is_dir():
         raise CheckpointError(f"{file}: is a directory, not a checkpoint file")
     flat: dict[str, np.ndarray] = {}
     _flatten(state, "", flat)
-    tmp = _tmp_name(file)
-    try:
-        file.parent.mkdir(parents=True, exist_ok=True)
-        with open(tmp, "wb") as fh:
+    try:  # also an interrupt (Ctrl-C, SIGTERM) removes the temporary file: fileio.atomic_write
+        with atomic_write(file, "checkpoint") as tmp, open(tmp, "wb") as fh:
             np.savez(fh, **flat)
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, file)
-    except BaseException as err:  # also an interrupt: never leave the temporary file behind
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        if isinstance(err, OSError):
-            raise CheckpointError(f"{file}: cannot write the checkpoint ({err.strerror or err})") from None
-        raise
+    except InputError as err:
+        raise CheckpointError(str(err)) from None
     return file
 
 

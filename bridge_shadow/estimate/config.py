@@ -30,6 +30,7 @@ from bridge_shadow.contract import (
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.estimate.param_specs import check_value, kind_of
 from bridge_shadow.fileio import yaml_problem
+from bridge_shadow.keys import check_keys
 from bridge_shadow.paths import config_file
 
 __all__ = ["ShadowConfig", "load_config", "read_params_file"]
@@ -161,17 +162,20 @@ class ShadowConfig:
             if not cond:
                 raise ConfigError(f"shadow parameters: {msg}")
 
-        need(self.spline_t_max_c > self.spline_t_min_c, "spline_t_max_c must exceed spline_t_min_c")
-        need(self.force_max_n > self.force_min_n, "force_max_n must exceed force_min_n")
-        need(self.temp_max_c > self.temp_min_c, "temp_max_c must exceed temp_min_c")
+        def pair(a: str, b: str, rule: str) -> str:  # a rule between two: name both, with values
+            return f"{a} must {rule} {b} (now {a} {getattr(self, a):g}, {b} {getattr(self, b):g})"
+
+        need(self.spline_t_max_c > self.spline_t_min_c, pair("spline_t_max_c", "spline_t_min_c", "exceed"))
+        need(self.force_max_n > self.force_min_n, pair("force_max_n", "force_min_n", "exceed"))
+        need(self.temp_max_c > self.temp_min_c, pair("temp_max_c", "temp_min_c", "exceed"))
         need(
             min(self.prior_sigma_m) > 0 or max(self.prior_sigma_m) == 0,
             "prior_sigma_m must be > 0, or [0, 0] for the paper's rule (prior_rule)",
         )
-        need(self.drift_block_s >= self.window_s, "drift_block_s must be at least window_s")
+        need(self.drift_block_s >= self.window_s, pair("drift_block_s", "window_s", "be at least"))
         need(
             self.event_max_pending > self.event_confirm_windows,
-            "event_max_pending must exceed event_confirm_windows",
+            pair("event_max_pending", "event_confirm_windows", "exceed"),
         )
         need(self.gap_s >= self.window_s, "gap_s must be at least window_s")
         topics = [*self.input_topics(), *self.output_topics().values()]
@@ -199,12 +203,9 @@ class ShadowConfig:
 
         Types are strict (see ``param_specs``): ``true`` is not 1.0, 2.7 is not 2.
         """
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(params) - names)
-        if unknown and strict:
-            raise ConfigError(
-                f"shadow parameters: unknown name(s) {', '.join(unknown)} (see config/shadow.yaml)"
-            )
+        names = [f.name for f in dataclasses.fields(cls)]
+        if strict:
+            check_keys(params, names, "shadow parameters", listing="see config/shadow.yaml")
         return cls(**{key: value for key, value in params.items() if key in names})
 
     def to_params(self) -> dict[str, Any]:

@@ -36,6 +36,7 @@ from bridge_shadow.errors import ConfigError
 __all__ = [
     "KINDS",
     "SPECS",
+    "VALUE_SPECS",
     "ParamSpec",
     "check_value",
     "constraint_text",
@@ -75,42 +76,75 @@ class ParamSpec:
     live: bool = False
 
 
-def _gt0(unit: str, **kw: Any) -> ParamSpec:
-    return ParamSpec(unit, low=0.0, low_open=True, **kw)
+def _gt0(unit: str, high: float, **kw: Any) -> ParamSpec:
+    return ParamSpec(unit, low=0.0, low_open=True, high=high, **kw)
 
 
-def _ge(low: float, unit: str = "-", **kw: Any) -> ParamSpec:
-    return ParamSpec(unit, low=low, **kw)
+def _ge(low: float, high: float, unit: str = "-", **kw: Any) -> ParamSpec:
+    return ParamSpec(unit, low=low, high=high, **kw)
 
 
 _TOPIC = ParamSpec()
 
+# The physical ends every range below is built from (each a value a real bridge, sensor or run
+# can take, with the reason); a parameter beyond them is a typo or a unit mistake (1e12 s for 60 s,
+# metres for millimetres), never a choice, and is refused by name before it can overflow a
+# variance or blame another parameter's cross-check.
+#: A day [s]: the longest window, timeout or period that still follows a daily temperature cycle
+#: (the compensation needs several windows per day; a window of a day averages the cycle away).
+DAY_S = 86_400.0
+#: A year [s]: the longest clock jump or drift block a monitoring record can hold.
+YEAR_S = 365.25 * DAY_S
+#: A metre [m]: the largest settlement a supported bridge can take (it lifts off its bearings at
+#: 20 mm with the calibrated model, 4.5 mm as built: README, Prior); a prior wider than that says
+#: nothing, and a variance of (1e150 m)^2 overflows the filter.
+METRE_M = 1.0
+#: Load-cell forces [N]: ten 1000 t load cells' capacity (1e7 N), forty times the central reaction
+#: of about 240 kN: a larger gate limit, noise or systematic error is not a reaction of this bridge.
+FORCE_LIMIT_N = 1.0e7
+#: Air temperature [C]: the records on earth are -89.2 C and +56.7 C; a gate or knot range beyond
+#: a hundred kelvin either side of freezing is not weather.
+TEMP_LIMIT_C = 100.0
+#: Windows [-]: a year of the shortest useful windows (1 s): the largest count of windows to wait
+#: for, hold or refit after.
+WINDOWS_MAX = 31_557_600
+#: Samples in a window [-]: a day at the 1 kHz acquisition rate on both channels.
+SAMPLES_MAX = 86_400_000
+#: Random-walk intensity [m^2/s]: a metre a day (sqrt(q * 1 day) = 1 m), far beyond any scour.
+Q_MAX_M2_PER_S = METRE_M**2 / DAY_S
+
 #: Every parameter of ``ShadowConfig``: name -> spec (see the module docstring).
 SPECS: dict[str, ParamSpec] = {
     # alignment and aggregation
-    "window_s": _gt0("s", shapes_state=True),
-    "window_min_samples": _ge(1),
+    "window_s": _gt0("s", DAY_S, shapes_state=True),
+    "window_min_samples": _ge(1, SAMPLES_MAX),
     "temperature_match": ParamSpec(choices=("hold", "linear")),
-    "temperature_stale_s": _gt0("s"),
-    "topic_timeout_s": _ge(0.0, "s"),
+    "temperature_stale_s": _gt0("s", DAY_S),
+    "topic_timeout_s": _ge(0.0, DAY_S, "s"),
     # temperature compensation (fitted jointly with the settlement levels)
     "smoothing": ParamSpec(choices=("reml", "gcv", "fixed", "none")),
-    "spline_lambda": _ge(0.0, "N^2 per (N/C^2)^2 C"),
-    "spline_t_min_c": ParamSpec("C", shapes_state=True),
-    "spline_t_max_c": ParamSpec("C", shapes_state=True),
-    "spline_segments": _ge(1, shapes_state=True),
-    "thermal_prior_sd_n_per_k": _gt0("N/K"),
-    "warmup_windows": _ge(1),
-    "refit_windows": _ge(1),
-    "lambda_reselect_growth": ParamSpec("-", low=1.0, low_open=True),
+    # lambda is in C^3 (the penalty integrates g''^2 over C). At 1e12 the fitted curve is a straight
+    # line to 3e-11 of its range (at 1e9 to 3e-8; test_parameters): a larger one changes nothing
+    "spline_lambda": _ge(0.0, 1.0e12, "N^2 per (N/C^2)^2 C"),
+    "spline_t_min_c": _ge(-TEMP_LIMIT_C, TEMP_LIMIT_C, "C", shapes_state=True),
+    "spline_t_max_c": _ge(-TEMP_LIMIT_C, TEMP_LIMIT_C, "C", shapes_state=True),
+    # 2000 knot intervals over the widest range (200 K) are 0.1 K apart: an air sensor's accuracy
+    "spline_segments": _ge(1, 2000, shapes_state=True),
+    # the uniform-temperature response is +9 to +21 N/K (README, The model); a prior sd of the whole
+    # central reaction per kelvin is no prior
+    "thermal_prior_sd_n_per_k": _gt0("N/K", FORCE_LIMIT_N),
+    "warmup_windows": _ge(1, WINDOWS_MAX),
+    "refit_windows": _ge(1, WINDOWS_MAX),
+    # a factor of growth: 1000 is never reached by a year of windows after a few hundred of them
+    "lambda_reselect_growth": ParamSpec("-", low=1.0, low_open=True, high=1000.0),
     # settlement prior and process noise
-    "prior_sigma_m": _ge(0.0, "m", shapes_state=True),
+    "prior_sigma_m": _ge(0.0, METRE_M, "m", shapes_state=True),
     "prior_rule": ParamSpec(choices=("one_bearing", "both"), shapes_state=True),
-    "process_noise_m2_per_s": _ge(0.0, "m^2/s"),
-    "drift_block_s": _gt0("s", shapes_state=True),
+    "process_noise_m2_per_s": _ge(0.0, Q_MAX_M2_PER_S, "m^2/s"),
+    "drift_block_s": _gt0("s", YEAR_S, shapes_state=True),
     # measurement noise
-    "noise_sigma_n": _gt0("N"),
-    "systematic_sigma_n": _ge(0.0, "N"),
+    "noise_sigma_n": _gt0("N", FORCE_LIMIT_N),
+    "systematic_sigma_n": _ge(0.0, FORCE_LIMIT_N, "N"),
     "noise_mode": ParamSpec(choices=("adaptive", "fixed")),
     "noise_phi_max": ParamSpec("-", low=0.0, high=1.0, high_open=True),
     "noise_floor": ParamSpec(),
@@ -118,32 +152,33 @@ SPECS: dict[str, ParamSpec] = {
     "event_detection": ParamSpec(),
     "event_trigger_probability": ParamSpec("-", low=0.0, high=1.0, low_open=True, high_open=True),
     "event_probability": ParamSpec("-", low=0.0, high=1.0, low_open=True, high_open=True),
-    "event_confirm_windows": _ge(1),
-    "event_max_pending": _ge(2),
-    "gap_s": _gt0("s"),
+    "event_confirm_windows": _ge(1, WINDOWS_MAX),
+    "event_max_pending": _ge(2, WINDOWS_MAX),
+    # a gap of a year still leaves the supports a chance to have moved (campaigns, long outages)
+    "gap_s": _gt0("s", YEAR_S),
     "change_prior_probability": ParamSpec("-", low=0.0, high=1.0, low_open=True, high_open=True),
     "change_confirm_probability": ParamSpec("-", low=0.5, high=1.0, low_open=True, high_open=True),
     "event_jump_rule": ParamSpec(choices=("one_bearing", "both", "prior")),
     # gating
-    "force_min_n": ParamSpec("N"),
-    "force_max_n": ParamSpec("N"),
-    "temp_min_c": ParamSpec("C"),
-    "temp_max_c": ParamSpec("C"),
+    "force_min_n": _ge(-FORCE_LIMIT_N, FORCE_LIMIT_N, "N"),
+    "force_max_n": _ge(-FORCE_LIMIT_N, FORCE_LIMIT_N, "N"),
+    "temp_min_c": _ge(-TEMP_LIMIT_C, TEMP_LIMIT_C, "C"),
+    "temp_max_c": _ge(-TEMP_LIMIT_C, TEMP_LIMIT_C, "C"),
     "mahalanobis_probability": ParamSpec("-", low=0.0, high=1.0, low_open=True),
-    "clock_jump_s": _gt0("s"),
-    "clock_jump_confirm": _ge(1),
+    "clock_jump_s": _gt0("s", YEAR_S),
+    "clock_jump_confirm": _ge(1, WINDOWS_MAX),
     "check_frame_id": ParamSpec(),
     "temperature_frame_id": ParamSpec(),
     # checkpoint
     "checkpoint_path": ParamSpec(),
-    "checkpoint_period_s": _gt0("s"),
+    "checkpoint_period_s": _gt0("s", YEAR_S),
     "checkpoint_unusable": ParamSpec(choices=("stop", "fresh")),
     # model
     "surrogate_path": ParamSpec(),
-    # node only
-    "qos_depth": _ge(0),
-    # faster than 100 Hz is no use to a reader and only burns a core
-    "diagnostics_period_s": _ge(0.01, "s", live=True),
+    # node only: a reader's history beyond a day of 1 kHz samples is memory, not reliability
+    "qos_depth": _ge(0, SAMPLES_MAX),
+    # faster than 100 Hz is no use to a reader and only burns a core; slower than a day is silence
+    "diagnostics_period_s": _ge(0.01, DAY_S, "s", live=True),
     # topics (their names are checked by ShadowConfig.validate)
     "topic_frc_01": _TOPIC,
     "topic_frc_02": _TOPIC,
@@ -154,6 +189,28 @@ SPECS: dict[str, ParamSpec] = {
     "topic_compensated_frc_02": _TOPIC,
 }
 _DEFAULT_SPEC = ParamSpec()
+
+#: Values that are not shadow parameters, checked by the same ``check_value`` with these specs:
+#: command-line options (``replay --rate``, ``synth --days``, ``gap --window``, ``--imposed``,
+#: ``synth --step``) and the calibration file's numbers (``calibrate.spec``). Name -> spec.
+VALUE_SPECS: dict[str, ParamSpec] = {
+    # a settlement step, imposed or simulated (m, positive upward): less than a metre either way
+    "settlement_m": ParamSpec("m", low=-METRE_M, high=METRE_M, low_open=True, high_open=True),
+    # the jacks' accuracy (1 sd): more than 10 cm is no known settlement
+    "imposed_sd_m": ParamSpec("m", low=0.0, high=0.1, low_open=True),
+    # a central reaction of a reference record (compression positive): 0 is a lifted bearing
+    "reactions_n": ParamSpec("N", low=0.0, high=FORCE_LIMIT_N, low_open=True),
+    # the calibration's car-free windows: at least 10 samples of the 100 Hz records, and at most
+    # ten minutes, beyond which a 12-minute record with the test car on it has no car-free window
+    "calibration_window_s": ParamSpec("s", low=0.1, high=600.0),
+    # replay --live --rate: a speed factor of log time; 1e7 plays a year in 3 s, faster than any
+    # node takes it (the player then publishes as fast as it is taken anyway)
+    "rate": ParamSpec("-", low=0.0, high=1.0e7, low_open=True),
+    # synth: a record of at most a year (the twin holds it in memory), forces and air
+    # temperature at most at the 1 kHz acquisition rate
+    "days": ParamSpec("day", low=0.0, high=366.0, low_open=True),
+    "rate_hz": ParamSpec("Hz", low=0.0, high=1000.0, low_open=True),
+}
 
 
 def kind_of(field: dataclasses.Field) -> str:
@@ -173,12 +230,17 @@ def kind_of(field: dataclasses.Field) -> str:
 
 
 def _num(x: float) -> str:
-    return f"{x:g}"
+    """Write a range end for people: whole numbers in full (86400, 31557600), others as ``%g``."""
+    return str(int(x)) if float(x).is_integer() and abs(x) < 1e12 else f"{x:g}"
 
 
-def constraint_text(name: str, kind: str) -> str:
-    """Return the constraint of a parameter in words, e.g. ``a finite number > 0``, ``one of a, b``."""
-    spec = SPECS.get(name, _DEFAULT_SPEC)
+def constraint_text(name: str, kind: str, spec: ParamSpec | None = None) -> str:
+    """Return the constraint of a parameter in words, e.g. ``a finite number > 0``, ``one of a, b``.
+
+    ``spec`` is the parameter's own (default: its entry in ``SPECS``; ``VALUE_SPECS`` for values
+    that are not shadow parameters).
+    """
+    spec = spec if spec is not None else SPECS.get(name, _DEFAULT_SPEC)
     if kind == "bool":
         return "true or false"
     if kind == "str":
@@ -215,17 +277,17 @@ def _in_range(x: float, spec: ParamSpec) -> bool:
     return not (spec.high is not None and (x > spec.high or (spec.high_open and x == spec.high)))
 
 
-def check_value(name: str, value: Any, kind: str) -> Any:
+def check_value(name: str, value: Any, kind: str, spec: ParamSpec | None = None) -> Any:
     """Return ``value`` in its field's type (an integer widened to a real), or raise ConfigError.
 
     The message names the parameter, what it must be and what it got, e.g.
-    ``window_s must be a finite number > 0, not true``.
+    ``window_s must be a finite number > 0, not true``. ``spec`` as in ``constraint_text``.
     """
-    spec = SPECS.get(name, _DEFAULT_SPEC)
+    spec = spec if spec is not None else SPECS.get(name, _DEFAULT_SPEC)
 
     def refuse() -> ConfigError:
         shown = "true" if value is True else "false" if value is False else repr(value)
-        return ConfigError(f"{name} must be {constraint_text(name, kind)}, not {shown}")
+        return ConfigError(f"{name} must be {constraint_text(name, kind, spec)}, not {shown}")
 
     if kind == "bool":
         if not isinstance(value, bool):

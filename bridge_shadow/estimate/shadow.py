@@ -396,6 +396,9 @@ class Shadow:
                 self._warm.append(w)
                 if len(self._warm) >= self.config.warmup_windows:
                     self._finish_warmup()
+                    # the warm windows update the estimate before the next window is judged against
+                    # it, whether that window comes in the same batch or later (chunking-exact)
+                    outputs.extend(self._drain())
                 continue
             if w.g_fit != self._fit_id:
                 stop = j + _CURVE_BLOCK

@@ -201,15 +201,28 @@ def _name_dates(source: CsvSource) -> set[date]:
     return out
 
 
+#: What ``import_csv`` does with force stamps whose month and day could be swapped and no
+#: evidence settles which: ``refuse`` (an InputError asking for ``--date``), or ``as_written``
+#: (for a record whose calendar date does not matter to the caller, e.g. a reference level).
+AMBIGUOUS_DATES = ("refuse", "as_written")
+
+
 def _swap_evidence(
-    written: list[date], source: CsvSource, explicit: date | None, temp_dates: set[date], today: date
+    written: list[date],
+    source: CsvSource,
+    explicit: date | None,
+    temp_dates: set[date],
+    today: date,
+    ambiguous: str = "refuse",
 ) -> str | None:
     """Say why the force stamps of a file have month and day swapped, or None if they have not.
 
-    The decision is for the whole file (a record crossing midnight keeps one convention). A swap
-    needs positive evidence: ``--date``; the date in the file name or of the temperature files
-    (day-first, unambiguous) matching the swapped but not the written dates; or written dates
-    after the file's own date or in the future while the swapped ones are not.
+    The decision is for the whole file (a record crossing midnight keeps one convention). Dates
+    whose day is above 12 (or equals the month) cannot be swapped. Otherwise the evidence, in
+    order: ``--date``; the date in the file name or of the temperature files (day-first,
+    unambiguous) matching one reading but not the other; the file's own date or today's, before
+    which one reading lies and the other does not. When nothing settles it, ``ambiguous`` says
+    what to do: ``refuse`` raises InputError with the hint ``--date``, ``as_written`` keeps it.
     """
     swaps = [_swapped(d) for d in written]
     if explicit is not None:
@@ -227,12 +240,30 @@ def _swap_evidence(
     ):
         if any(d in known for d in swaps) and not any(d in known for d in written):
             return what
+        if any(d in known for d in written) and not any(d in known for d in swaps):
+            return None  # the evidence confirms the stamps as written
     latest, latest_swapped = max(written), max(d for d in swaps if d is not None)
-    if source.modified is not None and latest > source.modified >= latest_swapped:
-        return f"recording after the file was written ({source.modified})"
-    if latest > today >= latest_swapped:
-        return "date in the future"
-    return None
+    limits = (
+        (f"recording after the file was written ({source.modified})", source.modified),
+        ("date in the future", today),
+    )
+    for what, limit in limits:
+        if limit is None:
+            continue
+        if latest > limit >= latest_swapped:
+            return what
+        if latest_swapped > limit >= latest:
+            return None  # the swapped reading is the impossible one
+    if ambiguous == "as_written":
+        return None
+    shown = ", ".join(str(d) for d in written)
+    other = ", ".join(str(d) for d in swaps if d is not None)
+    raise InputError(
+        f"{source.label}: the stamps read {shown}, which could also be {other} with month and day "
+        "swapped (as in some munich-bridge-data exports), and neither the file name, the temperature "
+        f"files nor the file dates settle it; give the recording date: --date {written[0]} or --date "
+        f"{swaps[0]}"
+    )
 
 
 def _repeats(values: np.ndarray) -> int:
@@ -257,6 +288,7 @@ def import_csv(
     date_hint: date | None = None,
     tz: str = "Europe/Berlin",
     today: date | None = None,
+    ambiguous: str = "refuse",
 ) -> tuple[MonitoringData, ImportReport]:
     """Convert munich-bridge-data CSV files (or zips of them) to the contract topics.
 
@@ -267,12 +299,15 @@ def import_csv(
             day-first dates, the file date or a future date.
         tz: time zone of the stamps.
         today: the present date for the future-date check (default: today, UTC).
+        ambiguous: a force file whose month and day could be swapped and nothing settles it:
+            ``refuse`` (InputError, hint ``--date``) or ``as_written`` (``AMBIGUOUS_DATES``).
 
     Returns:
         The monitoring data (N, C, UTC ns; ``log_ns`` = stamp) and the report.
 
     Raises:
-        InputError: unreadable input, unknown header, date contradicting ``date_hint``, no rows.
+        InputError: unreadable input, unknown header, date contradicting ``date_hint``, an
+            ambiguous date (``ambiguous="refuse"``), no rows.
 
     """
     today = today or datetime.now(timezone.utc).date()
@@ -286,7 +321,7 @@ def import_csv(
         local = p.local_ns.copy()
         used_dates = list(p.written_dates)
         if p.source.kind == "force":
-            evidence = _swap_evidence(p.written_dates, p.source, date_hint, temp_dates, today)
+            evidence = _swap_evidence(p.written_dates, p.source, date_hint, temp_dates, today, ambiguous)
             if evidence is not None:
                 used_dates = []
                 for written in p.written_dates:

@@ -2,6 +2,10 @@
 
 The file is the single source of the bridge model's numbers (SI units). Named parameters (section
 ``parameters``) can be overridden without editing the file; everything else is fixed geometry.
+
+Every key is known (``KEYS``; an unknown one is an error with the key meant), and the file's
+parameters and every ``--set`` value lie in a physical range (``physical_range``): a unit
+mistake (``E_concrete=34000``, MPa for Pa) is refused by name before a minute of FE solves.
 """
 
 from __future__ import annotations
@@ -17,15 +21,19 @@ from typing import Any
 import yaml
 
 from bridge_shadow.errors import ConfigError
+from bridge_shadow.keys import check_keys, did_you_mean
 from bridge_shadow.paths import config_file
 
 __all__ = [
+    "KEYS",
     "MAY_BE_INFINITE",
     "MESH_LEVELS",
+    "PHYSICAL_DECADES",
     "BridgeConfig",
     "file_sha256",
     "load_bridge_config",
     "parse_overrides",
+    "physical_range",
 ]
 
 #: Mesh levels every bridge.yaml defines, coarse to fine.
@@ -39,6 +47,60 @@ MAY_BE_INFINITE: tuple[str, ...] = ("support_spring_south", "support_spring_nort
 #: Fractions: ``(0, 1]`` (``[0, 1]`` for those in ``_MAY_BE_ZERO``).
 _FRACTIONS = ("composite_action", "central_bearing_twist_restraint", "slab_joint_opening")
 _MESH_KEYS = ("dx", "web", "half_flange", "cantilever", "between", "connector", "brace")
+_I_SECTION = ("h", "b", "tw", "tf")
+_BEAM_SECTION = ("h", "b", "A", "Iy", "Iz", "J")
+#: Every key of bridge.yaml: section -> its keys (a tuple), or -> {key: the keys under it}.
+KEYS: dict[str, Any] = {
+    "geometry": (
+        "spans",
+        "girder_spacing",
+        "deck_width",
+        "slab_thickness",
+        "segment_length",
+        "brace_connection_depth",
+        "braces_heb280_x",
+        "braces_heb120_x",
+        "stiffener_thickness",
+    ),
+    "sections": {
+        "heb1000": _I_SECTION,
+        "heb280": _BEAM_SECTION,
+        "heb120": _BEAM_SECTION,
+        "hea340_half": _I_SECTION,
+        "connector_web_solid_fraction": (),
+    },
+    "materials": {"steel": ("E", "nu", "rho", "alpha"), "concrete": ("nu", "rho")},
+    "loads": ("gravity", "superimposed_pa"),
+    "parameters": (
+        "bearing_stiffness",
+        "central_bearing_twist_restraint",
+        "end_bearing_stiffness",
+        "support_spring_south",
+        "support_spring_north",
+        "fixed_bearing_stiffness",
+        "connector_stiffness",
+        "connector_axial_factor",
+        "dowel_stiffness",
+        "composite_action",
+        "dowel_rotational_stiffness",
+        "slab_joint_normal_stiffness",
+        "slab_joint_shear_stiffness",
+        "slab_joint_rotational_stiffness",
+        "slab_joint_opening",
+        "E_concrete",
+        "alpha_concrete",
+    ),
+    "mesh": dict.fromkeys(MESH_LEVELS, _MESH_KEYS),
+}
+#: How far beyond its plausible range (the prior's 95 % interval, ``model.parameters``) a
+#: parameter may be set, in decades either way: three, so that the calibration and the gap
+#: diagnosis can step well outside the plausible range, while a unit mistake (MPa or GPa for Pa:
+#: six or nine decades, kN for N: three beyond the range's own span) is refused.
+PHYSICAL_DECADES = 3
+#: Parameters without a prior: their physical range (SI). The axial factor of the bolted joint
+#: (10 as built, bridge.yaml) up to a thousand times its shear stiffness; concrete's thermal
+#: expansion up to ten times the largest of any concrete (EN 1992-1-1 3.1.3: about 1e-5 /K).
+_RANGES = {"connector_axial_factor": (0.0, 1.0e3), "alpha_concrete": (0.0, 1.0e-4)}
 
 
 @dataclass
@@ -78,7 +140,8 @@ class BridgeConfig:
         for name, value in overrides.items():
             if name not in data["parameters"]:
                 raise ConfigError(
-                    f"unknown parameter {name!r}; overridable: {', '.join(sorted(data['parameters']))}"
+                    f"unknown parameter {name!r}{did_you_mean(name, data['parameters'])}; "
+                    f"overridable: {', '.join(sorted(data['parameters']))}"
                 )
             data["parameters"][name] = float(value)
             merged[name] = float(value)
@@ -113,6 +176,53 @@ def _floatify(obj: Any) -> Any:
         except ValueError:
             return obj
     return obj
+
+
+def physical_range(name: str) -> tuple[float, float]:
+    """Return the range ``(low, high)`` (SI, open at 0) a value of parameter ``name`` must lie in.
+
+    With a prior: ``PHYSICAL_DECADES`` beyond its plausible range either way (fractions up to 1);
+    otherwise ``_RANGES`` ((0, 1] for the fractions); a support spring may also be ``.inf``.
+    """
+    from bridge_shadow.model.parameters import PARAMETERS
+
+    if name in PARAMETERS:
+        p = PARAMETERS[name]
+        high = p.upper if p.upper is not None else p.high * 10.0**PHYSICAL_DECADES
+        return p.low * 10.0**-PHYSICAL_DECADES, high
+    if name in _FRACTIONS:
+        return 0.0, 1.0
+    return _RANGES.get(name, (0.0, math.inf))
+
+
+def _check_ranges(params: Mapping[str, Any], what: str) -> None:
+    """Refuse a parameter value outside ``physical_range`` (one line naming it, as ``what NAME``)."""
+    for name, value in params.items():
+        if name not in KEYS["parameters"] or not isinstance(value, float | int) or math.isnan(value):
+            continue  # unknown names and non-numbers: _validate says so
+        low, high = physical_range(name)
+        if math.isinf(value) and value > 0 and name in MAY_BE_INFINITE:
+            continue
+        if not (low <= value <= high) or (value == 0.0 and name not in _MAY_BE_ZERO):
+            left = "[" if low > 0 or name in _MAY_BE_ZERO else "("
+            raise ConfigError(
+                f"{what}{name} must lie in {left}{low:g}, {high:g}]"
+                + (" or be .inf" if name in MAY_BE_INFINITE else "")
+                + f", not {value:g} (a unit mistake? SI units: N, m, Pa)"
+            )
+
+
+def _check_keys(data: dict[str, Any], where: Path) -> None:
+    check_keys(data, KEYS, f"{where}")
+    for section, keys in KEYS.items():
+        block = data.get(section)
+        if not isinstance(block, dict):
+            continue  # _validate says it is missing
+        check_keys(block, keys, f"{where}: {section}")
+        if isinstance(keys, dict):
+            for name, inner in keys.items():
+                if inner and isinstance(block.get(name), dict):
+                    check_keys(block[name], inner, f"{where}: {section}.{name}")
 
 
 def _validate(cfg: BridgeConfig) -> None:
@@ -161,8 +271,11 @@ def load_bridge_config(
         raise ConfigError(f"{file}: not valid YAML at {yaml_problem(err)}") from None
     if not isinstance(data, dict):
         raise ConfigError(f"{file}: not a bridge model (top level must be a mapping)")
+    _check_keys(data, file)
     cfg = BridgeConfig(data, file, hashlib.sha256(raw).hexdigest())
     _validate(cfg)
+    _check_ranges(cfg.params, f"{file}: parameter ")
+    _check_ranges(overrides or {}, "--set ")
     return cfg.with_overrides(overrides or {})
 
 

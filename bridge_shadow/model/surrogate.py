@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from bridge_shadow import __version__
 from bridge_shadow.errors import ConfigError
@@ -317,15 +316,16 @@ def compute_surrogate(
     return SurrogateRun(surrogate, sens, base, a_schur)
 
 
-def write_surrogate(run: SurrogateRun, path: str | Path, header: str | None = None) -> Path:
+def write_surrogate(
+    run: SurrogateRun, path: str | Path, header: str | None = None, *, force: bool = False
+) -> Path:
     """Write the surrogate YAML (contract keys + ``sensitivities``), atomically; return the path.
 
     ``header``: comment lines (each starting with ``#``) put on top; a default names the command.
+    ``force`` replaces an existing surrogate file (``--force``); see ``save_surrogate``.
     """
-    from bridge_shadow.fileio import atomic_write_text
-    from bridge_shadow.model.surrogate_file import surrogate_target
+    from bridge_shadow.model.surrogate_file import save_surrogate
 
-    file = surrogate_target(path)
     prov = run.surrogate.provenance
     if header is None:
         header = (
@@ -334,8 +334,8 @@ def write_surrogate(run: SurrogateRun, path: str | Path, header: str | None = No
             "Units: A N/m, u0 N, thermal N/K,\n"
             "# sensitivities per unit relative change of the parameter (same units).\n"
         )
-    text = header + yaml.safe_dump(run.document(), sort_keys=False, default_flow_style=None)
-    return atomic_write_text(file, text, "surrogate file")
+    extra = {"sensitivities": run.sensitivities}
+    return save_surrogate(run.surrogate, path, header, force=force, extra=extra)
 
 
 def load_sensitivities(path: str | Path | None = None) -> dict[str, Any]:

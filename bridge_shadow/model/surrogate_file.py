@@ -9,6 +9,12 @@ Keys (DESIGN section 4): ``A`` 2x2 N/m, rows/cols [south, north]; ``u0`` [south,
 ``provenance`` dict. A calibrated surrogate also carries ``model_uncertainty``: the covariance
 (6x6) of ``[A11, A12, A21, A22, u0_south, u0_north]`` implied by the parameter posterior (N/m, N),
 which the shadow adds to its settlement covariance (``Surrogate.model_covariance``).
+
+A file is checked where it is loaded (``load_surrogate`` -> ``check_surrogate``), so every command
+and the node refuse a bad one with one line before any work: every number finite, ``A``
+symmetric within ``SYMMETRY_RTOL``, positive definite, and conditioned at most ``MAX_CONDITION``
+(its condition number is reported: ``Surrogate.condition_number``, the replay JSON, the node's
+start-up line); no unknown key.
 """
 
 from __future__ import annotations
@@ -21,13 +27,19 @@ import numpy as np
 import yaml
 
 from bridge_shadow.errors import ConfigError, InputError
-from bridge_shadow.fileio import atomic_write_text, check_output_file, output_file
+from bridge_shadow.fileio import atomic_write_text, check_output_file, output_file, yaml_problem
+from bridge_shadow.keys import check_keys
 from bridge_shadow.paths import config_file
 
 __all__ = [
+    "FILE_KEYS",
+    "MAX_CONDITION",
     "MODEL_UNCERTAINTY_ORDER",
+    "SYMMETRY_RTOL",
     "THERMAL_CASES",
     "Surrogate",
+    "check_surrogate",
+    "describe_surrogate",
     "load_surrogate",
     "placeholder_surrogate",
     "save_surrogate",
@@ -35,6 +47,18 @@ __all__ = [
 ]
 
 THERMAL_CASES: tuple[str, str, str] = ("uniform", "vertical_gradient", "transverse_gradient")
+#: The top-level keys of a surrogate file (DESIGN 4; ``sensitivities`` from ``model.surrogate``).
+FILE_KEYS: tuple[str, ...] = ("A", "u0", "thermal", "provenance", "model_uncertainty", "sensitivities")
+#: Largest relative asymmetry ``|A12 - A21| / max|A_ij|`` taken as symmetric. ``A`` is a Schur
+#: complement of a symmetric stiffness matrix; the FE solves give it symmetric to 3e-13 (the
+#: committed surrogates) and the Schur check holds them to 1e-8. An edited or foreign matrix is
+#: off by far more (a typo in one off-diagonal digit: 1e-3 or more); 1e-6 is the line between.
+SYMMETRY_RTOL = 1.0e-6
+#: Largest condition number of ``A`` taken: solving ``x = A^-1 (y - u0)`` loses ``cond * eps``
+#: (2.2e-16) of relative accuracy, and at 1e11 that is 2.2e-5, four times finer than the load
+#: cells' own resolution (0.02 kN in 234 kN: 8.5e-5). The committed surrogates have 2.0 and 5.2;
+#: a spring a thousand times softer than plausible (5e3 N/m) under one bearing gives 1.9e3.
+MAX_CONDITION = 1.0e11
 #: Order of the entries of ``Surrogate.model_cov`` (A row-major, then u0).
 MODEL_UNCERTAINTY_ORDER: tuple[str, ...] = ("A11", "A12", "A21", "A22", "u0_south", "u0_north")
 
@@ -88,6 +112,21 @@ class Surrogate:
         g = np.linalg.solve(self.A, jac)  # A^-1 J
         cov = g @ self.model_cov @ g.T
         return 0.5 * (cov + cov.T)
+
+    @property
+    def condition_number(self) -> float:
+        """2-norm condition number of ``A`` (largest over smallest singular value); inf if singular."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return float(np.linalg.cond(self.A)) if np.all(np.isfinite(self.A)) else float("nan")
+
+    def summary(self) -> dict[str, Any]:
+        """Return what a result says of its model: ``A`` (N/m), ``u0`` (N), solver, condition number."""
+        return {
+            "A": self.A.tolist(),
+            "u0": self.u0.tolist(),
+            "solver": self.provenance.get("solver", ""),
+            "condition_number": self.condition_number,
+        }
 
     def reactions(self, x_m: np.ndarray) -> np.ndarray:
         """Return ``A x + u0`` for settlements ``x_m`` of shape (..., 2) in m; N."""
@@ -158,35 +197,111 @@ def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = 
         return placeholder_surrogate()
     try:
         data = yaml.safe_load(file.read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
+        raise ConfigError(f"{file}: not a valid surrogate file ({yaml_problem(err)})") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{file}: not a valid surrogate file (expected a mapping with A and u0)")
+    check_keys(data, FILE_KEYS, f"{file}")
+    check_keys(data.get("thermal") or {}, THERMAL_CASES, f"{file}: thermal")
+    try:
         unc = data.get("model_uncertainty") or {}
         if unc and list(unc.get("order", [])) != list(MODEL_UNCERTAINTY_ORDER):
             raise ValueError(f"model_uncertainty.order must be {list(MODEL_UNCERTAINTY_ORDER)}")
-        return Surrogate(
+        surrogate = Surrogate(
             A=data["A"],
             u0=data["u0"],
             thermal=data.get("thermal", {}),
             provenance=data.get("provenance", {}),
             model_cov=unc.get("covariance") if unc else None,
         )
-    except (yaml.YAMLError, KeyError, TypeError, ValueError, AttributeError) as err:
-        raise ConfigError(f"{file}: not a valid surrogate file ({err})") from err
+    except (KeyError, TypeError, ValueError, AttributeError) as err:
+        raise ConfigError(f"{file}: not a valid surrogate file ({err})") from None
+    check_surrogate(surrogate, str(file))
+    return surrogate
 
 
-def save_surrogate(surrogate: Surrogate, path: str | Path, header: str = "") -> Path:
-    """Write the surrogate as YAML (atomic: temp file + rename); return the path."""
-    file = surrogate_target(path)
-    text = "".join(f"# {line}\n" for line in header.splitlines())
-    text += yaml.safe_dump(surrogate.to_dict(), sort_keys=False, default_flow_style=None)
+def describe_surrogate(surrogate: Surrogate, path: str | Path | None = None) -> str:
+    """Say for people which surrogate is in use: its file (``path``, else the default), solver, condition.
+
+    ``path`` is what ``load_surrogate`` was given (None: ``config/surrogate.yaml``, or the
+    closed-form placeholder when that file does not exist).
+    """
+    if path:
+        source = str(path)
+    elif config_file("surrogate.yaml").is_file():
+        source = str(config_file("surrogate.yaml"))
+    else:
+        source = "none found: the closed-form placeholder"
+    solver = surrogate.provenance.get("solver", "")
+    cond = f"condition number of A {surrogate.condition_number:.3g}"
+    return f"{source} ({solver + ', ' if solver else ''}{cond})"
+
+
+def check_surrogate(surrogate: Surrogate, where: str = "surrogate") -> float:
+    """Check that a surrogate can carry an estimate; return the condition number of ``A``.
+
+    Raises ConfigError (one line naming ``where`` and the problem) when a number is not finite,
+    ``A`` is not symmetric within ``SYMMETRY_RTOL``, not positive definite (a settlement that
+    changes no reaction, or lifts one by pushing down), or conditioned worse than
+    ``MAX_CONDITION``.
+    """
+    a = surrogate.A
+    numbers = {"A": a, "u0": surrogate.u0, **{f"thermal.{k}": v for k, v in surrogate.thermal.items()}}
+    for name, value in numbers.items():
+        if not np.all(np.isfinite(value)):
+            raise ConfigError(f"{where}: {name} must be finite, not {np.asarray(value).tolist()}")
+    scale = float(np.abs(a).max())
+    asym = abs(float(a[0, 1] - a[1, 0])) / scale if scale > 0 else 0.0
+    if asym > SYMMETRY_RTOL:
+        raise ConfigError(
+            f"{where}: A must be symmetric (a Schur complement of a stiffness matrix): A12 {a[0, 1]:.6g} "
+            f"and A21 {a[1, 0]:.6g} N/m differ by {asym:.1e} of max|A|, more than {SYMMETRY_RTOL:g}"
+        )
+    low, high = np.linalg.eigvalsh(0.5 * (a + a.T))
+    if not low > 0:
+        raise ConfigError(
+            f"{where}: A must be positive definite; its eigenvalues are {low:.6g} and {high:.6g} N/m "
+            "(a settlement mode that no reaction feels, or one that lifts a reaction by lowering it)"
+        )
+    cond = high / low
+    if cond > MAX_CONDITION:
+        raise ConfigError(
+            f"{where}: A is too ill-conditioned to solve for settlements: condition number {cond:.3g} "
+            f"(at most {MAX_CONDITION:g}; eigenvalues {low:.6g} and {high:.6g} N/m)"
+        )
+    return float(cond)
+
+
+def save_surrogate(
+    surrogate: Surrogate,
+    path: str | Path,
+    header: str = "",
+    *,
+    force: bool = False,
+    extra: dict[str, Any] | None = None,
+) -> Path:
+    """Write the surrogate as YAML (atomic: temp file + rename); return the path.
+
+    Checked first (``check_surrogate``): a surrogate that could not be loaded is never written.
+    ``header`` lines become comments on top; ``extra`` adds keys of ``FILE_KEYS`` (the FE run's
+    ``sensitivities``); ``force`` replaces an existing surrogate file (see ``surrogate_target``).
+    """
+    check_surrogate(surrogate, f"{path}: refusing to write a surrogate whose")
+    file = surrogate_target(path, force=force)
+    text = "".join(line if line.startswith("#") else f"# {line}" for line in header.splitlines(True))
+    if text and not text.endswith("\n"):
+        text += "\n"
+    text += yaml.safe_dump({**surrogate.to_dict(), **(extra or {})}, sort_keys=False, default_flow_style=None)
     return atomic_write_text(file, text, "surrogate file")
 
 
-def surrogate_target(path: str | Path, *, create: bool = True) -> Path:
+def surrogate_target(path: str | Path, *, create: bool = True, force: bool = False) -> Path:
     """Check that a surrogate may be written at ``path``; return it as a Path.
 
-    A new file, or an existing surrogate file (keys ``A`` and ``u0``), may be written; anything
-    else at that path (a directory, a parameter file, a bag's metadata) is refused with one
-    InputError line, so a mistyped ``--out`` never replaces a user's file. ``create`` makes the
-    file's directory (False: only check, as a command does before its work).
+    A new file may be written; an existing surrogate file (keys ``A`` and ``u0``) only with
+    ``force`` (``--force``); anything else at that path (a directory, a parameter file, a bag's
+    metadata) never: one InputError line, so a mistyped ``--out`` never replaces a user's file.
+    ``create`` makes the file's directory (False: only check, as a command does before its work).
     """
     file = output_file(path, "surrogate file") if create else check_output_file(path, "surrogate file")
     if file.exists():
@@ -196,4 +311,6 @@ def surrogate_target(path: str | Path, *, create: bool = True) -> Path:
             data = None
         if not (isinstance(data, dict) and "A" in data and "u0" in data):
             raise InputError(f"{file}: exists and is not a surrogate file; refusing to overwrite it")
+        if not force:
+            raise InputError(f"{file}: exists already; pass --force to replace it")
     return file

@@ -50,24 +50,30 @@ class OutputBag:
     """Write window outputs to a bag as they close: mean, covariance, compensated forces, diagnostics.
 
     Topic names are the shadow's ``topic_*`` parameters (the contract's by default). ``finish``
-    adds the final diagnostics (rejections, spline) at the last window's stamp. A context manager.
+    adds the final diagnostics (rejections, spline) at the last window's stamp. A context manager:
+    the bag is staged beside ``path`` and moved there when the block ends normally; an error or an
+    interruption (Ctrl-C, SIGTERM) removes the unfinished bag and leaves ``path`` as it was.
+    ``overwrite`` (``--force``) replaces an existing bag there, once the new one is complete.
     """
 
-    def __init__(self, path: str | Path, shadow: Any) -> None:
+    def __init__(self, path: str | Path, shadow: Any, *, overwrite: bool = False) -> None:
         from bridge_shadow.bagio import BagOutputWriter
 
         self.path = Path(path)
         self.shadow = shadow
         self.names = shadow.config.output_topics()
-        self.writer = BagOutputWriter(self.path)
+        self.writer = BagOutputWriter(self.path, overwrite=overwrite)
         self.last_end_ns: int | None = None
 
     def __enter__(self) -> OutputBag:
         self.writer.__enter__()
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.writer.close()
+    def __exit__(self, exc_type: type[BaseException] | None, *exc: object) -> None:
+        if exc_type is None:
+            self.writer.close()
+        else:
+            self.writer.abort()
 
     def write(self, outputs: Iterable[Any]) -> None:
         """Write the messages of each window output (stamp and log time = window end).

@@ -17,6 +17,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from bridge_shadow.contract import CHANNELS, NODE_NAME, SUPPORTS
 from bridge_shadow.ros.convert import stamp_msg
+from bridge_shadow.timefmt import iso_utc
 
 __all__ = ["LEVELS", "Status", "diagnostic_array", "statuses"]
 
@@ -99,7 +100,7 @@ def _compensation(diag: Mapping[str, Any]) -> Status:
     for ch in CHANNELS:
         sp = diag["spline"][ch]
         values[f"{ch} edf"] = _num(sp["edf"], ".2f")
-        values[f"{ch} lambda"] = _num(sp["lambda"], ".4g")
+        values[f"{ch} lambda [C^3]"] = _num(sp["lambda"], ".4g")
         values[f"{ch} mean force [kN]"] = _num(1e-3 * sp["mean_force_n"], ".3f")
         values[f"{ch} windows"] = str(sp["windows"])
         span = f"{_num(sp['t_min_c'], '.1f')} .. {_num(sp['t_max_c'], '.1f')}"
@@ -132,7 +133,7 @@ def _events(diag: Mapping[str, Any]) -> Status:
         )
         note = "" if e.get("size_significant95", True) else "; region holds zero"
         kind = e.get("kind", "step")
-        values[f"event {i + 1}"] = f"{kind} at {e.get('time', e['time_ns'])}: {size} mm (95 %{note})"
+        values[f"event {i + 1}"] = f"{kind} at {iso_utc(e['time_ns'])}: {size} mm (95 %{note})"
     changes = diag.get("unconfirmed_changes", [])
     for i, c in enumerate(changes):
         size = ", ".join(

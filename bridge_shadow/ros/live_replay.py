@@ -23,6 +23,7 @@ many messages it received and run_live checks that against what it published.
 from __future__ import annotations
 
 import json
+import os
 import tempfile
 import threading
 import time
@@ -339,12 +340,15 @@ def write_params_file(params: dict[str, Any], directory: Path) -> Path:
 
 
 def _write_outputs(
-    path: str | Path, records: dict[str, list[tuple[int, bytes]]], names: dict[str, str]
+    path: str | Path,
+    records: dict[str, list[tuple[int, bytes]]],
+    names: dict[str, str],
+    overwrite: bool = False,
 ) -> Path:
     """Record the node's outputs under their graph ``names``, log time = receive time (as a recorder)."""
     from bridge_shadow.bagio import BagOutputWriter
 
-    with BagOutputWriter(path) as writer:
+    with BagOutputWriter(path, overwrite=overwrite) as writer:
         for topic, items in records.items():
             if items:
                 stamps, raws = zip(*items, strict=True)
@@ -357,6 +361,7 @@ def run_live(
     params_path: str | Path | None = None,
     *,
     out: str | Path | None = None,
+    overwrite: bool = False,
     plots: str | Path | None = None,
     rate: float | None = None,
     overrides: dict[str, Any] | None = None,
@@ -371,6 +376,7 @@ def run_live(
         bag: rosbag2 directory with the contract input topics.
         params_path: shadow parameter file (default ``config/shadow.yaml``).
         out: record the node's output topics into this bag (log time = receive time).
+        overwrite: replace an existing bag at ``out`` (``--force``), once the new one is complete.
         plots: write the replay PNGs into this directory, from the node's own state: its window
             outputs (history service) and its final spline fit (the checkpoint it writes at flush).
         rate: speed factor of log time (1.0 = real time); None = as fast as the node takes it.
@@ -382,6 +388,12 @@ def run_live(
             (the ``checkpoint_path`` of the parameter file is not used).
         watch: print the node's latest outputs once a second on stderr (``watch.TopicWatch``).
 
+    Network: unless the environment sets ``ROS_AUTOMATIC_DISCOVERY_RANGE`` (an explicit choice is
+    respected), this process and the node are confined to loopback discovery in one domain id of
+    their own (``netenv.confine_to_loopback``), so the replay never reaches another machine or a
+    running node. When the node is not discovered in ``timeout_s`` the error says which range
+    and domain were searched.
+
     Returns:
         The direct replay's JSON keys (``posterior``, ``messages``, ``rejected``, ``messages_per_s``,
         ``seconds``, ``windows``, ``spline``, ``noise``) plus ``live`` (graph timings, node counters).
@@ -390,7 +402,10 @@ def run_live(
     from bridge_shadow.bagio.stream import MonitoringStream
     from bridge_shadow.estimate import load_config
     from bridge_shadow.model.surrogate_file import load_surrogate
+    from bridge_shadow.ros.netenv import confine_to_loopback
 
+    if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in os.environ:  # before rclpy starts (Player, node)
+        confine_to_loopback()
     config = load_config(params_path, overrides)
     surrogate = load_surrogate(config.surrogate_path or None)
     inputs = config.input_topics()
@@ -415,7 +430,7 @@ def run_live(
             t0 = time.perf_counter()
             node.start()
             player = Player(inputs=inputs, outputs=config.output_topics())
-            discovery_s = player.wait_for_node(node, timeout_s)
+            discovery_s = _discover(player, node, timeout_s)
             in_flight = min(config.qos_depth if config.qos_depth > 0 else MAX_IN_FLIGHT, MAX_IN_FLIGHT)
             if watch:
                 from bridge_shadow.ros.watch import TopicWatch
@@ -489,11 +504,7 @@ def run_live(
         "spline": report["spline"],
         "noise": report["noise"],
         "bag": str(bag),
-        "surrogate": {
-            "A": surrogate.A.tolist(),
-            "u0": surrogate.u0.tolist(),
-            "solver": surrogate.provenance.get("solver", ""),
-        },
+        "surrogate": surrogate.summary(),
         "live": {
             "domain_id": int(node.env["ROS_DOMAIN_ID"]),
             "discovery_s": discovery_s,
@@ -505,10 +516,28 @@ def run_live(
         },
     }
     if out is not None:
-        js["out"] = str(_write_outputs(out, records, config.output_topics()))
+        js["out"] = str(_write_outputs(out, records, config.output_topics(), overwrite))
     if plots is not None:
         js["plots"] = [str(p) for p in plot_paths]
     return js
+
+
+def _discover(player: Player, node: NodeProcess, timeout_s: float) -> float:
+    """Wait for the node in the graph; on a timeout say where discovery looked (one line)."""
+    try:
+        return player.wait_for_node(node, timeout_s)
+    except NodeError as err:
+        if not str(err).startswith("timed out"):
+            raise  # the node died: its own last line says why
+        where = (
+            f"ROS_AUTOMATIC_DISCOVERY_RANGE={os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '(unset)')}, "
+            f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '(unset: 0)')}"
+        )
+        hint = (
+            "unset ROS_AUTOMATIC_DISCOVERY_RANGE to let replay --live keep DDS on loopback in a "
+            "domain of its own, or make sure that range and domain reach this machine's loopback"
+        )
+        raise NodeError(f"{err}: DDS discovery found no node ({where}); {hint}") from None
 
 
 def _merged_pieces(

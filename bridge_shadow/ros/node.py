@@ -116,7 +116,7 @@ from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.estimate import ShadowConfig, WindowOutput, load_config
 from bridge_shadow.estimate.param_specs import SPECS, constraint_text, describe, kind_of
 from bridge_shadow.estimate.startup import open_shadow
-from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 from bridge_shadow.paths import config_file
 from bridge_shadow.ros import convert
 from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
@@ -535,8 +535,9 @@ def parameter_descriptor(name: str, kind: str) -> ParameterDescriptor:
 
     Type, description (the comment of config/shadow.yaml, unit, constraint, role), the constraint
     in words, and the range where both ends are finite. Parameters that cannot change while the
-    node runs are read-only; the live ones take an integer for a real (dynamic typing, the
-    set-parameters callback then checks the value).
+    node runs are read-only; the live ones take an integer for a real (dynamic typing) and carry
+    no range: the set-parameters callback checks the value and says why it refuses one (rclpy's
+    own range check would answer first, without the reason).
     """
     spec = SPECS.get(name)
     live = spec is not None and spec.live
@@ -548,7 +549,7 @@ def parameter_descriptor(name: str, kind: str) -> ParameterDescriptor:
         read_only=not live,
         dynamic_typing=live,
     )
-    if spec is not None and spec.low is not None and spec.high is not None:
+    if spec is not None and not live and spec.low is not None and spec.high is not None:
         if kind == "float":
             descriptor.floating_point_range = [
                 FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)
@@ -562,17 +563,10 @@ def parameter_descriptor(name: str, kind: str) -> ParameterDescriptor:
 
 def startup_lines(config: ShadowConfig, surrogate: Any, params_files: Sequence[str] = ()) -> list[str]:
     """Return what the node says at start: surrogate, parameter files, topics, checkpoint."""
-    if config.surrogate_path:
-        source = config.surrogate_path
-    elif config_file("surrogate.yaml").is_file():
-        source = str(config_file("surrogate.yaml"))
-    else:
-        source = "none found: the closed-form placeholder"
-    solver = surrogate.provenance.get("solver", "")
     files = ", ".join(params_files) if params_files else "none (defaults only)"
     outs = config.output_topics()
     return [
-        f"surrogate: {source}" + (f" ({solver})" if solver else ""),
+        f"surrogate: {describe_surrogate(surrogate, config.surrogate_path or None)}",
         f"parameters: defaults {config_file('shadow.yaml')}; parameter files: {files}",
         f"inputs: {', '.join(config.input_topics())}",
         f"outputs: {', '.join(outs.values())} (every {config.diagnostics_period_s:g} s)",

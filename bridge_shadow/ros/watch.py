@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import sys
 import time
-from datetime import datetime, timezone
 from typing import Any, TextIO
 
 import numpy as np
@@ -28,6 +27,7 @@ from bridge_shadow.contract import (
     MEAN_TOPIC,
 )
 from bridge_shadow.ros.convert import array_from_msg
+from bridge_shadow.timefmt import iso_utc
 
 __all__ = ["TopicWatch", "watch_line"]
 
@@ -42,7 +42,7 @@ def _last(records: dict[str, list[tuple[int, bytes]]], topic: str, msg_type: Any
 def watch_line(records: dict[str, list[tuple[int, bytes]]], fraction: float | None = None) -> str:
     """One line of the latest outputs in ``records`` (contract topic -> [(receive_ns, raw)]).
 
-    Example: ``[ 42%] window to 2022-03-15 06:13 UTC: south +0.702 ± 0.031 mm, north -0.688 ±
+    Example: ``[ 42%] window to 2022-03-15T06:13Z: south +0.702 ± 0.031 mm, north -0.688 ±
     0.029 mm | compensated 238.91 / 238.87 kN | settlement OK | 1207 windows``.
     """
     head = f"[{100 * fraction:3.0f}%] " if fraction is not None else ""
@@ -66,8 +66,7 @@ def watch_line(records: dict[str, list[tuple[int, bytes]]], fraction: float | No
     when = ""
     if all(w is not None for w in wrenches):
         stamp = wrenches[0].header.stamp
-        t = datetime.fromtimestamp(stamp.sec + 1e-9 * stamp.nanosec, tz=timezone.utc)
-        when = f"window to {t:%Y-%m-%d %H:%M} UTC: "
+        when = f"window to {iso_utc(stamp.sec * 1_000_000_000 + stamp.nanosec)}: "
         parts.append("compensated " + " / ".join(f"{w.wrench.force.z / 1e3:.2f}" for w in wrenches) + " kN")
     diag = _last(records, DIAGNOSTICS_TOPIC, DiagnosticArray)
     if diag is not None:

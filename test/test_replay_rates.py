@@ -1,0 +1,129 @@
+"""The same posterior at any pace: direct replay, live replay as fast as taken, and paced live replays.
+
+The node ingests what DDS delivers, a window or less at a time; the direct replay feeds a bag in
+chunks of many windows. Both must judge every window against the estimate of the windows before
+it, so that the chunking (and with it the live ``--rate``) cannot change a decision: on the first
+sunny morning of a demo-like bag the step detector fires, and whether it fires used to depend on
+whether the window after the warm-up came in the same chunk as the warm-up (the direct replay
+judged it against the prior, the node against the warm-up's estimate).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from bridge_shadow.estimate import Shadow, load_config
+from bridge_shadow.model.surrogate_file import placeholder_surrogate
+
+#: The demo bag's effects (bags/README.md), on its first 9 hours: the first sunny morning trips the
+#: detector, so the comparison covers events and held windows, not only a quiet estimate.
+DEMO_EFFECTS = {
+    "settlement_offset": 7e-4,
+    "vertical_gradient": 4.0,
+    "transverse_gradient": 3.0,
+    "traffic": 2.5e4,
+}
+
+
+def _innovations(monkeypatch: pytest.MonkeyPatch, data: Any, chunk: int) -> list[tuple[int, tuple]]:
+    """The innovation ``y - u0 - g(T) - A x`` of every judged window, in order, at one chunking."""
+    seen: list[tuple[int, tuple]] = []
+    innovation = Shadow._innovation
+
+    def spy(self: Shadow, w: Any) -> tuple[float, float]:
+        v = innovation(self, w)
+        seen.append((w.k, v))
+        return v
+
+    monkeypatch.setattr(Shadow, "_innovation", spy)
+    from test_estimate_pipeline import small_config
+
+    Shadow(small_config(), placeholder_surrogate()).run(data, chunk=chunk)
+    monkeypatch.undo()
+    return seen
+
+
+def test_every_window_is_judged_against_the_windows_before_it_at_any_chunking(monkeypatch) -> None:
+    from test_estimate_pipeline import synthetic
+
+    # a 2 mm settlement: against the prior the first window after the warm-up would be kilonewtons off
+    data = synthetic(minutes=16, rate=2, x_m=(2e-3, -2e-3))
+    whole = _innovations(monkeypatch, data, chunk=10**7)  # the whole record in one chunk
+    parts = _innovations(monkeypatch, data, chunk=60)  # a third of a window at a time, as the node
+    assert [k for k, _ in parts] == [k for k, _ in whole] and len(whole) >= 5
+    np.testing.assert_allclose([v for _, v in parts], [v for _, v in whole], rtol=1e-9, atol=1e-9)
+    assert max(abs(np.array(whole[0][1]))) < 1e3  # judged against the warm-up's estimate of x
+
+
+@pytest.mark.ros
+def test_live_replay_at_several_rates_ends_at_the_direct_posterior(synth_bag) -> None:
+    pytest.importorskip("rclpy")
+    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.ros.live_replay import run_live
+
+    bag: Path = synth_bag(days=0.375, rate_hz=0.1, seed=1, effects=DEMO_EFFECTS, surrogate="file")
+    data = read_monitoring(bag)
+    direct = Shadow(load_config()).run(data).to_json()
+    assert direct["events"], "a comparison of events needs some"
+    logs = np.concatenate([*(s.log_ns for s in data.forces.values()), data.temperature.log_ns])
+    span_s = (int(logs.max()) - int(logs.min())) / 1e9
+    for rate in (20_000.0, 80_000.0):  # 1.6 s and 0.4 s of pacing (as fast as taken: test_ros_node)
+        live = run_live(bag, rate=rate, timeout_s=30.0)
+        assert live["live"]["publish_s"] >= 0.95 * span_s / rate  # it kept the pace asked for
+        np.testing.assert_allclose(live["posterior"]["mean_m"], direct["posterior"]["mean_m"], rtol=1e-12)
+        np.testing.assert_allclose(
+            live["posterior"]["covariance_m2"], direct["posterior"]["covariance_m2"], rtol=1e-12
+        )
+        assert live["windows"] == direct["windows"], rate
+        assert [e["window"] for e in live["events"]] == [e["window"] for e in direct["events"]], rate
+        np.testing.assert_allclose(
+            [e["size_m"] for e in live["events"]], [e["size_m"] for e in direct["events"]], rtol=1e-9
+        )
+
+
+@pytest.mark.ros
+def test_live_replay_keeps_dds_on_loopback_itself(monkeypatch, tmp_path: Path) -> None:
+    """Outside make (no ROS_* set), --live keeps DDS on loopback in a domain of its own.
+
+    Before rclpy starts it confines this process and the node alike; an explicit range is kept.
+    """
+    pytest.importorskip("rclpy")
+    from bridge_shadow.bagio import BagError
+    from bridge_shadow.ros.live_replay import run_live
+
+    monkeypatch.delenv("ROS_AUTOMATIC_DISCOVERY_RANGE")
+    monkeypatch.delenv("ROS_DOMAIN_ID", raising=False)
+    with pytest.raises(BagError):  # the bag is opened after the confinement, before any rclpy work
+        run_live(tmp_path / "missing")
+    import os
+
+    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    assert 20 <= int(os.environ["ROS_DOMAIN_ID"]) < 220
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")  # a monitoring network's choice
+    with pytest.raises(BagError):
+        run_live(tmp_path / "missing")
+    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
+
+
+@pytest.mark.ros
+def test_a_discovery_timeout_says_where_it_looked(monkeypatch) -> None:
+    pytest.importorskip("rclpy")
+    from bridge_shadow.ros.launcher import NodeError
+    from bridge_shadow.ros.live_replay import _discover
+
+    class Deaf:
+        def wait_for_node(self, node: object, timeout_s: float) -> float:
+            raise NodeError(f"timed out after {timeout_s:g} s waiting for the bridge_shadow node to appear")
+
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")
+    monkeypatch.setenv("ROS_DOMAIN_ID", "7")
+    with pytest.raises(NodeError) as err:
+        _discover(Deaf(), None, 60.0)  # type: ignore[arg-type]
+    text = str(err.value)
+    assert "\n" not in text and text.startswith("timed out after 60 s")
+    assert "ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET, ROS_DOMAIN_ID=7" in text
+    assert "unset ROS_AUTOMATIC_DISCOVERY_RANGE" in text
