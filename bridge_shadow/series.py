@@ -8,6 +8,7 @@ unless a source says otherwise).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -118,6 +119,18 @@ class MonitoringData:
             ch: ForceSeries(stamp_ns, force_n[:, i], FORCE_FRAMES[ch]) for i, ch in enumerate(CHANNELS)
         }
         return MonitoringData(forces, TemperatureSeries(temp_stamp_ns, temp_c))
+
+    def select(self, keep: Callable[[np.ndarray], np.ndarray], by: str = "stamp_ns") -> MonitoringData:
+        """Return the messages for which ``keep`` holds (a function of each topic's ``by`` stamps)."""
+        forces = {}
+        for ch, f in self.forces.items():
+            m = keep(getattr(f, by))
+            forces[ch] = ForceSeries(f.stamp_ns[m], f.force_n[m], f.frame_id[m], f.log_ns[m])
+        t = self.temperature
+        m = keep(getattr(t, by))
+        return MonitoringData(
+            forces, TemperatureSeries(t.stamp_ns[m], t.temp_c[m], t.variance[m], t.frame_id[m], t.log_ns[m])
+        )
 
     @property
     def n_messages(self) -> int:

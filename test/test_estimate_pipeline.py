@@ -104,13 +104,7 @@ def _slice(data: MonitoringData, lo: int, hi: int | None) -> MonitoringData:
     def sel(log: np.ndarray) -> np.ndarray:
         return (log >= cut_lo) & (log < cut_hi if cut_hi is not None else True)
 
-    forces = {}
-    for ch, f in data.forces.items():
-        m = sel(f.log_ns)
-        forces[ch] = ForceSeries(f.stamp_ns[m], f.force_n[m], f.frame_id[m], f.log_ns[m])
-    t = data.temperature
-    m = sel(t.log_ns)
-    return MonitoringData(forces, TemperatureSeries(t.stamp_ns[m], t.temp_c[m], t.variance[m], t.frame_id[m]))
+    return data.select(sel, by="log_ns")
 
 
 def test_every_bad_input_is_dropped_and_counted() -> None:

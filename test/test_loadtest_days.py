@@ -172,19 +172,7 @@ def test_twin_load_test_days_find_every_step_and_keep_every_window() -> None:
 
 def _cut(data, t_ns: int, after: bool):
     """The messages stamped before ``t_ns`` (or from it on)."""
-    from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
-
-    def keep(stamps):
-        return stamps >= t_ns if after else stamps < t_ns
-
-    forces = {}
-    for ch, f in data.forces.items():
-        m = keep(f.stamp_ns)
-        forces[ch] = ForceSeries(f.stamp_ns[m], f.force_n[m], f.frame_id[m], f.log_ns[m])
-    t = data.temperature
-    m = keep(t.stamp_ns)
-    temp = TemperatureSeries(t.stamp_ns[m], t.temp_c[m], t.variance[m], t.frame_id[m], t.log_ns[m])
-    return MonitoringData(forces, temp)
+    return data.select(lambda stamps: stamps >= t_ns if after else stamps < t_ns)
 
 
 @pytest.mark.realdata
