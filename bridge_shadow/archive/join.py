@@ -73,9 +73,7 @@ def seam_synced(now: FrontState, snap: FrontState, end: FrontState, fresh: bool)
     if fresh:
         return True
     for s, e in zip(snap.gates, end.gates, strict=True):
-        if not bool(s["has_last"]) and (
-            bool(e["has_last"]) or len(e["pending_ns"]) or bool(e["has_held"])
-        ):
+        if not bool(s["has_last"]) and (bool(e["has_last"]) or len(e["pending_ns"]) or bool(e["has_held"])):
             return False  # a first message after the snapshot: checked against a clock span we differ in
     return True
 

@@ -1,0 +1,243 @@
+"""Run an archive on Dask: a local cluster by default, a running scheduler when given its address.
+
+The graph, per bridge: one ``reduce_task`` per bag (parallel, across bags and bridges), then one
+``join_task`` that depends on them (parallel across bridges). Dask schedules it all; nothing
+here waits on a worker except through Dask's own futures and progress bar.
+
+``dask_client`` starts the local cluster on loopback (``127.0.0.1``), one single-threaded worker
+per core (the work is Python and numpy: processes, not threads, share the cores), or connects to
+``tcp://HOST:PORT``. Then ``run_archive`` submits, waits with Dask's text progress bar (on
+stderr), and writes the outputs (``write_outputs``), each atomically.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+import sys
+import time
+import uuid
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bridge_shadow.archive.sources import BridgeSource
+from bridge_shadow.archive.summary import DEFAULT_PERIOD_S
+from bridge_shadow.archive.tasks import BagOutcome, BridgeOutcome, join_task, reduce_task
+from bridge_shadow.errors import InputError
+
+__all__ = ["ArchiveRun", "dask_client", "run_archive", "write_outputs"]
+
+#: Seconds to wait for a scheduler named by ``--scheduler`` before giving up with one line.
+CONNECT_TIMEOUT_S = 10.0
+
+
+@contextlib.contextmanager
+def dask_client(
+    scheduler: str | None = None, workers: int | None = None, processes: bool = True
+) -> Iterator[Any]:
+    """Yield a ``distributed.Client``: of a new local cluster, or of the scheduler at ``scheduler``.
+
+    Args:
+        scheduler: ``tcp://host:port`` of a running scheduler (None: a local cluster).
+        workers: local workers (default: one per core, ``os.cpu_count()``).
+        processes: local workers as processes (the default) or as threads of this process
+            (tests: no start-up cost; the Python work then shares one core).
+
+    Raises:
+        InputError: the scheduler cannot be reached, or ``workers`` is not positive.
+
+    """
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as err:
+            raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({err})") from None
+        with client:
+            yield client
+        return
+    n = workers if workers is not None else (os.cpu_count() or 1)
+    if n < 1:
+        raise InputError(f"--workers must be at least 1 (got {n})")
+    where = {"host": "127.0.0.1"} if processes else {}
+    with (
+        LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=processes,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+            **where,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield client
+
+
+@dataclass
+class BridgePlan:
+    """One bridge ready to submit: its source, parameters and surrogate (loaded and checked)."""
+
+    source: BridgeSource
+    config: Any
+    surrogate: Any
+    surrogate_path: str
+
+
+@dataclass
+class ArchiveRun:
+    """What an archive run produced.
+
+    Attributes:
+        bridges: per bridge, its outcome (the replay JSON and its summary rows).
+        bags: every bag's outcome, per bridge.
+        seconds: wall time from submission to the last result; workers: Dask workers used.
+        scheduler: the scheduler's address.
+
+    """
+
+    bridges: list[BridgeOutcome] = field(default_factory=list)
+    bags: dict[str, list[BagOutcome]] = field(default_factory=dict)
+    seconds: float = 0.0
+    workers: int = 0
+    scheduler: str = ""
+
+
+def plan_bridges(sources: list[BridgeSource]) -> list[BridgePlan]:
+    """Load and check each bridge's parameters and surrogate before anything runs.
+
+    Raises:
+        ConfigError, InputError: a parameter or surrogate file is unusable (one line naming it).
+
+    """
+    from bridge_shadow.estimate import load_config
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    plans = []
+    for src in sources:
+        over = {"surrogate_path": str(src.surrogate.resolve())} if src.surrogate else None
+        config = load_config(src.params, over).replace(checkpoint_path="")
+        surrogate = load_surrogate(config.surrogate_path or None)
+        plans.append(BridgePlan(src, config, surrogate, config.surrogate_path or "config/surrogate.yaml"))
+    return plans
+
+
+def run_archive(
+    client: Any,
+    plans: list[BridgePlan],
+    cache: Path,
+    *,
+    summary_period_s: float = DEFAULT_PERIOD_S,
+    show_progress: bool = False,
+) -> ArchiveRun:
+    """Submit every bag's reduction and every bridge's join; wait for them; return the outcomes."""
+    from distributed import progress
+
+    t0 = time.perf_counter()
+    run = ArchiveRun(
+        workers=len(client.scheduler_info().get("workers", {})), scheduler=client.scheduler.address
+    )
+    token = uuid.uuid4().hex[:8]  # keys of this run only (a shared scheduler may hold older ones)
+    reduces: dict[str, list[Any]] = {}
+    joins = []
+    for plan in plans:
+        name = plan.source.name
+        futures = [
+            client.submit(
+                reduce_task,
+                str(bag),
+                plan.config,
+                plan.surrogate,
+                str(cache),
+                key=f"reduce-{token}-{name}-{i}",
+            )
+            for i, bag in enumerate(plan.source.bags)
+        ]
+        reduces[name] = futures
+        joins.append(
+            client.submit(
+                join_task,
+                name,
+                plan.config,
+                plan.surrogate,
+                futures,
+                summary_period_s,
+                key=f"join-{token}-{name}",
+            )
+        )
+    everything = [f for fs in reduces.values() for f in fs] + joins
+    if show_progress:
+        with contextlib.redirect_stdout(sys.stderr):  # stdout is for --json alone
+            progress(everything)
+    run.bridges = client.gather(joins)
+    run.bags = {name: client.gather(fs) for name, fs in reduces.items()}
+    run.seconds = time.perf_counter() - t0
+    return run
+
+
+def write_outputs(out: Path, run: ArchiveRun, plans: list[BridgePlan], cache: Path) -> dict[str, Any]:
+    """Write each bridge's JSON, the summary table and plot, and the index; return the index.
+
+    ``out/bridges/NAME.json`` (the replay JSON of the bridge), ``out/summary.csv``,
+    ``out/summary.png`` and ``out/index.json``, each written atomically.
+    """
+    from bridge_shadow.archive.summary import plot_summary, write_csv
+    from bridge_shadow.commands.output import jsonable
+    from bridge_shadow.fileio import atomic_write_text
+
+    rows = [r for b in run.bridges for r in b.rows]
+    files = {"summary_csv": str(write_csv(out / "summary.csv", rows))}
+    if rows:
+        files["summary_png"] = str(plot_summary(out / "summary.png", rows))
+    bridges = []
+    for b, plan in zip(run.bridges, plans, strict=True):
+        path = out / "bridges" / f"{b.name}.json"
+        atomic_write_text(path, json.dumps(jsonable(b.result), indent=2) + "\n", "bridge result")
+        bags = run.bags[b.name]
+        bridges.append(
+            {
+                "name": b.name,
+                "result": str(path),
+                "params": str(plan.source.params) if plan.source.params else "config/shadow.yaml",
+                "surrogate": plan.surrogate_path,
+                "posterior": b.result["posterior"],
+                "events": len(b.result.get("events", [])),
+                "updates": b.result["windows"]["updates"],
+                "messages": b.result["messages"]["total"],
+                "bags": [
+                    {
+                        "bag": o.bag,
+                        "status": o.status,
+                        "digest": o.digest,
+                        "messages": o.messages,
+                        "first_log_ns": o.first_log_ns,
+                        "last_log_ns": o.last_log_ns,
+                        "seconds": o.seconds,
+                        **({"error": o.error} if o.error else {}),
+                    }
+                    for o in bags
+                ],
+                "failed_bags": [{"bag": p, "error": e} for p, e in b.failed],
+                "fed_whole": b.fed_whole,
+                "join_seconds": b.seconds,
+            }
+        )
+    statuses = [o.status for bags in run.bags.values() for o in bags]
+    index = {
+        "bridges": bridges,
+        "bags": {s: statuses.count(s) for s in ("reduced", "cached", "failed")},
+        "failed_bags": [{"bridge": b.name, "bag": p, "error": e} for b in run.bridges for p, e in b.failed],
+        "files": files,
+        "cache": str(cache),
+        "workers": run.workers,
+        "scheduler": run.scheduler,
+        "seconds": run.seconds,
+    }
+    atomic_write_text(out / "index.json", json.dumps(jsonable(index), indent=2) + "\n", "archive index")
+    files["index"] = str(out / "index.json")
+    return index

@@ -1,0 +1,137 @@
+"""The two kinds of Dask task of an archive: reduce one bag, join one bridge (plain functions).
+
+Both run on a worker and talk through the reduction cache (``archive.cache``): ``reduce_task``
+writes a bag's reduction there and returns a small ``BagOutcome``; ``join_task`` reads the
+reductions of its bridge back one at a time, in time order, so a worker holds one bag's
+reduction at a time however long the archive is.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bridge_shadow.archive.cache import ReductionCache, front_key
+from bridge_shadow.archive.reduce import BagReduction, reduce_bag
+
+__all__ = ["BagOutcome", "BridgeOutcome", "join_task", "reduce_task"]
+
+
+@dataclass
+class BagOutcome:
+    """What became of one bag.
+
+    Attributes:
+        bag: its path; digest: its content hash ("" when it could not be read at all).
+        status: ``reduced`` (now), ``cached`` (by an earlier run) or ``failed``.
+        error: why it failed (one line; empty otherwise).
+        entry: the cache entry holding its reduction.
+        messages: input messages; first_log_ns, last_log_ns: its log-time span (None: empty).
+        seconds: wall time of this task.
+
+    """
+
+    bag: str
+    digest: str = ""
+    status: str = "failed"
+    error: str = ""
+    entry: str = ""
+    messages: int = 0
+    first_log_ns: int | None = None
+    last_log_ns: int | None = None
+    seconds: float = 0.0
+
+
+def reduce_task(bag: str, config: Any, surrogate: Any, cache_root: str) -> BagOutcome:
+    """Reduce one bag into the cache (or find it there); a bag that cannot be read is ``failed``."""
+    from bridge_shadow.bagio import BagError
+
+    t0 = time.perf_counter()
+    cache = ReductionCache(cache_root)
+    out = BagOutcome(bag)
+    path = Path(bag)
+    try:
+        if not path.exists():
+            raise FileNotFoundError(f"{bag}: no such bag")
+        out.digest = cache.digest(path)
+        entry = cache.path(out.digest, front_key(config))
+        red = cache.load(entry)
+        if isinstance(red, BagReduction):
+            out.status = "cached"
+        else:
+            red = reduce_bag(path, config, surrogate)
+            cache.store(entry, red)
+            out.status = "reduced"
+    except (BagError, OSError) as err:
+        out.error = " ".join(str(err).split()) or type(err).__name__
+        out.seconds = time.perf_counter() - t0
+        return out
+    out.entry = str(entry)
+    out.messages, out.first_log_ns, out.last_log_ns = red.messages, red.first_log_ns, red.last_log_ns
+    out.seconds = time.perf_counter() - t0
+    return out
+
+
+@dataclass
+class BridgeOutcome:
+    """The result of one bridge: its replay JSON, its posterior over time, the bags skipped.
+
+    Attributes:
+        name: the bridge; result: ``ReplayResult.to_json()`` plus archive keys.
+        rows: the summary table's rows of this bridge (``archive.summary``).
+        failed: the bags that could not be read, ``(path, reason)``.
+        fed_whole: bags whose seam did not settle in their head (fed from their file).
+        seconds: wall time of the join.
+
+    """
+
+    name: str
+    result: dict[str, Any]
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    failed: list[tuple[str, str]] = field(default_factory=list)
+    fed_whole: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def _in_time_order(outcomes: list[BagOutcome]) -> list[BagOutcome]:
+    """Bags that were read, by their first message (log time), then path; empty bags last."""
+    ok = [o for o in outcomes if o.status != "failed"]
+    return sorted(ok, key=lambda o: (o.first_log_ns is None, o.first_log_ns or 0, o.bag))
+
+
+def join_task(
+    name: str, config: Any, surrogate: Any, outcomes: list[BagOutcome], summary_period_s: float
+) -> BridgeOutcome:
+    """Run the bridge's shadow over its reduced bags in time order; return its outcome."""
+    from bridge_shadow.archive.join import join_bags
+    from bridge_shadow.archive.summary import PeriodicRows
+    from bridge_shadow.estimate.shadow import Shadow
+
+    t0 = time.perf_counter()
+    cache = ReductionCache(Path(outcomes[0].entry).parent if any(o.entry for o in outcomes) else ".")
+    ordered = _in_time_order(outcomes)
+
+    def reductions() -> Any:
+        for o in ordered:
+            red = cache.load(Path(o.entry))
+            if not isinstance(red, BagReduction):  # removed while we ran: read it again
+                red = reduce_bag(Path(o.bag), config, surrogate)
+            yield red
+
+    shadow = Shadow(config.replace(checkpoint_path=""), surrogate)
+    rows = PeriodicRows(name, summary_period_s)
+    stats = join_bags(shadow, reductions(), rows.add)
+    seconds = time.perf_counter() - t0
+    result = shadow.result([], stats.messages, seconds).to_json()
+    failed = [(o.bag, o.error) for o in outcomes if o.status == "failed"]
+    result["bridge"] = name
+    result["bags"] = [o.bag for o in ordered]
+    result["failed_bags"] = [{"bag": b, "error": e} for b, e in failed]
+    result["surrogate"] = {
+        "A": surrogate.A.tolist(),
+        "u0": surrogate.u0.tolist(),
+        "solver": surrogate.provenance.get("solver", ""),
+    }
+    return BridgeOutcome(name, result, rows.finish(shadow), failed, stats.fed_whole, seconds)
