@@ -1,0 +1,208 @@
+"""``bridge-shadow archive``: the same answer as one serial replay of the bags concatenated.
+
+The archive is a twin record with a settlement step and bad input at every seam (see
+``archive_fixtures``), cut into bags of both storages, plus a bag that cannot be read. The
+reference is ``replay`` of the record written whole (without the unreadable bag). Compared:
+the posterior mean and covariance (rtol 1e-10: the same floats in the same order, so only a
+reordered sum could move them), every count exactly, the events, the warnings, the spline.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from archive_fixtures import corrupt_bag, seamed_record, write_archive
+
+from bridge_shadow.archive.join import join_bags
+from bridge_shadow.archive.reduce import reduce_bag
+from bridge_shadow.estimate import load_config
+from bridge_shadow.estimate.shadow import Shadow
+from bridge_shadow.model.surrogate_file import placeholder_surrogate, save_surrogate
+from bridge_shadow.replay import replay_bag
+
+RTOL = 1e-10
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The seamed archive (bags, the whole record, a surrogate file) and the serial reference."""
+    folder = tmp_path_factory.mktemp("archive")
+    data, seams = seamed_record(days=1.6)
+    bags, whole = write_archive(folder, data, seams)
+    bad = corrupt_bag(folder / "bridge" / "day_99_broken")
+    surrogate = placeholder_surrogate()  # the twin's model: the bridge folder names it
+    save_surrogate(surrogate, folder / "bridge" / "surrogate.yaml")
+    config = load_config()
+    ref, _ = replay_bag(whole, Shadow(config, surrogate))
+    return {"folder": folder, "bags": bags, "whole": whole, "bad": bad, "ref": ref.to_json()}
+
+
+def assert_same_result(got: dict[str, Any], ref: dict[str, Any]) -> None:
+    """Assert that an archive's result is the serial replay's (floats to RTOL, counts exactly)."""
+    for key in ("mean_m", "covariance_m2"):
+        np.testing.assert_allclose(got["posterior"][key], ref["posterior"][key], rtol=RTOL, atol=0)
+    assert got["messages"]["total"] == ref["messages"]["total"]
+    assert got["messages"]["used_by_topic"] == ref["messages"]["used_by_topic"]
+    assert got["rejected"] == ref["rejected"]
+    assert got["windows"] == ref["windows"]
+    assert got["warnings"] == ref["warnings"]
+    assert [e["window"] for e in got["events"]] == [e["window"] for e in ref["events"]]
+    for e, r in zip(got["events"], ref["events"], strict=True):
+        np.testing.assert_allclose(e["size_m"], r["size_m"], rtol=RTOL, atol=0)
+    for ch, sp in ref["spline"].items():
+        for k, v in sp.items():
+            np.testing.assert_allclose(got["spline"][ch][k], v, rtol=RTOL, atol=0)
+
+
+def test_the_reference_holds_what_the_archive_must_survive(archive: dict[str, Any]) -> None:
+    """The serial reference sees the bad input and the step (else the comparison proves little)."""
+    ref = archive["ref"]
+    rejected = ref["rejected"]
+    for reason in ("nonfinite", "frame_id", "duplicate", "out_of_order", "clock_jump", "stale_temperature"):
+        assert rejected[reason] > 0, reason
+    assert len(ref["events"]) == 1
+    assert ref["events"][0]["size_m"] == pytest.approx([-1e-3, -1e-3], abs=3e-4)
+
+
+def test_join_of_reduced_bags_equals_serial_replay(archive: dict[str, Any]) -> None:
+    """Reduced bag by bag, joined in order: the serial replay's result; which seams were re-fed and why."""
+    config, surrogate = load_config(), placeholder_surrogate()
+    reductions = [reduce_bag(b, config, surrogate) for b in archive["bags"]]
+    shadow = Shadow(config, surrogate)
+    stats = join_bags(shadow, reductions)
+    assert_same_result(shadow.result([], stats.messages, 1.0).to_json(), archive["ref"])
+    # day_03 has no air temperature (a fresh front end cannot know one was seen before: its windows
+    # would be uncompensated, not stale); day_04 opens with a clock jump that a fresh gate takes as
+    # its time base: both are fed whole. The other seams settle in their head.
+    assert [Path(b).name for b in stats.fed_whole] == ["day_03", "day_04"]
+    assert stats.windows_taken > 0.5 * archive["ref"]["windows"]["closed"]
+
+
+def test_a_seam_settles_within_the_head(archive: dict[str, Any]) -> None:
+    """On clean seams (mid-window, a wrong frame, a NaN, a duplicate, an outage) the head suffices."""
+    config, surrogate = load_config(), placeholder_surrogate()
+    reductions = [reduce_bag(b, config, surrogate) for b in archive["bags"][:3]]
+    stats = join_bags(Shadow(config, surrogate), reductions)
+    assert not stats.fed_whole
+    assert stats.head_chunks < 3 * 5  # a handful of windows per seam
+
+
+@pytest.mark.parametrize("workers", [1, 2, 4])
+def test_archive_on_dask_equals_serial_replay(archive: dict[str, Any], tmp_path: Path, workers: int) -> None:
+    """On 1, 2 and 4 workers (threads here), with an unreadable bag named and skipped."""
+    from bridge_shadow.archive.run import dask_client, plan_bridges, run_archive
+    from bridge_shadow.archive.sources import archive_sources
+
+    plans = plan_bridges(archive_sources(str(archive["folder"] / "bridge")))
+    with dask_client(workers=workers, processes=False) as client:
+        run = run_archive(client, plans, tmp_path / "cache")
+    (bridge,) = run.bridges
+    assert_same_result(bridge.result, archive["ref"])
+    assert [Path(b).name for b, _ in bridge.failed] == ["day_99_broken"]
+    assert "day_99_broken" in bridge.failed[0][1]
+    assert run.workers == workers
+    rows = bridge.rows
+    assert rows[-1]["mean_south_m"] == pytest.approx(archive["ref"]["posterior"]["mean_m"][0], rel=RTOL)
+    ends = [r["end_ns"] for r in rows]
+    assert ends == sorted(ends) and len(ends) > 24  # one row an hour over 1.6 days, less the outage
+
+
+def test_cli_reruns_from_the_cache_and_names_the_broken_bag(
+    archive: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The command on a running scheduler; a rerun reads no bag again and gives the same answer."""
+    from bridge_shadow.archive.run import dask_client
+    from bridge_shadow.cli import main
+
+    out = tmp_path / "out"
+    with dask_client(workers=2, processes=False) as client:  # a running scheduler, as on a cluster
+        argv = ["archive", str(archive["folder"] / "bridge"), "--out", str(out), "--json"]
+        argv += ["--scheduler", client.scheduler.address]
+        assert main(argv) == 0
+        first = capsys.readouterr()
+        # a rerun: every readable bag from the cache
+        assert main(argv) == 0
+        again = json.loads(capsys.readouterr().out)
+    js = json.loads(first.out)
+    assert_same_result(js["bridges"]["bridge"], archive["ref"])
+    assert js["bags"] == {"reduced": 5, "cached": 0, "failed": 1}
+    assert "skipped bag" in first.err and "day_99_broken" in first.err
+    index = json.loads((out / "index.json").read_text())
+    assert index["failed_bags"][0]["bag"].endswith("day_99_broken")
+    assert (out / "summary.png").stat().st_size > 0
+    header = (out / "summary.csv").read_text().splitlines()[0]
+    assert header.startswith("bridge,time_utc,end_ns")
+    saved = json.loads((out / "bridges" / "bridge.json").read_text())
+    assert_same_result(saved, archive["ref"])
+    assert again["bags"] == {"reduced": 0, "cached": 5, "failed": 1}
+    assert_same_result(again["bridges"]["bridge"], archive["ref"])
+    assert not list(out.rglob("*.tmp"))
+
+
+def test_a_changed_bag_is_reduced_again(archive: dict[str, Any], tmp_path: Path) -> None:
+    """The cache is keyed by content: a bag rewritten with other data is not taken from it."""
+    from bridge_shadow.archive.tasks import reduce_task
+
+    config, surrogate = load_config(), placeholder_surrogate()
+    bag = tmp_path / "bag"
+    shutil.copytree(archive["bags"][0], bag)
+    assert reduce_task(str(bag), config, surrogate, str(tmp_path / "c")).status == "reduced"
+    assert reduce_task(str(bag), config, surrogate, str(tmp_path / "c")).status == "cached"
+    shutil.rmtree(bag)
+    shutil.copytree(archive["bags"][1], bag)
+    assert reduce_task(str(bag), config, surrogate, str(tmp_path / "c")).status == "reduced"
+    # other front-end parameters: a new key
+    other = config.replace(window_s=30.0)
+    assert reduce_task(str(bag), other, surrogate, str(tmp_path / "c")).status == "reduced"
+    # a surrogate or an event threshold acts after the windows: the same entry
+    later = config.replace(event_probability=0.99)
+    assert reduce_task(str(bag), later, surrogate, str(tmp_path / "c")).status == "cached"
+
+
+def test_the_default_engine_is_a_local_process_cluster_on_loopback() -> None:
+    """Without --scheduler: worker processes on 127.0.0.1, one thread each, as many as asked."""
+    import os
+
+    from bridge_shadow.archive.run import dask_client
+
+    with dask_client(workers=2) as client:
+        workers = client.scheduler_info()["workers"]
+        assert len(workers) == 2 and all(a.startswith("tcp://127.0.0.1:") for a in workers)
+        assert set(client.nthreads().values()) == {1}
+        pids = set(client.run(os.getpid).values())
+        assert len(pids) == 2 and os.getpid() not in pids
+
+
+def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A missing archive, an empty folder, a broken manifest, an unreachable scheduler: exit 2, one line."""
+    from bridge_shadow.archive import run as run_module
+    from bridge_shadow.cli import main
+
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "m.yaml").write_text("bridges: [1, 2]\n")
+    cases = [
+        [str(tmp_path / "missing")],
+        [str(tmp_path / "empty")],
+        [str(tmp_path / "m.yaml")],
+        [str(tmp_path / "nothing_*")],
+    ]
+    for case in cases:
+        assert main(["archive", *case, "--out", str(tmp_path / "o")]) == 2, case
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("bridge-shadow archive: error:"), (case, err)
+    run_module.CONNECT_TIMEOUT_S = 0.5
+    try:
+        bag = Path(__file__).parent.parent / "bags" / "baseline_1d"
+        assert (
+            main(["archive", str(bag), "--out", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:9"]) == 2
+        )
+    finally:
+        run_module.CONNECT_TIMEOUT_S = 10.0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot reach the Dask scheduler" in err[0]
+    assert not (tmp_path / "o").exists()
