@@ -263,3 +263,23 @@ def test_a_synth_fleet_equals_serial_replay_per_bridge(tmp_path: Path) -> None:
         assert_same_result(bridge.result, ref.to_json())
         assert len(bridge.result["events"]) >= 1  # the step, through a seam-free day
         assert not bridge.fed_whole
+
+
+def test_a_wrong_expected_order_is_caught(
+    archive: dict[str, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The join takes bags in the expected order as they come; a bag found earlier makes it start over."""
+    from bridge_shadow.archive import run as run_module
+    from bridge_shadow.archive.run import dask_client, plan_bridges, run_archive
+    from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.archive.tasks import bag_start_task
+
+    def reversed_start(bag: str, config: Any) -> int | None:
+        first = bag_start_task(bag, config)
+        return None if first is None else -first
+
+    monkeypatch.setattr(run_module, "bag_start_task", reversed_start)
+    plans = plan_bridges(archive_sources(str(archive["folder"] / "bridge")))
+    with dask_client(workers=2, processes=False) as client:
+        run = run_archive(client, plans, tmp_path / "cache")
+    assert_same_result(run.bridges[0].result, archive["ref"])

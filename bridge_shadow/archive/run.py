@@ -1,8 +1,10 @@
 """Run an archive on Dask: a local cluster by default, a running scheduler when given its address.
 
-The graph, per bridge: one ``reduce_task`` per bag (parallel, across bags and bridges), then one
-``join_task`` that depends on them (parallel across bridges). Dask schedules it all; nothing
-here waits on a worker except through Dask's own futures and progress bar.
+The graph, per bridge: one ``bag_start_task`` per bag (its first log time: the order), one
+``reduce_task`` per bag (parallel, across bags and bridges) and one ``join_task`` that takes the
+reductions in time order as they finish (parallel across bridges, overlapping the reductions).
+Dask schedules it all; nothing here waits on a worker except through Dask's own futures and
+progress bar.
 
 ``dask_client`` starts the local cluster on loopback (``127.0.0.1``), one single-threaded worker
 per core (the work is Python and numpy: processes, not threads, share the cores), or connects to
@@ -26,7 +28,7 @@ from typing import Any
 
 from bridge_shadow.archive.sources import BridgeSource
 from bridge_shadow.archive.summary import DEFAULT_PERIOD_S
-from bridge_shadow.archive.tasks import BagOutcome, BridgeOutcome, join_task, reduce_task
+from bridge_shadow.archive.tasks import BagOutcome, BridgeOutcome, bag_start_task, join_task, reduce_task
 from bridge_shadow.errors import InputError
 
 __all__ = ["ArchiveRun", "dask_client", "run_archive", "write_outputs"]
@@ -108,6 +110,11 @@ class ArchiveRun:
     scheduler: str = ""
 
 
+def _start_key(item: tuple[int | None, Path]) -> tuple[bool, int, str]:
+    first, bag = item
+    return (first is None, first or 0, str(bag))
+
+
 def plan_bridges(sources: list[BridgeSource]) -> list[BridgePlan]:
     """Load and check each bridge's parameters and surrogate before anything runs.
 
@@ -143,33 +150,36 @@ def run_archive(
         workers=len(client.scheduler_info().get("workers", {})), scheduler=client.scheduler.address
     )
     token = uuid.uuid4().hex[:8]  # keys of this run only (a shared scheduler may hold older ones)
+    # the order of each bridge's bags (their first message) is known before they are reduced, so
+    # its join takes them as they come, while later bags are still being reduced
+    starts = client.gather(
+        [
+            client.map(bag_start_task, [str(b) for b in p.source.bags], config=p.config, pure=False)
+            for p in plans
+        ]
+    )
     reduces: dict[str, list[Any]] = {}
     joins = []
-    for plan in plans:
+    for plan, first in zip(plans, starts, strict=True):
         name = plan.source.name
-        futures = [
-            client.submit(
-                reduce_task,
-                str(bag),
-                plan.config,
-                plan.surrogate,
-                str(cache),
-                key=f"reduce-{token}-{name}-{i}",
-            )
-            for i, bag in enumerate(plan.source.bags)
-        ]
-        reduces[name] = futures
+        bags = [b for _, b in sorted(zip(first, plan.source.bags, strict=True), key=_start_key)]
+        keys = [f"reduce-{token}-{name}-{i}" for i in range(len(bags))]
+        # the join first (it waits outside the thread pool), then the bags in time order
         joins.append(
             client.submit(
                 join_task,
                 name,
                 plan.config,
                 plan.surrogate,
-                futures,
+                keys,
                 summary_period_s,
                 key=f"join-{token}-{name}",
             )
         )
+        reduces[name] = [
+            client.submit(reduce_task, str(bag), plan.config, plan.surrogate, str(cache), key=key)
+            for key, bag in zip(keys, bags, strict=True)
+        ]
     everything = [f for fs in reduces.values() for f in fs] + joins
     if show_progress:
         with contextlib.redirect_stdout(sys.stderr):  # stdout is for --json alone

@@ -1,14 +1,17 @@
 """The two kinds of Dask task of an archive: reduce one bag, join one bridge (plain functions).
 
 Both run on a worker and talk through the reduction cache (``archive.cache``): ``reduce_task``
-writes a bag's reduction there and returns a small ``BagOutcome``; ``join_task`` reads the
-reductions of its bridge back one at a time, in time order, so a worker holds one bag's
-reduction at a time however long the archive is.
+writes a bag's reduction there and returns a small ``BagOutcome``; ``join_task`` takes the
+outcomes of its bridge in time order as they come (it waits outside the worker's thread pool, so
+the sequential part overlaps the reduction of later bags) and reads each reduction back from the
+cache, so a worker holds one bag's reduction at a time however long the archive is.
+``bag_start_task`` finds a bag's first log time, which fixes the order before anything is reduced.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,7 +19,7 @@ from typing import Any
 from bridge_shadow.archive.cache import ReductionCache, front_key
 from bridge_shadow.archive.reduce import BagReduction, reduce_bag
 
-__all__ = ["BagOutcome", "BridgeOutcome", "join_task", "reduce_task"]
+__all__ = ["BagOutcome", "BridgeOutcome", "bag_start_task", "join_task", "reduce_task", "time_order"]
 
 
 @dataclass
@@ -95,39 +98,85 @@ class BridgeOutcome:
     seconds: float = 0.0
 
 
-def _in_time_order(outcomes: list[BagOutcome]) -> list[BagOutcome]:
-    """Bags that were read, by their first message (log time), then path; empty bags last."""
+def bag_start_task(bag: str, config: Any) -> int | None:
+    """Return the log time of a bag's first message (None: unreadable or empty), as the reduction will."""
+    from bridge_shadow.bagio import BagError
+    from bridge_shadow.bagio.stream import MonitoringStream
+
+    try:
+        with MonitoringStream(bag, topics=config.input_topics(), required=False) as stream:
+            return None if stream.first_ns is None else int(stream.first_ns)
+    except (BagError, OSError):
+        return None
+
+
+def time_order(outcomes: list[BagOutcome]) -> list[BagOutcome]:
+    """Return the bags that were read, by their first message (log time), then path; empty ones last."""
     ok = [o for o in outcomes if o.status != "failed"]
     return sorted(ok, key=lambda o: (o.first_log_ns is None, o.first_log_ns or 0, o.bag))
 
 
+def _outcomes(keys: list[str]) -> Iterator[BagOutcome]:
+    """Yield the reduce tasks' outcomes in the order of ``keys``, each as soon as it is there.
+
+    The join task leaves the worker's thread pool while it waits (``worker_client``), so that
+    worker goes on reducing bags meanwhile.
+    """
+    from distributed import Future, worker_client
+
+    with worker_client() as client:
+        for key in keys:
+            yield Future(key, client=client).result()
+
+
 def join_task(
-    name: str, config: Any, surrogate: Any, outcomes: list[BagOutcome], summary_period_s: float
+    name: str, config: Any, surrogate: Any, keys: list[str], summary_period_s: float
 ) -> BridgeOutcome:
-    """Run the bridge's shadow over its reduced bags in time order; return its outcome."""
+    """Run the bridge's shadow over its bags in time order, each as soon as it is reduced.
+
+    ``keys`` are the bridge's reduce tasks in the expected time order (by ``bag_start_task``);
+    the join checks each bag's actual first message against it, and if a bag turns out earlier
+    than one already joined, it starts over in the actual order (exact either way).
+    """
     from bridge_shadow.archive.join import join_bags
     from bridge_shadow.archive.summary import PeriodicRows
     from bridge_shadow.estimate.shadow import Shadow
 
     t0 = time.perf_counter()
-    cache = ReductionCache(Path(outcomes[0].entry).parent if any(o.entry for o in outcomes) else ".")
-    ordered = _in_time_order(outcomes)
+    seen: list[BagOutcome] = []
 
-    def reductions() -> Any:
-        for o in ordered:
-            red = cache.load(Path(o.entry))
-            if not isinstance(red, BagReduction):  # removed while we ran: read it again
+    def reductions(source: Iterator[BagOutcome], check: bool) -> Iterator[BagReduction]:
+        last: tuple[bool, int, str] | None = None
+        for o in source:
+            seen.append(o)
+            if o.status == "failed":
+                continue
+            order = (o.first_log_ns is None, o.first_log_ns or 0, o.bag)
+            if check and last is not None and order < last:
+                raise _OutOfOrder
+            last = order
+            red = ReductionCache(Path(o.entry).parent).load(Path(o.entry))
+            if not isinstance(red, BagReduction):  # removed while we ran: reduce it again
                 red = reduce_bag(Path(o.bag), config, surrogate)
             yield red
 
-    shadow = Shadow(config.replace(checkpoint_path=""), surrogate)
-    rows = PeriodicRows(name, summary_period_s)
-    stats = join_bags(shadow, reductions(), rows.add)
+    def run(source: Iterator[BagOutcome], check: bool) -> tuple[Any, Any, PeriodicRows]:
+        shadow = Shadow(config.replace(checkpoint_path=""), surrogate)
+        rows = PeriodicRows(name, summary_period_s)
+        return shadow, join_bags(shadow, reductions(source, check), rows.add), rows
+
+    try:
+        shadow, stats, rows = run(_outcomes(keys), check=True)
+    except _OutOfOrder:
+        rest = list(_outcomes(keys[len(seen) :]))
+        everything = time_order(seen + rest)
+        seen.clear()
+        shadow, stats, rows = run(iter(everything), check=False)
     seconds = time.perf_counter() - t0
     result = shadow.result([], stats.messages, seconds).to_json()
-    failed = [(o.bag, o.error) for o in outcomes if o.status == "failed"]
+    failed = [(o.bag, o.error) for o in seen if o.status == "failed"]
     result["bridge"] = name
-    result["bags"] = [o.bag for o in ordered]
+    result["bags"] = [o.bag for o in time_order(seen)]
     result["failed_bags"] = [{"bag": b, "error": e} for b, e in failed]
     result["surrogate"] = {
         "A": surrogate.A.tolist(),
@@ -135,3 +184,7 @@ def join_task(
         "solver": surrogate.provenance.get("solver", ""),
     }
     return BridgeOutcome(name, result, rows.finish(shadow), failed, stats.fed_whole, seconds)
+
+
+class _OutOfOrder(Exception):
+    """A bag began before one already joined (its metadata said otherwise): join again in order."""
