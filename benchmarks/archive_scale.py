@@ -90,8 +90,9 @@ def _worker_hwm_mb() -> float:
 
 def archive_run(bridge: Path, workers: int, cache: Path) -> dict:
     """Run the archive on a fresh local process cluster: seconds, peak RSS per worker, the run's index."""
-    from bridge_shadow.archive.run import dask_client, plan_bridges, run_archive
+    from bridge_shadow.archive.run import plan_bridges, run_archive
     from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.engine import dask_client
 
     t0 = time.perf_counter()
     plans = plan_bridges(archive_sources(str(bridge)))

@@ -95,8 +95,9 @@ def test_a_seam_settles_within_the_head(archive: dict[str, Any]) -> None:
 @pytest.mark.parametrize("workers", [1, 2, 4])
 def test_archive_on_dask_equals_serial_replay(archive: dict[str, Any], tmp_path: Path, workers: int) -> None:
     """On 1, 2 and 4 workers (threads here), with an unreadable bag named and skipped."""
-    from bridge_shadow.archive.run import dask_client, plan_bridges, run_archive
+    from bridge_shadow.archive.run import plan_bridges, run_archive
     from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.engine import dask_client
 
     plans = plan_bridges(archive_sources(str(archive["folder"] / "bridge")))
     with dask_client(workers=workers, processes=False) as client:
@@ -116,8 +117,8 @@ def test_cli_reruns_from_the_cache_and_names_the_broken_bag(
     archive: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """The command on a running scheduler; a rerun reads no bag again and gives the same answer."""
-    from bridge_shadow.archive.run import dask_client
     from bridge_shadow.cli import main
+    from bridge_shadow.engine import dask_client
 
     out = tmp_path / "out"
     with dask_client(workers=2, processes=False) as client:  # a running scheduler, as on a cluster
@@ -168,7 +169,7 @@ def test_the_default_engine_is_a_local_process_cluster_on_loopback() -> None:
     """Without --scheduler: worker processes on 127.0.0.1, one thread each, as many as asked."""
     import os
 
-    from bridge_shadow.archive.run import dask_client
+    from bridge_shadow.engine import dask_client
 
     with dask_client(workers=2) as client:
         workers = client.scheduler_info()["workers"]
@@ -180,7 +181,7 @@ def test_the_default_engine_is_a_local_process_cluster_on_loopback() -> None:
 
 def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A missing archive, an empty folder, a broken manifest, an unreachable scheduler: exit 2, one line."""
-    from bridge_shadow.archive import run as run_module
+    from bridge_shadow import engine
     from bridge_shadow.cli import main
 
     (tmp_path / "empty").mkdir()
@@ -195,14 +196,14 @@ def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
         assert main(["archive", *case, "--out", str(tmp_path / "o")]) == 2, case
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("bridge-shadow archive: error:"), (case, err)
-    run_module.CONNECT_TIMEOUT_S = 0.5
+    engine.CONNECT_TIMEOUT_S = 0.5
     try:
         bag = Path(__file__).parent.parent / "bags" / "baseline_1d"
         assert (
             main(["archive", str(bag), "--out", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:9"]) == 2
         )
     finally:
-        run_module.CONNECT_TIMEOUT_S = 10.0
+        engine.CONNECT_TIMEOUT_S = 10.0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot reach the Dask scheduler" in err[0]
     assert not (tmp_path / "o").exists()
@@ -230,8 +231,9 @@ def _concatenated(bags: list[Path], out: Path) -> Path:
 
 def test_bundled_bags_as_bridges_equal_their_replays(root: Path, tmp_path: Path) -> None:
     """A manifest of the bundled bags, one bridge each: every bridge's result is ``replay`` of its bag."""
-    from bridge_shadow.archive.run import dask_client, plan_bridges, run_archive
+    from bridge_shadow.archive.run import plan_bridges, run_archive
     from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.engine import dask_client
 
     names = ["demo_3d", "baseline_1d"]  # MCAP zstd and sqlite3; scour_3d adds nothing new
     manifest = tmp_path / "bundled.yaml"
@@ -246,9 +248,10 @@ def test_bundled_bags_as_bridges_equal_their_replays(root: Path, tmp_path: Path)
 
 def test_a_synth_fleet_equals_serial_replay_per_bridge(tmp_path: Path) -> None:
     """``synth --archive``, two bridges in daily bags: each is the replay of its bags concatenated."""
-    from bridge_shadow.archive.run import dask_client, plan_bridges, run_archive
+    from bridge_shadow.archive.run import plan_bridges, run_archive
     from bridge_shadow.archive.sources import archive_sources
     from bridge_shadow.cli import main
+    from bridge_shadow.engine import dask_client
 
     fleet = tmp_path / "fleet"
     argv = ["synth", "--archive", str(fleet), "--bridges", "2", "--days", "1.5", "--rate", "0.05"]
@@ -270,9 +273,10 @@ def test_a_wrong_expected_order_is_caught(
 ) -> None:
     """The join takes bags in the expected order as they come; a bag found earlier makes it start over."""
     from bridge_shadow.archive import run as run_module
-    from bridge_shadow.archive.run import dask_client, plan_bridges, run_archive
+    from bridge_shadow.archive.run import plan_bridges, run_archive
     from bridge_shadow.archive.sources import archive_sources
     from bridge_shadow.archive.tasks import bag_start_task
+    from bridge_shadow.engine import dask_client
 
     def reversed_start(bag: str, config: Any) -> int | None:
         first = bag_start_task(bag, config)

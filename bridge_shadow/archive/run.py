@@ -6,22 +6,18 @@ reductions in time order as they finish (parallel across bridges, overlapping th
 Dask schedules it all; nothing here waits on a worker except through Dask's own futures and
 progress bar.
 
-``dask_client`` starts the local cluster on loopback (``127.0.0.1``), one single-threaded worker
-per core (the work is Python and numpy: processes, not threads, share the cores), or connects to
-``tcp://HOST:PORT``. Then ``run_archive`` submits, waits with Dask's text progress bar (on
-stderr), and writes the outputs (``write_outputs``), each atomically.
+``engine.dask_client`` gives the client (a local cluster on loopback, or ``--scheduler``);
+``run_archive`` submits, waits with Dask's text progress bar (on stderr), and ``write_outputs``
+writes the outputs, each atomically.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
-import logging
-import os
 import sys
 import time
 import uuid
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,56 +25,8 @@ from typing import Any
 from bridge_shadow.archive.sources import BridgeSource
 from bridge_shadow.archive.summary import DEFAULT_PERIOD_S
 from bridge_shadow.archive.tasks import BagOutcome, BridgeOutcome, bag_start_task, join_task, reduce_task
-from bridge_shadow.errors import InputError
 
-__all__ = ["ArchiveRun", "dask_client", "run_archive", "write_outputs"]
-
-#: Seconds to wait for a scheduler named by ``--scheduler`` before giving up with one line.
-CONNECT_TIMEOUT_S = 10.0
-
-
-@contextlib.contextmanager
-def dask_client(
-    scheduler: str | None = None, workers: int | None = None, processes: bool = True
-) -> Iterator[Any]:
-    """Yield a ``distributed.Client``: of a new local cluster, or of the scheduler at ``scheduler``.
-
-    Args:
-        scheduler: ``tcp://host:port`` of a running scheduler (None: a local cluster).
-        workers: local workers (default: one per core, ``os.cpu_count()``).
-        processes: local workers as processes (the default) or as threads of this process
-            (tests: no start-up cost; the Python work then shares one core).
-
-    Raises:
-        InputError: the scheduler cannot be reached, or ``workers`` is not positive.
-
-    """
-    from distributed import Client, LocalCluster
-
-    if scheduler:
-        try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError) as err:
-            raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({err})") from None
-        with client:
-            yield client
-        return
-    n = workers if workers is not None else (os.cpu_count() or 1)
-    if n < 1:
-        raise InputError(f"--workers must be at least 1 (got {n})")
-    where = {"host": "127.0.0.1"} if processes else {}
-    with (
-        LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=processes,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-            **where,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        yield client
+__all__ = ["ArchiveRun", "plan_bridges", "run_archive", "write_outputs"]
 
 
 @dataclass

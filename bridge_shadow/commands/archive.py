@@ -101,9 +101,10 @@ def run(args: argparse.Namespace) -> int:
     import sys
     import time
 
-    from bridge_shadow.archive.run import dask_client, plan_bridges, run_archive, write_outputs
+    from bridge_shadow.archive.run import plan_bridges, run_archive, write_outputs
     from bridge_shadow.archive.sources import archive_sources
     from bridge_shadow.commands.output import emit_json
+    from bridge_shadow.engine import dask_client
     from bridge_shadow.errors import InputError
     from bridge_shadow.fileio import check_output_dir
 
