@@ -80,6 +80,7 @@ def client_mapper(client: Any) -> Mapper:
     """Return a mapper that runs ``fn`` on the items as Dask tasks of ``client`` (results in order)."""
 
     def mapper(fn: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
-        return client.gather(client.map(fn, list(items), pure=False))
+        # the items go to the workers once, as data, not inside the task graph
+        return client.gather(client.map(fn, client.scatter(list(items)), pure=False))
 
     return mapper
