@@ -116,18 +116,17 @@ def test_archive_on_dask_equals_serial_replay(archive: dict[str, Any], tmp_path:
 def test_cli_reruns_from_the_cache_and_names_the_broken_bag(
     archive: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """The command on a running scheduler; a rerun reads no bag again and gives the same answer."""
+    """The command on a local process cluster, then on a running scheduler, where the rerun reads no bag."""
     from bridge_shadow.cli import main
     from bridge_shadow.engine import dask_client
 
     out = tmp_path / "out"
+    argv = ["archive", str(archive["folder"] / "bridge"), "--out", str(out), "--json"]
+    assert main([*argv, "--workers", "2"]) == 0  # the default engine: a local cluster of processes
+    first = capsys.readouterr()
     with dask_client(workers=2, processes=False) as client:  # a running scheduler, as on a cluster
-        argv = ["archive", str(archive["folder"] / "bridge"), "--out", str(out), "--json"]
-        argv += ["--scheduler", client.scheduler.address]
-        assert main(argv) == 0
-        first = capsys.readouterr()
         # a rerun: every readable bag from the cache
-        assert main(argv) == 0
+        assert main([*argv, "--scheduler", client.scheduler.address]) == 0
         again = json.loads(capsys.readouterr().out)
     js = json.loads(first.out)
     assert_same_result(js["bridges"]["bridge"], archive["ref"])

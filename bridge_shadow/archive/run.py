@@ -91,7 +91,7 @@ def run_archive(
     show_progress: bool = False,
 ) -> ArchiveRun:
     """Submit every bag's reduction and every bridge's join; wait for them; return the outcomes."""
-    from distributed import progress
+    from distributed import Queue, progress
 
     t0 = time.perf_counter()
     run = ArchiveRun(
@@ -111,23 +111,36 @@ def run_archive(
     for plan, first in zip(plans, starts, strict=True):
         name = plan.source.name
         bags = [b for _, b in sorted(zip(first, plan.source.bags, strict=True), key=_start_key)]
-        keys = [f"reduce-{token}-{name}-{i}" for i in range(len(bags))]
-        # the join first (it waits outside the thread pool), then the bags in time order
+        queue = Queue(f"archive-{token}-{name}", client=client)
+        # the join first (it waits outside the thread pool), then the bags in time order, whose
+        # futures go into its queue as they are submitted
         joins.append(
             client.submit(
                 join_task,
                 name,
                 plan.config,
                 plan.surrogate,
-                keys,
+                queue.name,
+                len(bags),
                 summary_period_s,
                 key=f"join-{token}-{name}",
+                priority=1,
             )
         )
-        reduces[name] = [
-            client.submit(reduce_task, str(bag), plan.config, plan.surrogate, str(cache), key=key)
-            for key, bag in zip(keys, bags, strict=True)
-        ]
+        futures = []
+        for i, bag in enumerate(bags):
+            futures.append(
+                client.submit(
+                    reduce_task,
+                    str(bag),
+                    plan.config,
+                    plan.surrogate,
+                    str(cache),
+                    key=f"reduce-{token}-{name}-{i}",
+                )
+            )
+            queue.put(futures[-1])
+        reduces[name] = futures
     everything = [f for fs in reduces.values() for f in fs] + joins
     if show_progress:
         with contextlib.redirect_stdout(sys.stderr):  # stdout is for --json alone

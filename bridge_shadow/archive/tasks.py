@@ -116,27 +116,32 @@ def time_order(outcomes: list[BagOutcome]) -> list[BagOutcome]:
     return sorted(ok, key=lambda o: (o.first_log_ns is None, o.first_log_ns or 0, o.bag))
 
 
-def _outcomes(keys: list[str]) -> Iterator[BagOutcome]:
-    """Yield the reduce tasks' outcomes in the order of ``keys``, each as soon as it is there.
+def _outcomes(queue: str, n: int) -> Iterator[BagOutcome]:
+    """Yield the outcomes of the bridge's ``n`` reduce tasks in time order, each as soon as it is there.
 
-    The join task leaves the worker's thread pool while it waits (``worker_client``), so that
-    worker goes on reducing bags meanwhile.
+    The client puts the reduce futures, in time order, into the Dask ``Queue`` named ``queue``:
+    handing futures between clients is what it is for. The join task leaves the worker's thread
+    pool while it waits (``worker_client``), so that worker goes on reducing bags meanwhile.
     """
-    from distributed import Future, worker_client
+    from distributed import Queue, worker_client
 
     with worker_client() as client:
-        for key in keys:
-            yield Future(key, client=client).result()
+        futures = Queue(queue, client=client)
+        for _ in range(n):
+            future = futures.get()
+            yield future.result()
+            future.release()
 
 
 def join_task(
-    name: str, config: Any, surrogate: Any, keys: list[str], summary_period_s: float
+    name: str, config: Any, surrogate: Any, queue: str, n_bags: int, summary_period_s: float
 ) -> BridgeOutcome:
     """Run the bridge's shadow over its bags in time order, each as soon as it is reduced.
 
-    ``keys`` are the bridge's reduce tasks in the expected time order (by ``bag_start_task``);
-    the join checks each bag's actual first message against it, and if a bag turns out earlier
-    than one already joined, it starts over in the actual order (exact either way).
+    ``queue`` names the Dask queue that gets the bridge's ``n_bags`` reduce futures in the
+    expected time order (by ``bag_start_task``); the join checks each bag's actual first message
+    against it, and if a bag turns out earlier than one already joined, it starts over in the
+    actual order (exact either way).
     """
     from bridge_shadow.archive.join import join_bags
     from bridge_shadow.archive.summary import PeriodicRows
@@ -166,9 +171,10 @@ def join_task(
         return shadow, join_bags(shadow, reductions(source, check), rows.add), rows
 
     try:
-        shadow, stats, rows = run(_outcomes(keys), check=True)
+        outcomes = _outcomes(queue, n_bags)
+        shadow, stats, rows = run(outcomes, check=True)
     except _OutOfOrder:
-        rest = list(_outcomes(keys[len(seen) :]))
+        rest = list(outcomes)
         everything = time_order(seen + rest)
         seen.clear()
         shadow, stats, rows = run(iter(everything), check=False)
