@@ -286,3 +286,33 @@ def test_a_wrong_expected_order_is_caught(
     with dask_client(workers=2, processes=False) as client:
         run = run_archive(client, plans, tmp_path / "cache")
     assert_same_result(run.bridges[0].result, archive["ref"])
+
+
+def test_ctrl_c_leaves_whole_files_only(
+    archive: dict[str, Any],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Interrupted while writing its outputs: exit 130, no temporary file, every cache entry readable."""
+    import pickle
+
+    from bridge_shadow.archive import summary
+    from bridge_shadow.cli import main
+    from bridge_shadow.engine import dask_client
+
+    def interrupted(path: Path, rows: list) -> Path:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(summary, "plot_summary", interrupted)
+    out = tmp_path / "out"
+    with dask_client(workers=2, processes=False) as client:
+        argv = ["archive", str(archive["folder"] / "bridge"), "--out", str(out), "--json"]
+        assert main([*argv, "--scheduler", client.scheduler.address]) == 130
+    assert capsys.readouterr().err.strip().endswith("interrupted")
+    assert not list(out.rglob("*.tmp")) and not (out / "index.json").exists()
+    entries = list((out / "cache").glob("*.pkl"))
+    assert len(entries) == 5
+    for entry in entries:
+        with entry.open("rb") as f:
+            assert pickle.load(f).end is not None
