@@ -62,7 +62,9 @@ def dask_client(
             n_workers=n,
             threads_per_worker=1,
             processes=processes,
-            dashboard_address=None,
+            # its HTTP servers (health and metrics; no dashboard without bokeh) on loopback too
+            dashboard_address="127.0.0.1:0",
+            worker_dashboard_address="127.0.0.1:0",
             silence_logs=logging.ERROR,
             **where,
         ) as cluster,

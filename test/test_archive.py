@@ -164,18 +164,29 @@ def test_a_changed_bag_is_reduced_again(archive: dict[str, Any], tmp_path: Path)
     assert reduce_task(str(bag), later, surrogate, str(tmp_path / "c")).status == "cached"
 
 
-def test_the_default_engine_is_a_local_process_cluster_on_loopback() -> None:
-    """Without --scheduler: worker processes on 127.0.0.1, one thread each, as many as asked."""
+def _listening() -> list[str]:
+    """The addresses this process listens on (TCP)."""
+    import psutil
+
+    return [c.laddr.ip for c in psutil.Process().net_connections(kind="tcp") if c.status == "LISTEN"]
+
+
+@pytest.mark.parametrize("processes", [True, False])
+def test_the_engine_listens_on_loopback_only(processes: bool) -> None:
+    """The local cluster (processes by default): workers, scheduler and their HTTP servers on 127.0.0.1."""
     import os
 
     from bridge_shadow.engine import dask_client
 
-    with dask_client(workers=2) as client:
-        workers = client.scheduler_info()["workers"]
-        assert len(workers) == 2 and all(a.startswith("tcp://127.0.0.1:") for a in workers)
+    with dask_client(workers=2, processes=processes) as client:
         assert set(client.nthreads().values()) == {1}
-        pids = set(client.run(os.getpid).values())
-        assert len(pids) == 2 and os.getpid() not in pids
+        addresses = _listening() + [a for ips in client.run(_listening).values() for a in ips]
+        assert addresses and set(addresses) == {"127.0.0.1"}, addresses
+        if processes:
+            workers = client.scheduler_info()["workers"]
+            assert len(workers) == 2 and all(a.startswith("tcp://127.0.0.1:") for a in workers)
+            pids = set(client.run(os.getpid).values())
+            assert len(pids) == 2 and os.getpid() not in pids
 
 
 def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
