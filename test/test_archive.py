@@ -327,3 +327,18 @@ def test_ctrl_c_leaves_whole_files_only(
     for entry in entries:
         with entry.open("rb") as f:
             assert pickle.load(f).end is not None
+
+
+@pytest.mark.parametrize("bag", ["baseline_1d", "demo_3d"])
+def test_a_truncated_bag_is_named_not_raised(root: Path, tmp_path: Path, bag: str) -> None:
+    """A bag cut short (sqlite3 or MCAP) fails its own task with one line naming it; the cache stays empty."""
+    from bridge_shadow.archive.tasks import reduce_task
+
+    copy = tmp_path / bag
+    shutil.copytree(root / "bags" / bag, copy)
+    storage = next(p for p in copy.iterdir() if p.suffix in (".db3", ".mcap"))
+    with storage.open("r+b") as f:
+        f.truncate(storage.stat().st_size // 3)
+    out = reduce_task(str(copy), load_config(), load_surrogate(), str(tmp_path / "cache"))
+    assert out.status == "failed" and out.error.startswith(str(copy)) and "\n" not in out.error
+    assert not list((tmp_path / "cache").glob("*.pkl"))
