@@ -27,6 +27,7 @@ its parameters name one: give each bridge its own ``checkpoint_path``).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import signal
@@ -43,16 +44,6 @@ from bridge_shadow.ros.launcher import NodeProcess
 __all__ = ["FleetMember", "member_args", "read_fleet", "start_fleet"]
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-#: The topic parameters made relative (resolved under each node's namespace).
-_TOPIC_PARAMS = (
-    "topic_frc_01",
-    "topic_frc_02",
-    "topic_air_temperature",
-    "topic_mean",
-    "topic_covariance",
-    "topic_compensated_frc_01",
-    "topic_compensated_frc_02",
-)
 
 
 @dataclass
@@ -120,8 +111,9 @@ def member_params(member: FleetMember) -> dict[str, Any]:
     params = read_params_file(member.params) if member.params else {}
     if over:
         params.update(over)
-    for name in _TOPIC_PARAMS:
-        params[name] = str(getattr(config, name)).lstrip("/")
+    for f in dataclasses.fields(config):  # the topic parameters, made relative to the namespace
+        if f.name.startswith("topic_"):
+            params[f.name] = str(getattr(config, f.name)).lstrip("/")
     return params
 
 
