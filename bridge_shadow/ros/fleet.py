@@ -27,7 +27,6 @@ its parameters name one: give each bridge its own ``checkpoint_path``).
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import re
 import signal
@@ -102,18 +101,16 @@ def member_params(member: FleetMember) -> dict[str, Any]:
         ConfigError, InputError: a bad parameter or surrogate file (one line naming it).
 
     """
-    from bridge_shadow.estimate.config import load_config, read_params_file
+    from bridge_shadow.estimate.config import load_config
     from bridge_shadow.model.surrogate_file import load_surrogate
 
     over = {"surrogate_path": str(member.surrogate.resolve())} if member.surrogate else None
     config = load_config(member.params, over)  # validates the file against the parameter specs
     load_surrogate(config.surrogate_path or None)  # a bad surrogate stops the fleet before it starts
-    params = read_params_file(member.params) if member.params else {}
-    if over:
-        params.update(over)
-    for f in dataclasses.fields(config):  # the topic parameters, made relative to the namespace
-        if f.name.startswith("topic_"):
-            params[f.name] = str(getattr(config, f.name)).lstrip("/")
+    params = config.to_params()  # every parameter, typed as checked (the node gets exactly these)
+    for name, value in params.items():  # the topic names (not topic_timeout_s), relative to the namespace
+        if name.startswith("topic_") and isinstance(value, str):
+            params[name] = value.lstrip("/")
     return params
 
 
