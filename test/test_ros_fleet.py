@@ -29,7 +29,10 @@ from bridge_shadow.series import MonitoringData
 pytestmark = pytest.mark.ros
 
 T0_NS = 1_647_212_400 * 10**9
-PARAMS = {"b1": {"window_s": 10.0, "warmup_windows": 3}, "b2": {"window_s": 20.0, "warmup_windows": 2}}
+PARAMS = {
+    "b1": {"window_s": 10.0, "warmup_windows": 3},
+    "b2": {"window_s": 20.0, "warmup_windows": 2, "topic_timeout_s": 25.0},
+}
 
 
 def _record(seed: int, n: int = 600) -> MonitoringData:
