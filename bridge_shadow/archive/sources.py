@@ -13,9 +13,9 @@
           params: munich/shadow.yaml           # optional: shadow parameters (config/shadow.yaml)
           surrogate: munich/surrogate.yaml     # optional: its surrogate (else the parameters')
 
-A bridge folder may hold its own ``shadow.yaml`` and ``surrogate.yaml`` beside the bags (what
-``synth --archive`` writes); the manifest names them explicitly. A bag is a rosbag2 directory
-(``metadata.yaml`` or storage files inside) or a bare ``.db3``/``.mcap`` file. The order of a
+A bridge folder may hold its own ``shadow.yaml`` and ``surrogate.yaml`` beside the bags; the
+manifest names them explicitly. A bag is a rosbag2 directory (``metadata.yaml`` or storage files
+inside) or a bare ``.db3``/``.mcap`` file. The order of a
 bridge's bags is fixed later, by their first message (``archive.run``).
 """
 

@@ -20,8 +20,9 @@ PATH is one of
   a glob of bags (quoted)          one bridge per parent folder, e.g. '/data/*/2024-*'
   a manifest (.yaml)               bridges: {NAME: {bags: [paths or globs], params: YAML,
                                    surrogate: YAML}}, paths relative to the manifest
-A bridge folder may hold shadow.yaml (parameters) and surrogate.yaml beside its bags (what
-`synth --archive` writes). A bridge's bags are taken in the order of their first message.
+A bridge folder may hold shadow.yaml (parameters) and surrogate.yaml beside its bags (else
+config/shadow.yaml and the default surrogate). A bridge's bags are taken in the order of their
+first message.
 
 Engine: a local Dask cluster on this machine (one worker process per core, on loopback) unless
 --scheduler tcp://HOST:PORT names a running scheduler (`dask scheduler`, `dask worker ADDR`);
@@ -74,6 +75,10 @@ def _default_out(path: str) -> Path:
     return Path.cwd() / f"{name}.shadow"
 
 
+def _n(count: int, noun: str) -> str:
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 def _summary(js: dict[str, Any]) -> str:
     lines = []
     for name, res in js["bridges"].items():
@@ -84,13 +89,13 @@ def _summary(js: dict[str, Any]) -> str:
             for side, m, s in zip(("south", "north"), mean, sd, strict=True)
         )
         lines.append(
-            f"{name}: {post}; {len(res['bags'])} bags, {res['messages']['total']} messages, "
-            f"{res['windows']['updates']} window updates, {len(res.get('events', []))} events"
+            f"{name}: {post}; {_n(len(res['bags']), 'bag')}, {res['messages']['total']} messages, "
+            f"{res['windows']['updates']} window updates, {_n(len(res.get('events', [])), 'event')}"
         )
     bags = js["bags"]
     lines.append(
         f"bags: {bags['reduced']} reduced, {bags['cached']} from the cache, {bags['failed']} failed; "
-        f"{js['seconds']:.1f} s, {js['messages_per_s']:.0f} msg/s on {js['workers']} workers"
+        f"{js['seconds']:.1f} s, {js['messages_per_s']:.0f} msg/s on {_n(js['workers'], 'worker')}"
     )
     lines.append(f"outputs: {js['out']}")
     return "\n".join(lines)
