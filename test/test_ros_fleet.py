@@ -103,11 +103,12 @@ def test_a_fleet_runs_each_bridge_with_its_own_model(fleet_file: Path, tmp_path:
             for n in nodes:
                 n.check_alive()
 
-        wait_until(ready, 60.0, "the fleet's nodes", alive)
+        wait_until(ready, 120.0, "the fleet's nodes", alive)  # generous: a loaded machine, two nodes
 
         def call(client: object) -> dict:
             future = client.call_async(Trigger.Request())
-            rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
+            rclpy.spin_until_future_complete(node, future, timeout_sec=60.0)
+            assert future.done(), f"{client.srv_name}: no answer in 60 s"
             return json.loads(future.result().message)
 
         for name, data in records.items():
@@ -119,7 +120,7 @@ def test_a_fleet_runs_each_bridge_with_its_own_model(fleet_file: Path, tmp_path:
                     pubs[name][2].publish(raws[2][i // 30])
             sent = [len(m) for m in raws]
             wait_until(
-                lambda name=name, sent=sent: call(status[name])["taken"] == sent, 30.0, "every message", alive
+                lambda name=name, sent=sent: call(status[name])["taken"] == sent, 60.0, "every message", alive
             )
         reports = {name: call(flush[name]) for name in records}
     finally:
