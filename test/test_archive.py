@@ -342,3 +342,22 @@ def test_a_truncated_bag_is_named_not_raised(root: Path, tmp_path: Path, bag: st
     out = reduce_task(str(copy), load_config(), load_surrogate(), str(tmp_path / "cache"))
     assert out.status == "failed" and out.error.startswith(str(copy)) and "\n" not in out.error
     assert not list((tmp_path / "cache").glob("*.pkl"))
+
+
+def test_sources_folder_glob_and_manifest(archive: dict[str, Any], tmp_path: Path) -> None:
+    """The three ways to name an archive give the same bridge and bags (the broken one included)."""
+    from bridge_shadow.archive.sources import archive_sources
+
+    folder = archive["folder"] / "bridge"
+    (by_folder,) = archive_sources(str(folder))
+    (by_glob,) = archive_sources(str(folder / "day_*"))
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        f"bridges:\n  bridge:\n    bags: ['{folder}/day_*']\n    surrogate: {folder}/surrogate.yaml\n"
+    )
+    (by_manifest,) = archive_sources(str(manifest))
+    names = sorted(p.name for p in by_folder.bags)
+    assert names == [f"day_{i:02d}" for i in range(5)] + ["day_99_broken"]
+    for src in (by_glob, by_manifest):
+        assert src.name == "bridge" and sorted(p.name for p in src.bags) == names
+    assert by_folder.surrogate == folder / "surrogate.yaml" == by_manifest.surrogate
