@@ -43,6 +43,7 @@ def dask_client(
         InputError: the scheduler cannot be reached, or ``workers`` is not positive.
 
     """
+    import dask
     from distributed import Client, LocalCluster
 
     if scheduler:
@@ -57,7 +58,21 @@ def dask_client(
     if n < 1:
         raise InputError(f"--workers must be at least 1 (got {n})")
     where = {"host": "127.0.0.1"} if processes else {}
+    # Dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, which hands every freed numpy
+    # buffer back to the kernel: decoding a bag (large short-lived arrays) then runs 1.35x slower
+    # (benchmarks/archive_scale.py). glibc's own adaptive threshold instead; a worker's memory is
+    # bounded by one bag's reduction anyway.
+    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()}
+    environ.pop("MALLOC_TRIM_THRESHOLD_", None)
     with (
+        dask.config.set(
+            {
+                "distributed.nanny.pre-spawn-environ": environ,
+                # the workers' statistical profiler samples the task thread's stack every 10 ms,
+                # under the GIL of a task that is pure Python half the time: off
+                "distributed.worker.profile.enabled": False,
+            }
+        ),
         LocalCluster(
             n_workers=n,
             threads_per_worker=1,
