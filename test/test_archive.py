@@ -361,3 +361,63 @@ def test_sources_folder_glob_and_manifest(archive: dict[str, Any], tmp_path: Pat
     for src in (by_glob, by_manifest):
         assert src.name == "bridge" and sorted(p.name for p in src.bags) == names
     assert by_folder.surrogate == folder / "surrogate.yaml" == by_manifest.surrogate
+
+
+#: A valid other value for every parameter the cache key leaves out (``cache.ESTIMATOR_ONLY``).
+OTHER_VALUES: dict[str, Any] = {
+    "smoothing": "gcv",
+    "spline_lambda": 3.0,
+    "spline_t_min_c": -25.0,
+    "spline_t_max_c": 40.0,
+    "spline_segments": 9,
+    "thermal_prior_sd_n_per_k": 300.0,
+    "warmup_windows": 4,
+    "refit_windows": 30,
+    "lambda_reselect_growth": 1.5,
+    "prior_sigma_m": [1e-3, 2e-3],
+    "prior_rule": "both",
+    "process_noise_m2_per_s": [1e-13, 1e-13],
+    "drift_block_s": 3600.0,
+    "noise_sigma_n": [50.0, 70.0],
+    "systematic_sigma_n": [10.0, 10.0],
+    "noise_mode": "fixed",
+    "noise_phi_max": 0.99,
+    "noise_floor": False,
+    "event_detection": False,
+    "event_trigger_probability": 0.99,
+    "event_probability": 0.9999,
+    "event_confirm_windows": 3,
+    "event_max_pending": 10,
+    "event_jump_rule": "prior",
+    "mahalanobis_probability": 0.9999,
+    "checkpoint_path": "",
+    "checkpoint_period_s": 60.0,
+    "checkpoint_unusable": "fresh",
+    "surrogate_path": "",
+    "qos_depth": 10,
+    "diagnostics_period_s": 2.0,
+    "topic_mean": "/other/mean",
+    "topic_covariance": "/other/covariance",
+    "topic_compensated_frc_01": "/other/c1",
+    "topic_compensated_frc_02": "/other/c2",
+}
+
+
+def test_what_the_cache_key_leaves_out_leaves_the_reduction_as_it_is(root: Path) -> None:
+    """Any parameter outside the key, changed alone: the same windows and front end (cache hits are right)."""
+    from bridge_shadow.archive.cache import ESTIMATOR_ONLY, front_key
+    from bridge_shadow.archive.frontstate import same_behaviour
+
+    assert set(OTHER_VALUES) == ESTIMATOR_ONLY
+    config, surrogate = load_config(), load_surrogate()
+    bag = root / "bags" / "baseline_1d"
+    ref = reduce_bag(bag, config, surrogate)
+    for name, value in OTHER_VALUES.items():
+        other = config.replace(**{name: value})
+        assert front_key(other) == front_key(config), name
+        red = reduce_bag(bag, other, surrogate)
+        assert same_behaviour(red.end, ref.end) and red.end.counts == ref.end.counts, name
+        np.testing.assert_array_equal(red.windows.k, ref.windows.k, err_msg=name)
+        np.testing.assert_array_equal(red.windows.force_n, ref.windows.force_n, err_msg=name)
+        np.testing.assert_array_equal(red.windows.temp_c, ref.windows.temp_c, err_msg=name)
+        assert red.windows.reason.tolist() == ref.windows.reason.tolist(), name

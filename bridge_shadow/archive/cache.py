@@ -31,7 +31,7 @@ __all__ = ["ESTIMATOR_ONLY", "REDUCTION_VERSION", "ReductionCache", "bag_digest"
 #: reduction holds or means: older entries are then never read.
 REDUCTION_VERSION = 1
 #: Shadow parameters that act only after a window is closed (compensation, noise, prior, events,
-#: outputs, checkpoint, node): they leave a bag's reduction as it is (test_archive_cache.py
+#: outputs, checkpoint, node): they leave a bag's reduction as it is (test_archive.py
 #: changes each one and compares the reductions). Every other parameter is in the key.
 ESTIMATOR_ONLY: frozenset[str] = frozenset(
     {
