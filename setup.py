@@ -26,6 +26,10 @@ setup(
         "pyyaml>=6",
         "meshio>=5.3",
         "matplotlib>=3.7",
+        # the engine of everything that scales out: archives, gap folds, calibration, seed studies
+        # (bridge_shadow/engine.py); a local cluster by default, any scheduler by address
+        "dask>=2024.1",
+        "distributed>=2024.1",
     ],
     extras_require={
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
@@ -46,6 +50,7 @@ setup(
         "console_scripts": [
             "bridge-shadow = bridge_shadow.cli:main",
             "bridge_shadow_node = bridge_shadow.ros.node:main",
+            "bridge_shadow_fleet = bridge_shadow.ros.fleet:main",
         ],
     },
 )

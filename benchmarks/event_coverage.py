@@ -42,10 +42,10 @@ from __future__ import annotations
 
 import argparse
 import time
-from multiprocessing import Pool
 
 import numpy as np
 
+from bridge_shadow.engine import client_mapper, dask_client
 from bridge_shadow.estimate import Shadow, ShadowConfig
 from bridge_shadow.model.surrogate_file import Surrogate, load_surrogate, placeholder_surrogate
 from bridge_shadow.paths import config_file
@@ -138,16 +138,20 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--seeds", type=int, default=200)
-    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--jobs", type=int, default=2, help="local Dask worker processes (default 2)")
+    parser.add_argument(
+        "--scheduler", metavar="ADDR", help="a running Dask scheduler instead of a local cluster"
+    )
     parser.add_argument("--only", choices=list(SCENARIOS), action="append")
     parser.add_argument("--world", choices=("fe", "calibrated", "strong"), default="fe")
     args = parser.parse_args()
     names = args.only or list(SCENARIOS)
     print(f"{args.seeds} seeds per scenario, forces every 5 s, default parameters, world {args.world}")
-    with Pool(args.jobs) as pool:
+    with dask_client(args.scheduler, None if args.scheduler else args.jobs) as client:
+        run = client_mapper(client)
         for name in names:
             t0 = time.perf_counter()
-            rows = pool.map(one, [(name, 1000 + s, args.world) for s in range(args.seeds)])
+            rows = run(one, [(name, 1000 + s, args.world) for s in range(args.seeds)])
             d2 = np.array([r["d2"] for r in rows])
             z = np.array([r["z"] for r in rows])
             n_true = len(SCENARIOS[name]["steps"])

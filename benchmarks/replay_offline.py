@@ -3,9 +3,9 @@
 Bags come from ``bridge-shadow synth`` (the truth twin, sqlite3 by default) into
 ``/tmp/bridge_shadow_bench/`` and are reused by later runs. Cases (days of data, so the 60 s
 windows show their cost): forces at 1 Hz over 3 and 30 days, 10 Hz over 3 days, 100 Hz over 6 h
-(synth holds a bag in memory while writing it; 6 h at 100 Hz is 4.3 M messages, about 2.5 GB).
-``--cases 1hz-365d`` replays a year of 1 Hz forces (63 M messages, a 7.5 GB bag written by the
-twin 10 days at a time, since synth cannot hold a year).
+(4.3 M messages).
+``--cases 1hz-365d`` replays a year of 1 Hz forces (63 M messages, a 7.5 GB bag; synth writes it
+segment by segment in bounded memory).
 
 For each bag, in one run:
 
@@ -51,59 +51,14 @@ BIN = Path(sys.executable).parent / "bridge-shadow"
 
 
 def make_bag(name: str, storage: str) -> Path:
-    """Write (or reuse) the synth bag of a case (a year: the twin 10 days at a time)."""
+    """Write (or reuse) the synth bag of a case (synth streams long records segment by segment)."""
     days, rate = CASES[name]
     path = BENCH_DIR / f"{name}-{storage}"
     if not (path / "metadata.yaml").is_file():
         BENCH_DIR.mkdir(parents=True, exist_ok=True)
-        if days > 30:
-            write_long_bag(path, days, rate, storage)
-            return path
         cmd = [str(BIN), "synth", "--out", str(path), "--days", str(days), "--rate", str(rate), "--seed", "7"]
         subprocess.run([*cmd, "--storage", storage, "--overwrite"], check=True, stdout=subprocess.DEVNULL)
     return path
-
-
-def write_long_bag(path: Path, days: float, rate: float, storage: str, segment_days: float = 10.0) -> None:
-    """Write a bag longer than ``synth`` can hold: the twin simulated and written segment by segment.
-
-    Each segment is an independent twin run (own seed, weather restarting at its start), appended
-    to one bag in log-time order; memory is one segment's.
-    """
-    import numpy as np
-
-    from bridge_shadow.bagio import BagOutputWriter, encode_stamped_floats
-    from bridge_shadow.contract import CHANNELS, FORCE_TOPICS, FORCE_TYPE, TEMPERATURE_TOPIC, TEMPERATURE_TYPE
-    from bridge_shadow.twin.simulate import simulate
-
-    start_ns = 1_647_212_400 * 10**9  # 2022-03-14 00:00 Europe/Berlin
-    with BagOutputWriter(path, storage, overwrite=True) as bag:
-        conns = [bag._connection(FORCE_TOPICS[ch], FORCE_TYPE) for ch in CHANNELS]
-        conns.append(bag._connection(TEMPERATURE_TOPIC, TEMPERATURE_TYPE))
-        write = bag._writer.write
-        done = 0.0
-        while done < days:
-            seg = min(segment_days, days - done)
-            data, _ = simulate(seg, rate, seed=int(done), start=start_ns + round(done * 86400e9))
-            raws, logs = [], []
-            for ch in CHANNELS:
-                f = data.forces[ch]
-                values = np.zeros((len(f), 6))
-                values[:, 2] = f.force_n
-                raws.append(encode_stamped_floats(f.stamp_ns, f.frame_id, values))
-                logs.append(f.log_ns)
-            t = data.temperature
-            raws.append(
-                encode_stamped_floats(t.stamp_ns, t.frame_id, np.column_stack([t.temp_c, t.variance]))
-            )
-            logs.append(t.log_ns)
-            topic = np.concatenate([np.full(len(x), k) for k, x in enumerate(logs)])
-            pos = np.concatenate([np.arange(len(x)) for x in logs])
-            log = np.concatenate(logs)
-            order = np.argsort(log, kind="stable")
-            for k, i, ti in zip(topic[order].tolist(), pos[order].tolist(), log[order].tolist(), strict=True):
-                write(conns[k], ti, raws[k][i])
-            done += seg
 
 
 #: Run as ``python -c HWM_WRAP code args...``: the code runs as ``__main__`` and, at exit, the peak

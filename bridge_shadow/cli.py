@@ -31,6 +31,7 @@ COMMANDS: dict[str, str] = {
     "calibrate": "bridge_shadow.commands.calibrate",
     "verify": "bridge_shadow.commands.verify",
     "gap": "bridge_shadow.commands.gap",
+    "archive": "bridge_shadow.commands.archive",
 }
 
 

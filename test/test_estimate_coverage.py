@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from functools import partial
+
 import numpy as np
 import pytest
 from scipy.signal import lfilter
 
+from bridge_shadow.engine import Mapper, client_mapper, dask_client, serial_mapper
 from bridge_shadow.estimate import Shadow, ShadowConfig
 from bridge_shadow.model.surrogate_file import placeholder_surrogate
 from bridge_shadow.series import MonitoringData
@@ -25,33 +29,56 @@ def _ar1(rng: np.random.Generator, phi: float, shape: tuple[int, ...]) -> np.nda
     return x
 
 
-def coverage(phi: float, config: ShadowConfig, seeds: int = SEEDS, windows: int = WINDOWS) -> np.ndarray:
-    """Fraction of seeds whose 95% interval holds the truth: [south, north, 2-D ellipse]."""
+def _seed_hits(case: tuple[np.ndarray, np.ndarray], config: ShadowConfig) -> np.ndarray:
+    """One seed's record through the shadow: does its 95% interval hold the truth? [south, north, ellipse]."""
+    noise, truth = case
     sur = placeholder_surrogate()
+    stamps = 1_700_000_000 * 10**9 + np.arange(noise.shape[1], dtype=np.int64) * 10**9  # 1 Hz
+    forces = sur.reactions(truth)[None, :] + noise.T
+    temp_stamps = stamps[::10]
+    data = MonitoringData.from_arrays(stamps, forces, temp_stamps, np.full(len(temp_stamps), 5.0))
+    result = Shadow(config, sur).run(data)
+    err = result.mean_m - truth
+    sd = np.sqrt(np.diag(result.covariance_m2))
+    hits = np.zeros(3, dtype=bool)
+    hits[:2] = np.abs(err) <= 1.96 * sd
+    hits[2] = err @ np.linalg.solve(result.covariance_m2, err) <= 5.991  # chi2(2) 95%
+    return hits
+
+
+def coverage(
+    phi: float,
+    config: ShadowConfig,
+    seeds: int = SEEDS,
+    windows: int = WINDOWS,
+    mapper: Mapper = serial_mapper,
+) -> np.ndarray:
+    """Fraction of seeds whose 95% interval holds the truth: [south, north, 2-D ellipse].
+
+    The seeds' records are drawn here, at once; ``mapper`` runs the shadow on each (in parallel
+    on Dask with ``engine.client_mapper``: the same records, the same answers).
+    """
     rng = np.random.default_rng(2024)
     n = windows * 60  # 1 Hz forces, 60 s windows
     sigma = np.array([150.0, 200.0])  # N per sample, above the paper's floor
     noise = _ar1(rng, phi, (seeds, 2, n)) * sigma[None, :, None]
     truth = rng.normal(0.0, 3e-4, (seeds, 2))  # drawn from the prior
-    t0 = 1_700_000_000 * 10**9
-    stamps = t0 + np.arange(n, dtype=np.int64) * 10**9
-    temp_stamps = stamps[::10]
-    hits = np.zeros((seeds, 3), dtype=bool)
-    for s in range(seeds):
-        forces = sur.reactions(truth[s])[None, :] + noise[s].T
-        data = MonitoringData.from_arrays(stamps, forces, temp_stamps, np.full(len(temp_stamps), 5.0))
-        result = Shadow(config, sur).run(data)
-        err = result.mean_m - truth[s]
-        sd = np.sqrt(np.diag(result.covariance_m2))
-        hits[s, :2] = np.abs(err) <= 1.96 * sd
-        hits[s, 2] = err @ np.linalg.solve(result.covariance_m2, err) <= 5.991  # chi2(2) 95%
+    one = partial(_seed_hits, config=config)
+    hits = np.array(mapper(one, [(noise[s], truth[s]) for s in range(seeds)]))
     return hits.mean(axis=0)
+
+
+@pytest.fixture(scope="module")
+def engine() -> Iterator[Mapper]:
+    """Two worker processes (Dask): the seeds of a study run in parallel."""
+    with dask_client(workers=2) as client:
+        yield client_mapper(client)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("phi", [0.0, 0.95])
-def test_adaptive_noise_keeps_95_percent_intervals_calibrated(phi: float) -> None:
-    cov = coverage(phi, ShadowConfig(smoothing="none"))
+def test_adaptive_noise_keeps_95_percent_intervals_calibrated(phi: float, engine: Mapper) -> None:
+    cov = coverage(phi, ShadowConfig(smoothing="none"), mapper=engine)
     print(f"phi = {phi}: coverage south {cov[0]:.2f}, north {cov[1]:.2f}, ellipse {cov[2]:.2f}")
     assert np.all((cov >= 0.90) & (cov <= 0.98)), cov
 

@@ -14,6 +14,7 @@ import datetime as _dt
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,7 @@ from bridge_shadow.calibrate.forward import SolutionStore
 from bridge_shadow.calibrate.problem import PairData
 from bridge_shadow.calibrate.records import load_record
 from bridge_shadow.calibrate.spec import CalibrationSpec
+from bridge_shadow.engine import Mapper
 from bridge_shadow.model.config import BridgeConfig, load_bridge_config
 from bridge_shadow.model.surrogate import SENSITIVITY_PARAMETERS, SurrogateRun, compute_surrogate
 from bridge_shadow.model.surrogate_file import MODEL_UNCERTAINTY_ORDER
@@ -135,12 +137,22 @@ def _choose(spec: CalibrationSpec, explanations: dict[str, Explanation]) -> str:
     return max(explanations, key=lambda k: explanations[k].post.log_evidence)
 
 
+def _fit_alone(
+    name: str, spec: CalibrationSpec, cfg: BridgeConfig, pairs: list[PairData]
+) -> tuple[Explanation, int, float]:
+    """Fit one explanation with FE solves of its own; return it and its solves and their seconds."""
+    store = SolutionStore()
+    fit = fit_explanation(name, spec.explanations[name], cfg, spec.mesh, pairs, store)
+    return fit, store.solves, store.seconds
+
+
 def calibrate(
     spec: CalibrationSpec,
     cfg: BridgeConfig | None = None,
     *,
     only: list[str] | None = None,
     report: Progress | None = None,
+    mapper: Mapper | None = None,
 ) -> CalibrationResult:
     """Run the calibration described by ``spec`` (see the module docstring).
 
@@ -149,6 +161,10 @@ def calibrate(
         cfg: the bridge model (default ``config/bridge.yaml``).
         only: fit only these explanations (names of ``spec.explanations``).
         report: progress callback ``(fraction, label)``.
+        mapper: fit the explanations with ``mapper(fn, names)`` (``bridge_shadow.engine``, e.g.
+            in parallel on Dask); each then has FE solves of its own (no solution is shared
+            between explanations, so more solves, the same fits). Default: one after the other,
+            sharing solves.
 
     """
     t0 = time.perf_counter()
@@ -173,9 +189,18 @@ def calibrate(
         ref_n = ref_level.level_n
     store = SolutionStore()
     explanations: dict[str, Explanation] = {}
-    for i, name in enumerate(names):
-        tick(0.05 + 0.85 * i / len(names), f"explanation {name}")
-        explanations[name] = fit_explanation(name, spec.explanations[name], cfg, spec.mesh, pairs, store)
+    if mapper is None:
+        for i, name in enumerate(names):
+            tick(0.05 + 0.85 * i / len(names), f"explanation {name}")
+            explanations[name] = fit_explanation(name, spec.explanations[name], cfg, spec.mesh, pairs, store)
+    else:
+        tick(0.05, f"{len(names)} explanations")
+        for name, (fit, solves, seconds) in zip(
+            names, mapper(partial(_fit_alone, spec=spec, cfg=cfg, pairs=pairs), names), strict=True
+        ):
+            explanations[name] = fit
+            store.solves += solves
+            store.seconds += seconds
     chosen_name = _choose(spec, explanations)
     chosen = explanations[chosen_name]
     tick(0.92, f"surrogate at the MAP of {chosen_name}")

@@ -35,6 +35,13 @@ second with --step 0:SOUTH:NORTH (settled from its start), e.g.
   bridge-shadow synth --out after --start 2022-04-11T09:20 --days 0.01 --rate 2 \\
       --reality-set support_spring_south=2e7 --step 0:-0.01:-0.01
 
+Long records stream: a record of more than 250,000 force samples (2.9 days at 1 Hz, 42 min at
+100 Hz) is simulated and written segment by segment, in bounded memory (about 250 MB), the
+weather, test-car crossings and settlement path continuous over the whole record. --archive DIR
+writes a multi-day, multi-bridge archive the same way, one bag per --bag-days:
+  bridge-shadow synth --archive /tmp/fleet --bridges 3 --days 30 --rate 1
+  bridge-shadow archive /tmp/fleet
+
 Effects (--effect NAME=VALUE, repeatable; SI units; see bridge_shadow/effects.py):
 """ + "\n".join(f"  {e.name:<20} [{e.unit}] e.g. {e.realistic:g} (edge {e.edge:g})" for e in EFFECTS.values())
 DESCRIPTION += """
@@ -55,7 +62,20 @@ def _seed(text: str) -> int:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``synth``."""
-    parser.add_argument("--out", required=True, metavar="BAG", help="output bag directory")
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--out", metavar="BAG", help="output bag directory")
+    where.add_argument(
+        "--archive",
+        metavar="DIR",
+        help="write an archive instead: DIR/bridge_NN/day_DDDD bags of --bag-days each, per bridge a "
+        "record of --days (seed + NN), its truth in DIR/bridge_NN/truth.yaml; for `bridge-shadow archive`",
+    )
+    parser.add_argument(
+        "--bridges", type=int, default=1, metavar="N", help="with --archive: bridges (default 1)"
+    )
+    parser.add_argument(
+        "--bag-days", type=float, default=1.0, metavar="D", help="with --archive: days per bag (default 1)"
+    )
     parser.add_argument("--days", type=float, default=3.0, help="record length in days (default 3)")
     parser.add_argument("--rate", type=float, default=1.0, metavar="HZ", help="force rate, Hz (default 1)")
     parser.add_argument(
@@ -159,30 +179,47 @@ def run(args: argparse.Namespace) -> int:
     """Simulate, write the bag and its truth, print a summary."""
     from bridge_shadow.bagio import check_bag_target
     from bridge_shadow.commands.output import emit_json
+    from bridge_shadow.errors import InputError
     from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
     from bridge_shadow.twin.bag import write_twin_bag
     from bridge_shadow.twin.simulate import parse_effects
+    from bridge_shadow.twin.stream import SEGMENT_SAMPLES, record_samples, record_segments, write_stream_bag
     from bridge_shadow.twin.truth import truth_path
 
     check_value("--days", args.days, "float", VALUE_SPECS["days"])
     check_value("--rate", args.rate, "float", VALUE_SPECS["rate_hz"])
     check_value("--temp-rate", args.temp_rate, "float", VALUE_SPECS["rate_hz"])
+    if args.compress and args.storage != "mcap":
+        raise InputError("compression is available for mcap storage only")
+    world = {
+        "seed": args.seed,
+        "effects": parse_effects(args.effect),
+        "start": args.start,
+        "temp_rate_hz": args.temp_rate,
+        "steps": _parse_steps(args.step),
+    }
+    if args.archive:
+        return _archive(args, world)
     check_bag_target(args.out, args.force)  # before the simulation
-    reality_kw = _reality(args)
-    out, truth = write_twin_bag(
-        args.out,
-        storage=args.storage,
-        overwrite=args.force,
-        compress=args.compress,
-        days=args.days,
-        rate_hz=args.rate,
-        seed=args.seed,
-        effects=parse_effects(args.effect),
-        start=args.start,
-        temp_rate_hz=args.temp_rate,
-        steps=_parse_steps(args.step),
-        **reality_kw,
-    )
+    world.update(_reality(args))
+    if record_samples(args.days, args.rate) <= SEGMENT_SAMPLES:
+        out, truth = write_twin_bag(
+            args.out,
+            storage=args.storage,
+            overwrite=args.force,
+            compress=args.compress,
+            days=args.days,
+            rate_hz=args.rate,
+            **world,
+        )
+    else:  # streamed segment by segment, in bounded memory
+        out, truth = write_stream_bag(
+            args.out,
+            record_segments(args.days, args.rate, **world),
+            storage=args.storage,
+            overwrite=args.force,
+            compress=args.compress,
+        )
     truth_file = truth_path(out)
     counts = truth["counts"]
     summary = {
@@ -218,4 +255,68 @@ def run(args: argparse.Namespace) -> int:
         f"at {truth['rate_hz']:g} Hz, air temperature {m['/bridge/air_temperature']} msgs; "
         f"seed {truth['seed']}; effects: {eff}; surrogate: {summary['surrogate']}; truth in {truth_file}"
     )
+    return 0
+
+
+def _archive(args: argparse.Namespace, world: dict[str, Any]) -> int:
+    """Write ``--archive DIR``: bridges x days in bags of ``--bag-days``; print a summary."""
+    import sys
+    import time
+    from pathlib import Path
+
+    from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.errors import InputError
+    from bridge_shadow.fileio import check_output_dir
+    from bridge_shadow.twin.simulate import simulate
+    from bridge_shadow.twin.stream import write_archive
+
+    t0 = time.perf_counter()
+    if args.bridges < 1:
+        raise InputError(f"--bridges must be at least 1 (got {args.bridges})")
+    if not (0 < args.bag_days < float("inf")):
+        raise InputError(f"--bag-days must be a positive number of days (got {args.bag_days})")
+    folder = Path(args.archive)
+    check_output_dir(folder, "archive folder")
+    taken = [p for p in (folder / f"bridge_{b:02d}" for b in range(args.bridges)) if p.exists()]
+    if taken and not args.force:
+        raise InputError(f"{taken[0]}: exists already (use --force to replace the archive's bridges)")
+    if args.force:
+        import shutil
+
+        for p in taken:
+            shutil.rmtree(p)
+    world.update(_reality(args))
+    simulate(min(args.days, args.bag_days), args.rate, span=(0, 1), **world)  # bad arguments fail now
+    show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "synth"))
+    bridges = write_archive(
+        folder,
+        bridges=args.bridges,
+        days=args.days,
+        rate_hz=args.rate,
+        bag_days=args.bag_days,
+        storage=args.storage,
+        compress=args.compress,
+        progress=show,
+        **world,
+    )
+    summary = {
+        "archive": str(folder),
+        "bridges": bridges,
+        "days": args.days,
+        "bag_days": args.bag_days,
+        "rate_hz": args.rate,
+        "storage": args.storage,
+        "seconds": time.perf_counter() - t0,
+    }
+    if args.json:
+        emit_json(summary)
+    else:
+        bags = sum(b["bags"] for b in bridges)
+        msgs = sum(
+            sum(b["counts"]["force_messages"].values()) + b["counts"]["temperature_messages"] for b in bridges
+        )
+        print(
+            f"wrote {folder}: {len(bridges)} bridge(s), {bags} bags of {args.bag_days:g} days, "
+            f"{msgs} messages ({args.days:g} days at {args.rate:g} Hz each) in {summary['seconds']:.1f} s"
+        )
     return 0

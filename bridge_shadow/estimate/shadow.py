@@ -324,16 +324,33 @@ class Shadow:
         ``now_ns`` (optional) extends the data clock for the missing-topic timeout, e.g. a node's
         wall clock when all inputs stop; leave it None to stay on stamp time (replay-exact).
         """
+        outputs = self._process(self.close_windows(now_ns))
+        self._maybe_checkpoint()
+        return outputs
+
+    # -- the archive's two halves of ``poll`` (bridge_shadow.archive, issue 21) ----------------
+    def close_windows(self, now_ns: int | None = None) -> WindowBatch:
+        """Close every due window and return it unprocessed: the gate-and-window half of ``poll``.
+
+        A shadow that only reduces one bag of an archive calls this instead of ``poll``; the
+        shadow that estimates over the whole stream processes the batch with ``take_windows``.
+        """
         clock = self.clock_ns
         if clock is None or self.buffer.next_k is None:
-            return []
+            return WindowBatch.empty()
         if now_ns is not None:
             clock = max(clock, int(now_ns))
         lasts = [g.last_ns for g in self.gates[:2]]
-        batch = self.buffer.close_until(self.buffer.due_end(clock, lasts), lasts)
-        outputs = self._process(batch)
-        self._maybe_checkpoint()
-        return outputs
+        return self.buffer.close_until(self.buffer.due_end(clock, lasts), lasts)
+
+    def take_windows(self, batch: WindowBatch) -> list[WindowOutput]:
+        """Process windows closed by ``close_windows`` (of this or another shadow), in window order.
+
+        The sequential half of ``poll``: event detector, compensation refits, settlement chain.
+        ``batch`` must follow the windows this shadow has processed (``k`` increasing); returns
+        the outputs decided so far, as ``poll`` does.
+        """
+        return self._process(batch)
 
     def flush(self) -> list[WindowOutput]:
         """Close every window that holds data and decide on held ones (end of a record).

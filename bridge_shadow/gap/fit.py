@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
+from bridge_shadow.engine import Mapper, serial_mapper
+
 __all__ = [
     "CvResult",
     "ar1_phi",
@@ -196,18 +198,26 @@ def held_out(
     valid: np.ndarray,
     fold: np.ndarray,
     predict: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    mapper: Mapper | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Predict each fold from a fit on the others: ``predict(train, hold)`` gives ``pred[hold]``.
 
+    The folds are independent: ``mapper(fn, folds)`` (``bridge_shadow.engine``; default: one
+    after the other here) may fit them in parallel, on Dask with ``engine.client_mapper``.
     Returns the held-out predictions (NaN where a fold had no training data) and the
     ``CvResult`` scores ``sse_before``, ``sse_after`` and ``n_heldout`` per channel.
     """
     pred = np.full(resid.shape, np.nan)
-    for f in np.unique(fold[fold >= 0]):
+    folds = np.unique(fold[fold >= 0]).tolist()
+
+    def one(f: int) -> np.ndarray | None:
         hold = fold == f
         train = valid & ~hold[:, None]
-        if train.any():
-            pred[hold] = predict(train, hold)
+        return predict(train, hold) if train.any() else None
+
+    for f, p in zip(folds, (mapper or serial_mapper)(one, folds), strict=True):
+        if p is not None:
+            pred[fold == f] = p
     held = valid & np.isfinite(pred)
     r0 = np.where(held, resid, 0.0)
     r1 = np.where(held, resid - np.nan_to_num(pred), 0.0)
@@ -225,11 +235,13 @@ def cross_validate(
     valid: np.ndarray,
     fold: np.ndarray,
     bounds: Sequence[tuple[float, float]] | None = None,
+    mapper: Mapper | None = None,
 ) -> CvResult:
     """Fit on all folds but one, predict the left-out one, for every fold; then fit on all data.
 
     ``bounds``: plausible range of the last ``len(bounds)`` parameters (the candidate; earlier
-    columns, fixed effects of a joint fit, stay free); every fit is kept inside it.
+    columns, fixed effects of a joint fit, stay free); every fit is kept inside it. ``mapper``:
+    how the folds are fitted (``held_out``).
     """
     p = alts[0].shape[2]
     box: Box = None
@@ -246,7 +258,7 @@ def cross_validate(
         i, beta, _ = fit_best(alts, resid, train, box)
         return alts[i][hold] @ beta
 
-    pred, scores = held_out(resid, valid, fold, predict)
+    pred, scores = held_out(resid, valid, fold, predict, mapper)
     i, beta, sse = fit_best(alts, resid, valid, box)
     return CvResult(
         pred_cv=pred,

@@ -107,8 +107,10 @@ class Surrogate:
         """
         if self.model_cov is None:
             return np.zeros((2, 2))
-        x = np.asarray(x_m, dtype=float).reshape(2)
-        jac = np.hstack([np.kron(np.eye(2), x[None, :]), np.eye(2) if with_u0 else np.zeros((2, 2))])
+        x0, x1 = np.asarray(x_m, dtype=float).reshape(2).tolist()
+        u = 1.0 if with_u0 else 0.0
+        # J = [kron(I2, x^T), I2], written out: this runs for every window output
+        jac = np.array([[x0, x1, 0.0, 0.0, u, 0.0], [0.0, 0.0, x0, x1, 0.0, u]])
         g = np.linalg.solve(self.A, jac)  # A^-1 J
         cov = g @ self.model_cov @ g.T
         return 0.5 * (cov + cov.T)

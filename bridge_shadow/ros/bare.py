@@ -30,8 +30,10 @@ from bridge_shadow.ros.node import FLUSH_SERVICE, HISTORY_SERVICE, STATUS_SERVIC
 
 __all__ = ["ECHO_TOPIC", "BareSubscriber", "main"]
 
-#: With ``--echo`` every frc_02 message is published back here as it came (latency baseline).
-ECHO_TOPIC = "/bridge_shadow_bench/echo"
+#: With ``--echo`` every frc_02 message is published back here as it came (latency baseline). The
+#: bare node's names are relative: the contract's in the root namespace, under ``/NS`` when it is
+#: started in one (``-r __ns:=/NS``: the baseline of a fleet, ``benchmarks/fleet_live.py``).
+ECHO_TOPIC = "bridge_shadow_bench/echo"
 
 
 class BareSubscriber(Node):
@@ -43,14 +45,16 @@ class BareSubscriber(Node):
         types = (WrenchStamped, WrenchStamped, Temperature)
         self._subs = [
             self.create_subscription(t, topic, buf.append, input_qos(depth), raw=not typed)
-            for t, topic, buf in zip(types, INPUT_ORDER, self.buffers, strict=True)
+            for t, topic, buf in zip(types, [t.lstrip("/") for t in INPUT_ORDER], self.buffers, strict=True)
         ]
         names = (STATUS_SERVICE, FLUSH_SERVICE, HISTORY_SERVICE)
         self._srv = [self.create_service(Trigger, name, self._answer) for name in names]
         if echo:
             pub = self.create_publisher(WrenchStamped, ECHO_TOPIC, input_qos(depth))
             self._subs.append(
-                self.create_subscription(WrenchStamped, INPUT_ORDER[1], pub.publish, input_qos(0), raw=True)
+                self.create_subscription(
+                    WrenchStamped, INPUT_ORDER[1].lstrip("/"), pub.publish, input_qos(0), raw=True
+                )
             )
 
     def _answer(self, request: object, response: Trigger.Response) -> Trigger.Response:

@@ -141,12 +141,15 @@ __all__ = [
     "window_history",
 ]
 
+# The services' names are relative: ``/bridge_shadow/flush`` for a node in the root namespace (and
+# for a client there), ``/NS/bridge_shadow/flush`` for a node started in namespace NS (a fleet:
+# ``bridge_shadow.ros.fleet``), so the nodes of a fleet do not answer for each other.
 #: Service that closes every window holding data (end of a replay).
-FLUSH_SERVICE = f"/{NODE_NAME}/flush"
+FLUSH_SERVICE = f"{NODE_NAME}/flush"
 #: Service answering with the raw messages taken per input topic (flow control of a replay).
-STATUS_SERVICE = f"/{NODE_NAME}/status"
+STATUS_SERVICE = f"{NODE_NAME}/status"
 #: Service answering with the recent window outputs (``window_history``) as JSON.
-HISTORY_SERVICE = f"/{NODE_NAME}/history"
+HISTORY_SERVICE = f"{NODE_NAME}/history"
 #: Window outputs the node keeps for the history service: one week of 60 s windows (about 1 MB).
 HISTORY_WINDOWS = 10_080
 #: Buffered messages per topic that trigger a decode-and-ingest.
@@ -475,6 +478,9 @@ class ShadowNode(Node):
                 self._warned.add(key)
                 self.get_logger().warn(line)
         items = statuses(diag, self._ages(), self.malformed, self._timeout_s)
+        if self.get_namespace() != "/":  # a fleet's nodes share /diagnostics: say which bridge
+            ns = self.get_namespace().strip("/")
+            items = [dataclasses.replace(s, name=f"{ns}/{s.name}") for s in items]
         self._pub_diag.publish(diagnostic_array(items, self.get_clock().now().nanoseconds))
 
     def _on_status(self, request: Any, response: Any) -> Any:

@@ -55,8 +55,31 @@ MAX_SAMPLES = 20_000_000
 _STREAMS = {"weather": 1, "noise": 2, "force_gaps": 3, "force_nan": 4, "temp": 5, "traffic": 6}
 
 
-def _rng(seed: int, part: str) -> np.random.Generator:
-    return np.random.default_rng(np.random.SeedSequence([int(seed), _STREAMS[part]]))
+def _rng(seed: int, part: str, segment: int = 0) -> np.random.Generator:
+    """Return the random stream of one part of the world (``segment`` > 0: of a long record's segment)."""
+    key = [int(seed), _STREAMS[part]] + ([int(segment)] if segment else [])
+    return np.random.default_rng(np.random.SeedSequence(key))
+
+
+def temperature_span(
+    i0: int, i1: int, n: int, n_temp: int, rate_hz: float, temp_rate_hz: float
+) -> tuple[int, int]:
+    """Return the air-temperature samples ``[j0, j1)`` that fall in force samples ``[i0, i1)`` of a record.
+
+    Sample ``j`` is at ``j / temp_rate_hz`` s and belongs to the span starting at or before it; the
+    spans of consecutive force ranges tile ``[0, n_temp)``.
+    """
+
+    def first(i: int) -> int:
+        return (
+            0
+            if i <= 0
+            else n_temp
+            if i >= n
+            else min(int(np.ceil(i * temp_rate_hz / rate_hz - 1e-9)), n_temp)
+        )
+
+    return first(i0), first(i1)
 
 
 def validate_effects(effects: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -176,6 +199,8 @@ def simulate(
     surrogate: Surrogate | None = None,
     sensitivities_block: dict[str, Any] | None = None,
     reality: dict[str, Any] | None = None,
+    span: tuple[int, int] | None = None,
+    segment: int = 0,
 ) -> tuple[MonitoringData, dict[str, Any]]:
     """Simulate ``days`` of monitoring; return the data and the truth.
 
@@ -193,6 +218,12 @@ def simulate(
             its placeholder. It may differ from the estimator's (``bridge_shadow.twin.reality``).
         sensitivities_block: stiffness sensitivities in the file format (with ``surrogate``).
         reality: where ``surrogate`` comes from (recorded as ``truth["reality"]``).
+        span: simulate only the force samples ``[i0, i1)`` of the record (and the temperature
+            samples between them, ``temperature_span``): one segment of a record too long to hold
+            (``twin.stream``). Weather, test-car crossings, the reference temperature and the
+            settlement path are the whole record's; the sensors draw from the segment's own
+            streams (``segment`` > 0). Default: the whole record.
+        segment: the segment's number (0: the streams of a whole record).
 
     Returns:
         ``(data, truth)``: ``truth`` holds every parameter, the effects, the seed, the surrogate
@@ -210,12 +241,16 @@ def simulate(
         raise InputError(f"temperature rate must be positive (got {temp_rate_hz} Hz)")
     n = int(np.floor(days * DAY_S * rate_hz + 1e-9))
     n_temp = int(np.floor(days * DAY_S * temp_rate_hz + 1e-9))
-    if n > MAX_SAMPLES or n_temp > MAX_SAMPLES:
+    i0, i1 = (0, n) if span is None else (max(int(span[0]), 0), min(int(span[1]), n))
+    j0, j1 = temperature_span(i0, i1, n, n_temp, rate_hz, temp_rate_hz)
+    if i1 - i0 > MAX_SAMPLES or j1 - j0 > MAX_SAMPLES:
         raise InputError(
             f"{days} days at {rate_hz} Hz is {n} samples per channel; the limit is {MAX_SAMPLES}"
         )
     if n < 1 or n_temp < 1:
         raise InputError("the record is shorter than one sample; raise --days or --rate")
+    if i1 <= i0:
+        raise InputError(f"span {span} holds no force sample of the record's {n}")
     steps = [tuple(float(v) for v in s) for s in steps]
     if surrogate is None:
         base, block = load_twin_surrogate()
@@ -223,9 +258,11 @@ def simulate(
         base, block = surrogate, sensitivities_block
 
     t0 = _start_ns(start)
-    t_ns = t0 + np.round(np.arange(n) * (NS / rate_hz)).astype(np.int64)
-    tt_ns = t0 + np.round(np.arange(n_temp) * (NS / temp_rate_hz)).astype(np.int64)
-    t1 = int(max(t_ns[-1], tt_ns[-1]))
+    t_ns = t0 + np.round(np.arange(i0, i1) * (NS / rate_hz)).astype(np.int64)
+    tt_ns = t0 + np.round(np.arange(j0, j1) * (NS / temp_rate_hz)).astype(np.int64)
+    t1 = int(max(t0 + round((n - 1) * (NS / rate_hz)), t0 + round((n_temp - 1) * (NS / temp_rate_hz))))
+    seg_days = days if span is None else (i1 - i0) / rate_hz / DAY_S
+    n, n_temp = i1 - i0, j1 - j0  # from here on: this call's samples
     t_day = (t_ns - t0) / (DAY_S * NS)
 
     # Weather, sun and structure temperatures.
@@ -264,25 +301,30 @@ def simulate(
     clean = sum(parts.values())
 
     # Sensors.
-    noise = load_cell_noise(_rng(seed, "noise"), 1.0 / rate_hz, n, cfg)
+    noise = load_cell_noise(_rng(seed, "noise", segment), 1.0 / rate_hz, n, cfg)
     drift = np.zeros((n, 2))
     drift[:, 1] = eff.get("sensor_drift", 0.0) * t_day
     measured = clean + drift + noise
-    rng_nan = _rng(seed, "force_nan")
-    nan_idx = [nan_positions(rng_nan, n, cfg.nan_per_day, days) for _ in CHANNELS]
+    rng_nan = _rng(seed, "force_nan", segment)
+    nan_idx = [nan_positions(rng_nan, n, cfg.nan_per_day, seg_days) for _ in CHANNELS]
     for i, idx in enumerate(nan_idx):
         measured[idx, i] = np.nan
     keep = dropout_mask(
-        _rng(seed, "force_gaps"), t_ns, cfg.gaps_per_day, cfg.gap_median_s, 2, cfg.gap_single_fraction
+        _rng(seed, "force_gaps", segment),
+        t_ns,
+        cfg.gaps_per_day,
+        cfg.gap_median_s,
+        2,
+        cfg.gap_single_fraction,
     )
     forces = {
         ch: ForceSeries(t_ns[keep[:, i]], measured[keep[:, i], i], FORCE_FRAMES[ch])
         for i, ch in enumerate(CHANNELS)
     }
 
-    rng_temp = _rng(seed, "temp")
+    rng_temp = _rng(seed, "temp", segment)
     temp = weather.air_temp_c(tt_ns) + cfg.temp_sensor_sd_k * rng_temp.standard_normal(n_temp)
-    temp_nan = nan_positions(rng_temp, n_temp, cfg.temp_nan_per_day, days)
+    temp_nan = nan_positions(rng_temp, n_temp, cfg.temp_nan_per_day, seg_days)
     temp[temp_nan] = np.nan
     tkeep = dropout_mask(rng_temp, tt_ns, cfg.temp_gaps_per_day, cfg.gap_median_s)[:, 0]
     temperature = TemperatureSeries(
@@ -343,4 +385,6 @@ def simulate(
             "crossing_start_ns": crossings.start_ns if weight else np.zeros(0, np.int64),
         },
     }
+    if span is not None:
+        truth["segment"] = {"index": int(segment), "force_samples": [i0, i1], "temperature_samples": [j0, j1]}
     return data, truth

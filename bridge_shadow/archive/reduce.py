@@ -1,0 +1,233 @@
+"""Reduce one bag of an archive, on its own: decode, gate and close its 60 s windows (the parallel part).
+
+A bag is read as ``replay`` reads it (``bagio.stream.MonitoringStream``, arrival order, bounded
+memory) and fed to a shadow of its own that starts fresh at the bag's first message and only
+gates and windows (``Shadow.close_windows``, never the estimator). That shadow cannot know what
+the bags before left in the gates (last stamps, a message held after a gap, a clock jump waiting
+for confirmation) or in the window buffer (samples of a window that straddles the seam, the last
+temperature reading before it). So the reduction keeps what the sequential join needs to take
+the bag over exactly (``archive.join``):
+
+- the *head*: the messages of the bag's first ``HEAD_WINDOWS`` windows of log time, one feed
+  chunk per window, and a snapshot of the front end (``FrontState``) after each chunk;
+- every window closed after each chunk (``closed_at``: the chunk index, ``len(head)`` for later);
+- the front end after the whole bag (``end``): gates, open windows, bookkeeping.
+
+The join feeds the head to the archive's shadow until its front end behaves as this one's at a
+snapshot; from there on this one's windows and end state are the archive's, to the bit.
+
+``HEAD_WINDOWS``: after a seam the two front ends agree once (1) every window holding samples
+of the bag before has closed (one window, plus up to ``topic_timeout_s`` for the slowest topic),
+(2) each gate has taken two messages of this bag (its last step), also after a gap (the first
+message after a gap is held for one message) or a clock jump (``clock_jump_confirm`` = 2
+messages), and (3) the temperature kept as the left bracket is a reading of this bag: with
+readings once a minute, two windows. Ten windows (10 min of log time) cover that with room for
+a slower temperature topic; a bag whose seam does not settle within them is fed whole by the
+join (exact, only slower), and the join counts it.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.archive.frontstate import FrontState, front_state
+from bridge_shadow.estimate.windows import WindowBatch
+from bridge_shadow.replay.chunks import DEFAULT_CHUNK, FeedChunk, arrival_chunks
+from bridge_shadow.replay.feed import feed_shadow
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+__all__ = ["HEAD_WINDOWS", "BagReduction", "reduce_bag", "split_log", "take_head"]
+
+#: Windows of log time at a bag's start fed again by the join (see the module docstring).
+HEAD_WINDOWS = 10
+
+
+@dataclass
+class BagReduction:
+    """What the join needs of one bag (see the module docstring).
+
+    Attributes:
+        bag: the bag's path.
+        messages: input messages read (all three topics).
+        first_log_ns, last_log_ns: log-time span of the bag (None when it holds no input message).
+        head_end_ns: log time at which the head ends (the rest starts there), or None.
+        head: one feed chunk per head window (an empty chunk where the window held no message).
+        snapshots: the front end after each head chunk and its poll, ``len(head)`` of them.
+        windows: every window the bag's own front end closed, in window order.
+        closed_at: (n,) int64, after which chunk each window closed (``len(head)``: later).
+        end: the front end after the whole bag (its last poll; open windows stay open).
+        backend: how the bag was read; seconds: wall time of the reduction.
+
+    """
+
+    bag: str
+    messages: int = 0
+    first_log_ns: int | None = None
+    last_log_ns: int | None = None
+    head_end_ns: int | None = None
+    head: list[FeedChunk] = field(default_factory=list)
+    snapshots: list[FrontState] = field(default_factory=list)
+    windows: WindowBatch = field(default_factory=WindowBatch.empty)
+    closed_at: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    end: FrontState | None = None
+    backend: str = ""
+    seconds: float = 0.0
+
+    def windows_after(self, j: int) -> WindowBatch:
+        """Return the windows closed after head chunk ``j`` (by later chunks of this bag)."""
+        sel = self.closed_at > j
+        w = self.windows
+        return WindowBatch(w.k[sel], w.samples[sel], w.force_n[sel], w.temp_c[sel], w.reason[sel])
+
+
+def _force_slice(s: ForceSeries, sl: slice) -> ForceSeries:
+    return ForceSeries(s.stamp_ns[sl], s.force_n[sl], s.frame_id[sl], s.log_ns[sl])
+
+
+def split_log(piece: MonitoringData, cut_ns: int) -> tuple[MonitoringData, MonitoringData]:
+    """Split a piece at a log time: (messages with log time < ``cut_ns``, the others).
+
+    Arrival order is log time first, so the first part wholly precedes the second.
+    """
+    forces_a, forces_b = {}, {}
+    for ch, s in piece.forces.items():
+        i = int(np.searchsorted(s.log_ns, cut_ns, side="left"))
+        forces_a[ch], forces_b[ch] = _force_slice(s, slice(0, i)), _force_slice(s, slice(i, None))
+    t = piece.temperature
+    i = int(np.searchsorted(t.log_ns, cut_ns, side="left"))
+    cut = [
+        TemperatureSeries(t.stamp_ns[sl], t.temp_c[sl], t.variance[sl], t.frame_id[sl], t.log_ns[sl])
+        for sl in (slice(0, i), slice(i, None))
+    ]
+    return MonitoringData(forces_a, cut[0]), MonitoringData(forces_b, cut[1])
+
+
+def take_head(
+    pieces: Iterator[MonitoringData], cuts: list[int]
+) -> tuple[list[list[MonitoringData]], Iterator[MonitoringData]]:
+    """Cut the first pieces of a stream at increasing log times ``cuts``.
+
+    Returns ``parts`` (``parts[j]``: the messages with log time in ``[cuts[j - 1], cuts[j])``,
+    the first from the stream's start) and an iterator over the rest (log time >= ``cuts[-1]``).
+    """
+    parts: list[list[MonitoringData]] = [[] for _ in cuts]
+    j = 0
+    for piece in pieces:
+        while j < len(cuts):
+            before, piece = split_log(piece, cuts[j])
+            if before.n_messages:
+                parts[j].append(before)
+            if not piece.n_messages:
+                break
+            j += 1
+        if j == len(cuts):
+            rest = [piece] if piece.n_messages else []
+            return parts, _chain(rest, pieces)
+    return parts, iter(())
+
+
+def _chain(first: list[MonitoringData], more: Iterator[MonitoringData]) -> Iterator[MonitoringData]:
+    yield from first
+    yield from more
+
+
+def _empty_chunk() -> FeedChunk:
+    none = (np.empty(0, np.int64), np.empty(0), np.empty(0, dtype=object))
+    return FeedChunk([none, none], none, 0, 0)
+
+
+def one_chunk(parts: Iterable[MonitoringData]) -> FeedChunk:
+    """All messages of ``parts`` (in arrival order) as one feed chunk."""
+    chunk = next(arrival_chunks(parts, chunk=2**62), None)
+    return chunk if chunk is not None else _empty_chunk()
+
+
+class _Windowing:
+    """A shadow seen through ``feed_shadow`` whose ``poll`` only closes windows, and records them."""
+
+    def __init__(self, shadow: Any) -> None:
+        self.shadow = shadow
+        self.batches: list[WindowBatch] = []
+        self.at: list[int] = []
+        self.chunk = 0  # index of the poll that closes the next windows
+
+    def ingest_forces(self, *args: Any) -> int:
+        return self.shadow.ingest_forces(*args)
+
+    def ingest_temperature(self, *args: Any) -> int:
+        return self.shadow.ingest_temperature(*args)
+
+    def poll(self) -> list[Any]:
+        batch = self.shadow.close_windows()
+        if len(batch):
+            self.batches.append(batch)
+            self.at.append(self.chunk)
+        return []
+
+    def windows(self) -> tuple[WindowBatch, np.ndarray]:
+        """Every window closed, and after which chunk."""
+        b = self.batches
+        if not b:
+            return WindowBatch.empty(), np.empty(0, np.int64)
+        at = np.concatenate([np.full(len(x), a, np.int64) for x, a in zip(b, self.at, strict=True)])
+        joined = WindowBatch(
+            np.concatenate([x.k for x in b]),
+            np.concatenate([x.samples for x in b]),
+            np.concatenate([x.force_n for x in b]),
+            np.concatenate([x.temp_c for x in b]),
+            np.concatenate([x.reason for x in b]),
+        )
+        return joined, at
+
+
+def head_cuts(first_log_ns: int, window_ns: int, n: int = HEAD_WINDOWS) -> list[int]:
+    """Log times that end the head chunks: the next ``n`` window boundaries after the first message."""
+    k0 = first_log_ns // window_ns + 1
+    return [(k0 + j) * window_ns for j in range(n)]
+
+
+def reduce_bag(bag: str | Path, config: Any, surrogate: Any, chunk: int = DEFAULT_CHUNK) -> BagReduction:
+    """Decode, gate and window one bag on its own (see the module docstring).
+
+    Args:
+        bag: a rosbag2 bag (directory, ``.db3`` or ``.mcap``).
+        config: the bridge's ``ShadowConfig`` (its front-end parameters matter here).
+        surrogate: the bridge's surrogate (the front end does not use it; a shadow needs one).
+        chunk: messages per feed after the head.
+
+    Raises:
+        BagError: the bag cannot be opened or read (one line naming it).
+
+    """
+    from bridge_shadow.bagio.stream import MonitoringStream
+    from bridge_shadow.estimate.shadow import Shadow
+
+    t0 = time.perf_counter()
+    shadow = Shadow(config.replace(checkpoint_path=""), surrogate)
+    red = BagReduction(str(bag))
+    front = _Windowing(shadow)
+    with MonitoringStream(bag, topics=config.input_topics(), required=False) as stream:
+        red.backend = stream.backend
+        pieces = iter(stream)
+        if stream.first_ns is not None:
+            cuts = head_cuts(int(stream.first_ns), shadow.buffer.w_ns)
+            parts, pieces = take_head(pieces, cuts)
+            red.head_end_ns = cuts[-1]
+            for part in parts:
+                red.head.append(one_chunk(part))
+                red.messages += feed_shadow(front, [red.head[-1]], flush=False).messages
+                red.snapshots.append(front_state(shadow))
+                front.chunk += 1
+        red.messages += feed_shadow(front, arrival_chunks(pieces, chunk), flush=False).messages
+    red.first_log_ns = None if stream.first_ns is None else int(stream.first_ns)
+    red.last_log_ns = None if stream.last_ns is None else int(stream.last_ns)
+    red.windows, red.closed_at = front.windows()
+    red.end = front_state(shadow)
+    red.seconds = time.perf_counter() - t0
+    return red

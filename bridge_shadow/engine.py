@@ -1,0 +1,103 @@
+"""The Dask engine of every job that scales out: archives, gap folds, calibration explanations, seed studies.
+
+``dask_client`` starts a local cluster on loopback (``127.0.0.1``), one single-threaded worker
+per core (the work is Python and numpy: processes, not threads, share the cores), or connects
+to a running scheduler (``tcp://HOST:PORT``). ``client_mapper`` turns a client into the plain
+``mapper(fn, items) -> list`` that the functional core takes where it loops over independent
+pieces (``gap.fit.held_out``, ``calibrate.calibrate``); the built-in ``map`` is the serial one.
+Nothing of the scheduling is written here: Dask's ``map``, ``submit`` and ``gather`` do it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
+
+from bridge_shadow.errors import InputError
+
+__all__ = ["CONNECT_TIMEOUT_S", "Mapper", "client_mapper", "dask_client", "serial_mapper"]
+
+#: ``mapper(fn, items)``: ``[fn(x) for x in items]``, in order, computed however the mapper likes.
+Mapper = Callable[[Callable[[Any], Any], Iterable[Any]], list[Any]]
+
+#: Seconds to wait for a scheduler named by ``--scheduler`` before giving up with one line.
+CONNECT_TIMEOUT_S = 10.0
+
+
+@contextlib.contextmanager
+def dask_client(
+    scheduler: str | None = None, workers: int | None = None, processes: bool = True
+) -> Iterator[Any]:
+    """Yield a ``distributed.Client``: of a new local cluster, or of the scheduler at ``scheduler``.
+
+    Args:
+        scheduler: ``tcp://host:port`` of a running scheduler (None: a local cluster).
+        workers: local workers (default: one per core, ``os.cpu_count()``).
+        processes: local workers as processes (the default) or as threads of this process
+            (tests: no start-up cost; the Python work then shares one core).
+
+    Raises:
+        InputError: the scheduler cannot be reached, or ``workers`` is not positive.
+
+    """
+    import dask
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as err:
+            raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({err})") from None
+        with client:
+            yield client
+        return
+    n = workers if workers is not None else (os.cpu_count() or 1)
+    if n < 1:
+        raise InputError(f"--workers must be at least 1 (got {n})")
+    where = {"host": "127.0.0.1"} if processes else {}
+    # Dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, which hands every freed numpy
+    # buffer back to the kernel: decoding a bag (large short-lived arrays) then runs 1.35x slower
+    # (benchmarks/archive_scale.py). glibc's own adaptive threshold instead; a worker's memory is
+    # bounded by one bag's reduction anyway.
+    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()}
+    environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+    with (
+        dask.config.set(
+            {
+                "distributed.nanny.pre-spawn-environ": environ,
+                # the workers' statistical profiler samples the task thread's stack every 10 ms,
+                # under the GIL of a task that is pure Python half the time: off
+                "distributed.worker.profile.enabled": False,
+            }
+        ),
+        LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=processes,
+            # its HTTP servers (health and metrics; no dashboard without bokeh) on loopback too
+            dashboard_address="127.0.0.1:0",
+            worker_dashboard_address="127.0.0.1:0",
+            silence_logs=logging.ERROR,
+            **where,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield client
+
+
+def serial_mapper(fn: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
+    """Apply ``fn`` to each item in this process, in order (the default mapper)."""
+    return [fn(x) for x in items]
+
+
+def client_mapper(client: Any) -> Mapper:
+    """Return a mapper that runs ``fn`` on the items as Dask tasks of ``client`` (results in order)."""
+
+    def mapper(fn: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
+        # the items go to the workers once, as data, not inside the task graph
+        return client.gather(client.map(fn, client.scatter(list(items)), pure=False))
+
+    return mapper

@@ -1,0 +1,423 @@
+"""``bridge-shadow archive``: the same answer as one serial replay of the bags concatenated.
+
+The archive is a twin record with a settlement step and bad input at every seam (see
+``archive_fixtures``), cut into bags of both storages, plus a bag that cannot be read. The
+reference is ``replay`` of the record written whole (without the unreadable bag). Compared:
+the posterior mean and covariance (rtol 1e-10: the same floats in the same order, so only a
+reordered sum could move them), every count exactly, the events, the warnings, the spline.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from archive_fixtures import corrupt_bag, seamed_record, write_archive
+
+from bridge_shadow.archive.join import join_bags
+from bridge_shadow.archive.reduce import reduce_bag
+from bridge_shadow.estimate import load_config
+from bridge_shadow.estimate.shadow import Shadow
+from bridge_shadow.model.surrogate_file import load_surrogate, placeholder_surrogate, save_surrogate
+from bridge_shadow.replay import replay_bag
+
+RTOL = 1e-10
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The seamed archive (bags, the whole record, a surrogate file) and the serial reference."""
+    folder = tmp_path_factory.mktemp("archive")
+    data, seams = seamed_record(days=1.6)
+    bags, whole = write_archive(folder, data, seams)
+    bad = corrupt_bag(folder / "bridge" / "day_99_broken")
+    surrogate = placeholder_surrogate()  # the twin's model: the bridge folder names it
+    save_surrogate(surrogate, folder / "bridge" / "surrogate.yaml")
+    config = load_config()
+    ref, _ = replay_bag(whole, Shadow(config, surrogate))
+    return {"folder": folder, "bags": bags, "whole": whole, "bad": bad, "ref": ref.to_json()}
+
+
+def assert_same_result(got: dict[str, Any], ref: dict[str, Any]) -> None:
+    """Assert that an archive's result is the serial replay's (floats to RTOL, counts exactly)."""
+    for key in ("mean_m", "covariance_m2"):
+        np.testing.assert_allclose(got["posterior"][key], ref["posterior"][key], rtol=RTOL, atol=0)
+    assert got["messages"]["total"] == ref["messages"]["total"]
+    assert got["messages"]["used_by_topic"] == ref["messages"]["used_by_topic"]
+    assert got["rejected"] == ref["rejected"]
+    assert got["windows"] == ref["windows"]
+    assert got["warnings"] == ref["warnings"]
+    assert [e["window"] for e in got["events"]] == [e["window"] for e in ref["events"]]
+    for e, r in zip(got["events"], ref["events"], strict=True):
+        np.testing.assert_allclose(e["size_m"], r["size_m"], rtol=RTOL, atol=0)
+    for ch, sp in ref["spline"].items():
+        for k, v in sp.items():
+            np.testing.assert_allclose(got["spline"][ch][k], v, rtol=RTOL, atol=0)
+
+
+def test_the_reference_holds_what_the_archive_must_survive(archive: dict[str, Any]) -> None:
+    """The serial reference sees the bad input and the step (else the comparison proves little)."""
+    ref = archive["ref"]
+    rejected = ref["rejected"]
+    for reason in ("nonfinite", "frame_id", "duplicate", "out_of_order", "clock_jump", "stale_temperature"):
+        assert rejected[reason] > 0, reason
+    assert len(ref["events"]) == 1
+    assert ref["events"][0]["size_m"] == pytest.approx([-1e-3, -1e-3], abs=3e-4)
+
+
+def test_join_of_reduced_bags_equals_serial_replay(archive: dict[str, Any]) -> None:
+    """Reduced bag by bag, joined in order: the serial replay's result; which seams were re-fed and why."""
+    config, surrogate = load_config(), placeholder_surrogate()
+    reductions = [reduce_bag(b, config, surrogate) for b in archive["bags"]]
+    shadow = Shadow(config, surrogate)
+    stats = join_bags(shadow, reductions)
+    assert_same_result(shadow.result([], stats.messages, 1.0).to_json(), archive["ref"])
+    # day_03 has no air temperature (a fresh front end cannot know one was seen before: its windows
+    # would be uncompensated, not stale); day_04 opens with a clock jump that a fresh gate takes as
+    # its time base: both are fed whole. The other seams settle in their head.
+    assert [Path(b).name for b in stats.fed_whole] == ["day_03", "day_04"]
+    assert stats.windows_taken > 0.5 * archive["ref"]["windows"]["closed"]
+
+
+def test_a_seam_settles_within_the_head(archive: dict[str, Any]) -> None:
+    """On clean seams (mid-window, a wrong frame, a NaN, a duplicate, an outage) the head suffices."""
+    config, surrogate = load_config(), placeholder_surrogate()
+    reductions = [reduce_bag(b, config, surrogate) for b in archive["bags"][:3]]
+    stats = join_bags(Shadow(config, surrogate), reductions)
+    assert not stats.fed_whole
+    assert stats.head_chunks < 3 * 5  # a handful of windows per seam
+
+
+@pytest.mark.parametrize("workers", [1, 2, 4])
+def test_archive_on_dask_equals_serial_replay(archive: dict[str, Any], tmp_path: Path, workers: int) -> None:
+    """On 1, 2 and 4 workers (threads here), with an unreadable bag named and skipped."""
+    from bridge_shadow.archive.run import plan_bridges, run_archive
+    from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.engine import dask_client
+
+    plans = plan_bridges(archive_sources(str(archive["folder"] / "bridge")))
+    with dask_client(workers=workers, processes=False) as client:
+        run = run_archive(client, plans, tmp_path / "cache")
+    (bridge,) = run.bridges
+    assert_same_result(bridge.result, archive["ref"])
+    assert [Path(b).name for b, _ in bridge.failed] == ["day_99_broken"]
+    assert "day_99_broken" in bridge.failed[0][1]
+    assert run.workers == workers
+    rows = bridge.rows
+    assert rows[-1]["mean_south_m"] == pytest.approx(archive["ref"]["posterior"]["mean_m"][0], rel=RTOL)
+    ends = [r["end_ns"] for r in rows]
+    assert ends == sorted(ends) and len(ends) > 24  # one row an hour over 1.6 days, less the outage
+
+
+def test_cli_reruns_from_the_cache_and_names_the_broken_bag(
+    archive: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The command on a local process cluster, then on a running scheduler, where the rerun reads no bag."""
+    from bridge_shadow.cli import main
+    from bridge_shadow.engine import dask_client
+
+    out = tmp_path / "out"
+    argv = ["archive", str(archive["folder"] / "bridge"), "--out", str(out), "--json"]
+    assert main([*argv, "--workers", "2"]) == 0  # the default engine: a local cluster of processes
+    first = capsys.readouterr()
+    with dask_client(workers=2, processes=False) as client:  # a running scheduler, as on a cluster
+        # a rerun: every readable bag from the cache
+        assert main([*argv, "--scheduler", client.scheduler.address]) == 0
+        again = json.loads(capsys.readouterr().out)
+    js = json.loads(first.out)
+    assert_same_result(js["bridges"]["bridge"], archive["ref"])
+    assert js["bags"] == {"reduced": 5, "cached": 0, "failed": 1}
+    assert "skipped bag" in first.err and "day_99_broken" in first.err
+    index = json.loads((out / "index.json").read_text())
+    assert index["failed_bags"][0]["bag"].endswith("day_99_broken")
+    assert (out / "summary.png").stat().st_size > 0
+    header = (out / "summary.csv").read_text().splitlines()[0]
+    assert header.startswith("bridge,time_utc,end_ns")
+    saved = json.loads((out / "bridges" / "bridge.json").read_text())
+    assert_same_result(saved, archive["ref"])
+    assert again["bags"] == {"reduced": 0, "cached": 5, "failed": 1}
+    assert_same_result(again["bridges"]["bridge"], archive["ref"])
+    assert not list(out.rglob("*.tmp"))
+
+
+def test_a_changed_bag_is_reduced_again(archive: dict[str, Any], tmp_path: Path) -> None:
+    """The cache is keyed by content: a bag rewritten with other data is not taken from it."""
+    from bridge_shadow.archive.tasks import reduce_task
+
+    config, surrogate = load_config(), placeholder_surrogate()
+    bag = tmp_path / "bag"
+    shutil.copytree(archive["bags"][0], bag)
+    assert reduce_task(str(bag), config, surrogate, str(tmp_path / "c")).status == "reduced"
+    assert reduce_task(str(bag), config, surrogate, str(tmp_path / "c")).status == "cached"
+    shutil.rmtree(bag)
+    shutil.copytree(archive["bags"][1], bag)
+    assert reduce_task(str(bag), config, surrogate, str(tmp_path / "c")).status == "reduced"
+    # other front-end parameters: a new key
+    other = config.replace(window_s=30.0)
+    assert reduce_task(str(bag), other, surrogate, str(tmp_path / "c")).status == "reduced"
+    # a surrogate or an event threshold acts after the windows: the same entry
+    later = config.replace(event_probability=0.99)
+    assert reduce_task(str(bag), later, surrogate, str(tmp_path / "c")).status == "cached"
+
+
+def _listening() -> list[str]:
+    """The addresses this process listens on (TCP)."""
+    import psutil
+
+    return [c.laddr.ip for c in psutil.Process().net_connections(kind="tcp") if c.status == "LISTEN"]
+
+
+@pytest.mark.parametrize("processes", [True, False])
+def test_the_engine_listens_on_loopback_only(processes: bool) -> None:
+    """The local cluster (processes by default): workers, scheduler and their HTTP servers on 127.0.0.1."""
+    import os
+
+    from bridge_shadow.engine import dask_client
+
+    with dask_client(workers=2, processes=processes) as client:
+        assert set(client.nthreads().values()) == {1}
+        addresses = _listening() + [a for ips in client.run(_listening).values() for a in ips]
+        assert addresses and set(addresses) == {"127.0.0.1"}, addresses
+        if processes:
+            workers = client.scheduler_info()["workers"]
+            assert len(workers) == 2 and all(a.startswith("tcp://127.0.0.1:") for a in workers)
+            pids = set(client.run(os.getpid).values())
+            assert len(pids) == 2 and os.getpid() not in pids
+
+
+def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A missing archive, an empty folder, a broken manifest, an unreachable scheduler: exit 2, one line."""
+    from bridge_shadow import engine
+    from bridge_shadow.cli import main
+
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "m.yaml").write_text("bridges: [1, 2]\n")
+    cases = [
+        [str(tmp_path / "missing")],
+        [str(tmp_path / "empty")],
+        [str(tmp_path / "m.yaml")],
+        [str(tmp_path / "nothing_*")],
+    ]
+    for case in cases:
+        assert main(["archive", *case, "--out", str(tmp_path / "o")]) == 2, case
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("bridge-shadow archive: error:"), (case, err)
+    engine.CONNECT_TIMEOUT_S = 0.5
+    try:
+        bag = Path(__file__).parent.parent / "bags" / "baseline_1d"
+        assert (
+            main(["archive", str(bag), "--out", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:9"]) == 2
+        )
+    finally:
+        engine.CONNECT_TIMEOUT_S = 10.0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot reach the Dask scheduler" in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def _concatenated(bags: list[Path], out: Path) -> Path:
+    """Write the bags' messages, bag after bag, as one bag (the serial reference of an archive)."""
+    from bridge_shadow.bagio import read_monitoring, write_monitoring
+    from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+    parts = [read_monitoring(b) for b in bags]
+    forces = {
+        ch: ForceSeries(
+            *(
+                np.concatenate([getattr(p.forces[ch], f) for p in parts])
+                for f in ("stamp_ns", "force_n", "frame_id", "log_ns")
+            )
+        )
+        for ch in parts[0].forces
+    }
+    fields = ("stamp_ns", "temp_c", "variance", "frame_id", "log_ns")
+    temp = TemperatureSeries(*(np.concatenate([getattr(p.temperature, f) for p in parts]) for f in fields))
+    return write_monitoring(out, MonitoringData(forces, temp))
+
+
+def test_bundled_bags_as_bridges_equal_their_replays(root: Path, tmp_path: Path) -> None:
+    """A manifest of the bundled bags, one bridge each: every bridge's result is ``replay`` of its bag."""
+    from bridge_shadow.archive.run import plan_bridges, run_archive
+    from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.engine import dask_client
+
+    names = ["demo_3d", "baseline_1d"]  # MCAP zstd and sqlite3; scour_3d adds nothing new
+    manifest = tmp_path / "bundled.yaml"
+    manifest.write_text("bridges:\n" + "".join(f"  {n}:\n    bags: [{root / 'bags' / n}]\n" for n in names))
+    plans = plan_bridges(archive_sources(str(manifest)))
+    with dask_client(workers=2, processes=False) as client:
+        run = run_archive(client, plans, tmp_path / "cache")
+    for bridge, name in zip(run.bridges, names, strict=True):
+        ref, _ = replay_bag(root / "bags" / name, Shadow(load_config(), load_surrogate()))
+        assert_same_result(bridge.result, ref.to_json())
+
+
+def test_a_synth_fleet_equals_serial_replay_per_bridge(tmp_path: Path) -> None:
+    """``synth --archive``, two bridges in daily bags: each is the replay of its bags concatenated."""
+    from bridge_shadow.archive.run import plan_bridges, run_archive
+    from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.cli import main
+    from bridge_shadow.engine import dask_client
+
+    fleet = tmp_path / "fleet"
+    argv = ["synth", "--archive", str(fleet), "--bridges", "2", "--days", "1.5", "--rate", "0.05"]
+    assert main([*argv, "--step", "0.8:-0.001:-0.0005"]) == 0
+    plans = plan_bridges(archive_sources(str(fleet)))
+    assert [p.source.name for p in plans] == ["bridge_00", "bridge_01"]
+    with dask_client(workers=2, processes=False) as client:
+        run = run_archive(client, plans, tmp_path / "cache")
+    for bridge, plan in zip(run.bridges, plans, strict=True):
+        whole = _concatenated(sorted(plan.source.bags), tmp_path / f"whole_{bridge.name}")
+        ref, _ = replay_bag(whole, Shadow(load_config(), load_surrogate()))
+        assert_same_result(bridge.result, ref.to_json())
+        assert len(bridge.result["events"]) >= 1  # the step, through a seam-free day
+        assert not bridge.fed_whole
+
+
+def test_a_wrong_expected_order_is_caught(
+    archive: dict[str, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The join takes bags in the expected order as they come; a bag found earlier makes it start over."""
+    from bridge_shadow.archive import run as run_module
+    from bridge_shadow.archive.run import plan_bridges, run_archive
+    from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.archive.tasks import bag_start_task
+    from bridge_shadow.engine import dask_client
+
+    def reversed_start(bag: str, config: Any) -> int | None:
+        first = bag_start_task(bag, config)
+        return None if first is None else -first
+
+    monkeypatch.setattr(run_module, "bag_start_task", reversed_start)
+    plans = plan_bridges(archive_sources(str(archive["folder"] / "bridge")))
+    with dask_client(workers=2, processes=False) as client:
+        run = run_archive(client, plans, tmp_path / "cache")
+    assert_same_result(run.bridges[0].result, archive["ref"])
+
+
+def test_ctrl_c_leaves_whole_files_only(
+    archive: dict[str, Any],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Interrupted while writing its outputs: exit 130, no temporary file, every cache entry readable."""
+    import pickle
+
+    from bridge_shadow.archive import summary
+    from bridge_shadow.cli import main
+    from bridge_shadow.engine import dask_client
+
+    def interrupted(path: Path, rows: list) -> Path:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(summary, "plot_summary", interrupted)
+    out = tmp_path / "out"
+    with dask_client(workers=2, processes=False) as client:
+        argv = ["archive", str(archive["folder"] / "bridge"), "--out", str(out), "--json"]
+        assert main([*argv, "--scheduler", client.scheduler.address]) == 130
+    assert capsys.readouterr().err.strip().endswith("interrupted")
+    assert not list(out.rglob("*.tmp")) and not (out / "index.json").exists()
+    entries = list((out / "cache").glob("*.pkl"))
+    assert len(entries) == 5
+    for entry in entries:
+        with entry.open("rb") as f:
+            assert pickle.load(f).end is not None
+
+
+@pytest.mark.parametrize("bag", ["baseline_1d", "demo_3d"])
+def test_a_truncated_bag_is_named_not_raised(root: Path, tmp_path: Path, bag: str) -> None:
+    """A bag cut short (sqlite3 or MCAP) fails its own task with one line naming it; the cache stays empty."""
+    from bridge_shadow.archive.tasks import reduce_task
+
+    copy = tmp_path / bag
+    shutil.copytree(root / "bags" / bag, copy)
+    storage = next(p for p in copy.iterdir() if p.suffix in (".db3", ".mcap"))
+    with storage.open("r+b") as f:
+        f.truncate(storage.stat().st_size // 3)
+    out = reduce_task(str(copy), load_config(), load_surrogate(), str(tmp_path / "cache"))
+    assert out.status == "failed" and out.error.startswith(str(copy)) and "\n" not in out.error
+    assert not list((tmp_path / "cache").glob("*.pkl"))
+
+
+def test_sources_folder_glob_and_manifest(archive: dict[str, Any], tmp_path: Path) -> None:
+    """The three ways to name an archive give the same bridge and bags (the broken one included)."""
+    from bridge_shadow.archive.sources import archive_sources
+
+    folder = archive["folder"] / "bridge"
+    (by_folder,) = archive_sources(str(folder))
+    (by_glob,) = archive_sources(str(folder / "day_*"))
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        f"bridges:\n  bridge:\n    bags: ['{folder}/day_*']\n    surrogate: {folder}/surrogate.yaml\n"
+    )
+    (by_manifest,) = archive_sources(str(manifest))
+    names = sorted(p.name for p in by_folder.bags)
+    assert names == [f"day_{i:02d}" for i in range(5)] + ["day_99_broken"]
+    for src in (by_glob, by_manifest):
+        assert src.name == "bridge" and sorted(p.name for p in src.bags) == names
+    assert by_folder.surrogate == folder / "surrogate.yaml" == by_manifest.surrogate
+
+
+#: A valid other value for every parameter the cache key leaves out (``cache.ESTIMATOR_ONLY``).
+OTHER_VALUES: dict[str, Any] = {
+    "smoothing": "gcv",
+    "spline_lambda": 3.0,
+    "spline_t_min_c": -25.0,
+    "spline_t_max_c": 40.0,
+    "spline_segments": 9,
+    "thermal_prior_sd_n_per_k": 300.0,
+    "warmup_windows": 4,
+    "refit_windows": 30,
+    "lambda_reselect_growth": 1.5,
+    "prior_sigma_m": [1e-3, 2e-3],
+    "prior_rule": "both",
+    "process_noise_m2_per_s": [1e-13, 1e-13],
+    "drift_block_s": 3600.0,
+    "noise_sigma_n": [50.0, 70.0],
+    "systematic_sigma_n": [10.0, 10.0],
+    "noise_mode": "fixed",
+    "noise_phi_max": 0.99,
+    "noise_floor": False,
+    "event_detection": False,
+    "event_trigger_probability": 0.99,
+    "event_probability": 0.9999,
+    "event_confirm_windows": 3,
+    "event_max_pending": 10,
+    "event_jump_rule": "prior",
+    "mahalanobis_probability": 0.9999,
+    "checkpoint_path": "",
+    "checkpoint_period_s": 60.0,
+    "checkpoint_unusable": "fresh",
+    "surrogate_path": "",
+    "qos_depth": 10,
+    "diagnostics_period_s": 2.0,
+    "topic_mean": "/other/mean",
+    "topic_covariance": "/other/covariance",
+    "topic_compensated_frc_01": "/other/c1",
+    "topic_compensated_frc_02": "/other/c2",
+}
+
+
+def test_what_the_cache_key_leaves_out_leaves_the_reduction_as_it_is(root: Path) -> None:
+    """Any parameter outside the key, changed alone: the same windows and front end (cache hits are right)."""
+    from bridge_shadow.archive.cache import ESTIMATOR_ONLY, front_key
+    from bridge_shadow.archive.frontstate import same_behaviour
+
+    assert set(OTHER_VALUES) == ESTIMATOR_ONLY
+    config, surrogate = load_config(), load_surrogate()
+    bag = root / "bags" / "baseline_1d"
+    ref = reduce_bag(bag, config, surrogate)
+    for name, value in OTHER_VALUES.items():
+        other = config.replace(**{name: value})
+        assert front_key(other) == front_key(config), name
+        red = reduce_bag(bag, other, surrogate)
+        assert same_behaviour(red.end, ref.end) and red.end.counts == ref.end.counts, name
+        np.testing.assert_array_equal(red.windows.k, ref.windows.k, err_msg=name)
+        np.testing.assert_array_equal(red.windows.force_n, ref.windows.force_n, err_msg=name)
+        np.testing.assert_array_equal(red.windows.temp_c, ref.windows.temp_c, err_msg=name)
+        assert red.windows.reason.tolist() == ref.windows.reason.tolist(), name

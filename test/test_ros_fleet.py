@@ -1,0 +1,147 @@
+"""Many bridges live: one fleet launch, a node per bridge in its own namespace, parameters and surrogate.
+
+Two bridges in one loopback DDS domain: ``b1`` with the calibrated default surrogate and
+``b2`` with the as-built FE surrogate and other parameters. Each gets its own messages on its
+namespaced topics; after each node's flush service, its posterior must be the offline shadow's
+on the same messages with that bridge's parameters and surrogate (rtol 1e-9), and the two must
+differ (the nodes did not answer for each other).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip("rclpy")
+
+from bridge_shadow.bagio import encode_stamped_floats
+from bridge_shadow.estimate import Shadow, load_config
+from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.ros.fleet import main as fleet_main
+from bridge_shadow.ros.fleet import read_fleet, start_fleet
+from bridge_shadow.ros.launcher import wait_until
+from bridge_shadow.series import MonitoringData
+
+pytestmark = pytest.mark.ros
+
+T0_NS = 1_647_212_400 * 10**9
+PARAMS = {
+    "b1": {"window_s": 10.0, "warmup_windows": 3},
+    "b2": {"window_s": 20.0, "warmup_windows": 2, "topic_timeout_s": 25.0},
+}
+
+
+def _record(seed: int, n: int = 600) -> MonitoringData:
+    rng = np.random.default_rng(seed)
+    stamps = T0_NS + np.arange(n, dtype=np.int64) * 10**9  # 1 Hz, 10 min
+    forces = np.array([2.60e5, 2.21e5]) + 80.0 * rng.standard_normal((n, 2))
+    return MonitoringData.from_arrays(stamps, forces, stamps[::30], 8.0 + 0.01 * np.arange(len(stamps[::30])))
+
+
+def _raws(data: MonitoringData) -> list[list[bytes]]:
+    out = []
+    for ch in ("frc_01", "frc_02"):
+        s = data.forces[ch]
+        values = np.zeros((len(s), 6))
+        values[:, 2] = s.force_n
+        out.append(encode_stamped_floats(s.stamp_ns, s.frame_id, values))
+    t = data.temperature
+    out.append(encode_stamped_floats(t.stamp_ns, t.frame_id, np.column_stack([t.temp_c, t.variance])))
+    return out
+
+
+@pytest.fixture
+def fleet_file(tmp_path: Path, root: Path) -> Path:
+    bridges = {}
+    for name, surrogate in (("b1", "surrogate.yaml"), ("b2", "surrogate_fe.yaml")):
+        params = tmp_path / f"{name}.yaml"
+        params.write_text(yaml.safe_dump({"bridge_shadow": {"ros__parameters": PARAMS[name]}}))
+        bridges[name] = {"params": params.name, "surrogate": str(root / "config" / surrogate)}
+    file = tmp_path / "fleet.yaml"
+    file.write_text(yaml.safe_dump({"bridges": bridges}))
+    return file
+
+
+def test_a_fleet_runs_each_bridge_with_its_own_model(fleet_file: Path, tmp_path: Path, root: Path) -> None:
+    import rclpy
+    from geometry_msgs.msg import WrenchStamped
+    from sensor_msgs.msg import Temperature
+    from std_srvs.srv import Trigger
+
+    from bridge_shadow.ros.node import input_qos
+
+    members = read_fleet(fleet_file)
+    assert [m.name for m in members] == ["b1", "b2"]
+    records = {"b1": _record(1), "b2": _record(2)}
+    work = tmp_path / "fleet"
+    work.mkdir()
+    nodes = start_fleet(members, work)
+    rclpy.init()
+    node = rclpy.create_node("fleet_test_player")
+    try:
+        pubs, flush, status = {}, {}, {}
+        for name in records:
+            pubs[name] = [
+                node.create_publisher(WrenchStamped, f"/{name}/bridge/frc_01/force", input_qos(0)),
+                node.create_publisher(WrenchStamped, f"/{name}/bridge/frc_02/force", input_qos(0)),
+                node.create_publisher(Temperature, f"/{name}/bridge/air_temperature", input_qos(0)),
+            ]
+            flush[name] = node.create_client(Trigger, f"/{name}/bridge_shadow/flush")
+            status[name] = node.create_client(Trigger, f"/{name}/bridge_shadow/status")
+
+        def ready() -> bool:
+            rclpy.spin_once(node, timeout_sec=0.05)
+            return all(p.get_subscription_count() > 0 for ps in pubs.values() for p in ps) and all(
+                c.service_is_ready() for c in (*flush.values(), *status.values())
+            )
+
+        def alive() -> None:
+            for n in nodes:
+                n.check_alive()
+
+        wait_until(ready, 120.0, "the fleet's nodes", alive)  # generous: a loaded machine, two nodes
+
+        def call(client: object) -> dict:
+            future = client.call_async(Trigger.Request())
+            rclpy.spin_until_future_complete(node, future, timeout_sec=60.0)
+            assert future.done(), f"{client.srv_name}: no answer in 60 s"
+            return json.loads(future.result().message)
+
+        for name, data in records.items():
+            raws = _raws(data)
+            for i in range(len(raws[0])):  # in arrival order: frc_01, frc_02, then the temperature
+                pubs[name][0].publish(raws[0][i])
+                pubs[name][1].publish(raws[1][i])
+                if i % 30 == 0:
+                    pubs[name][2].publish(raws[2][i // 30])
+            sent = [len(m) for m in raws]
+            wait_until(
+                lambda name=name, sent=sent: call(status[name])["taken"] == sent, 60.0, "every message", alive
+            )
+        reports = {name: call(flush[name]) for name in records}
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+        for n in nodes:
+            n.close()
+    for name, member in zip(records, members, strict=True):
+        config = load_config(None, PARAMS[name])
+        ref = Shadow(config, load_surrogate(member.surrogate)).run(records[name])
+        np.testing.assert_allclose(reports[name]["mean_m"], ref.mean_m, rtol=1e-9, atol=0)
+        np.testing.assert_allclose(reports[name]["covariance_m2"], ref.covariance_m2, rtol=1e-9, atol=0)
+    assert not np.allclose(reports["b1"]["mean_m"], reports["b2"]["mean_m"], rtol=1e-3)
+
+
+def test_a_bad_fleet_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "fleet.yaml"
+    bad.write_text(yaml.safe_dump({"bridges": {"b-1": {}}}))
+    assert fleet_main([str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a ROS name" in err[0]
+    bad.write_text(yaml.safe_dump({"bridges": {"b1": {"params": str(tmp_path / "missing.yaml")}}}))
+    assert fleet_main([str(bad)]) == 2
+    assert "missing.yaml" in capsys.readouterr().err
