@@ -30,6 +30,15 @@ def munich_data() -> Path:
 
 
 @pytest.fixture(scope="session")
+def engine():
+    """Two Dask worker processes for the seed studies (``engine.client_mapper``): seeds in parallel."""
+    from bridge_shadow.engine import client_mapper, dask_client
+
+    with dask_client(workers=2) as client:
+        yield client_mapper(client)
+
+
+@pytest.fixture(scope="session")
 def root() -> Path:
     """The source checkout."""
     path = repo_root()

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from functools import partial
 
 import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from bridge_shadow.engine import Mapper, client_mapper, dask_client, serial_mapper
+from bridge_shadow.engine import Mapper, serial_mapper
 from bridge_shadow.estimate import Shadow, ShadowConfig
 from bridge_shadow.model.surrogate_file import placeholder_surrogate
 from bridge_shadow.series import MonitoringData
@@ -66,13 +65,6 @@ def coverage(
     one = partial(_seed_hits, config=config)
     hits = np.array(mapper(one, [(noise[s], truth[s]) for s in range(seeds)]))
     return hits.mean(axis=0)
-
-
-@pytest.fixture(scope="module")
-def engine() -> Iterator[Mapper]:
-    """Two worker processes (Dask): the seeds of a study run in parallel."""
-    with dask_client(workers=2) as client:
-        yield client_mapper(client)
 
 
 @pytest.mark.slow

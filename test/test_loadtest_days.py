@@ -140,17 +140,19 @@ def test_every_rejected_window_is_listed_with_its_time_and_reason(folder: Path, 
         assert w["time"].endswith("Z") and w["time"][:4] == "2022"
 
 
-def _twin_day(seed: int, sun_k: float):
+def _twin_day(seed_sun: tuple[int, float]):
+    """Score one twin load-test day (``seed``, sun in K): a Dask task."""
     from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
     from bridge_shadow.twin.loadtest_score import score_day
 
+    seed, sun_k = seed_sun
     sur = load_surrogate()
     data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun_k), sur)
     return score_day(Shadow(load_config(), sur).run(data), truth)
 
 
 @pytest.mark.slow
-def test_twin_load_test_days_find_every_step_and_keep_every_window() -> None:
+def test_twin_load_test_days_find_every_step_and_keep_every_window(engine) -> None:
     """The twin's load-test day over 100 seeds: every step an event, no window lost, honest intervals.
 
     Four 12-minute records (08:36, 09:20, 13:30, 15:00), 10 mm lower each time, the test car
@@ -161,11 +163,11 @@ def test_twin_load_test_days_find_every_step_and_keep_every_window() -> None:
     carry the sun's unmodelled reaction (2-3 mm at -30 mm), which the interval holds but the 10 %
     does not always (``benchmarks/loadtest_days.py`` prints both).
     """
-    sunny = [_twin_day(seed, 4.0) for seed in range(100)]
+    days = engine(_twin_day, [(seed, 4.0) for seed in range(100)] + [(seed, 0.0) for seed in range(30)])
+    sunny, clear = days[:100], days[100:]
     assert all(s.events_right for s in sunny), [i for i, s in enumerate(sunny) if not s.events_right]
     assert not any(s.lost_windows for s in sunny)
     assert np.mean([s.covered for s in sunny]) >= 0.9
-    clear = [_twin_day(seed, 0.0) for seed in range(30)]
     assert all(s.passed for s in clear), [i for i, s in enumerate(clear) if not s.passed]
     assert np.mean([s.covered for s in clear]) >= 0.9
 
