@@ -198,7 +198,9 @@ def support_spring_change(
     thermal = {name: m @ v for name, v in surrogate.thermal.items()}
     u0 = surrogate.u0.copy() if levelled else m @ surrogate.u0
     # the model's own uncertainty (a calibrated surrogate's model_cov) is kept: the change is on top of it
-    return Surrogate(a_new, u0, thermal, dict(surrogate.provenance), surrogate.model_cov), m
+    prov = dict(surrogate.provenance)
+    changed = Surrogate(a_new, u0, thermal, prov, surrogate.model_cov, surrogate.discrepancy)
+    return changed, m
 
 
 def change_surrogate(
@@ -239,7 +241,8 @@ def change_surrogate(
         for k in thermal:
             thermal[k] = thermal[k] + r * d.dthermal.get(k, np.zeros(2))
         load_map = load_map + np.diag(r * d.du0 / surrogate.u0)
-    changed = Surrogate(a, u0, thermal, dict(surrogate.provenance), surrogate.model_cov)
+    prov = dict(surrogate.provenance)
+    changed = Surrogate(a, u0, thermal, prov, surrogate.model_cov, surrogate.discrepancy)
     k = np.asarray(springs_n_per_m, float).reshape(2)
     if np.any(np.isfinite(k)):
         changed, m = support_spring_change(changed, k, levelled=levelled)
