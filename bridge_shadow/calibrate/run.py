@@ -267,6 +267,7 @@ def calibrate(
     only: list[str] | None = None,
     report: Progress | None = None,
     sensitivity: bool = False,
+    sweeps: bool = False,
 ) -> CalibrationResult:
     """Run the calibration described by ``spec`` (see the module docstring).
 
@@ -276,6 +277,7 @@ def calibrate(
         only: fit only these explanations (names of ``spec.explanations``).
         report: progress callback ``(fraction, label)``.
         sensitivity: also refit under every prior set (``prior_sensitivity``; minutes more).
+        sweeps: write parameter sweeps into the surrogate (``model.sweeps``; ~20 FE solves).
 
     """
     t0 = time.perf_counter()
@@ -317,7 +319,7 @@ def calibrate(
     tick(0.92, f"surrogate at the MAP of {chosen_name}")
     cfg_map = cfg.with_overrides(chosen.values())
     sens_names = tuple(dict.fromkeys([*chosen.names, *SENSITIVITY_PARAMETERS]))
-    run = compute_surrogate(cfg_map, spec.mesh, names=sens_names)
+    run = compute_surrogate(cfg_map, spec.mesh, names=sens_names, sweeps=sweeps)
     mean, cov = model_average(explanations)
     extra["model_average"] = _average_summary(explanations, pairs, mean, cov)
     sur = run.surrogate

@@ -145,6 +145,7 @@ def run(args: argparse.Namespace) -> int:
         only=args.only,
         report=lambda f, s: progress(f, "calibrate"),
         sensitivity=args.prior_sensitivity,
+        sweeps=args.out is not None,
     )
     doc = result.to_dict()
     if args.out is not None:

@@ -15,6 +15,9 @@
   adjoint: no extra solve, :mod:`.adjoint`); same units as the quantity. A support spring at
   ``.inf`` (absent) has no relative sensitivity; its entry carries ``compliance``: the change per
   unit compliance ``c = 1 / k`` (m/N) at ``c = 0`` instead (exact series-spring closed form).
+- ``sweeps`` (with ``sweeps=True``): ``A``, ``u0`` and ``thermal`` FE-solved over the plausible
+  range of each of ``model.sweeps.SWEEP_PARAMETERS`` (:mod:`.sweeps`), for stiffness changes far
+  beyond first order.
 """
 
 from __future__ import annotations
@@ -111,11 +114,14 @@ class SurrogateRun:
     base: BridgeSolution
     schur: np.ndarray
     extra: dict[str, Any] = field(default_factory=dict)
+    sweeps: dict[str, Any] = field(default_factory=dict)
 
     def document(self) -> dict[str, Any]:
-        """Plain-data form: the contract keys plus ``sensitivities`` (SI units)."""
+        """Plain-data form: the contract keys plus ``sensitivities`` and ``sweeps`` (SI units)."""
         doc = self.surrogate.to_dict()
         doc["sensitivities"] = self.sensitivities
+        if self.sweeps:
+            doc["sweeps"] = {name: sw.to_dict() for name, sw in self.sweeps.items()}
         return doc
 
 
@@ -268,15 +274,20 @@ def compute_surrogate(
     sensitivities: bool = True,
     names: Sequence[str] = SENSITIVITY_PARAMETERS,
     report: Callable[[float, str], None] | None = None,
+    sweeps: bool = False,
 ) -> SurrogateRun:
-    """Solve the bridge, check ``A`` against the Schur complement, add sensitivities and provenance."""
+    """Solve the bridge, check ``A`` against the Schur complement, add sensitivities and provenance.
+
+    ``sweeps``: also FE-solve the surrogate over the plausible range of each swept parameter
+    (``model.sweeps``; about 20 more solves).
+    """
     t0 = time.perf_counter()
-    steps = 3 if sensitivities else 2
+    steps = (3 if sensitivities else 2) + (4 if sweeps else 0)
     done = 0
 
-    def tick(label: str) -> None:
+    def tick(label: str, n: int = 1) -> None:
         nonlocal done
-        done += 1
+        done += n
         if report is not None:
             report(done / steps, label)
 
@@ -289,6 +300,12 @@ def compute_surrogate(
     if sensitivities:
         sens = sensitivity_block(cfg, base, names, level)
         tick("sensitivities")
+    swept: dict[str, Any] = {}
+    if sweeps:
+        from bridge_shadow.model.sweeps import compute_sweeps
+
+        swept = compute_sweeps(cfg, level, base=base)
+        tick("sweeps", 4)
     counts = base.mesh.element_counts()
     dead_total = float(base.u0.sum() + sum(base.end_reactions.values()))
     provenance: dict[str, Any] = {
@@ -314,7 +331,7 @@ def compute_surrogate(
     if has_support_springs(cfg):
         provenance["jack_preset_m"] = base.jack_preset.tolist()
     surrogate = Surrogate(base.A, base.u0, base.thermal, provenance)
-    return SurrogateRun(surrogate, sens, base, a_schur)
+    return SurrogateRun(surrogate, sens, base, a_schur, sweeps=swept)
 
 
 def write_surrogate(run: SurrogateRun, path: str | Path, header: str | None = None) -> Path:
