@@ -14,7 +14,11 @@ priors and plausible ranges from :mod:`bridge_shadow.model.parameters`); combine
 - ``choose: best`` or a name: that one explanation, with its own posterior as the uncertainty.
 
 The FE model is re-solved at the MAP of the most probable explanation (with the support springs
-in the FE itself) for the sensitivities the gap diagnosis reads. The surrogate also carries a
+in the FE itself) for the sensitivities the gap diagnosis reads. ``u0`` stays the as-built FE's:
+a pair of records measures changes, not the dead-load reactions, and the supports were set under
+the dead load, which the precast deck put on the steel girders before the joints and connectors
+the explanations soften took part (so their FE ``u0`` at the MAP enters as an uncertainty, the
+second moment of ``u0`` about the as-built value). The surrogate also carries a
 model ``discrepancy`` beyond the calibrated settlements (``model.surrogate_file.Discrepancy``).
 ``prior_sensitivity`` refits the explanations under every prior set of
 ``model.parameters.PRIOR_SETS`` and says which explanation wins under each.
@@ -35,7 +39,7 @@ from bridge_shadow import __version__
 from bridge_shadow.calibrate.change import MeasuredChange, RecordLevel, measured_change, record_level
 from bridge_shadow.calibrate.errors import CalibrationError
 from bridge_shadow.calibrate.explain import Explanation, common_and_differential, fit_explanation
-from bridge_shadow.calibrate.forward import SolutionStore
+from bridge_shadow.calibrate.forward import ForwardModel, SolutionStore
 from bridge_shadow.calibrate.problem import PairData
 from bridge_shadow.calibrate.records import load_record
 from bridge_shadow.calibrate.spec import CalibrationSpec
@@ -323,14 +327,20 @@ def calibrate(
     mean, cov = model_average(explanations)
     extra["model_average"] = _average_summary(explanations, pairs, mean, cov)
     sur = run.surrogate
+    u0_built = ForwardModel(cfg, spec.mesh, (), store).evaluate({}, derivatives=False).u0
     if spec.choose == "average":
         a = mean[:4].reshape(2, 2)
         sur.A = 0.5 * (a + a.T)
-        sur.u0 = mean[4:6].copy()
         sur.thermal = {c: mean[6 + 2 * i : 8 + 2 * i].copy() for i, c in enumerate(THERMAL_CASES)}
-        sur.model_cov = cov
+        u0_mean = mean[4:6]
     else:
-        sur.model_cov = chosen.model_cov() if chosen.names else np.zeros((12, 12))
+        cov = chosen.model_cov() if chosen.names else np.zeros((12, 12))
+        u0_mean = sur.u0
+    shift = np.asarray(u0_mean, float) - u0_built  # u0 as built; what moved it, as an uncertainty
+    cov = cov.copy()
+    cov[4:6, 4:6] += np.outer(shift, shift)
+    sur.u0 = u0_built.copy()
+    sur.model_cov = cov
     sur.discrepancy = Discrepancy.from_steps(np.array([p.imposed_m for p in pairs]))
     result = CalibrationResult(
         spec, pairs, ref_level, ref_n, explanations, chosen_name, run, store, time.perf_counter() - t0, extra

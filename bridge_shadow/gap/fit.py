@@ -302,6 +302,7 @@ def chance_threshold_mc(
     quantile: float = 0.995,
     draws: int = 400,
     seed: int = 0,
+    record: np.ndarray | None = None,
 ) -> dict[str, float]:
     """Chance level of the held-out gain by simulation, for short or strongly correlated records.
 
@@ -309,13 +310,20 @@ def chance_threshold_mc(
     cross-validates every candidate (name -> grid alternatives) on the same draws, and returns per
     candidate the ``quantile`` of its gain (the null distribution is skewed for few effective
     samples, so a quantile rather than mean plus sigmas). Used where the large-sample
-    ``chance_threshold`` does not hold.
+    ``chance_threshold`` does not hold. ``record``: (n,) record index per window on a day of
+    records, whose residual the diagnosis demeans per record: the draws are demeaned alike.
     """
     rng = np.random.default_rng(seed)
     n = valid.shape[0]
     e = rng.standard_normal((n, 2, draws))
     e[0] /= np.sqrt(max(1e-12, 1.0 - phi**2))  # stationary start
     noise = lfilter([1.0], [1.0, -phi], e, axis=0)
+    if record is not None:
+        for k in np.unique(record[record >= 0]):
+            for ch in range(2):
+                m = (record == k) & valid[:, ch]
+                if m.any():
+                    noise[m, ch] -= noise[m, ch].mean(axis=0)
     before = {name: np.zeros(draws) for name in designs}
     after = {name: np.zeros(draws) for name in designs}
     # Every draw at once: the fits are linear in the data (one right-hand side per draw). The
