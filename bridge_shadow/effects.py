@@ -108,9 +108,11 @@ EFFECTS: dict[str, Effect] = {
             "sun-driven top-warmer gradient over the girder depth: dT_v(t) = g * sun(t) * clearness(day), "
             "sun the clear-sky irradiance at Neubiberg normalized to its peak (0..1); reactions change "
             "by thermal['vertical_gradient'] * dT_v",
-            (-3.0, 20.0),
-            "EN 1991-1-5 6.1.4.1: linear top-warmer differences of composite decks up to 15 K in "
-            "sunshine; a top cooler in the sun only as noise (-3 K)",
+            (-3.0, 13.5),
+            "EN 1991-1-5 6.1.4.1, Table 6.1: linear temperature difference of a type 2 (composite) "
+            "deck, top warmer 15 K (bottom warmer 18 K), times k_sur = 0.9 of Table 6.2 for an "
+            "unsurfaced deck (the bare precast slab): 13.5 K in full sun; the sun drives only the "
+            "top-warmer part, a top cooler in the sun only as noise (-3 K)",
         ),
         Effect(
             "transverse_gradient", "K", 3.0, 0.3, "thermal",

@@ -968,6 +968,13 @@ def diagnose(
 
         cfg = shadow_config if shadow_config is not None else default_config()
         alts = _alternatives(fitter, named) if alternatives else None
+        if alternatives and lv is not None and lv.imposed is not None and lv.imposed.named:
+            # the imposed steps' group: each member standing in for the named stiffness
+            for g in lv.imposed.group[1:]:
+                alt = ModelChange([g, *change.effects[1:]], dict(change.ratios), change.springs_n_per_m)
+                alt.springs_levelled, alt.additive_n = change.springs_levelled, change.additive_n
+                alt.replaced = lv.imposed.surrogate_after(s, g)
+                alts = {**(alts or {}), g: alt}
         post = shadow_posteriors(data, s, cfg, change, w.t_ns, sens, alts)
         post["computed"] = True
 
