@@ -221,3 +221,37 @@ def test_gap_reads_the_surrogate_it_is_given(lowering_bag: Path, tmp_path: Path)
     step = out["best_effect"]["params"]
     assert out["best"] == "settlement_step"
     assert 0.5 * (step["dx_south [m]"] + step["dx_north [m]"]) == pytest.approx(LOWERING_M, rel=0.1)
+
+
+def test_four_record_day_from_the_real_records_reads_every_step(lowering_bag: Path):
+    """The four-record day built from the two real records: every step is read.
+
+    Issue 20's load-test day (the later steps added through the calibrated A): as built and told
+    only the first step, a stiffness explains it and the two steps between the later records are
+    read as the 10 mm the construction put in. The posterior *after* on such a day is the
+    shadow's, whose handling of records hours apart is issue 19's; this checks the diagnosis's
+    own reading of the levels.
+    """
+    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.commands.gap import parse_imposed
+    from bridge_shadow.effects import MODEL_FORM_EFFECTS
+    from bridge_shadow.gap import diagnose
+    from bridge_shadow.gap.levels import slice_data
+    from bridge_shadow.twin.loadtest import day_from_records
+
+    pair = read_monitoring(lowering_bag)  # the two records and the day's air temperature
+    stamps = pair.forces["frc_01"].stamp_ns
+    split = int(stamps[np.argmax(np.diff(stamps)) + 1])
+    ref, after = slice_data(pair, 0, split), slice_data(pair, split, 2**62)
+    day, truth = day_from_records(ref, after, pair, load_surrogate().A)
+    first = min(int(s.stamp_ns.min()) for s in day.forces.values())
+    imposed = parse_imposed(["2022-04-11T09:00=-0.01,-0.01"], first)
+    s = diagnose(day, _as_built(), imposed=imposed, surrogate_path=str(_as_built_path())).summary
+    assert s["validation"]["kind"] == "record" and len(s["levels"]["records"]) == 4
+    assert s["best"] in MODEL_FORM_EFFECTS and s["levels"]["imposed"]["named"]
+    steps = s["levels"]["steps_between_records"]
+    assert len(steps) == 2 and all(st["significant"] for st in steps)
+    for st in steps:  # each -10 mm through the calibrated A, read through the named model
+        x, sd = np.array(st["x_m"]), np.array(st["sigma_m"])
+        assert np.all(np.abs(x - LOWERING_M) <= 1.96 * sd) and np.all(np.abs(x - LOWERING_M) < 1e-3)
+    assert truth["settlement_m"][-1] == [-0.03, -0.03]

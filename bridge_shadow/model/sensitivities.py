@@ -26,7 +26,7 @@ import numpy as np
 import yaml
 
 from bridge_shadow.errors import ConfigError
-from bridge_shadow.model.surrogate_file import Surrogate
+from bridge_shadow.model.surrogate_file import Surrogate, read_surrogate_document
 from bridge_shadow.paths import config_file
 
 __all__ = [
@@ -270,7 +270,7 @@ def read_sensitivities_block(
     if not required and not file.is_file():
         return None
     try:
-        data = yaml.safe_load(file.read_text()) or {}
+        data = read_surrogate_document(file) or {}
         block = data.get("sensitivities")
     except (OSError, yaml.YAMLError, AttributeError) as err:
         raise ConfigError(f"{file}: not a valid surrogate file ({err})") from err

@@ -28,7 +28,7 @@ from scipy.interpolate import PchipInterpolator
 
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.model.parameters import parameter
-from bridge_shadow.model.surrogate_file import THERMAL_CASES
+from bridge_shadow.model.surrogate_file import THERMAL_CASES, read_surrogate_document
 
 __all__ = ["SWEEP_PARAMETERS", "SWEEP_POINTS", "Sweep", "compute_sweeps", "read_sweeps", "sweep_values"]
 
@@ -184,7 +184,7 @@ def read_sweeps(path: str | Path | None = None, block: Mapping[str, Any] | None 
         if not file.is_file():
             return {}
         try:
-            block = (yaml.safe_load(file.read_text()) or {}).get("sweeps") or {}
+            block = (read_surrogate_document(file) or {}).get("sweeps") or {}
         except (OSError, yaml.YAMLError, AttributeError) as err:
             raise ConfigError(f"{file}: not a valid surrogate file ({err})") from err
     return {str(k): Sweep.from_dict(str(k), v) for k, v in block.items()}
