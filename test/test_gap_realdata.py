@@ -187,8 +187,10 @@ def test_out_surrogate_is_what_replay_reads(lowering_bag: Path, tmp_path: Path):
     fe = str(_as_built_path())
     out = tmp_path / "corrected.yaml"
     argv = ["gap", str(lowering_bag), "--json", "--surrogate", fe, "--imposed", imposed]
-    gap = _run([*argv, "--out-surrogate", str(out)])
+    gap = _run([*argv, "--out-surrogate", str(out), "--report", str(tmp_path / "report")])
     assert gap["surrogate_written"] == str(out)
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert "## Levels of the records" in md and "| settlement_step |" in md
     written = load_surrogate(out)
     assert written.discrepancy is not None and written.discrepancy.low_m == (LOWERING_M, LOWERING_M)
     assert written.provenance["gap_model_change"]["effect"] == gap["best"]
