@@ -72,6 +72,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--priors", default=None, metavar="SET", help="prior set of model/parameters.py (default: the file's)"
     )
     parser.add_argument(
+        "--no-sweeps",
+        action="store_true",
+        help="with --out: leave the parameter sweeps out of the surrogate (about 20 FE solves; the gap "
+        "diagnosis then fits the stiffness effects to first order)",
+    )
+    parser.add_argument(
         "--prior-sensitivity",
         action="store_true",
         help="refit every explanation under each prior set and report which wins under each",
@@ -145,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
         only=args.only,
         report=lambda f, s: progress(f, "calibrate"),
         sensitivity=args.prior_sensitivity,
-        sweeps=args.out is not None,
+        sweeps=args.out is not None and not args.no_sweeps,
     )
     doc = result.to_dict()
     if args.out is not None:
@@ -180,11 +186,8 @@ def _check(args: argparse.Namespace, spec: object) -> int:
     from bridge_shadow.errors import InputError
     from bridge_shadow.model.surrogate_file import load_surrogate
 
-    calibrating = [
-        n
-        for n in ("out", "report", "only", "choose", "model", "mesh", "priors", "prior_sensitivity")
-        if getattr(args, n)
-    ]
+    options = ("out", "report", "only", "choose", "model", "mesh", "priors", "prior_sensitivity", "no_sweeps")
+    calibrating = [n for n in options if getattr(args, n)]
     if calibrating or args.overrides:
         names = ", ".join(f"--{n.replace('_', '-')}" for n in calibrating) or "--set"
         raise InputError(f"--check scores a surrogate and calibrates nothing: drop {names}")
