@@ -26,12 +26,38 @@ from bridge_shadow.model.config import BridgeConfig
 from bridge_shadow.model.parameters import Parameter, parameter
 from bridge_shadow.model.surrogate_file import THERMAL_CASES
 
-__all__ = ["Explanation", "common_and_differential", "fit_explanation", "fit_problem", "model_vector"]
+__all__ = [
+    "Explanation",
+    "common_and_differential",
+    "fit_explanation",
+    "fit_problem",
+    "in_sample_readings",
+    "model_vector",
+]
 
 
 def model_vector(ev: Evaluation) -> np.ndarray:
     """(12,) ``[A (row-major), u0, thermal per THERMAL_CASES]`` of an evaluation (N/m, N, N/K)."""
     return np.concatenate([ev.A.ravel(), ev.u0, *(ev.thermal[c] for c in THERMAL_CASES)])
+
+
+def in_sample_readings(a: np.ndarray, pairs: Sequence[PairData]) -> list[dict[str, Any]]:
+    """Per pair: ``x = A^-1 dR`` (m) through ``a`` (2, 2) N/m against the imposed settlement."""
+    out = []
+    for pr in pairs:
+        x = np.linalg.solve(a, pr.change.dR_n)
+        common, imposed = float(x.mean()), float(pr.imposed_m.mean())
+        out.append(
+            {
+                "pair": pr.name,
+                "x_m": x.tolist(),
+                "imposed_m": pr.imposed_m.tolist(),
+                "common_m": common,
+                "common_error_rel": (common - imposed) / imposed if imposed else float("nan"),
+                "differential_m": float(x[0] - x[1]),
+            }
+        )
+    return out
 
 
 def common_and_differential(a: np.ndarray) -> tuple[np.ndarray, float]:
@@ -91,21 +117,7 @@ class Explanation:
 
     def in_sample(self) -> list[dict[str, Any]]:
         """Per pair: ``x = A^-1 dR`` (m) against the imposed settlement, common and differential."""
-        out = []
-        for pr in self.problem.pairs:
-            x = np.linalg.solve(self.evaluation.A, pr.change.dR_n)
-            common, imposed = float(x.mean()), float(pr.imposed_m.mean())
-            out.append(
-                {
-                    "pair": pr.name,
-                    "x_m": x.tolist(),
-                    "imposed_m": pr.imposed_m.tolist(),
-                    "common_m": common,
-                    "common_error_rel": (common - imposed) / imposed if imposed else float("nan"),
-                    "differential_m": float(x[0] - x[1]),
-                }
-            )
-        return out
+        return in_sample_readings(self.evaluation.A, self.problem.pairs)
 
     def implied(self, reactions_n: np.ndarray) -> dict[str, Any]:
         """Settlements ``x = A^-1 (R - u0)`` (m) that reactions ``R`` (2,) N imply; half their difference."""

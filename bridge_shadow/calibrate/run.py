@@ -38,7 +38,12 @@ import numpy as np
 from bridge_shadow import __version__
 from bridge_shadow.calibrate.change import MeasuredChange, RecordLevel, measured_change, record_level
 from bridge_shadow.calibrate.errors import CalibrationError
-from bridge_shadow.calibrate.explain import Explanation, common_and_differential, fit_explanation
+from bridge_shadow.calibrate.explain import (
+    Explanation,
+    common_and_differential,
+    fit_explanation,
+    in_sample_readings,
+)
 from bridge_shadow.calibrate.forward import ForwardModel, SolutionStore
 from bridge_shadow.calibrate.problem import PairData
 from bridge_shadow.calibrate.records import load_record
@@ -119,11 +124,15 @@ class CalibrationResult:
             "measured": {p.name: p.change.to_dict() for p in self.pairs},
             "explanations": self.table(),
             "identifiability": chosen.identifiability(),
-            "in_sample": chosen.in_sample(),
+            "in_sample": self.written_in_sample(),
             "reference": self._reference_dict(),
             "fe_solves": self.store.solves,
             "seconds": self.seconds,
         }
+
+    def written_in_sample(self) -> list[dict[str, Any]]:
+        """Per pair: ``x = A^-1 dR`` (m) through the written surrogate against the imposed settlement."""
+        return in_sample_readings(self.run.surrogate.A, self.pairs)
 
     def _reference_dict(self) -> dict[str, Any] | None:
         if self.reference_n is None:
@@ -400,7 +409,13 @@ def _provenance(result: CalibrationResult, cfg: BridgeConfig) -> None:
         "posterior_log_cov": log_cov.tolist(),
         "imposed_error_m": row["imposed_error_m"],
         "identifiability": chosen.identifiability(),
-        "in_sample": chosen.in_sample(),
+        "in_sample": result.written_in_sample(),
+        "chosen_in_sample": chosen.in_sample(),
+        "fe_solution_at_chosen_map": {
+            "A": result.run.base.A.tolist(),
+            "u0": result.run.base.u0.tolist(),
+            "thermal": {k: v.tolist() for k, v in result.run.base.thermal.items()},
+        },
         "common_stiffness_n_per_m": common.tolist(),
         "differential_stiffness_n_per_m": diff,
         "evidence_table": [

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from bridge_shadow.calibrate.forward import Evaluation, series_springs
+from bridge_shadow.calibrate.forward import Evaluation, assemble, series_springs
 from bridge_shadow.model.build import SUPPORT_SPRINGS
 from bridge_shadow.model.sensitivities import StiffnessSensitivity
 from bridge_shadow.model.surrogate_file import THERMAL_CASES, Surrogate
@@ -127,23 +127,9 @@ class SurrogateForward:
             dth[c] = np.array(rows).reshape(-1, 2)
         du0 = dvec[:, 4:6]
         k = np.array([float(values.get(n, self.built[n])) for n in _SPRINGS])
-        a_e, u0_e, t_e, da_e, du0_e, dt_e, da_k = series_springs(a_rigid, u0, t_rigid, k, da, du0, dth)
-        p = len(self.names)
-        dA, dU, dT = np.zeros((p, 2, 2)), np.zeros((p, 2)), {c: np.zeros((p, 2)) for c in t_e}
-        if derivatives:
-            for q, n in enumerate(self.names):
-                if n in _SPRINGS:
-                    i = _SPRINGS.index(n)
-                    dA[q] = da_k[i]
-                    for c in t_e:
-                        dT[c][q] = dt_e[c][len(fe) + i]
-                else:
-                    j = fe.index(n)
-                    dA[q], dU[q] = da_e[j], du0_e[j]
-                    for c in t_e:
-                        dT[c][q] = dt_e[c][j]
+        sprung = series_springs(a_rigid, u0, t_rigid, k, da, du0, dth)
         allv: dict[str, float] = {**self.built, **{n: float(v) for n, v in values.items()}}
-        return Evaluation(allv, a_e, u0_e, t_e, dA, dU, dT, self.names)
+        return assemble(allv, self.names, fe, sprung, derivatives)
 
     def built_spring_array(self) -> np.ndarray:
         """(2,) N/m, the springs the surrogate was solved with."""
