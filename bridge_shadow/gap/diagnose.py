@@ -765,6 +765,14 @@ def _record_mode(
     return folds_of(d.day, valid)[1] != "day" and covered < RECORD_COVERAGE * span
 
 
+def _sweeps_of(s: Surrogate, surrogate_path: str | None) -> dict[str, Any]:
+    """Return the parameter sweeps of the model in use (its file's ``sweeps`` block, or none)."""
+    from bridge_shadow.model.sweeps import read_sweeps
+
+    block = getattr(s, "sweeps", None)
+    return read_sweeps(block=block) if isinstance(block, dict) else read_sweeps(surrogate_path)
+
+
 def _levels(
     data: MonitoringData,
     records: list[Record],
@@ -775,15 +783,11 @@ def _levels(
     surrogate_path: str | None,
 ) -> _Levels:
     """Read the levels of a day of records: the imposed steps' explanation, the free steps."""
-    from bridge_shadow.model.sweeps import read_sweeps
-
     pairs, notes = level_pairs(data, records, imposed, imposed_sd_m)
     analysis = None
     model = s
     if any(p.imposed for p in pairs):
-        block = getattr(s, "sweeps", None)
-        sweeps = read_sweeps(block=block) if isinstance(block, dict) else read_sweeps(surrogate_path)
-        analysis = explain_imposed(pairs, s, sweeps, sens)
+        analysis = explain_imposed(pairs, s, _sweeps_of(s, surrogate_path), sens)
         if analysis.named:
             model = analysis.surrogate_after(s)
     return _Levels(records, pairs, notes, analysis, free_steps(pairs, model), model)
@@ -904,6 +908,8 @@ def diagnose(
     model = lv.model if lv is not None else s
     x_known = imposed_path(w.t_ns, width_s, imposed)
     ctx = Context.build(d, model, sens, x_known, w.t_ns, width_s)
+    if model is s:  # the sweeps are of the model in use (on a day of records the levels own them)
+        ctx.sweeps = _sweeps_of(s, surrogate_path)
     resid = w.mean_n - ctx.baseline
     valid = np.isfinite(resid)
     ctx.step_times = step_times(w.t_ns, resid, valid, width_s)
