@@ -87,6 +87,16 @@ STEP_MIN_WINDOWS = 10
 STEP_MIN_SHARE = 0.05
 
 
+#: Largest relative change the first-order tangent of a stiffness candidate may take beside the
+#: sweep's secants: at |r| = 0.5 the tangents of bearing, connector and slab joint differ from the
+#: FE sweeps by up to about a third (a 2e9 N/m bearing halved: A changes by 1.79 kN/mm, its tangent
+#: says 1.42); beyond, the secants carry the fit.
+FIRST_ORDER_MAX_R = 0.5
+#: How far along its own line a secant of the sweep is used, as a multiple of its ``r_g``: up to
+#: twice the solved change (the next solved value lies within a factor of about 7 in the
+#: parameter, so twice the change stays inside the interval the secant spans or just beyond it).
+SECANT_REACH = 2.0
+
 #: The stiffness sensitivity type (one implementation in :mod:`bridge_shadow.model.sensitivities`).
 Sensitivity = StiffnessSensitivity
 
@@ -135,12 +145,12 @@ class Context:
     sweeps: dict[str, Any] = field(default_factory=dict)
 
     def secant_grid(self, name: str) -> tuple[Any, ...]:
-        """Return the relative changes ``r_g`` of the sweep's solved values of ``name`` ((None,): none)."""
+        """Return the tangent (None) and the relative change ``r_g`` of each solved value of the sweep."""
         sw = self.sweeps.get(name)
         if sw is None:
             return (None,)
         r = sw.values / sw.built - 1.0
-        return tuple(float(v) for v in r if abs(v) > 1e-9)
+        return (None, *(float(v) for v in r if abs(v) > 1e-9))
 
     @classmethod
     def build(
@@ -235,6 +245,23 @@ class Candidate:
             k = len(self.grid) if n_grid is None else n_grid
             pen += 2.0 * np.log(max(k, 1)) if self.discrete else np.log(n_eff)
         return float(pen)
+
+    def alternative_caps(self, ctx: Context) -> list[tuple[float, float] | None] | None:
+        """Per grid alternative the range of ``r`` it describes: where its design is the FE's response.
+
+        The tangent (None) holds near the built value, ``|r| <= FIRST_ORDER_MAX_R``; the secant to
+        ``r_g`` between the built value and ``r_g`` and as far again (``SECANT_REACH``), so that a
+        secant near the built value does not act as a tangent stretched over decades.
+        """
+        if not self.secant_grid or len(self.grid_of(ctx)) < 2:
+            return None
+        caps: list[tuple[float, float] | None] = []
+        for g in self.grid_of(ctx):
+            if g is None:
+                caps.append((-FIRST_ORDER_MAX_R, FIRST_ORDER_MAX_R))
+            else:
+                caps.append((min(0.0, SECANT_REACH * g), max(0.0, SECANT_REACH * g)))
+        return caps
 
     def plausible_bounds(self, ctx: Context) -> list[tuple[float, float]]:
         """Plausible range per linear parameter (SI); unbounded when the candidate states none."""

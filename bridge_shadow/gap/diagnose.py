@@ -268,7 +268,8 @@ class _Fitter:
         if fixed is not None:
             alts = [np.concatenate([fixed, x], axis=2) for x in alts]
         bounds = c.plausible_bounds(self.ctx) if bounded else None
-        return cross_validate(alts, self.resid, self.valid, self.fold, bounds)
+        caps = c.alternative_caps(self.ctx) if bounded else None
+        return cross_validate(alts, self.resid, self.valid, self.fold, bounds, caps)
 
     def block(self, name: str, r: CvResult) -> np.ndarray:
         """Design block of a named effect for later joint fits (n, 2, p).
@@ -290,6 +291,10 @@ class _Fitter:
             i, fit = best_spring(self.spring, self.spring_alts, self.resid, self.valid, self.c_search, fixed)
             return fit.c, i
         alts = self.designs[name]
+        if c.alternative_caps(self.ctx) is not None:
+            # a secant is the FE's response near its own r only: what the data ask for without
+            # bounds is the tangent's answer (index 0), as without sweeps
+            alts = alts[:1]
         if fixed is not None:
             alts = [np.concatenate([fixed, x], axis=2) for x in alts]
         i, beta, _ = fit_best(alts, self.resid, self.valid)
