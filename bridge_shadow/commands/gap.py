@@ -151,9 +151,9 @@ def _levels_lines(levels: dict | None) -> list[str]:
     import datetime as dt
 
     def hhmm(ns: int) -> str:
-        from bridge_shadow.twin.config import LOCAL_TZ
+        from zoneinfo import ZoneInfo
 
-        return dt.datetime.fromtimestamp(ns / 1e9, LOCAL_TZ).strftime("%H:%M")
+        return dt.datetime.fromtimestamp(ns / 1e9, ZoneInfo("Europe/Berlin")).strftime("%H:%M")
 
     lines = ["", f"levels of the {len(levels['records'])} records (car-free levels, test car left out):"]
     for p in levels["pairs"]:

@@ -190,11 +190,11 @@ class LevelPair:
 
 
 def _hhmm(t_ns: int) -> str:
+    """Local time of the bridge (the records' own clock, Europe/Berlin) as ``HH:MM``."""
     import datetime as dt
+    from zoneinfo import ZoneInfo
 
-    from bridge_shadow.twin.config import LOCAL_TZ
-
-    return dt.datetime.fromtimestamp(t_ns / NS, LOCAL_TZ).strftime("%H:%M")
+    return dt.datetime.fromtimestamp(t_ns / NS, ZoneInfo("Europe/Berlin")).strftime("%H:%M")
 
 
 def level_pairs(
