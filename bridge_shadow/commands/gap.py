@@ -252,8 +252,8 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.errors import InputError
     from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.gap.diagnose import diagnose
-    from bridge_shadow.gap.levels import IMPOSED_SD_M
     from bridge_shadow.gap.posterior import shadow_config
+    from bridge_shadow.gap.records import IMPOSED_SD_M
     from bridge_shadow.model.surrogate_file import load_surrogate, save_surrogate, surrogate_target
 
     if not (args.window > 0 and math.isfinite(args.window)):

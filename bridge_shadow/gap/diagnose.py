@@ -16,7 +16,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -42,21 +42,15 @@ from bridge_shadow.gap.fit import (
     fit_best,
     folds_of,
 )
-from bridge_shadow.gap.levels import (
-    IMPOSED_SD_M,
-    ImposedAnalysis,
-    LevelPair,
-    Record,
-    explain_imposed,
-    free_steps,
-    level_pairs,
-    records_of,
-)
 from bridge_shadow.gap.posterior import ModelChange, shadow_posteriors
+from bridge_shadow.gap.records import IMPOSED_SD_M, Record, records_of
 from bridge_shadow.gap.spring import SpringModel, best_spring, cross_validate_spring
 from bridge_shadow.gap.where import where
 from bridge_shadow.gap.windows import NS, Windows, aggregate
 from bridge_shadow.model.surrogate_file import Surrogate, load_surrogate
+
+if TYPE_CHECKING:  # pragma: no cover - the level analysis is imported when a day of records needs it
+    from bridge_shadow.gap.levels import ImposedAnalysis, LevelPair
 from bridge_shadow.series import MonitoringData
 
 __all__ = ["COLLINEAR_COS", "Diagnosis", "baseline_residual", "diagnose", "imposed_path"]
@@ -788,6 +782,8 @@ def _levels(
     surrogate_path: str | None,
 ) -> _Levels:
     """Read the levels of a day of records: the imposed steps' explanation, the free steps."""
+    from bridge_shadow.gap.levels import explain_imposed, free_steps, level_pairs
+
     pairs, notes = level_pairs(data, records, imposed, imposed_sd_m)
     analysis = None
     model = s

@@ -40,6 +40,7 @@ from bridge_shadow.calibrate.problem import PairData
 from bridge_shadow.calibrate.run import evidence_weights
 from bridge_shadow.calibrate.surrogate_forward import SurrogateForward
 from bridge_shadow.contract import CHANNELS
+from bridge_shadow.gap.records import IMPOSED_SD_M, Record
 from bridge_shadow.model.build import SUPPORT_SPRINGS
 from bridge_shadow.model.sensitivities import StiffnessSensitivity
 from bridge_shadow.model.surrogate_file import Discrepancy, Surrogate
@@ -50,18 +51,13 @@ __all__ = [
     "IMPOSED_EXPLANATIONS",
     "ImposedAnalysis",
     "LevelPair",
-    "Record",
     "explain_imposed",
     "free_steps",
     "level_pairs",
-    "records_of",
     "slice_data",
 ]
 
 NS = 1_000_000_000
-#: A gap of more windows than this between two windows with data separates two records (as the
-#: gap diagnosis's ``candidates.STEP_GAP_WINDOWS``: 5 minutes of 60 s windows).
-RECORD_GAP_WINDOWS = 5
 #: Data used on each side of a step, s: a whole 12-minute record; inside a continuous record an
 #: hour each side (longer spans mix in the daily thermal swing the level line cannot follow).
 PAIR_SPAN_S = 3600.0
@@ -74,9 +70,6 @@ NAMED_LOG_BF = math.log(20.0)
 #: chi-square (2 dof) probability beyond which a step between two records is significant: the
 #: shadow's event probability (``event_probability`` 0.999999 in config/shadow.yaml).
 STEP_PROBABILITY = 0.999999
-#: The jacks' accuracy per bearing (1 sd, m) when ``--imposed-sd`` is not given: as in
-#: config/calibration.yaml, +-1 mm (95 %) on a step set by hand and read off a scale.
-IMPOSED_SD_M = 5.0e-4
 
 _SPRINGS = tuple(SUPPORT_SPRINGS.values())
 #: Explanations of the response to a known imposed step: effect name -> the parameters fitted.
@@ -87,42 +80,6 @@ IMPOSED_EXPLANATIONS: dict[str, tuple[str, ...]] = {
     "connector_stiffness": ("connector_stiffness",),
     "slab_joint_opening": ("slab_joint_opening",),
 }
-
-
-@dataclass(frozen=True)
-class Record:
-    """A run of windows with data, separated from the next by a gap.
-
-    Attributes:
-        index: position in the day. first, last: window indices (inclusive).
-        start_ns, end_ns: the first window's left edge and the last window's right edge (UTC ns).
-
-    """
-
-    index: int
-    first: int
-    last: int
-    start_ns: int
-    end_ns: int
-
-
-def records_of(t_ns: np.ndarray, valid: np.ndarray, width_s: float) -> list[Record]:
-    """Split the window grid into records: runs of windows with data on both channels.
-
-    Two windows with data belong to different records when more than ``RECORD_GAP_WINDOWS``
-    windows without data lie between them.
-    """
-    have = np.flatnonzero(np.asarray(valid).all(axis=1))
-    if not len(have):
-        return []
-    cuts = np.flatnonzero(np.diff(have) > RECORD_GAP_WINDOWS + 1)
-    starts = np.r_[have[0], have[cuts + 1]]
-    ends = np.r_[have[cuts], have[-1]]
-    half = round(0.5 * width_s * NS)
-    return [
-        Record(i, int(a), int(b), int(t_ns[a]) - half, int(t_ns[b]) + half)
-        for i, (a, b) in enumerate(zip(starts, ends, strict=True))
-    ]
 
 
 def slice_data(data: MonitoringData, start_ns: int, end_ns: int) -> MonitoringData:
