@@ -13,7 +13,7 @@ effect) is that baseline plus sensor noise (AR(1)), dropouts and NaNs, so its di
 ``none``.
 
 Every fitted parameter of the diagnosis has a plausible range (``plausible_range``): for the
-stiffness effects the prior range of the FE parameter (``bridge_shadow.model.parameters``), for
+stiffness effects the plausible range of the FE parameter (``bridge_shadow.model.parameters``), for
 the others the physically reasoned ``Effect.plausible`` below. A fit outside it is rejected as
 implausible, never reported as present.
 
@@ -108,9 +108,11 @@ EFFECTS: dict[str, Effect] = {
             "sun-driven top-warmer gradient over the girder depth: dT_v(t) = g * sun(t) * clearness(day), "
             "sun the clear-sky irradiance at Neubiberg normalized to its peak (0..1); reactions change "
             "by thermal['vertical_gradient'] * dT_v",
-            (-3.0, 20.0),
-            "EN 1991-1-5 6.1.4.1: linear top-warmer differences of composite decks up to 15 K in "
-            "sunshine; a top cooler in the sun only as noise (-3 K)",
+            (-3.0, 13.5),
+            "EN 1991-1-5 6.1.4.1, Table 6.1: linear temperature difference of a type 2 (composite) "
+            "deck, top warmer 15 K (bottom warmer 18 K), times k_sur = 0.9 of Table 6.2 for an "
+            "unsurfaced deck (the bare precast slab): 13.5 K in full sun; the sun drives only the "
+            "top-warmer part, a top cooler in the sun only as noise (-3 K)",
         ),
         Effect(
             "transverse_gradient", "K", 3.0, 0.3, "thermal",
@@ -136,14 +138,14 @@ EFFECTS: dict[str, Effect] = {
             "u0 and the thermal and traffic responses by the FE sensitivities, first order in r "
             "(surrogate 'sensitivities' block, or the closed-form placeholder)",
             None,
-            "prior range of the FE parameter bearing_stiffness (model.parameters), as r",
+            "plausible range of the FE parameter bearing_stiffness (model.parameters), as r",
         ),
         Effect(
             "connector_stiffness", "1", -0.5, -0.1, "structural",
             "relative change r of the girder-slab connector (composite action) stiffness: changes A, u0 "
             "and the thermal and traffic responses by the FE sensitivities, first order in r",
             None,
-            "prior range of the FE parameter connector_stiffness (model.parameters), as r",
+            "plausible range of the FE parameter connector_stiffness (model.parameters), as r",
         ),
         Effect(
             "support_spring", "N/m", 2.0e7, 1.0e9, "structural",
@@ -153,8 +155,9 @@ EFFECTS: dict[str, Effect] = {
             "the traffic reactions map through A' A^-1 (the dead load also compresses the spring). The "
             "diagnosis also tries a support levelled under the dead load (u0 kept, only changes map)",
             None,
-            "prior range of support_spring_south/north (model.parameters); stiffer than its upper "
-            "end is indistinguishable from the rigid support of the as-built model",
+            "plausible range of support_spring_south/north (model.parameters, the range calibrate "
+            "uses too); stiffer than its upper end is indistinguishable from the rigid support of "
+            "the as-built model",
         ),
         Effect(
             "slab_joint_opening", "1", 0.1, 0.7, "structural",
@@ -163,7 +166,7 @@ EFFECTS: dict[str, Effect] = {
             "sensitivity per unit relative change (surrogate block, or the closed-form placeholder: "
             "bare steel girders over the hogging zone at f = 0), linear in r = f - 1",
             None,
-            "prior range of the FE parameter slab_joint_opening (model.parameters), as r = f - 1",
+            "plausible range of the FE parameter slab_joint_opening (model.parameters), as r = f - 1",
         ),
         Effect(
             "sensor_drift", "N/day", 300.0, 20.0, "sensor",
@@ -201,18 +204,18 @@ def plausible_range(name: str) -> tuple[float, float]:
     """Plausible range of each fitted linear parameter of effect ``name`` (SI).
 
     ``bearing_stiffness`` and ``connector_stiffness``: the relative change ``r`` over the FE
-    parameter's prior range (``Parameter.relative_bounds``); ``slab_joint_opening``: ``r = f - 1``
-    over the prior range of the fraction ``f`` kept; ``support_spring``: the spring stiffness in
-    N/m (``support_spring_south``'s prior range; the north one has the same); the others:
-    ``Effect.plausible``.
+    parameter's plausible range (``Parameter.relative_bounds``); ``slab_joint_opening``: ``r = f - 1``
+    over the plausible range of the fraction ``f`` kept; ``support_spring``: the spring stiffness in
+    N/m (``support_spring_south``'s plausible range; the north one has the same). These are the
+    ranges of the one table ``bridge_shadow.model.parameters`` that ``calibrate`` keeps its fits
+    in too. The others: ``Effect.plausible``.
     """
     from bridge_shadow.model.parameters import PARAMETERS
 
     if name in ("bearing_stiffness", "connector_stiffness", "slab_joint_opening"):
         return PARAMETERS[name].relative_bounds()
     if name == "support_spring":
-        p = PARAMETERS["support_spring_south"]
-        return p.low, p.high
+        return PARAMETERS["support_spring_south"].bounds
     rng = EFFECTS[name].plausible
     if rng is None:  # pragma: no cover - every other effect states its range
         raise KeyError(name)

@@ -155,6 +155,10 @@ CLI_CASES = {
     "gap --surrogate a directory": ["gap", "{w}/bag", "--surrogate", "{w}/adir"],
     "gap --window nan": ["gap", "{w}/bag", "--window", "nan"],
     "gap --holdout-days outside": ["gap", "{w}/bag", "--holdout-days", "9"],
+    "gap --imposed-sd 0": ["gap", "{w}/bag", "--imposed-sd", "0"],
+    "gap --imposed-sd nan": ["gap", "{w}/bag", "--imposed-sd", "nan"],
+    "gap --out-surrogate a directory": ["gap", "{w}/bag", "--out-surrogate", "{w}/adir"],
+    "gap --out-surrogate a user file": ["gap", "{w}/bag", "--out-surrogate", "{w}/afile"],
     # synth
     "synth --out existing dir": ["synth", "--out", "{w}/adir", "--days", "0.01"],
     "synth --out under a file": ["synth", "--out", "{w}/afile/bag", "--days", "0.01"],
@@ -187,6 +191,8 @@ CLI_CASES = {
     "calibrate --check random bytes": ["calibrate", "--check", "{w}/random.bin"],
     "calibrate --check a directory": ["calibrate", "--check", "{w}/adir"],
     "calibrate --check with --out": ["calibrate", "--check", "{w}/random.bin", "--out", "{w}/s.yaml"],
+    "calibrate --priors unknown": ["calibrate", "--priors", "optimistic"],
+    "calibrate --choose unknown": ["calibrate", "--choose", "nothing"],
     # 22: a surrogate is checked where it is loaded, by every command
     **{
         f"replay --surrogate {what}": ["replay", "{w}/bag", "--surrogate", f"{{w}}/{file}.yaml"]

@@ -160,3 +160,23 @@ def test_spec_errors_are_one_line() -> None:
         with pytest.raises(CalibrationError) as err:
             spec_from_dict(data)
         assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("y", [-9.0, -1.0, 0.4, 6.0])
+def test_evidence_and_interval_are_exact_for_a_prior_truncated_on_both_sides(y) -> None:
+    """-3.29 <= u <= 3.29 (a plausible range): evidence = N(y; 0, s^2 + g^2) P(box | y) / P(box)."""
+    a, b = -3.2905267314919255, 3.2905267314919255
+    g, s = 2.0, 0.5
+    fun = _linear(np.array([y]), np.array([[g]]), np.array([s]))
+    res = levenberg_marquardt(fun, np.zeros(1), lower=np.array([a]), upper=np.array([b]))
+    post = laplace(res.r, res.J, res.x, np.array([b]), 1, float(np.log(s**2)), lower=np.array([a]))
+    v = 1.0 / (1.0 + g**2 / s**2)
+    m = v * g * y / s**2
+    box = stats.norm.cdf(b) - stats.norm.cdf(a)
+    given_y = stats.norm.cdf(b, m, np.sqrt(v)) - stats.norm.cdf(a, m, np.sqrt(v))
+    exact = stats.norm(0, np.sqrt(s**2 + g**2)).logpdf(y) + np.log(given_y / box)
+    assert post.log_evidence == pytest.approx(exact, abs=1e-8)
+    assert a <= res.x[0] <= b and (post.active[0] == (abs(m) > b))
+    truncated = stats.truncnorm((a - m) / np.sqrt(v), (b - m) / np.sqrt(v), loc=m, scale=np.sqrt(v))
+    assert truncated.cdf(post.hi95[0]) - truncated.cdf(post.lo95[0]) == pytest.approx(0.95, abs=1e-6)
+    assert post.mean[0] == pytest.approx(truncated.mean(), abs=1e-7)  # the mode to the LM tolerance

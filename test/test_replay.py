@@ -32,7 +32,12 @@ def test_replay_json_outputs_and_plots(
     assert mean.shape == (2,) and cov.shape == (2, 2)
     assert np.all(np.isfinite(mean)) and np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0)
     prior_sd = np.array(js["prior"]["sigma_m"])
-    assert np.all(np.sqrt(np.diag(cov)) < 0.2 * prior_sd)  # the data were informative
+    # the data were informative: the filter's part of the published covariance (without the
+    # calibrated model's own uncertainty, mostly that of u0, which no data of the bag can narrow)
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    data_part = cov - load_surrogate().model_covariance(mean)
+    assert np.all(np.sqrt(np.diag(data_part)) < 0.2 * prior_sd)
     assert js["messages"]["used"] + js["messages"]["rejected"] == js["messages"]["total"]
     assert js["messages_per_s"] > 0 and js["windows"]["updates"] > 1000
     # end to end (bag read, start-up) is slower than the pipeline alone
@@ -110,8 +115,13 @@ def test_replay_on_the_real_records(
     assert np.all(np.isfinite(mean)) and np.all(np.isfinite(sd))
     # about 234 / 234 kN against u0 of the surrogate: a settlement of the order of a millimetre
     assert np.all(np.abs(mean) < 5e-3)
-    # the data narrowed the prior
-    assert np.all(sd > 0) and np.all(sd < 0.5 * np.array(js["prior"]["sigma_m"]))
+    # the data narrowed the prior (the filter's part: the calibrated model's own uncertainty,
+    # mostly that of u0, is published on top and no record narrows it)
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    cov = np.array(js["posterior"]["covariance_m2"]) - load_surrogate().model_covariance(mean)
+    data_sd = np.sqrt(np.diag(cov))
+    assert np.all(sd > 0) and np.all(data_sd < 0.5 * np.array(js["prior"]["sigma_m"]))
     assert js["windows"]["updates"] >= 10
     assert js["messages"]["used"] > 100_000
 

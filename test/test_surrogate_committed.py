@@ -77,6 +77,9 @@ def test_committed_surrogates_are_complete(root, name):
     ):
         assert key in s.provenance
     assert set(SENSITIVITY_PARAMETERS) <= set(load_sensitivities(path))
+    from bridge_shadow.model.sweeps import SWEEP_PARAMETERS, read_sweeps
+
+    assert set(read_sweeps(path)) == set(SWEEP_PARAMETERS)  # what the gap fits a stiffness with
     if name == "surrogate.yaml":
         assert load_surrogate().provenance == s.provenance  # the default location is the calibrated one
         assert (
@@ -85,6 +88,13 @@ def test_committed_surrogates_are_complete(root, name):
         )
         chosen = s.provenance["calibration"]["parameters"]
         assert set(chosen) <= set(load_sensitivities(path))
+        # issue 20: a model average, its prior sensitivity under every prior set, a discrepancy
+        cal = s.provenance["calibration"]
+        from bridge_shadow.model.parameters import PRIOR_SETS
+
+        assert cal["priors"] == "sources" and s.model_cov.shape == (12, 12) and s.discrepancy is not None
+        assert [r["prior_set"] for r in cal["prior_sensitivity"]] == list(PRIOR_SETS)
+        assert abs(sum(cal["model_average"]["weights"].values()) - 1.0) < 1e-9
     else:
         assert s.model_cov is None
 
@@ -112,7 +122,14 @@ def test_committed_numbers_reproduce_with_the_current_code(fe_file, calibrated_f
     for path in (fe_file, calibrated_file):
         s = load_surrogate(path)
         sol = solve_bridge(load_bridge_config(overrides=s.provenance["overrides"]), "default")
-        np.testing.assert_allclose(sol.A, s.A, rtol=1e-6)
-        np.testing.assert_allclose(sol.u0, s.u0, rtol=1e-6)
+        cal = s.provenance.get("calibration")
+        # the calibrated surrogate is a model average; the FE solve at the chosen MAP is recorded
+        fe = cal["fe_solution_at_chosen_map"] if cal else {"A": s.A, "u0": s.u0, "thermal": s.thermal}
+        np.testing.assert_allclose(sol.A, fe["A"], rtol=1e-6)
+        np.testing.assert_allclose(sol.u0, fe["u0"], rtol=1e-6)
         for case in THERMAL_CASES:
-            np.testing.assert_allclose(sol.thermal[case], s.thermal[case], rtol=1e-6, atol=1e-3)
+            np.testing.assert_allclose(sol.thermal[case], fe["thermal"][case], rtol=1e-6, atol=1e-3)
+        if cal:  # and the written numbers are the recorded average's, u0 the as-built FE's
+            np.testing.assert_allclose(s.A, cal["model_average"]["A"], rtol=1e-12)
+            as_built = load_surrogate(fe_file)
+            np.testing.assert_allclose(s.u0, as_built.u0, rtol=1e-9)

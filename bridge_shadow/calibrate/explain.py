@@ -11,7 +11,7 @@ settlements ``x = A^-1 (R - u0)`` a reference record's reactions imply.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,9 +23,41 @@ from bridge_shadow.calibrate.lm import LMResult, levenberg_marquardt
 from bridge_shadow.calibrate.posterior import Laplace, laplace
 from bridge_shadow.calibrate.problem import CalibrationProblem, PairData
 from bridge_shadow.model.config import BridgeConfig
-from bridge_shadow.model.parameters import parameter
+from bridge_shadow.model.parameters import Parameter, parameter
+from bridge_shadow.model.surrogate_file import THERMAL_CASES
 
-__all__ = ["Explanation", "common_and_differential", "fit_explanation"]
+__all__ = [
+    "Explanation",
+    "common_and_differential",
+    "fit_explanation",
+    "fit_problem",
+    "in_sample_readings",
+    "model_vector",
+]
+
+
+def model_vector(ev: Evaluation) -> np.ndarray:
+    """(12,) ``[A (row-major), u0, thermal per THERMAL_CASES]`` of an evaluation (N/m, N, N/K)."""
+    return np.concatenate([ev.A.ravel(), ev.u0, *(ev.thermal[c] for c in THERMAL_CASES)])
+
+
+def in_sample_readings(a: np.ndarray, pairs: Sequence[PairData]) -> list[dict[str, Any]]:
+    """Per pair: ``x = A^-1 dR`` (m) through ``a`` (2, 2) N/m against the imposed settlement."""
+    out = []
+    for pr in pairs:
+        x = np.linalg.solve(a, pr.change.dR_n)
+        common, imposed = float(x.mean()), float(pr.imposed_m.mean())
+        out.append(
+            {
+                "pair": pr.name,
+                "x_m": x.tolist(),
+                "imposed_m": pr.imposed_m.tolist(),
+                "common_m": common,
+                "common_error_rel": (common - imposed) / imposed if imposed else float("nan"),
+                "differential_m": float(x[0] - x[1]),
+            }
+        )
+    return out
 
 
 def common_and_differential(a: np.ndarray) -> tuple[np.ndarray, float]:
@@ -60,39 +92,32 @@ class Explanation:
         """MAP parameter values (SI)."""
         return self.problem.values(self.lm.x)
 
-    def model_cov(self) -> np.ndarray:
-        """(6, 6) covariance of ``[A11, A12, A21, A22, u0_s, u0_n]`` from the parameter posterior.
+    def model_vector(self) -> np.ndarray:
+        """(12,) the MAP surrogate as ``[A11, A12, A21, A22, u0 (2), thermal (3 x 2)]`` (SI)."""
+        return model_vector(self.evaluation)
 
-        Linearized at the MAP: ``G C G'`` with ``G`` the derivatives per whitened parameter and
-        ``C`` the posterior covariance of the parameters (imposed-settlement errors marginalized;
-        a parameter held at its bound contributes its truncated spread, ``Laplace.truncated_cov``).
+    def model_cov(self) -> np.ndarray:
+        """(12, 12) covariance of ``model_vector`` from the parameter posterior.
+
+        Order ``MODEL_UNCERTAINTY_ORDER_FULL``: ``[A11, A12, A21, A22, u0_s, u0_n]`` and the three
+        thermal cases. Linearized at the MAP: ``G C G'`` with ``G`` the derivatives per whitened
+        parameter and ``C`` the posterior covariance of the parameters (imposed-settlement errors
+        marginalized; a parameter held at its bound contributes its truncated spread,
+        ``Laplace.truncated_cov``).
         """
         p = self.problem.p
         if p == 0:
-            return np.zeros((6, 6))
+            return np.zeros((12, 12))
         ev = self.evaluation
-        g = np.vstack([ev.dA.reshape(p, 4).T, ev.du0.T]) * self.problem.sigma[None, :]
+        rows = [ev.dA.reshape(p, 4).T, ev.du0.T, *(ev.dthermal[c].T for c in THERMAL_CASES)]
+        g = np.vstack(rows) * self.problem.scale(self.lm.x)[None, :]
         cov = self.post.truncated_cov()[:p, :p]
         out = g @ cov @ g.T
         return 0.5 * (out + out.T)
 
     def in_sample(self) -> list[dict[str, Any]]:
         """Per pair: ``x = A^-1 dR`` (m) against the imposed settlement, common and differential."""
-        out = []
-        for pr in self.problem.pairs:
-            x = np.linalg.solve(self.evaluation.A, pr.change.dR_n)
-            common, imposed = float(x.mean()), float(pr.imposed_m.mean())
-            out.append(
-                {
-                    "pair": pr.name,
-                    "x_m": x.tolist(),
-                    "imposed_m": pr.imposed_m.tolist(),
-                    "common_m": common,
-                    "common_error_rel": (common - imposed) / imposed if imposed else float("nan"),
-                    "differential_m": float(x[0] - x[1]),
-                }
-            )
-        return out
+        return in_sample_readings(self.evaluation.A, self.problem.pairs)
 
     def implied(self, reactions_n: np.ndarray) -> dict[str, Any]:
         """Settlements ``x = A^-1 (R - u0)`` (m) that reactions ``R`` (2,) N imply; half their difference."""
@@ -106,8 +131,8 @@ class Explanation:
         data_rows = prob.n_data
         params = {}
         for i, n in enumerate(prob.names):
-            pr = parameter(n)
-            to_value = lambda u, i=i: float(np.exp(prob.mu[i] + prob.sigma[i] * u))  # noqa: E731
+            pr = parameter(n, prob.priors)
+            to_value = lambda u, i=i: float(np.exp(prob.prior_of[i].to_log(u)))  # noqa: E731
             params[n] = {
                 "map": to_value(post.mode[i]),
                 "median": to_value(post.q500[i]),
@@ -115,6 +140,7 @@ class Explanation:
                 "high95": to_value(post.hi95[i]),
                 "prior_centre": pr.centre,
                 "prior_range": [pr.low, pr.high],
+                "plausible_range": list(pr.bounds),
                 "posterior_to_prior_sd": float(post.sd[i]),
                 "at_bound": bool(post.active[i]),
                 "unit": pr.unit,
@@ -154,27 +180,36 @@ class Explanation:
 
 
 def _fit(problem: CalibrationProblem) -> tuple[LMResult, Laplace, Evaluation]:
-    res = levenberg_marquardt(problem, np.zeros(problem.dim), upper=problem.upper)
+    res = levenberg_marquardt(problem, np.zeros(problem.dim), lower=problem.lower, upper=problem.upper)
     problem(res.x, True)
     ev = problem.last
     assert ev is not None
-    post = laplace(res.r, res.J, res.x, problem.upper, problem.n_data, problem.logdet_data_cov())
+    post = laplace(
+        res.r, res.J, res.x, problem.upper, problem.n_data, problem.logdet_data_cov(), lower=problem.lower
+    )
     return res, post, ev
 
 
+#: Builds the forward model of an explanation from its parameter names (FE by default).
+MakeForward = Callable[[tuple[str, ...]], Any]
+
+
 def _heldout(
-    cfg: BridgeConfig, level: str, names: Sequence[str], pairs: Sequence[PairData], store: SolutionStore
+    make_forward: MakeForward,
+    names: Sequence[str],
+    pairs: Sequence[PairData],
+    priors: Mapping[str, Parameter] | None = None,
 ) -> float:
     """Sum over pairs of ``log N(dR_k; prediction from a fit to the other pairs, its covariance)``."""
     total = 0.0
     for k, pr in enumerate(pairs):
         rest = [p for i, p in enumerate(pairs) if i != k]
-        prob = CalibrationProblem(ForwardModel(cfg, level, tuple(names), store), rest)
+        prob = CalibrationProblem(make_forward(tuple(names)), rest, priors)
         res, post, ev = _fit(prob)
         x = pr.imposed_m
         dt = pr.change.air_temp_change_k if np.isfinite(pr.change.air_temp_change_k) else 0.0
         mean = ev.A @ x + ev.thermal["uniform"] * dt
-        g = (np.einsum("qij,j->iq", ev.dA, x) + ev.dthermal["uniform"].T * dt) * prob.sigma[None, :]
+        g = (np.einsum("qij,j->iq", ev.dA, x) + ev.dthermal["uniform"].T * dt) * prob.scale(res.x)[None, :]
         cov = pr.change.cov_n2 + ev.A @ np.diag(pr.imposed_sd_m**2) @ ev.A.T
         if prob.p:
             cov = cov + g @ post.truncated_cov()[: prob.p, : prob.p] @ g.T
@@ -183,6 +218,12 @@ def _heldout(
         total += -0.5 * (logdet + resid @ np.linalg.solve(cov, resid))
         del res, sign
     return float(total)
+
+
+def fit_problem(name: str, problem: CalibrationProblem, heldout_logpdf: float | None = None) -> Explanation:
+    """Fit one explanation given its calibration problem (any forward model with ``evaluate``)."""
+    res, post, ev = _fit(problem)
+    return Explanation(name, problem, res, post, ev, heldout_logpdf)
 
 
 def fit_explanation(
@@ -194,12 +235,24 @@ def fit_explanation(
     store: SolutionStore | None = None,
     heldout: bool = True,
     report: Callable[[str], None] | None = None,
+    priors: Mapping[str, Parameter] | None = None,
+    make_forward: MakeForward | None = None,
 ) -> Explanation:
-    """Fit one explanation (MAP, Laplace posterior and evidence; held-out score with 2+ pairs)."""
+    """Fit one explanation (MAP, Laplace posterior and evidence; held-out score with 2+ pairs).
+
+    ``priors``: the parameter table (a ``prior_table``; default the sources). ``make_forward``:
+    names -> forward model (default the FE ``ForwardModel`` on ``cfg`` at ``level``, sharing ``store``).
+    """
     store = store if store is not None else SolutionStore()
-    problem = CalibrationProblem(ForwardModel(cfg, level, tuple(names), store), pairs)
-    res, post, ev = _fit(problem)
+    if make_forward is None:
+
+        def make_forward(n: tuple[str, ...]) -> ForwardModel:
+            return ForwardModel(cfg, level, n, store)
+
+    problem = CalibrationProblem(make_forward(tuple(names)), pairs, priors)
+    out = fit_problem(name, problem)
     if report is not None:
-        report(f"{name}: log evidence {post.log_evidence:.2f} after {res.iterations} iterations")
-    score = _heldout(cfg, level, names, pairs, store) if heldout and len(pairs) > 1 else None
-    return Explanation(name, problem, res, post, ev, score)
+        report(f"{name}: log evidence {out.post.log_evidence:.2f} after {out.lm.iterations} iterations")
+    if heldout and len(pairs) > 1:
+        out.heldout_logpdf = _heldout(make_forward, names, pairs, priors)
+    return out

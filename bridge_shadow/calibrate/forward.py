@@ -24,6 +24,7 @@ import logging
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -32,7 +33,7 @@ from bridge_shadow.model.build import SUPPORT_SPRINGS, THERMAL_CASE_NAMES
 from bridge_shadow.model.config import BridgeConfig
 from bridge_shadow.model.surrogate import BridgeSolution, solve_bridge
 
-__all__ = ["Evaluation", "ForwardModel", "SolutionStore", "series_springs"]
+__all__ = ["Evaluation", "ForwardModel", "SolutionStore", "assemble", "series_springs"]
 
 log = logging.getLogger(__name__)
 
@@ -98,6 +99,36 @@ def series_springs(
         dt_e[n] = np.array(rows)
     da_k = np.array([c[i] * np.outer(a_e[:, i], a_e[:, i]) for i in range(2)])  # A_e (c_i e_i e_i') A_e
     return a_e, np.asarray(u0, float).copy(), t_e, da_e, du0.copy(), dt_e, da_k
+
+
+def assemble(
+    values: dict[str, float],
+    names: tuple[str, ...],
+    fe: tuple[str, ...],
+    sprung: tuple[Any, ...],
+    derivatives: bool = True,
+) -> Evaluation:
+    """Build an :class:`Evaluation` from ``series_springs``' output, derivatives in ``names`` order.
+
+    ``fe``: the differentiated parameters that are not support springs, in the order of the rows
+    of ``series_springs``' derivative arrays (the springs' rows follow them in ``dthermal``).
+    """
+    a_e, u0_e, t_e, da_e, du0_e, dt_e, da_k = sprung
+    p = len(names)
+    dA, dU, dT = np.zeros((p, 2, 2)), np.zeros((p, 2)), {c: np.zeros((p, 2)) for c in t_e}
+    if derivatives:
+        for q, n in enumerate(names):
+            if n in _SPRINGS:
+                i = _SPRINGS.index(n)
+                dA[q] = da_k[i]
+                for c in t_e:
+                    dT[c][q] = dt_e[c][len(fe) + i]
+            else:
+                j = fe.index(n)
+                dA[q], dU[q] = da_e[j], du0_e[j]
+                for c in t_e:
+                    dT[c][q] = dt_e[c][j]
+    return Evaluation(values, a_e, u0_e, t_e, dA, dU, dT, names)
 
 
 @dataclass
@@ -187,24 +218,8 @@ class ForwardModel:
             c: (np.array([derivs[n].thermal[c] for n in fe]) if fe else np.zeros((0, 2)))
             for c in THERMAL_CASE_NAMES
         }
-        a_e, u0_e, t_e, da_e, du0_e, dt_e, da_k = series_springs(sol.A, sol.u0, sol.thermal, k, da, du0, dth)
-        # assemble in the order of self.names
-        p = len(self.names)
-        dA, dU, dT = np.zeros((p, 2, 2)), np.zeros((p, 2)), {c: np.zeros((p, 2)) for c in t_e}
-        if not derivatives:
-            return Evaluation(dict(allv), a_e, u0_e, t_e, dA, dU, dT, self.names)
-        for q, n in enumerate(self.names):
-            if n in _SPRINGS:
-                i = _SPRINGS.index(n)
-                dA[q] = da_k[i]
-                for c in t_e:
-                    dT[c][q] = dt_e[c][len(fe) + i]
-            else:
-                j = fe.index(n)
-                dA[q], dU[q] = da_e[j], du0_e[j]
-                for c in t_e:
-                    dT[c][q] = dt_e[c][j]
-        return Evaluation(dict(allv), a_e, u0_e, t_e, dA, dU, dT, self.names)
+        sprung = series_springs(sol.A, sol.u0, sol.thermal, k, da, du0, dth)
+        return assemble(dict(allv), self.names, fe, sprung, derivatives)
 
     def solution(self, values: Mapping[str, float]) -> BridgeSolution:
         """Return the (cached) FE solution with rigid supports behind ``evaluate(values)``."""

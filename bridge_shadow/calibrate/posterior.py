@@ -1,22 +1,23 @@
 """Laplace approximation of the posterior and the evidence, with parameters held at a bound.
 
 Coordinates are prior-whitened (``u = (log p - mu) / sigma``, jack errors ``e / sigma_e``), so the
-prior is ``N(0, I)``, truncated to ``u <= b`` for the fractions (``b = 0`` when the prior centre
-is the bound, "as built"). With ``r(u)`` the stacked whitened residuals (data rows, then the
-prior rows ``u``), ``J`` its Jacobian at the mode ``u*`` and ``H = J'J`` (Gauss-Newton):
+prior is ``N(0, I)``, truncated to the box ``a <= u <= b``: every parameter's plausible range
+(``bridge_shadow.model.parameters``: +-3.29 sd, and ``b = 0`` for a fraction whose prior centre
+is its hard bound 1, "as built"). With ``r(u)`` the stacked whitened residuals (data rows, then
+the prior rows ``u``), ``J`` its Jacobian at the mode ``u*`` and ``H = J'J`` (Gauss-Newton):
 
     log p(D) = -|r*|^2 / 2 - log det(2 pi Sigma_D) / 2 - log det H / 2
-               + g' H^-1 g / 2 + log P(u* + d <= b) - sum log Phi(b_i)
+               + g' H^-1 g / 2 + log P(a <= u* + d <= b) - sum log (Phi(b_i) - Phi(a_i))
 
 The first three terms are the usual Laplace evidence (misfit, normalization, Occam factor). At a
 mode on a bound the gradient ``g = J' r`` does not vanish: the quadratic model is integrated over
-the feasible side only, ``d ~ N(-H^-1 g, H^-1)`` restricted to the box (the term ``P``); the last
-term is the truncated prior's normalization (``log 2`` per fraction whose centre is its bound).
-For a bounded coordinate the reported marginal is that Gaussian truncated at its bound (exact for
-one bound; an approximation for several that are correlated), and its 95 % interval the highest-
-density one: one-sided ``[q_5%, bound]`` when the bound lies inside it (a central interval would
-leave out the most probable values next to the bound). Unbounded coordinates get the central
-interval (the same thing for a Gaussian).
+the feasible box only, ``d ~ N(-H^-1 g, H^-1)`` restricted to it (the term ``P``); the last term
+is the truncated prior's normalization (``log 2`` per fraction whose centre is its bound, 0.001
+for a +-3.29 sd range). For a bounded coordinate the reported marginal is that Gaussian truncated
+to its range (exact for one coordinate; an approximation for several that are correlated), and
+its 95 % interval the highest-density one: one-sided when a bound lies inside it (a central
+interval would leave out the most probable values next to the bound). Unbounded coordinates get
+the central interval (the same thing for a Gaussian).
 """
 
 from __future__ import annotations
@@ -36,8 +37,8 @@ class Laplace:
     Attributes:
         mode: (n,) u*. centre: (n,) ``u* - H^-1 g``, the centre of the quadratic model (equal to
             the mode unless a bound is active). cov: (n, n) ``H^-1``.
-        bounded: (n,) bool, coordinates with an upper bound. upper: (n,) the bounds (inf if none).
-        active: (n,) bool, held at the bound at the mode.
+        bounded: (n,) bool, coordinates with a bound. lower, upper: (n,) the bounds (-inf, inf if none).
+        active: (n,) bool, held at a bound at the mode.
         mean, sd, q500: (n,) marginal mean, sd and median (truncated at the bound where there is one).
         lo95, hi95: (n,) 95 % interval (central; highest-density for a bounded coordinate).
         log_evidence: as in the module docstring; parts: its terms by name.
@@ -50,6 +51,7 @@ class Laplace:
     bounded: np.ndarray
     upper: np.ndarray
     active: np.ndarray
+    lower: np.ndarray
     mean: np.ndarray
     sd: np.ndarray
     q500: np.ndarray
@@ -71,26 +73,30 @@ class Laplace:
 _Z95 = 1.959963984540054
 
 
-def _hpd95(dist: stats.rv_continuous, mode: float, bound: float) -> tuple[float, float]:
-    """95 % highest-density interval of a normal (centre ``mode``) truncated above at ``bound``."""
-    low = float(dist.ppf(0.05))
-    if mode >= bound or mode - low >= bound - mode:  # the bound lies inside the interval
-        return low, float(bound)
+def _hpd95(dist: stats.rv_continuous, mode: float, lower: float, upper: float) -> tuple[float, float]:
+    """95 % highest-density interval of a normal (centre ``mode``) truncated to ``[lower, upper]``."""
+    m = min(max(mode, lower), upper)
 
     def mass(w: float) -> float:
-        return float(dist.cdf(mode + w) - dist.cdf(mode - w)) - 0.95
+        return float(dist.cdf(min(m + w, upper)) - dist.cdf(max(m - w, lower))) - 0.95
 
-    w = optimize.brentq(mass, 1e-12, bound - mode)
-    return mode - w, mode + w
+    # the density falls off symmetrically about the mode, so the interval is the mode +- w cut at
+    # the bounds; w grows until it holds 95 %
+    w_max = max(upper - m, m - lower)
+    if not np.isfinite(w_max):
+        w_max = abs(m) + 50.0 * float(dist.std()) + 1.0
+    w = optimize.brentq(mass, 0.0, w_max)
+    return max(m - w, lower), min(m + w, upper)
 
 
-def _feasible_probability(mean: np.ndarray, cov: np.ndarray, limit: np.ndarray) -> float:
-    """``P(d <= limit)`` for ``d ~ N(mean, cov)`` (1-D exact, else scipy's Genz integration)."""
+def _feasible_probability(mean: np.ndarray, cov: np.ndarray, low: np.ndarray, high: np.ndarray) -> float:
+    """``P(low <= d <= high)`` for ``d ~ N(mean, cov)`` (1-D exact, else scipy's Genz integration)."""
     if len(mean) == 0:
         return 1.0
     if len(mean) == 1:
-        return float(stats.norm.cdf(limit[0], mean[0], np.sqrt(cov[0, 0])))
-    return float(stats.multivariate_normal(mean, cov, allow_singular=True).cdf(limit))
+        sd = np.sqrt(cov[0, 0])
+        return float(stats.norm.cdf(high[0], mean[0], sd) - stats.norm.cdf(low[0], mean[0], sd))
+    return float(stats.multivariate_normal(mean, cov, allow_singular=True).cdf(high, lower_limit=low))
 
 
 def laplace(
@@ -100,43 +106,46 @@ def laplace(
     upper: np.ndarray,
     n_data: int,
     logdet_data_cov: float,
+    lower: np.ndarray | None = None,
 ) -> Laplace:
     """Laplace posterior and evidence at ``u`` (see the module docstring).
 
     Args:
         r: (m,) whitened residuals at ``u`` (data rows first, then the ``n`` prior rows).
-        J: (m, n) their Jacobian. u: (n,) the mode. upper: (n,) upper bounds (inf: none).
+        J: (m, n) their Jacobian. u: (n,) the mode. upper, lower: (n,) bounds (inf, -inf: none).
         n_data: number of data rows. logdet_data_cov: ``log det Sigma_D`` of the data (SI units).
 
     """
+    lower = np.full(len(u), -np.inf) if lower is None else np.asarray(lower, float)
     h = J.T @ J
     cov = np.linalg.inv(h)
     cov = 0.5 * (cov + cov.T)
     g = J.T @ r
-    bounded = np.isfinite(upper)
-    active = bounded & (u >= upper - 1e-9) & (g < 0)
+    bounded = np.isfinite(upper) | np.isfinite(lower)
+    active = ((u >= upper - 1e-9) & (g < 0)) | ((u <= lower + 1e-9) & (g > 0))
     shift = -cov @ np.where(active, g, 0.0)  # the gradient vanishes on the free coordinates
     centre = u + shift
     _, logdet_h = np.linalg.slogdet(h)
     b = np.flatnonzero(bounded)
-    p_feas = _feasible_probability(shift[b], cov[np.ix_(b, b)], upper[b] - u[b])
+    p_feas = _feasible_probability(shift[b], cov[np.ix_(b, b)], lower[b] - u[b], upper[b] - u[b])
     g_a = np.where(active, g, 0.0)
+    prior_mass = stats.norm.cdf(upper[b]) - stats.norm.cdf(lower[b])
     parts = {
         "misfit": -0.5 * float(r @ r),
         "data_normalization": -0.5 * (n_data * np.log(2 * np.pi) + logdet_data_cov),
         "occam": -0.5 * float(logdet_h),
         "bound_gradient": 0.5 * float(g_a @ cov @ g_a),
         "bound_feasible": float(np.log(max(p_feas, 1e-300))),
-        "truncated_prior": -float(np.sum(stats.norm.logcdf(upper[b]))),
+        "truncated_prior": -float(np.sum(np.log(prior_mass))),
     }
     sd0 = np.sqrt(np.diag(cov))
     mean, sd, q500 = centre.copy(), sd0.copy(), centre.copy()
     lo95, hi95 = centre - _Z95 * sd0, centre + _Z95 * sd0
     for i in b:
-        beta = (upper[i] - centre[i]) / sd0[i]
-        dist = stats.truncnorm(-np.inf, beta, loc=centre[i], scale=sd0[i])
+        alpha, beta = (lower[i] - centre[i]) / sd0[i], (upper[i] - centre[i]) / sd0[i]
+        dist = stats.truncnorm(alpha, beta, loc=centre[i], scale=sd0[i])
         mean[i], sd[i], q500[i] = dist.mean(), dist.std(), dist.median()
-        lo95[i], hi95[i] = _hpd95(dist, centre[i], upper[i])
+        lo95[i], hi95[i] = _hpd95(dist, centre[i], lower[i], upper[i])
     return Laplace(
         mode=u.copy(),
         centre=centre,
@@ -144,6 +153,7 @@ def laplace(
         bounded=bounded,
         upper=upper.copy(),
         active=active,
+        lower=lower.copy(),
         mean=mean,
         sd=sd,
         q500=q500,

@@ -8,23 +8,25 @@ with ``Sigma_k`` the covariance of the measured change (:mod:`.change`), ``dT_k`
 the air temperature between the records (the model's uniform thermal response: a modelled term,
 tiny here) and ``e_k ~ N(0, diag(s_k^2))`` the error of the imposed settlement (the jacks'
 accuracy), a nuisance estimated with the parameters. The parameters are ``log theta`` with the
-priors of :mod:`bridge_shadow.model.parameters`; fractions are bounded at 1.
+priors of :mod:`bridge_shadow.model.parameters` (or of one of its ``PRIOR_SETS``), kept inside
+their plausible ranges (the one table of ranges the gap diagnosis reads too).
 
-Coordinates are whitened: ``u = (log theta - mu) / sigma`` and ``e / s``; the residual stacks
+Coordinates are whitened: ``log theta = mu + s(u) u`` (each parameter's split-normal prior,
+``Parameter.to_log``) and ``e / s``; the residual stacks
 ``L_k^-1 (dR_k - model_k)`` (``Sigma_k = L_k L_k'``) and the prior rows ``u``. One pair gives two
 numbers: at most two combinations of the parameters and jack errors are fixed by it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from bridge_shadow.calibrate.change import MeasuredChange
 from bridge_shadow.calibrate.forward import Evaluation, ForwardModel
-from bridge_shadow.model.parameters import parameter
+from bridge_shadow.model.parameters import Parameter, parameter
 
 __all__ = ["CalibrationProblem", "PairData"]
 
@@ -57,32 +59,51 @@ class CalibrationProblem:
     Attributes:
         forward: the FE forward model (its ``names`` are the calibrated parameters).
         pairs: the record pairs.
-        mu, sigma: (p,) prior mean and sd of ``log theta``. upper: (n,) bounds in whitened
-            coordinates (inf: none), jack coordinates unbounded.
+        priors: parameter table (default ``model.parameters.PARAMETERS``; a ``prior_table``).
+        mu: (p,) prior median of ``log theta``. lower, upper: (n,) bounds in whitened
+            coordinates: the plausible ranges; jack coordinates unbounded. ``scale(u)``: the
+            derivative of ``log theta`` per whitened coordinate (the prior sd on ``u``'s side).
         last: the evaluation at the last point asked for.
 
     """
 
     forward: ForwardModel
     pairs: Sequence[PairData]
+    priors: Mapping[str, Parameter] | None = None
     mu: np.ndarray = field(init=False)
-    sigma: np.ndarray = field(init=False)
+    lower: np.ndarray = field(init=False)
     upper: np.ndarray = field(init=False)
     _white: list[np.ndarray] = field(init=False, repr=False)
+    _prior: list[Parameter] = field(init=False, repr=False)
     last: Evaluation | None = field(default=None, init=False)
 
     def __post_init__(self) -> None:
-        priors = [parameter(n) for n in self.names]
+        priors = [parameter(n, self.priors) for n in self.names]
+        self._prior = priors
         self.mu = np.array([p.log_centre for p in priors])
-        self.sigma = np.array([p.log_sigma for p in priors])
-        ub = [np.inf if p.upper is None else (np.log(p.upper) - p.log_centre) / p.log_sigma for p in priors]
-        self.upper = np.array(ub + [np.inf] * (2 * len(self.pairs)))
+        box = np.array([p.whitened_bounds() for p in priors]).reshape(-1, 2)
+        free = [np.inf] * (2 * len(self.pairs))
+        self.lower = np.concatenate([box[:, 0], -np.array(free)])
+        self.upper = np.concatenate([box[:, 1], free])
         self._white = [np.linalg.inv(np.linalg.cholesky(pr.change.cov_n2)) for pr in self.pairs]
 
     @property
     def names(self) -> tuple[str, ...]:
         """Calibrated parameter names."""
         return self.forward.names
+
+    @property
+    def prior_of(self) -> list[Parameter]:
+        """The prior of each calibrated parameter (in ``names`` order)."""
+        return list(self._prior)
+
+    def log_values(self, u: np.ndarray) -> np.ndarray:
+        """(p,) ``log theta`` at whitened ``u`` (split-normal priors)."""
+        return np.array([pr.to_log(v) for pr, v in zip(self._prior, u[: self.p], strict=True)], float)
+
+    def scale(self, u: np.ndarray) -> np.ndarray:
+        """(p,) ``d log theta / du`` at whitened ``u``."""
+        return np.array([pr.log_scale(v) for pr, v in zip(self._prior, u[: self.p], strict=True)], float)
 
     @property
     def p(self) -> int:
@@ -109,7 +130,7 @@ class CalibrationProblem:
     def values(self, u: np.ndarray) -> dict[str, float]:
         """Parameter values (SI) at whitened ``u``."""
         return {
-            n: float(v) for n, v in zip(self.names, np.exp(self.mu + self.sigma * u[: self.p]), strict=True)
+            n: float(v) for n, v in zip(self.names, np.exp(self.log_values(u)), strict=True)
         }
 
     def jack_errors(self, u: np.ndarray) -> np.ndarray:
@@ -149,7 +170,7 @@ class CalibrationProblem:
             d_pred = np.zeros((2, self.dim))
             d_pred[:, : self.p] = (
                 np.einsum("qij,j->iq", ev.dA, x) + ev.dthermal["uniform"].T * dt
-            ) * self.sigma
+            ) * self.scale(u)
             d_pred[:, self.p + 2 * k : self.p + 2 * k + 2] = ev.A * pr.imposed_sd_m[None, :]
             rows.append(w @ (pr.change.dR_n - pred[k]))
             jac.append(-w @ d_pred)

@@ -129,9 +129,8 @@ def summary_text(result: CalibrationResult) -> str:
     chosen = result.explanations[result.chosen]
     row = next(r for r in result.table() if r["name"] == result.chosen)
     lines.append("")
-    lines.append(
-        f"chosen: {result.chosen} ({'highest evidence' if spec.choose == 'best' else 'named in the file'})"
-    )
+    how = {"best": "highest evidence", "average": "the most probable; the FE sensitivities are solved here"}
+    lines.append(f"chosen: {result.chosen} ({how.get(spec.choose, 'named in the file')})")
     lines.append(
         "  parameter                        prior centre [95 % range]          MAP       "
         "posterior 95 %        post/prior sd"
@@ -147,7 +146,8 @@ def summary_text(result: CalibrationResult) -> str:
     lines.append(
         f"  A (kN/mm) [[{a[0, 0] / 1e6:.3f}, {a[0, 1] / 1e6:.3f}], "
         f"[{a[1, 0] / 1e6:.3f}, {a[1, 1] / 1e6:.3f}]], "
-        f"u0 {u0[0] / KN:.1f} / {u0[1] / KN:.1f} kN (FE re-solved at the MAP)"
+        f"u0 {u0[0] / KN:.1f} / {u0[1] / KN:.1f} kN "
+        + ("(the model average, below)" if spec.choose == "average" else "(FE re-solved at the MAP)")
     )
     for s in chosen.in_sample():
         lines.append(
@@ -164,8 +164,66 @@ def summary_text(result: CalibrationResult) -> str:
             f"    s = {d['singular_value']:.2f} "
             f"(posterior/prior sd {d['posterior_to_prior_sd']:.2f}): {combo}"
         )
+    lines += _average_lines(result)
+    lines += _sensitivity_lines(result)
     lines.append(f"{result.store.solves} FE solves, {result.seconds:.1f} s")
     return "\n".join(lines)
+
+
+def _average_lines(result: CalibrationResult) -> list[str]:
+    """Describe the model average: weights, stiffness, its spread, the in-sample reading (kN/mm, mm)."""
+    avg = result.extra.get("model_average")
+    if not avg:
+        return []
+    written = "written to the surrogate" if result.spec.choose == "average" else "not written (--choose)"
+    top = sorted(avg["weights"].items(), key=lambda kv: -kv[1])
+    kc, kd = avg["common_stiffness_n_per_m"], avg["differential_stiffness_n_per_m"]
+    sd = avg["sd"]
+    out = [
+        "",
+        f"model average over the explanations by their evidence ({written}):",
+        "  weights: " + ", ".join(f"{k} {w:.2f}" for k, w in top if w >= 0.005),
+        f"  common-mode stiffness {kc[0] / 1e6:.2f} / {kc[1] / 1e6:.2f} kN/mm, differential "
+        f"{kd / 1e6:.2f} kN/mm; sd of A11 / A22 {sd['A11'] / 1e6:.2f} / {sd['A22'] / 1e6:.2f}, "
+        f"of A12 {sd['A12'] / 1e6:.2f} kN/mm (each explanation's posterior and the spread between them)",
+    ]
+    for s in avg["in_sample"]:
+        out.append(
+            f"  in-sample {s['pair']}: x = A^-1 dR = {s['x_m'][0] / MM:.2f} / {s['x_m'][1] / MM:.2f} mm, "
+            f"common {s['common_m'] / MM:.2f} mm"
+        )
+    disc = result.run.surrogate.discrepancy
+    if disc is not None:
+        out.append(
+            f"  discrepancy beyond the calibrated settlements ({disc.low_m[0] / MM:.0f}.."
+            f"{disc.high_m[0] / MM:.0f} / {disc.low_m[1] / MM:.0f}..{disc.high_m[1] / MM:.0f} mm): "
+            f"{100 * disc.relative_sd:.0f} % "
+            f"(1 sd) of the distance beyond, correlation {disc.correlation:.1f} between the supports"
+        )
+    return out
+
+
+def _sensitivity_lines(result: CalibrationResult) -> list[str]:
+    """Which explanation wins under each prior set (--prior-sensitivity)."""
+    rows = result.extra.get("prior_sensitivity")
+    if not rows:
+        return []
+    out = ["", "prior sensitivity (which explanation wins under each defensible prior):"]
+    for r in rows:
+        mark = " (in use)" if r["in_use"] else ""
+        best3 = ", ".join(
+            f"{e['name']} {e['delta_log_evidence']:+.2f} ({e['probability']:.2f})"
+            for e in r["explanations"][:4]
+        )
+        avg = r["model_average"]
+        kc, kd = avg["common_stiffness_n_per_m"], avg["differential_stiffness_n_per_m"]
+        x = avg["in_sample"][0]["x_m"] if avg["in_sample"] else [float("nan")] * 2
+        out.append(f"  {r['prior_set']}{mark}: winner {r['winner']}; {best3}")
+        out.append(
+            f"    average: common {kc[0] / 1e6:.2f} / {kc[1] / 1e6:.2f} kN/mm, differential {kd / 1e6:.2f} "
+            f"kN/mm, in-sample x {x[0] / MM:.2f} / {x[1] / MM:.2f} mm  [{r['description']}]"
+        )
+    return out
 
 
 def _save(fig: Any, path: Path) -> Path:

@@ -2,17 +2,33 @@
 
 Steps (each its own module): read the records and measure the car-free change of each pair with
 its covariance (:mod:`.change`); fit every candidate explanation (:mod:`.explain`: projected
-Levenberg-Marquardt with FE re-solves and adjoint sensitivities, Laplace posterior and evidence);
-choose one (the best evidence unless the file names one); re-solve the FE model at its MAP with the
-support springs in the FE itself and write the calibrated surrogate with its sensitivities,
-``model_uncertainty`` (the parameter posterior propagated to ``[A, u0]``) and provenance.
+Levenberg-Marquardt with FE re-solves and adjoint sensitivities, Laplace posterior and evidence,
+priors and plausible ranges from :mod:`bridge_shadow.model.parameters`); combine them:
+
+- ``choose: average`` (the default): Bayesian model averaging. Each explanation's weight is its
+  posterior probability ``w_k ~ exp(log Z_k)`` (equal prior odds); the surrogate's ``A``, ``u0`` and
+  thermal cases are the weighted means of the explanations' MAP surrogates, and
+  ``model_uncertainty`` their total covariance ``sum_k w_k (C_k + (m_k - m)(m_k - m)')`` (each
+  one's posterior spread plus the spread between them), so that the surrogate does not hinge on
+  one explanation, nor on where one prior is centred;
+- ``choose: best`` or a name: that one explanation, with its own posterior as the uncertainty.
+
+The FE model is re-solved at the MAP of the most probable explanation (with the support springs
+in the FE itself) for the sensitivities the gap diagnosis reads. ``u0`` stays the as-built FE's:
+a pair of records measures changes, not the dead-load reactions, and the supports were set under
+the dead load, which the precast deck put on the steel girders before the joints and connectors
+the explanations soften took part (so their FE ``u0`` at the MAP enters as an uncertainty, the
+second moment of ``u0`` about the as-built value). The surrogate also carries a
+model ``discrepancy`` beyond the calibrated settlements (``model.surrogate_file.Discrepancy``).
+``prior_sensitivity`` refits the explanations under every prior set of
+``model.parameters.PRIOR_SETS`` and says which explanation wins under each.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -23,17 +39,30 @@ import numpy as np
 from bridge_shadow import __version__
 from bridge_shadow.calibrate.change import MeasuredChange, RecordLevel, measured_change, record_level
 from bridge_shadow.calibrate.errors import CalibrationError
-from bridge_shadow.calibrate.explain import Explanation, common_and_differential, fit_explanation
-from bridge_shadow.calibrate.forward import SolutionStore
+from bridge_shadow.calibrate.explain import (
+    Explanation,
+    common_and_differential,
+    fit_explanation,
+    in_sample_readings,
+)
+from bridge_shadow.calibrate.forward import ForwardModel, SolutionStore
 from bridge_shadow.calibrate.problem import PairData
 from bridge_shadow.calibrate.records import load_record
 from bridge_shadow.calibrate.spec import CalibrationSpec
 from bridge_shadow.engine import Mapper
 from bridge_shadow.model.config import BridgeConfig, load_bridge_config
+from bridge_shadow.model.parameters import PRIOR_SETS, Parameter, prior_table
 from bridge_shadow.model.surrogate import SENSITIVITY_PARAMETERS, SurrogateRun, compute_surrogate
-from bridge_shadow.model.surrogate_file import MODEL_UNCERTAINTY_ORDER
+from bridge_shadow.model.surrogate_file import MODEL_UNCERTAINTY_ORDER_FULL, THERMAL_CASES, Discrepancy
 
-__all__ = ["CalibrationResult", "calibrate", "measure_pairs"]
+__all__ = [
+    "CalibrationResult",
+    "calibrate",
+    "evidence_weights",
+    "measure_pairs",
+    "model_average",
+    "prior_sensitivity",
+]
 
 Progress = Callable[[float, str], None]
 
@@ -72,21 +101,17 @@ class CalibrationResult:
         return sorted(rows, key=lambda r: -r["log_evidence"])
 
     def mixture_cov(self) -> np.ndarray:
-        """(6, 6) second moment of ``[A, u0]`` about the chosen values over all explanations.
+        """(12, 12) second moment of the model vector about the chosen one's over all explanations.
 
         Evidence-weighted: ``sum_k w_k (C_k + (m_k - m*)(m_k - m*)')``, so the spread between
         explanations (which the data cannot tell apart) is in it, not only each one's posterior.
         """
-        chosen = self.explanations[self.chosen].evaluation
-        m_star = np.concatenate([chosen.A.ravel(), chosen.u0])
-        logz = np.array([e.post.log_evidence for e in self.explanations.values()])
-        w = np.exp(logz - logz.max())
-        w /= w.sum()
-        out = np.zeros((6, 6))
-        for wi, e in zip(w, self.explanations.values(), strict=True):
-            d = np.concatenate([e.evaluation.A.ravel(), e.evaluation.u0]) - m_star
-            out += wi * (e.model_cov() + np.outer(d, d))
-        return 0.5 * (out + out.T)
+        m_star = self.explanations[self.chosen].model_vector()
+        return model_average(self.explanations, about=m_star)[1]
+
+    def weights(self) -> dict[str, float]:
+        """Posterior probability of each explanation (equal prior odds)."""
+        return evidence_weights(self.explanations)
 
     def to_dict(self) -> dict[str, Any]:
         """Return the ``--json`` object (SI): surrogate, measured changes, evidence table, posterior."""
@@ -95,14 +120,21 @@ class CalibrationResult:
         return {
             "surrogate": doc,
             "chosen": self.chosen,
+            "written": "model average" if self.spec.choose == "average" else self.chosen,
+            "model_average": self.extra.get("model_average"),
+            "prior_sensitivity": self.extra.get("prior_sensitivity"),
             "measured": {p.name: p.change.to_dict() for p in self.pairs},
             "explanations": self.table(),
             "identifiability": chosen.identifiability(),
-            "in_sample": chosen.in_sample(),
+            "in_sample": self.written_in_sample(),
             "reference": self._reference_dict(),
             "fe_solves": self.store.solves,
             "seconds": self.seconds,
         }
+
+    def written_in_sample(self) -> list[dict[str, Any]]:
+        """Per pair: ``x = A^-1 dR`` (m) through the written surrogate against the imposed settlement."""
+        return in_sample_readings(self.run.surrogate.A, self.pairs)
 
     def _reference_dict(self) -> dict[str, Any] | None:
         if self.reference_n is None:
@@ -132,18 +164,128 @@ def measure_pairs(spec: CalibrationSpec, report: Progress | None = None) -> list
 
 
 def _choose(spec: CalibrationSpec, explanations: dict[str, Explanation]) -> str:
-    if spec.choose != "best":
+    """Return the explanation the FE is re-solved at: the named one, else the most probable."""
+    if spec.choose not in ("best", "average"):
         return spec.choose
     return max(explanations, key=lambda k: explanations[k].post.log_evidence)
 
 
 def _fit_alone(
-    name: str, spec: CalibrationSpec, cfg: BridgeConfig, pairs: list[PairData]
+    name: str,
+    spec: CalibrationSpec,
+    cfg: BridgeConfig,
+    pairs: list[PairData],
+    priors: Mapping[str, Parameter] | None = None,
 ) -> tuple[Explanation, int, float]:
     """Fit one explanation with FE solves of its own; return it and its solves and their seconds."""
     store = SolutionStore()
-    fit = fit_explanation(name, spec.explanations[name], cfg, spec.mesh, pairs, store)
+    fit = fit_explanation(name, spec.explanations[name], cfg, spec.mesh, pairs, store, priors=priors)
     return fit, store.solves, store.seconds
+
+
+def evidence_weights(explanations: dict[str, Explanation]) -> dict[str, float]:
+    """Posterior probability of each explanation from its Laplace evidence (equal prior odds)."""
+    logz = np.array([e.post.log_evidence for e in explanations.values()])
+    w = np.exp(logz - logz.max())
+    return dict(zip(explanations, (w / w.sum()).tolist(), strict=True))
+
+
+def model_average(
+    explanations: dict[str, Explanation], about: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bayesian model average of the explanations' surrogates: mean (12,) and covariance (12, 12).
+
+    ``m = sum_k w_k m_k`` and ``C = sum_k w_k (C_k + (m_k - c)(m_k - c)')`` with ``c = m`` (the
+    total covariance of the mixture) or ``about`` (its second moment about another point). Model
+    vectors in ``MODEL_UNCERTAINTY_ORDER_FULL`` order.
+    """
+    w = evidence_weights(explanations)
+    vecs = {k: e.model_vector() for k, e in explanations.items()}
+    mean = sum(w[k] * vecs[k] for k in explanations)
+    centre = mean if about is None else np.asarray(about, float)
+    cov = np.zeros((12, 12))
+    for k, e in explanations.items():
+        d = vecs[k] - centre
+        cov += w[k] * (e.model_cov() + np.outer(d, d))
+    return np.asarray(mean, float), 0.5 * (cov + cov.T)
+
+
+def _average_summary(
+    explanations: dict[str, Explanation], pairs: list[PairData], mean: np.ndarray, cov: np.ndarray
+) -> dict[str, Any]:
+    """Summarize the model average: weights, A, common/differential stiffness, in-sample readings."""
+    a = 0.5 * (mean[:4].reshape(2, 2) + mean[:4].reshape(2, 2).T)
+    common, diff = common_and_differential(a)
+    sd = np.sqrt(np.diag(cov))
+    in_sample = []
+    for pr in pairs:
+        x = np.linalg.solve(a, pr.change.dR_n)
+        in_sample.append({"pair": pr.name, "x_m": x.tolist(), "common_m": float(x.mean())})
+    return {
+        "weights": evidence_weights(explanations),
+        "A": a.tolist(),
+        "u0": mean[4:6].tolist(),
+        "thermal": {c: mean[6 + 2 * i : 8 + 2 * i].tolist() for i, c in enumerate(THERMAL_CASES)},
+        "sd": dict(zip(MODEL_UNCERTAINTY_ORDER_FULL, sd.tolist(), strict=True)),
+        "common_stiffness_n_per_m": common.tolist(),
+        "differential_stiffness_n_per_m": diff,
+        "in_sample": in_sample,
+    }
+
+
+def prior_sensitivity(
+    spec: CalibrationSpec,
+    cfg: BridgeConfig,
+    pairs: list[PairData],
+    fitted: dict[str, Explanation],
+    store: SolutionStore,
+    report: Progress | None = None,
+) -> list[dict[str, Any]]:
+    """Which explanation wins under each prior set of ``PRIOR_SETS`` (the one in use included).
+
+    Explanations whose parameters a set leaves unchanged keep their fit; the others are refitted
+    under the set's priors. Per set: the evidence table (log Z, probability), the winner, and what
+    the model average of that set says (common and differential stiffness, in-sample readings).
+    """
+    out = []
+    sets = list(PRIOR_SETS)
+    for j, name in enumerate(sets):
+        if report is not None:
+            report(j / len(sets), f"prior set {name}")
+        prior = PRIOR_SETS[name]
+        table = prior_table(name)
+        exps: dict[str, Explanation] = {}
+        for ename, e in fitted.items():
+            touched = prior.widen != 1.0 or any(n in prior.changes for n in e.names)
+            if name == spec.priors or not touched:
+                exps[ename] = e
+            else:
+                exps[ename] = fit_explanation(
+                    ename, e.names, cfg, spec.mesh, pairs, store, heldout=False, priors=table
+                )
+        w = evidence_weights(exps)
+        best = max(exps, key=lambda k: exps[k].post.log_evidence)
+        top = exps[best].post.log_evidence
+        mean, cov = model_average(exps)
+        out.append(
+            {
+                "prior_set": name,
+                "description": prior.description,
+                "in_use": name == spec.priors,
+                "winner": best,
+                "explanations": [
+                    {
+                        "name": k,
+                        "log_evidence": e.post.log_evidence,
+                        "delta_log_evidence": e.post.log_evidence - top,
+                        "probability": w[k],
+                    }
+                    for k, e in sorted(exps.items(), key=lambda kv: -kv[1].post.log_evidence)
+                ],
+                "model_average": _average_summary(exps, pairs, mean, cov),
+            }
+        )
+    return out
 
 
 def calibrate(
@@ -153,6 +295,8 @@ def calibrate(
     only: list[str] | None = None,
     report: Progress | None = None,
     mapper: Mapper | None = None,
+    sensitivity: bool = False,
+    sweeps: bool = False,
 ) -> CalibrationResult:
     """Run the calibration described by ``spec`` (see the module docstring).
 
@@ -165,6 +309,8 @@ def calibrate(
             in parallel on Dask); each then has FE solves of its own (no solution is shared
             between explanations, so more solves, the same fits). Default: one after the other,
             sharing solves.
+        sensitivity: also refit under every prior set (``prior_sensitivity``; minutes more).
+        sweeps: write parameter sweeps into the surrogate (``model.sweeps``; ~20 FE solves).
 
     """
     t0 = time.perf_counter()
@@ -175,8 +321,9 @@ def calibrate(
         raise CalibrationError(
             f"unknown explanation(s) {', '.join(unknown)}; have {', '.join(spec.explanations)}"
         )
-    if spec.choose != "best" and spec.choose not in names:
+    if spec.choose not in ("best", "average") and spec.choose not in names:
         names.append(spec.choose)
+    table = prior_table(spec.priors)
 
     def tick(frac: float, label: str) -> None:
         if report is not None:
@@ -190,26 +337,50 @@ def calibrate(
     store = SolutionStore()
     explanations: dict[str, Explanation] = {}
     if mapper is None:
+        span = 0.6 if sensitivity else 0.85
         for i, name in enumerate(names):
-            tick(0.05 + 0.85 * i / len(names), f"explanation {name}")
-            explanations[name] = fit_explanation(name, spec.explanations[name], cfg, spec.mesh, pairs, store)
+            tick(0.05 + span * i / len(names), f"explanation {name}")
+            explanations[name] = fit_explanation(
+                name, spec.explanations[name], cfg, spec.mesh, pairs, store, priors=table
+            )
     else:
         tick(0.05, f"{len(names)} explanations")
-        for name, (fit, solves, seconds) in zip(
-            names, mapper(partial(_fit_alone, spec=spec, cfg=cfg, pairs=pairs), names), strict=True
-        ):
+        fit_one = partial(_fit_alone, spec=spec, cfg=cfg, pairs=pairs, priors=table)
+        for name, (fit, solves, seconds) in zip(names, mapper(fit_one, names), strict=True):
             explanations[name] = fit
             store.solves += solves
             store.seconds += seconds
     chosen_name = _choose(spec, explanations)
     chosen = explanations[chosen_name]
+    extra: dict[str, Any] = {}
+    if sensitivity:
+        extra["prior_sensitivity"] = prior_sensitivity(
+            spec, cfg, pairs, explanations, store, lambda f, s: tick(0.65 + 0.25 * f, s)
+        )
     tick(0.92, f"surrogate at the MAP of {chosen_name}")
     cfg_map = cfg.with_overrides(chosen.values())
     sens_names = tuple(dict.fromkeys([*chosen.names, *SENSITIVITY_PARAMETERS]))
-    run = compute_surrogate(cfg_map, spec.mesh, names=sens_names)
-    run.surrogate.model_cov = chosen.model_cov() if chosen.names else None
+    run = compute_surrogate(cfg_map, spec.mesh, names=sens_names, sweeps=sweeps)
+    mean, cov = model_average(explanations)
+    extra["model_average"] = _average_summary(explanations, pairs, mean, cov)
+    sur = run.surrogate
+    u0_built = ForwardModel(cfg, spec.mesh, (), store).evaluate({}, derivatives=False).u0
+    if spec.choose == "average":
+        a = mean[:4].reshape(2, 2)
+        sur.A = 0.5 * (a + a.T)
+        sur.thermal = {c: mean[6 + 2 * i : 8 + 2 * i].copy() for i, c in enumerate(THERMAL_CASES)}
+        u0_mean = mean[4:6]
+    else:
+        cov = chosen.model_cov() if chosen.names else np.zeros((12, 12))
+        u0_mean = sur.u0
+    shift = np.asarray(u0_mean, float) - u0_built  # u0 as built; what moved it, as an uncertainty
+    cov = cov.copy()
+    cov[4:6, 4:6] += np.outer(shift, shift)
+    sur.u0 = u0_built.copy()
+    sur.model_cov = cov
+    sur.discrepancy = Discrepancy.from_steps(np.array([p.imposed_m for p in pairs]))
     result = CalibrationResult(
-        spec, pairs, ref_level, ref_n, explanations, chosen_name, run, store, time.perf_counter() - t0
+        spec, pairs, ref_level, ref_n, explanations, chosen_name, run, store, time.perf_counter() - t0, extra
     )
     _provenance(result, cfg)
     tick(1.0, "done")
@@ -221,8 +392,9 @@ def _provenance(result: CalibrationResult, cfg: BridgeConfig) -> None:
     spec, chosen = result.spec, result.explanations[result.chosen]
     row = next(r for r in result.table() if r["name"] == result.chosen)
     p = chosen.problem.p
-    log_mean = chosen.problem.mu + chosen.problem.sigma * chosen.post.mean[:p]
-    log_cov = chosen.post.truncated_cov()[:p, :p] * np.outer(chosen.problem.sigma, chosen.problem.sigma)
+    scale = chosen.problem.scale(chosen.lm.x)  # linearized at the MAP (split-normal priors)
+    log_mean = chosen.problem.log_values(chosen.post.mean)
+    log_cov = chosen.post.truncated_cov()[:p, :p] * np.outer(scale, scale)
     mix = result.mixture_cov()
     common, diff = common_and_differential(result.run.surrogate.A)
     prov = result.run.surrogate.provenance
@@ -246,15 +418,32 @@ def _provenance(result: CalibrationResult, cfg: BridgeConfig) -> None:
         ],
         "baseline_change": spec.baseline_change,
         "chosen_explanation": result.chosen,
-        "choice_rule": "highest Laplace evidence"
-        if spec.choose == "best"
-        else "named in the calibration file",
+        "choice_rule": {
+            "average": "model average over the explanations by their evidence (A, u0, thermal and "
+            "model_uncertainty); the FE sensitivities at the MAP of the chosen (most probable) one",
+            "best": "highest Laplace evidence",
+        }.get(spec.choose, "named in the calibration file"),
+        "priors": spec.priors,
+        "model_average": result.extra.get("model_average"),
+        "prior_sensitivity": [
+            {k: v for k, v in row.items() if k != "model_average"}
+            | {"common_stiffness_n_per_m": row["model_average"]["common_stiffness_n_per_m"],
+               "differential_stiffness_n_per_m": row["model_average"]["differential_stiffness_n_per_m"]}
+            for row in result.extra.get("prior_sensitivity") or []
+        ]
+        or None,
         "parameters": row["map"],
         "posterior_log_mean": dict(zip(chosen.names, log_mean.tolist(), strict=True)),
         "posterior_log_cov": log_cov.tolist(),
         "imposed_error_m": row["imposed_error_m"],
         "identifiability": chosen.identifiability(),
-        "in_sample": chosen.in_sample(),
+        "in_sample": result.written_in_sample(),
+        "chosen_in_sample": chosen.in_sample(),
+        "fe_solution_at_chosen_map": {
+            "A": result.run.base.A.tolist(),
+            "u0": result.run.base.u0.tolist(),
+            "thermal": {k: v.tolist() for k, v in result.run.base.thermal.items()},
+        },
         "common_stiffness_n_per_m": common.tolist(),
         "differential_stiffness_n_per_m": diff,
         "evidence_table": [
@@ -280,9 +469,11 @@ def _provenance(result: CalibrationResult, cfg: BridgeConfig) -> None:
             for r in result.table()
         ],
         "model_uncertainty_note": (
-            "model_uncertainty is the chosen explanation's parameter posterior propagated to "
-            f"{list(MODEL_UNCERTAINTY_ORDER)}; model_uncertainty_across_explanations adds the "
-            "evidence-weighted spread between the explanations (which the data cannot tell apart)"
+            f"model_uncertainty is the covariance of {list(MODEL_UNCERTAINTY_ORDER_FULL)}: with choose "
+            "'average' the model average's (each explanation's parameter posterior propagated to the "
+            "surrogate plus the spread between the explanations, weighted by their evidence), else "
+            "the chosen explanation's own; model_uncertainty_across_explanations is the same "
+            "mixture's second moment about the chosen explanation's MAP"
         ),
         "model_uncertainty_across_explanations": mix.tolist(),
         "reference": result._reference_dict(),

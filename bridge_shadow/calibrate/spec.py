@@ -16,7 +16,9 @@ Keys (SI units)::
       record: [FILE, ...]               # or reactions_n: [south, north]
     explanations:                       # optional: name -> parameter list (or "all"); default below
       support_springs: [support_spring_south, support_spring_north]
-    choose: best                        # the explanation written to the surrogate: best evidence, or a name
+    choose: average                     # written to the surrogate: the model average over the
+                                        # explanations by evidence, the best one, or a name
+    priors: sources                     # prior set (bridge_shadow.model.parameters.PRIOR_SETS)
 
 Relative paths resolve against the file's directory, then the shared data directory. Every key
 is checked: an unknown one is an error with the key meant (``keys.check_keys``), and each number
@@ -41,7 +43,7 @@ from bridge_shadow.errors import ConfigError
 from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
 from bridge_shadow.keys import check_keys
 from bridge_shadow.model.config import MESH_LEVELS
-from bridge_shadow.model.parameters import PARAMETERS
+from bridge_shadow.model.parameters import PARAMETERS, PRIOR_SETS
 
 __all__ = [
     "DEFAULT_EXPLANATIONS",
@@ -91,7 +93,7 @@ class CalibrationSpec:
     """A parsed calibration file (see the module docstring).
 
     Attributes:
-        pairs, mesh, baseline_change, window_s, explanations, choose: as in the file.
+        pairs, mesh, baseline_change, window_s, explanations, choose, priors: as in the file.
         reference_name, reference_record, reference_reactions_n: the optional reference record
             (paths) or reactions (2,) N.
         base_dir: where relative paths start. path, sha256: the file (None when built in code).
@@ -103,7 +105,8 @@ class CalibrationSpec:
     baseline_change: str = "uncertainty"
     window_s: float = 10.0
     explanations: dict[str, tuple[str, ...]] = field(default_factory=lambda: dict(DEFAULT_EXPLANATIONS))
-    choose: str = "best"
+    choose: str = "average"
+    priors: str = "sources"
     reference_name: str = ""
     reference_record: list[str] = field(default_factory=list)
     reference_reactions_n: np.ndarray | None = None
@@ -127,8 +130,12 @@ class CalibrationSpec:
                     f"explanation {name}: unknown parameter(s) {', '.join(unknown)}; "
                     f"known: {', '.join(PARAMETERS)}"
                 )
-        if self.choose != "best" and self.choose not in self.explanations:
-            raise CalibrationError(f"choose: {self.choose!r} is neither 'best' nor an explanation name")
+        if self.choose not in ("best", "average") and self.choose not in self.explanations:
+            raise CalibrationError(
+                f"choose: {self.choose!r} is neither 'average', 'best' nor an explanation name"
+            )
+        if self.priors not in PRIOR_SETS:
+            raise CalibrationError(f"priors: {self.priors!r} is not a prior set ({', '.join(PRIOR_SETS)})")
         names = [p.name for p in self.pairs]
         if len(set(names)) != len(names):
             raise CalibrationError(f"pair names must be unique, got {names}")
@@ -209,7 +216,8 @@ def spec_from_dict(data: Mapping[str, Any], base_dir: Path | None = None) -> Cal
         baseline_change=str(data.get("baseline_change", "uncertainty")),
         window_s=_checked("window_s", data.get("window_s", 10.0), "float", "calibration_window_s"),
         explanations=_explanations(data.get("explanations")),
-        choose=str(data.get("choose", "best")),
+        choose=str(data.get("choose", "average")),
+        priors=str(data.get("priors", "sources")),
         reference_name=str(ref.get("name", "reference")) if ref else "",
         reference_record=_paths(ref["record"], "reference.record") if "record" in ref else [],
         reference_reactions_n=_vec2(ref["reactions_n"], "reference.reactions_n", "reactions_n")

@@ -24,6 +24,18 @@ change A as well as u0 and the thermal response. Without a known settlement only
 thermal parts show: the reactions fix A x, not x. Give a known imposed settlement (a lowering of
 the supports) with --imposed to let them act on A x.
 
+A day of records (a load-test day: short records hours apart, less than two days of data): each
+record is held out in turn for what happens inside the records, and the records' levels are
+read pair by pair across every gap (`levels`): at a gap with an imposed step the model-form
+effects are fitted to the response with the calibration's machinery (priors and plausible ranges
+of bridge_shadow/model/parameters.py, Laplace evidence; the surrogate's parameter sweeps, no FE
+solve) against the imposed step within the jacks' accuracy (--imposed-sd); at the other gaps
+the settlement steps the shadow estimates. The named effect goes into the model for `after`.
+
+--out-surrogate FILE writes the model with the named effects added (for `replay --surrogate`
+and the node's surrogate_path), with its uncertainty and a discrepancy beyond the settlements
+it was fitted on.
+
 `best` is `none` when no candidate beats the chance level of AR(1) noise. The diagnosis never
 reads a twin's ground-truth file. JSON output is SI (N, m, s, C)."""
 
@@ -59,6 +71,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="also run the shadow with each model-form effect the data cannot tell from a named one "
         "standing in for it (one more replay each, at most two)",
+    )
+    parser.add_argument(
+        "--imposed-sd",
+        type=float,
+        default=None,
+        metavar="M",
+        help="accuracy of an imposed step, 1 sd per bearing, m (default 0.0005: the jacks, as in "
+        "config/calibration.yaml)",
+    )
+    parser.add_argument(
+        "--out-surrogate",
+        metavar="YAML",
+        help="write the model with the named effects added here (usable by replay and the node)",
+    )
+    parser.add_argument(
+        "--force", action="store_true", help="replace an existing surrogate file at --out-surrogate"
     )
     parser.add_argument("--window", type=float, default=60.0, metavar="S", help="window length in s (60)")
 
@@ -114,6 +142,10 @@ def _mm(x: list[float]) -> str:
 def _fmt_params(params: dict[str, Any]) -> str:
     parts = []
     for k, v in params.items():
+        if k == "steps":
+            if len(v) > 1:
+                parts.append(f"{len(v)} steps (levels below)")
+            continue
         if isinstance(v, float):
             parts.append(f"{k.split(' ')[0]} {v:.4g}")
         elif v is None:
@@ -125,6 +157,46 @@ def _fmt_params(params: dict[str, Any]) -> str:
         else:
             parts.append(f"{k.split(' ')[0]} {v}")
     return ", ".join(parts)
+
+
+def _levels_lines(levels: dict | None) -> list[str]:
+    """Describe the levels of a day of records (kN, mm)."""
+    if not levels:
+        return []
+    import datetime as dt
+
+    def hhmm(ns: int) -> str:
+        from zoneinfo import ZoneInfo
+
+        return dt.datetime.fromtimestamp(ns / 1e9, ZoneInfo("Europe/Berlin")).strftime("%H:%M")
+
+    lines = ["", f"levels of the {len(levels['records'])} records (car-free levels, test car left out):"]
+    for p in levels["pairs"]:
+        imp = p["imposed_m"]
+        what = f"imposed {_mm(imp)} mm" if imp is not None else "no step given"
+        lines.append(
+            f"  {p['name']}: dR = {p['dR_n'][0] / 1e3:+.2f} +- {p['dR_sd_n'][0] / 1e3:.2f} / "
+            f"{p['dR_n'][1] / 1e3:+.2f} +- {p['dR_sd_n'][1] / 1e3:.2f} kN over "
+            f"{p['hours_between']:.1f} h; {what}"
+        )
+    for note in levels["not_measured"]:
+        lines.append(f"  {note}")
+    imp = levels.get("imposed")
+    if imp:
+        lines.append(f"  the imposed steps explained by ({imp['validation']}):")
+        for r in imp["explanations"]:
+            params = ", ".join(f"{k} {v:.3g}" for k, v in r["parameters"].items()) or "as given"
+            lines.append(
+                f"    {r['effect']:<21} P {r['probability']:.2f}  "
+                f"dlogZ {r['delta_log_evidence']:7.2f}  {params}"
+            )
+    for st in levels["steps_between_records"]:
+        mark = "step" if st["significant"] else "no significant step"
+        lines.append(
+            f"  between records at {hhmm(st['at_ns'])}: {_mm(st['x_m'])} mm "
+            f"(+-{1.96e3 * st['sigma_m'][0]:.2f} / {1.96e3 * st['sigma_m'][1]:.2f}): {mark}"
+        )
+    return lines
 
 
 def _human(summary: dict) -> str:
@@ -148,6 +220,7 @@ def _human(summary: dict) -> str:
                     f"    its size depends on A: with support springs of {k:.3g} N/m (the soft end of their "
                     f"plausible range) the same reactions mean {xs:+.3f} / {xn:+.3f} {unit}"
                 )
+    lines += _levels_lines(summary.get("levels"))
     if summary["rejected_implausible"]:
         lines += ["", "rejected as implausible (the data would take them only outside the plausible range):"]
         for r in summary["rejected_implausible"]:
@@ -186,17 +259,27 @@ def _human(summary: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Read the bag, diagnose, print, and write the report."""
+    import math
+    import sys
+
     from bridge_shadow.bagio import read_monitoring
     from bridge_shadow.commands.output import emit_json, require_finite
+    from bridge_shadow.errors import InputError
     from bridge_shadow.estimate.param_specs import SPECS, check_value
     from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.gap.diagnose import diagnose
     from bridge_shadow.gap.posterior import shadow_config
-    from bridge_shadow.model.surrogate_file import load_surrogate
+    from bridge_shadow.gap.records import IMPOSED_SD_M
+    from bridge_shadow.model.surrogate_file import load_surrogate, save_surrogate, surrogate_target
 
     check_value("--window", args.window, "float", SPECS["window_s"])  # the shadow's window_s range
+    imposed_sd = IMPOSED_SD_M if args.imposed_sd is None else args.imposed_sd
+    if not (imposed_sd > 0 and math.isfinite(imposed_sd)):
+        raise InputError("--imposed-sd must be a positive, finite number of metres (jacks are never exact)")
     if args.report:
         check_output_dir(args.report, "--report directory")  # before the work
+    if args.out_surrogate:
+        surrogate_target(args.out_surrogate, create=False, force=args.force)
     config = shadow_config(args.params, args.surrogate)
     surrogate = load_surrogate(config.surrogate_path or None)
     data = read_monitoring(args.bag, topics=config.input_topics())
@@ -209,6 +292,7 @@ def run(args: argparse.Namespace) -> int:
         width_s=args.window,
         holdout_days=args.holdout_days,
         imposed=imposed,
+        imposed_sd_m=imposed_sd,
         shadow=True,
         shadow_config=config,
         alternatives=args.alternatives,
@@ -223,6 +307,16 @@ def run(args: argparse.Namespace) -> int:
         )
     summary["bag"] = str(args.bag)
     summary["surrogate_file"] = config.surrogate_path or "config/surrogate.yaml"
+    if args.out_surrogate:
+        after = dg.surrogate_after if dg.surrogate_after is not None else surrogate
+        header = (
+            f"Written by `bridge-shadow gap {args.bag} --out-surrogate`: the model in use\n"
+            f"({summary['surrogate_file']}) with the named effects added: "
+            f"{', '.join(summary['posterior'].get('after', {}).get('effects_added', [])) or 'none'}.\n"
+            "Units: A N/m, u0 N, thermal N/K; model_uncertainty covariance of [A, u0, thermal]."
+        )
+        written = save_surrogate(after, args.out_surrogate, header=header, force=args.force)
+        summary["surrogate_written"] = str(written)
     if args.report:
         from bridge_shadow.gap.report import write_report
 
@@ -233,4 +327,6 @@ def run(args: argparse.Namespace) -> int:
         print(_human(summary))
         if args.report:
             print(f"report: {summary['report']}")
+        if args.out_surrogate:
+            print(f"wrote {summary['surrogate_written']}", file=sys.stderr)
     return 0

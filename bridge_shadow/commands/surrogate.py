@@ -16,6 +16,9 @@ Builds the parametric FE model of the test bridge from config/bridge.yaml and co
   sensitivities  change of A, u0, thermal per unit relative change of bearing_stiffness,
            connector_stiffness, support_spring_south/north and slab_joint_opening (adjoint:
            U^T dK U, no extra solve; a support spring at .inf gets its per-compliance form)
+  sweeps   A, u0, thermal FE-solved at 7-8 values over the plausible range of bearing_stiffness,
+           connector_stiffness and slab_joint_opening (with --out; --no-sweeps skips them): what
+           the gap diagnosis fits a large stiffness change with
 and prints them with provenance (model sha256, overrides, mesh, DOFs, solver, seconds). Nothing is
 written without --out: config/surrogate.yaml is the calibrated model of the real bridge
 (`bridge-shadow calibrate`), config/surrogate_fe.yaml the uncalibrated FE surrogate of the
@@ -51,6 +54,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--vtk", type=Path, default=None, metavar="DIR", help="write mesh + deflected shapes")
     parser.add_argument("--png", type=Path, default=None, help="write a 3D view of the model")
     parser.add_argument("--no-sensitivities", action="store_true", help="skip the stiffness sensitivities")
+    parser.add_argument(
+        "--no-sweeps", action="store_true", help="skip the parameter sweeps (about 20 FE solves, with --out)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
@@ -91,7 +97,11 @@ def run(args: argparse.Namespace) -> int:
     if args.vtk is not None:
         check_output_dir(args.vtk, "VTK directory")
     run_ = compute_surrogate(
-        cfg, args.mesh, sensitivities=not args.no_sensitivities, report=lambda f, s: progress(f, "surrogate")
+        cfg,
+        args.mesh,
+        sensitivities=not args.no_sensitivities,
+        report=lambda f, s: progress(f, "surrogate"),
+        sweeps=args.out is not None and not args.no_sweeps,
     )
     out = args.out
     if out is not None:

@@ -10,7 +10,9 @@ plausible ranges; model-form effects act on the whole response), ``spring`` (the
 exact closed form, bounded nonlinear fit), ``fit`` (bounded least squares, whole-day
 cross-validation, AR(1) noise, chance level), ``where`` (the breakdown of the residual),
 ``posterior`` (the shadow's settlements before/after adding the named effects, from the same
-``Shadow`` pipeline as ``replay``), ``diagnose``.
+``Shadow`` pipeline as ``replay``), ``levels`` (a day of records: the level changes across its
+gaps, the response to known imposed steps explained with the calibration's machinery),
+``diagnose``.
 """
 
 from bridge_shadow.gap.candidates import CANDIDATES, Candidate

@@ -10,9 +10,13 @@ Model-form candidates change the whole response of the baseline model
 ``B(t) = u0 + A x_k(t) + thermal_uniform dT(t)``, where ``x_k`` is the settlement known
 independently of the reactions (an imposed one, ``gap --imposed``; zero otherwise):
 
-- ``bearing_stiffness``, ``connector_stiffness``, ``slab_joint_opening``: first order in the
-  relative change ``r``, ``dA x_k + du0 + dthermal_uniform dT`` per unit ``r`` (FE sensitivities of
-  the surrogate file, else the closed-form placeholder);
+- ``bearing_stiffness``, ``connector_stiffness``, ``slab_joint_opening``: linear in the relative
+  change ``r``: with the surrogate file's parameter sweeps (``model.sweeps``) the *secant* from the
+  built value to each solved value ``v_g`` (``r_g = v_g / v_0 - 1``) is one grid alternative,
+  ``(dA x_k + du0 + dthermal_uniform dT) / r_g`` with ``dA``, ``du0``, ``dthermal`` the exact FE
+  changes, so a fit near ``r_g`` is the FE's own response however far from the built value;
+  without sweeps the tangent (FE sensitivities of the file, else the closed-form placeholder),
+  which holds near the built value only;
 - ``support_spring``: exact, ``(M(C) - I) B(t)`` with ``M = (I + A C)^-1`` and
   ``C = diag(1/k_s, 1/k_n)``, a discrete choice of the bearing (south, north or both) and of the
   support's dead-load state (``loaded``: the spring carries the dead load from the nominal level,
@@ -34,7 +38,7 @@ settlement and cannot be told from it. A stiffness change shows where the settle
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -83,6 +87,16 @@ STEP_MIN_WINDOWS = 10
 STEP_MIN_SHARE = 0.05
 
 
+#: Largest relative change the first-order tangent of a stiffness candidate may take beside the
+#: sweep's secants: at |r| = 0.5 the tangents of bearing, connector and slab joint differ from the
+#: FE sweeps by up to about a third (a 2e9 N/m bearing halved: A changes by 1.79 kN/mm, its tangent
+#: says 1.42); beyond, the secants carry the fit.
+FIRST_ORDER_MAX_R = 0.5
+#: How far along its own line a secant of the sweep is used, as a multiple of its ``r_g``: up to
+#: twice the solved change (the next solved value lies within a factor of about 7 in the
+#: parameter, so twice the change stays inside the interval the secant spans or just beyond it).
+SECANT_REACH = 2.0
+
 #: The stiffness sensitivity type (one implementation in :mod:`bridge_shadow.model.sensitivities`).
 Sensitivity = StiffnessSensitivity
 
@@ -116,6 +130,7 @@ class Context:
         t_ns: (n,) window centres, ns.
         width_s: window length, s.
         step_times: window-boundary times (ns) tried by ``settlement_step``.
+        sweeps: parameter -> its sweep (``model.sweeps``; empty: first-order designs only).
 
     """
 
@@ -127,6 +142,15 @@ class Context:
     t_ns: np.ndarray | None = None
     width_s: float = 60.0
     step_times: tuple[int, ...] = ()
+    sweeps: dict[str, Any] = field(default_factory=dict)
+
+    def secant_grid(self, name: str) -> tuple[Any, ...]:
+        """Return the tangent (None) and the relative change ``r_g`` of each solved value of the sweep."""
+        sw = self.sweeps.get(name)
+        if sw is None:
+            return (None,)
+        r = sw.values / sw.built - 1.0
+        return (None, *(float(v) for v in r if abs(v) > 1e-9))
 
     @classmethod
     def build(
@@ -173,6 +197,8 @@ class Candidate:
         bounds: ``ctx -> [(low, high)]`` per linear parameter: its plausible range.
         nonlinear: fitted by :mod:`bridge_shadow.gap.spring` instead of linear least squares.
         data_grid: the grid comes from the record (``ctx.step_times``), not ``grid``.
+        secant_grid: the grid is the relative change of each solved value of the parameter's
+            sweep (``ctx.secant_grid``), when the surrogate has one.
 
     """
 
@@ -186,11 +212,14 @@ class Candidate:
     bounds: Bounds | None = None
     nonlinear: bool = False
     data_grid: bool = False
+    secant_grid: bool = False
 
     def grid_of(self, ctx: Context) -> tuple[Any, ...]:
         """Return the grid of the nonlinear parameter for this record."""
         if self.data_grid:
             return ctx.step_times or (None,)
+        if self.secant_grid:
+            return ctx.secant_grid(self.name)
         return self.grid
 
     @property
@@ -210,10 +239,29 @@ class Candidate:
         alternatives (the drifting channel, the bearing on a spring, the step time).
         """
         pen = len(self.params) * np.log(n_eff)
+        if self.secant_grid and (n_grid or 1) > 1:  # which secant: a discrete choice
+            return float(pen + 2.0 * np.log(n_grid or 1))
         if self.grid_name is not None:
             k = len(self.grid) if n_grid is None else n_grid
             pen += 2.0 * np.log(max(k, 1)) if self.discrete else np.log(n_eff)
         return float(pen)
+
+    def alternative_caps(self, ctx: Context) -> list[tuple[float, float] | None] | None:
+        """Per grid alternative the range of ``r`` it describes: where its design is the FE's response.
+
+        The tangent (None) holds near the built value, ``|r| <= FIRST_ORDER_MAX_R``; the secant to
+        ``r_g`` between the built value and ``r_g`` and as far again (``SECANT_REACH``), so that a
+        secant near the built value does not act as a tangent stretched over decades.
+        """
+        if not self.secant_grid or len(self.grid_of(ctx)) < 2:
+            return None
+        caps: list[tuple[float, float] | None] = []
+        for g in self.grid_of(ctx):
+            if g is None:
+                caps.append((-FIRST_ORDER_MAX_R, FIRST_ORDER_MAX_R))
+            else:
+                caps.append((min(0.0, SECANT_REACH * g), max(0.0, SECANT_REACH * g)))
+        return caps
 
     def plausible_bounds(self, ctx: Context) -> list[tuple[float, float]]:
         """Plausible range per linear parameter (SI); unbounded when the candidate states none."""
@@ -294,16 +342,22 @@ def _thermal_lag(ctx: Context, tau_h: float) -> np.ndarray:
 
 
 def _stiffness(name: str) -> Design:
-    """Whole-response change per unit ``r``: ``dA x_known + du0 + dthermal_uniform dT``."""
+    """Whole-response change per unit ``r``: ``dA x_known + du0 + dthermal_uniform dT``.
 
-    def design(ctx: Context, _: Any) -> np.ndarray:
-        sens = ctx.sensitivities[name]
-        uniform = sens.dthermal.get("uniform", np.zeros(2))
-        x = (
-            ctx.x_known @ sens.dA.T
-            + sens.du0[None, :]
-            + ctx.drivers.dtemp_k[:, None] * uniform[None, :]
-        )
+    At a secant grid value ``r_g`` (the surrogate's sweep) the changes are the FE's from the built
+    value to ``v_0 (1 + r_g)``, divided by ``r_g``; without one (``g`` None) the tangent.
+    """
+
+    def design(ctx: Context, r_g: Any) -> np.ndarray:
+        if r_g is None:
+            sens = ctx.sensitivities[name]
+            da, du0 = sens.dA, sens.du0
+            duni = sens.dthermal.get("uniform", np.zeros(2))
+        else:
+            sw = ctx.sweeps[name]
+            change = sw.change(sw.built * (1.0 + float(r_g)))[0] / float(r_g)
+            da, du0, duni = change[:4].reshape(2, 2), change[4:6], change[6:8]
+        x = ctx.x_known @ da.T + du0[None, :] + ctx.drivers.dtemp_k[:, None] * duni[None, :]
         return x[:, :, None]
 
     return design
@@ -313,7 +367,8 @@ def _relative_bounds(name: str) -> Bounds:
     """Prior range of the FE parameter as ``r`` around the value the surrogate was built with."""
 
     def bounds(ctx: Context) -> list[tuple[float, float]]:
-        value = ctx.sensitivities[name].value
+        sw = ctx.sweeps.get(name)
+        value = sw.built if sw is not None else ctx.sensitivities[name].value
         if value is None:
             return [plausible_range(name)]
         return [PARAMETERS[name].relative_bounds(value)]
@@ -427,6 +482,7 @@ CANDIDATES: tuple[Candidate, ...] = (
         _stiffness("bearing_stiffness"),
         magnitude=lambda p, g: float(p[0]),
         bounds=_relative_bounds("bearing_stiffness"),
+        secant_grid=True,
     ),
     Candidate(
         "connector_stiffness",
@@ -434,6 +490,7 @@ CANDIDATES: tuple[Candidate, ...] = (
         _stiffness("connector_stiffness"),
         magnitude=lambda p, g: float(p[0]),
         bounds=_relative_bounds("connector_stiffness"),
+        secant_grid=True,
     ),
     Candidate(
         "support_spring",
@@ -451,6 +508,7 @@ CANDIDATES: tuple[Candidate, ...] = (
         _stiffness("slab_joint_opening"),
         magnitude=lambda p, g: float(1.0 + p[0]),
         bounds=_relative_bounds("slab_joint_opening"),
+        secant_grid=True,
     ),
     Candidate(
         "sensor_drift",

@@ -16,7 +16,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -43,10 +43,14 @@ from bridge_shadow.gap.fit import (
     folds_of,
 )
 from bridge_shadow.gap.posterior import ModelChange, shadow_posteriors
+from bridge_shadow.gap.records import IMPOSED_SD_M, Record, records_of
 from bridge_shadow.gap.spring import SpringModel, best_spring, cross_validate_spring
 from bridge_shadow.gap.where import where
 from bridge_shadow.gap.windows import NS, Windows, aggregate
 from bridge_shadow.model.surrogate_file import Surrogate, load_surrogate
+
+if TYPE_CHECKING:  # pragma: no cover - the level analysis is imported when a day of records needs it
+    from bridge_shadow.gap.levels import ImposedAnalysis, LevelPair
 from bridge_shadow.series import MonitoringData
 
 __all__ = ["COLLINEAR_COS", "Diagnosis", "baseline_residual", "diagnose", "imposed_path"]
@@ -62,6 +66,10 @@ MIN_WINDOWS = 8
 #: Softest support spring searched when checking plausibility, as a share of the plausible low
 #: end: a data-optimal spring below the plausible range is found and rejected, not cut off.
 SPRING_SEARCH_SHARE = 1e-3
+#: Share of the span from the first to the last record below which the windows with data make a
+#: day of records (a load-test day: 12-minute records hours apart, 0.12 of the span on 2022-04-11,
+#: 0.46 for its first two records alone) rather than a stream with outages (mostly data).
+RECORD_COVERAGE = 0.5
 #: Relative tolerance on a bound before a fit counts as outside it.
 BOUND_RTOL = 1e-6
 
@@ -81,6 +89,8 @@ class Diagnosis:
         cv: candidate name -> its cross-validated fit (inside its plausible range).
         best: the best effect's name or ``"none"``.
         joint_fit: (n, 2) N, all-data fit of the best effect plus those also present (or None).
+        surrogate_after: the model with the named model-form effects added (``--out-surrogate``);
+            the model in use when none is named.
 
     """
 
@@ -92,6 +102,7 @@ class Diagnosis:
     cv: dict[str, CvResult] = field(default_factory=dict)
     best: str = "none"
     joint_fit: np.ndarray | None = None
+    surrogate_after: Surrogate | None = None
 
 
 def imposed_path(t_ns: np.ndarray, width_s: float, steps: Sequence[tuple[int, float, float]]) -> np.ndarray:
@@ -167,21 +178,64 @@ def _params(c: Candidate, beta: np.ndarray, grid_value: Any) -> dict[str, Any]:
     return out
 
 
-class _Fitter:
-    """Cross-validated fits of candidates, alone or added to fixed columns, inside their bounds."""
+def demean_records(x: np.ndarray, record: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Subtract each record's mean from ``x`` (n, 2, ...) per channel, over its windows with data.
 
-    def __init__(self, ctx: Context, resid: np.ndarray, valid: np.ndarray, fold: np.ndarray) -> None:
+    ``record``: (n,) record index per window (-1: none; left as is). On a day of records the level
+    of a record is the settlement's business (``gap.levels``); what is left is the variation
+    inside the records, which a fit of demeaned columns explains exactly as a joint fit with a
+    free level per record would (Frisch-Waugh).
+    """
+    out = np.array(x, float, copy=True)
+    for k in np.unique(record[record >= 0]):
+        rows = record == k
+        for ch in range(2):
+            m = rows & valid[:, ch]
+            if m.any():
+                block = out[m, ch]
+                out[rows, ch] = out[rows, ch] - np.nanmean(block, axis=0)
+    return out
+
+
+class _Fitter:
+    """Cross-validated fits of candidates, alone or added to fixed columns, inside their bounds.
+
+    ``candidates``: the effects tried (all by default). ``record``: (n,) record index per window on
+    a day of records: the residual and every design are then demeaned per record.
+    """
+
+    def __init__(
+        self,
+        ctx: Context,
+        resid: np.ndarray,
+        valid: np.ndarray,
+        fold: np.ndarray,
+        candidates: tuple[Candidate, ...] = CANDIDATES,
+        record: np.ndarray | None = None,
+    ) -> None:
+        self.candidates = candidates
+        self.record = record
+        if record is not None:
+            resid = demean_records(resid, record, valid)
         self.ctx, self.resid, self.valid, self.fold = ctx, resid, valid, fold
-        self.grids = {c.name: c.grid_of(ctx) for c in CANDIDATES}
-        self.designs = {c.name: [c.design(ctx, g) for g in self.grids[c.name]] for c in CANDIDATES}
+        self.grids = {c.name: c.grid_of(ctx) for c in candidates}
+        self.designs = {
+            c.name: [self._demean(c.design(ctx, g)) for g in self.grids[c.name]] for c in candidates
+        }
         spring = next(c for c in CANDIDATES if c.nonlinear)
         self.spring_alts = [(spring_bearings(ch), not ch.endswith("levelled")) for ch in spring.grid]
         s = ctx.surrogate
         z = np.column_stack([np.ones(len(resid)), ctx.x_known, ctx.drivers.dtemp_k])
+        if record is not None:  # the same drivers for both channels: demean on windows with both
+            both = np.repeat(valid.all(axis=1, keepdims=True), 2, axis=1)
+            z = demean_records(np.stack([z, z], axis=1), record, both)[:, 0, :]
         self.spring = SpringModel(s.A, s.u0, s.thermal.get("uniform", np.zeros(2)), z)
         k_low = plausible_range("support_spring")[0]
         self.c_plausible = 1.0 / k_low
         self.c_search = 1.0 / (k_low * SPRING_SEARCH_SHARE)
+
+    def _demean(self, x: np.ndarray) -> np.ndarray:
+        return x if self.record is None else demean_records(x, self.record, self.valid)
 
     def params(self, name: str, beta: np.ndarray, grid_index: int) -> dict[str, Any]:
         """Fitted parameters by name (SI)."""
@@ -208,7 +262,8 @@ class _Fitter:
         if fixed is not None:
             alts = [np.concatenate([fixed, x], axis=2) for x in alts]
         bounds = c.plausible_bounds(self.ctx) if bounded else None
-        return cross_validate(alts, self.resid, self.valid, self.fold, bounds)
+        caps = c.alternative_caps(self.ctx) if bounded else None
+        return cross_validate(alts, self.resid, self.valid, self.fold, bounds, caps)
 
     def block(self, name: str, r: CvResult) -> np.ndarray:
         """Design block of a named effect for later joint fits (n, 2, p).
@@ -230,6 +285,10 @@ class _Fitter:
             i, fit = best_spring(self.spring, self.spring_alts, self.resid, self.valid, self.c_search, fixed)
             return fit.c, i
         alts = self.designs[name]
+        if c.alternative_caps(self.ctx) is not None:
+            # a secant is the FE's response near its own r only: what the data ask for without
+            # bounds is the tangent's answer (index 0), as without sweeps
+            alts = alts[:1]
         if fixed is not None:
             alts = [np.concatenate([fixed, x], axis=2) for x in alts]
         i, beta, _ = fit_best(alts, self.resid, self.valid)
@@ -304,7 +363,7 @@ class _Ranking:
 def _rank(fitter: _Fitter, cv: dict[str, CvResult], eligible: set[str], z: float) -> _Ranking:
     """Rank, estimate the noise and the chance levels, and compute the partial effects."""
     resid, valid, fold = fitter.resid, fitter.valid, fitter.fold
-    ranked = sorted(CANDIDATES, key=lambda c: -cv[c.name].mse_gain)
+    ranked = sorted(fitter.candidates, key=lambda c: -cv[c.name].mse_gain)
     pool = [c for c in ranked if c.name in eligible] or ranked
     top = pool[0]
     n_folds = len(np.unique(fold[fold >= 0]))
@@ -312,12 +371,12 @@ def _rank(fitter: _Fitter, cv: dict[str, CvResult], eligible: set[str], z: float
     phi = ar1_phi(resid - cv[top.name].pred_full)
     n_eff = effective_n(int(valid.sum()), phi)
     if n_eff >= MC_BELOW_N_EFF:
-        thr = {c.name: chance_threshold(c.n_params, n_eff, n_folds, z) for c in CANDIDATES}
+        thr = {c.name: chance_threshold(c.n_params, n_eff, n_folds, z) for c in fitter.candidates}
         chance_level = "large-sample formula"
     else:
         # The support spring enters by its linearization at no spring (a bounded, saturating fit
         # of noise gains no more than its linearization does).
-        thr = chance_threshold_mc(fitter.designs, valid, fold, phi)
+        thr = chance_threshold_mc(fitter.designs, valid, fold, phi, record=fitter.record)
         chance_level = "simulated"
     sse0 = float(np.sum(resid[valid] ** 2))
     ic = {
@@ -325,7 +384,7 @@ def _rank(fitter: _Fitter, cv: dict[str, CvResult], eligible: set[str], z: float
             n_eff * np.log(max(cv[c.name].sse_full, 1e-300) / sse0)
             + c.penalty(n_eff, len(fitter.grids[c.name]))
         )
-        for c in CANDIDATES
+        for c in fitter.candidates
     }
     partial: dict[str, float] = {}
     top_given: dict[str, float] = {}
@@ -423,7 +482,7 @@ def _forward_selection(
     taken = set(group)
     # Plausibility is judged where an effect is named: here in the joint fit, whatever its fit
     # alone said (alone, a gradient may have to stand in for the offset beside it).
-    remaining = [c.name for c in CANDIDATES if c.name not in taken]
+    remaining = [c.name for c in fitter.candidates if c.name not in taken]
     out: list[_Named] = []
     rejected: list[dict[str, Any]] = []
     blocks = [(best, fixed)]
@@ -652,6 +711,157 @@ def _settlement_if_softer(name: str, params: dict[str, Any], s: Surrogate) -> di
     }
 
 
+@dataclass
+class _Levels:
+    """The level analysis of a day of records (``gap.levels``).
+
+    Attributes:
+        records: the records. pairs: the level changes across the gaps and imposed steps.
+        notes: pairs that could not be measured. imposed: what explains the imposed steps (None
+        without one). steps: the free steps between records. model: the model after the imposed
+        analysis (the model in use unless an effect was named there).
+
+    """
+
+    records: list[Record]
+    pairs: list[LevelPair]
+    notes: list[str]
+    imposed: ImposedAnalysis | None
+    steps: list[dict[str, Any]]
+    model: Surrogate
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the ``levels`` block of the JSON (SI)."""
+        return {
+            "records": [
+                {
+                    "index": r.index,
+                    "start_ns": r.start_ns,
+                    "end_ns": r.end_ns,
+                    "windows": r.last - r.first + 1,
+                }
+                for r in self.records
+            ],
+            "pairs": [p.to_dict() for p in self.pairs],
+            "not_measured": self.notes,
+            "imposed": self.imposed.to_dict() if self.imposed is not None else None,
+            "steps_between_records": self.steps,
+            "model_after": {"A": self.model.A.tolist(), "u0": self.model.u0.tolist()},
+        }
+
+
+def _record_mode(
+    d: Drivers, valid: np.ndarray, records: list[Record], holdout_days: Sequence[int] | None
+) -> bool:
+    """Tell a day of records: under two days with data, two or more records, mostly gaps.
+
+    A stream with an outage is mostly data; a day of records is mostly gaps (RECORD_COVERAGE).
+    """
+    if holdout_days or len(records) < 2:
+        return False
+    span = records[-1].last - records[0].first + 1
+    covered = sum(r.last - r.first + 1 for r in records)
+    return folds_of(d.day, valid)[1] != "day" and covered < RECORD_COVERAGE * span
+
+
+def _sweeps_of(s: Surrogate, surrogate_path: str | None) -> dict[str, Any]:
+    """Return the parameter sweeps of the model in use (its file's ``sweeps`` block, or none)."""
+    from bridge_shadow.model.sweeps import read_sweeps
+
+    block = getattr(s, "sweeps", None)
+    return read_sweeps(block=block) if isinstance(block, dict) else read_sweeps(surrogate_path)
+
+
+def _levels(
+    data: MonitoringData,
+    records: list[Record],
+    imposed: Sequence[tuple[int, float, float]],
+    imposed_sd_m: float,
+    s: Surrogate,
+    sens: dict[str, Any],
+    surrogate_path: str | None,
+) -> _Levels:
+    """Read the levels of a day of records: the imposed steps' explanation, the free steps."""
+    from bridge_shadow.gap.levels import explain_imposed, free_steps, level_pairs
+
+    pairs, notes = level_pairs(data, records, imposed, imposed_sd_m)
+    analysis = None
+    model = s
+    if any(p.imposed for p in pairs):
+        analysis = explain_imposed(pairs, s, _sweeps_of(s, surrogate_path), sens)
+        if analysis.named:
+            model = analysis.surrogate_after(s)
+    return _Levels(records, pairs, notes, analysis, free_steps(pairs, model), model)
+
+
+def _level_named(lv: _Levels, s: Surrogate) -> list[dict[str, Any]]:
+    """List what the levels name: the imposed steps' explanation, then the steps between records."""
+    out: list[dict[str, Any]] = []
+    an = lv.imposed
+    if an is not None and an.named:
+        rows = {r["effect"]: r for r in an.table()}
+        out.append(
+            {
+                "effect": an.best,
+                "part": EFFECTS[an.best].part,
+                "params": rows[an.best]["parameters"],
+                "intervals95": rows[an.best]["intervals95"],
+                "probability": an.weights[an.best],
+                "indistinguishable_from": an.group[1:],
+                "group": [{"effect": g, "params": rows[g]["parameters"]} for g in an.group],
+                "evidence": "the response to the imposed steps (levels.imposed)",
+            }
+        )
+    steps = [st for st in lv.steps if st["significant"]]
+    if steps:
+        first = steps[0]
+        params = {
+            "dx_south [m]": first["x_m"][0],
+            "dx_north [m]": first["x_m"][1],
+            "at [ns]": first["at_ns"],
+            "steps": [{"at [ns]": st["at_ns"], "x_m": st["x_m"], "sigma_m": st["sigma_m"]} for st in steps],
+        }
+        entry: dict[str, Any] = {
+            "effect": "settlement_step",
+            "part": EFFECTS["settlement_step"].part,
+            "params": params,
+            "indistinguishable_from": [],
+            "group": [{"effect": "settlement_step", "params": params}],
+            "evidence": "the level change between records, read through the model "
+            + ("after the imposed analysis" if lv.model is not s else "in use")
+            + " (levels.steps_between_records): the steps the shadow estimates",
+        }
+        if an is None or not an.named:
+            entry["size_if_model_softer"] = _settlement_if_softer("settlement_step", params, lv.model)
+        out.append(entry)
+    return out
+
+
+def _level_statement(lv: _Levels, named: list[dict[str, Any]], inside: str) -> str:
+    """One paragraph for a day of records: the levels, then what happens inside the records."""
+    mm = 1e3
+    text = f"A day of {len(lv.records)} records."
+    an = lv.imposed
+    if an is not None:
+        rows = {r["effect"]: r for r in an.table()}
+        if an.named:
+            p = ", ".join(f"{k} {v:.3g}" for k, v in rows[an.best]["parameters"].items())
+            text += (
+                f" The response to the imposed step(s) is not the model's: {an.best} ({p}) explains it "
+                f"(probability {an.weights[an.best]:.2f}; the imposed steps within the jacks' accuracy, "
+                f"settlement_step, {rows['settlement_step']['delta_log_evidence']:.1f} in log evidence)."
+            )
+            if an.group[1:]:
+                text += f" It cannot be told apart from {', '.join(an.group[1:])}."
+        else:
+            text += " The model explains the response to the imposed step(s) within the jacks' accuracy."
+    steps = [st for st in lv.steps if st["significant"]]
+    if steps:
+        sizes = "; ".join(f"{st['x_m'][0] * mm:+.2f} / {st['x_m'][1] * mm:+.2f} mm" for st in steps)
+        text += f" Between records the settlements stepped by {sizes} (the steps the shadow estimates)."
+    return text + " Inside the records: " + inside
+
+
 def diagnose(
     data: MonitoringData,
     surrogate: Surrogate | None = None,
@@ -660,6 +870,7 @@ def diagnose(
     holdout_days: Sequence[int] | None = None,
     z: float = 4.0,
     imposed: Sequence[tuple[int, float, float]] = (),
+    imposed_sd_m: float = IMPOSED_SD_M,
     shadow: bool = False,
     shadow_config: Any = None,
     alternatives: bool = False,
@@ -676,38 +887,57 @@ def diagnose(
         imposed: known imposed settlement steps ``(t_ns, dx_south_m, dx_north_m)`` (for example
             a lowering of the supports): part of the baseline, and what model-form candidates act
             on through ``dA x``.
+        imposed_sd_m: the accuracy of an imposed step, 1 sd per bearing, m (the jacks').
         shadow: also run the shadow (as ``replay`` does) before and after adding the named effects
             to the model, for ``posterior``; a few seconds for three days of 60 s windows.
         shadow_config: the shadow's parameters (``gap.posterior.shadow_config()`` by default).
         alternatives: with ``shadow``, also run the shadow with each model-form effect that the
             data cannot tell from a named one standing in for it (``posterior.alternatives``).
-        surrogate_path: the file ``surrogate`` came from, whose ``sensitivities`` block is read
-            (default ``config/surrogate.yaml``).
+        surrogate_path: the file ``surrogate`` came from, whose ``sensitivities`` and ``sweeps``
+            blocks are read (default ``config/surrogate.yaml``).
 
     """
     t0 = time.perf_counter()
     s = surrogate if surrogate is not None else load_surrogate()
     w = aggregate(data, width_s)
     d = compute_drivers(w)
-    x_known = imposed_path(w.t_ns, width_s, imposed)
     sens = stiffness_sensitivities(s, surrogate_path)
-    ctx = Context.build(d, s, sens, x_known, w.t_ns, width_s)
+    records = records_of(w.t_ns, w.valid, width_s)
+    lv = None
+    if _record_mode(d, w.valid, records, holdout_days):
+        lv = _levels(data, records, imposed, imposed_sd_m, s, sens, surrogate_path)
+    model = lv.model if lv is not None else s
+    x_known = imposed_path(w.t_ns, width_s, imposed)
+    ctx = Context.build(d, model, sens, x_known, w.t_ns, width_s)
+    if model is s:  # the sweeps are of the model in use (on a day of records the levels own them)
+        ctx.sweeps = _sweeps_of(s, surrogate_path)
     resid = w.mean_n - ctx.baseline
     valid = np.isfinite(resid)
     ctx.step_times = step_times(w.t_ns, resid, valid, width_s)
     if valid.sum(axis=0).min() < MIN_WINDOWS:
         have = int(valid.sum(axis=0).min())
         raise GapError(f"only {have} windows of {width_s:g} s with data; need {MIN_WINDOWS}")
-    fold, cv_kind = _folds(d, valid, holdout_days)
+    record = None
+    candidates = CANDIDATES
+    if lv is not None:
+        # a day of records: each record a fold, its level the levels' business (demeaned)
+        record = np.full(len(w), -1)
+        for r in records:
+            record[r.first : r.last + 1] = r.index
+        fold, cv_kind = record.copy(), "record"
+        levels_own = (*SETTLEMENT_EFFECTS, *MODEL_FORM_EFFECTS)
+        candidates = tuple(c for c in CANDIDATES if c.name not in levels_own)
+    else:
+        fold, cv_kind = _folds(d, valid, holdout_days)
     n_folds = len(np.unique(fold[fold >= 0]))
     if n_folds < 1:
         raise GapError("not enough data for a held-out check")
 
     # Which effect: every candidate cross-validated inside its plausible range; a candidate whose
     # data-optimal fit lies outside it is rejected; the rest ranked, grouped, then further effects.
-    fitter = _Fitter(ctx, resid, valid, fold)
-    cv = {c.name: fitter.cv(c.name) for c in CANDIDATES}
-    why = {c.name: fitter.implausible(c.name) for c in CANDIDATES}
+    fitter = _Fitter(ctx, resid, valid, fold, candidates, record)
+    cv = {c.name: fitter.cv(c.name) for c in candidates}
+    why = {c.name: fitter.implausible(c.name) for c in candidates}
     eligible = {name for name, reason in why.items() if reason is None}
     rk = _rank(fitter, cv, eligible, z)
     group = _group(rk, cv)
@@ -719,7 +949,7 @@ def diagnose(
     # beaten the best plausible one; in the forward selection, one that would have been added.
     rejected = []
     bar = max(cv[rk.top.name].mse_gain, 0.0) if group else 0.0
-    for c in CANDIDATES:
+    for c in candidates:
         if why[c.name] is None:
             continue
         free = fitter.cv(c.name, bounded=False)
@@ -736,24 +966,31 @@ def diagnose(
     if named:
         named[0].group_cv = {g: cv[g] for g in group}
     change = _model_change(named)
+    if lv is not None and lv.model is not s:
+        change.replaced = lv.model
+        change.effects.insert(0, lv.imposed.best if lv.imposed is not None else "model")
+    after_model = change.surrogate(s, sens)
     if shadow:
         from bridge_shadow.gap.posterior import shadow_config as default_config
 
         cfg = shadow_config if shadow_config is not None else default_config()
         alts = _alternatives(fitter, named) if alternatives else None
+        if alternatives and lv is not None and lv.imposed is not None and lv.imposed.named:
+            # the imposed steps' group: each member standing in for the named stiffness
+            for g in lv.imposed.group[1:]:
+                alt = ModelChange([g, *change.effects[1:]], dict(change.ratios), change.springs_n_per_m)
+                alt.springs_levelled, alt.additive_n = change.springs_levelled, change.additive_n
+                alt.replaced = lv.imposed.surrogate_after(s, g)
+                alts = {**(alts or {}), g: alt}
         post = shadow_posteriors(data, s, cfg, change, w.t_ns, sens, alts)
         post["computed"] = True
 
     # Where: the residual's breakdown, plus the model part of the held-out gains.
     parts: dict[str, float] = {}
-    for c in CANDIDATES:
+    for c in candidates:
         gain = cv[c.name].mse_gain if c.name in eligible else 0.0
         parts[c.part] = max(parts.get(c.part, 0.0), max(0.0, gain))
     where_json = where(w, d, resid)
-    where_json["model_part"] = {
-        "heldout_gain_by_part": parts,
-        "part": EFFECTS[best].part if group else "none",
-    }
 
     top_pred = cv[rk.top.name].pred_full
     candidates_json = []
@@ -788,14 +1025,28 @@ def diagnose(
         entry["partial_heldout_gain"] = a.gain
         entry["cumulative_heldout_reduction"] = _per_support(a.cv.reduction, a.cv.reduction_total)
         also_json.append(entry)
+    statement = _statement(group, also, rk, cv, rejected)
+    indistinguishable = group[1:]
+
+    if lv is not None:  # the levels come first on a day of records
+        level_named = _level_named(lv, s)
+        if level_named:
+            inside = ([best_json] if best_json is not None else []) + also_json
+            best_json, also_json = level_named[0], level_named[1:] + inside
+            best, indistinguishable = best_json["effect"], best_json["indistinguishable_from"]
+        statement = _level_statement(lv, level_named, statement)
+    where_json["model_part"] = {
+        "heldout_gain_by_part": parts,
+        "part": EFFECTS[best].part if best != "none" else "none",
+    }
 
     summary: dict[str, Any] = {
         "best": best,
-        "indistinguishable_from": group[1:],
+        "indistinguishable_from": indistinguishable,
         "best_effect": best_json,
         "also_present": also_json,
         "rejected_implausible": rejected,
-        "statement": _statement(group, also, rk, cv, rejected),
+        "statement": statement,
         "where": where_json,
         "candidates": candidates_json,
         "posterior": post,
@@ -806,12 +1057,26 @@ def diagnose(
             "z": z,
             "chance_level": rk.chance_level,
         },
-        "validation": {"kind": cv_kind, "folds": n_folds},
+        "validation": {
+            "kind": cv_kind,
+            "folds": n_folds,
+            **(
+                {
+                    "note": "a day of records: each record is held out in turn for the variation inside "
+                    "the records (levels demeaned; the settlement and model-form effects, which act on "
+                    "the levels, are left to `levels`, where the records' levels are read pair by pair)"
+                }
+                if lv is not None
+                else {}
+            ),
+        },
+        "levels": lv.to_dict() if lv is not None else None,
         "baseline": {
             "model": "u0 + A x_imposed + thermal['uniform'] * (T_air - mean T_air)",
             "imposed": [
                 {"t_ns": int(t), "settlement_m": [float(a), float(b)]} for t, a, b in imposed
             ],
+            "imposed_sd_m": imposed_sd_m,
             "air_temperature": "present" if d.has_temperature else "missing: temperature drivers are zero",
             "surrogate": str(s.provenance.get("solver", "")),
             "sensitivities": {k: v.source for k, v in sens.items()},
@@ -827,4 +1092,4 @@ def diagnose(
     joint = None
     if also:
         joint = sum(np.nan_to_num(e.contribution) for e in named if e.contribution is not None)
-    return Diagnosis(summary, w, d, resid, fold, cv, best, joint)
+    return Diagnosis(summary, w, d, resid, fold, cv, best, joint, after_model)

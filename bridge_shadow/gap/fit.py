@@ -106,17 +106,22 @@ def _box_solve(g: np.ndarray, xty: np.ndarray, lo: np.ndarray, hi: np.ndarray) -
 
 
 def fit_best(
-    alts: Sequence[np.ndarray], resid: np.ndarray, mask: np.ndarray, box: Box = None
+    alts: Sequence[np.ndarray],
+    resid: np.ndarray,
+    mask: np.ndarray,
+    box: Box = None,
+    boxes: Sequence[Box] | None = None,
 ) -> tuple[int, np.ndarray, float]:
     """Fit each alternative design ``(n, 2, p)`` on ``mask`` (n, 2); return (index, beta, SSE) of the best.
 
-    ``box``: bounds of the parameters (see ``lstsq_scaled``), the same for every alternative.
+    ``box``: bounds of the parameters (see ``lstsq_scaled``), the same for every alternative;
+    ``boxes``: one per alternative instead.
     """
     y = resid[mask]
     best = (0, np.zeros(alts[0].shape[2]), np.inf)
     for i, x in enumerate(alts):
         xm = x[mask]
-        beta = lstsq_scaled(xm, y, box)
+        beta = lstsq_scaled(xm, y, box if boxes is None else boxes[i])
         sse = float(np.sum((y - xm @ beta) ** 2))
         if sse < best[2]:
             best = (i, beta, sse)
@@ -235,16 +240,20 @@ def cross_validate(
     valid: np.ndarray,
     fold: np.ndarray,
     bounds: Sequence[tuple[float, float]] | None = None,
+    caps: Sequence[tuple[float, float] | None] | None = None,
     mapper: Mapper | None = None,
 ) -> CvResult:
     """Fit on all folds but one, predict the left-out one, for every fold; then fit on all data.
 
     ``bounds``: plausible range of the last ``len(bounds)`` parameters (the candidate; earlier
-    columns, fixed effects of a joint fit, stay free); every fit is kept inside it. ``mapper``:
-    how the folds are fitted (``held_out``).
+    columns, fixed effects of a joint fit, stay free); every fit is kept inside it. ``caps``: per
+    alternative, a narrower range of those parameters (None: ``bounds``), for an alternative that
+    only holds near zero (a first-order tangent beside exact secants).
+    ``mapper``: how the folds are fitted (``held_out``).
     """
     p = alts[0].shape[2]
     box: Box = None
+    boxes: list[Box] | None = None
     n_new = p
     if bounds is not None:
         n_new = len(bounds)
@@ -253,13 +262,23 @@ def cross_validate(
         lo[p - n_new :] = [b[0] for b in bounds]
         hi[p - n_new :] = [b[1] for b in bounds]
         box = (lo, hi)
+        if caps is not None:
+            boxes = []
+            for cap in caps:
+                if cap is None:
+                    boxes.append(box)
+                    continue
+                lo_c, hi_c = lo.copy(), hi.copy()
+                lo_c[p - n_new :] = np.maximum(lo_c[p - n_new :], cap[0])
+                hi_c[p - n_new :] = np.minimum(hi_c[p - n_new :], cap[1])
+                boxes.append((lo_c, hi_c))
 
     def predict(train: np.ndarray, hold: np.ndarray) -> np.ndarray:
-        i, beta, _ = fit_best(alts, resid, train, box)
+        i, beta, _ = fit_best(alts, resid, train, box, boxes)
         return alts[i][hold] @ beta
 
     pred, scores = held_out(resid, valid, fold, predict, mapper)
-    i, beta, sse = fit_best(alts, resid, valid, box)
+    i, beta, sse = fit_best(alts, resid, valid, box, boxes)
     return CvResult(
         pred_cv=pred,
         **scores,
@@ -314,6 +333,7 @@ def chance_threshold_mc(
     quantile: float = 0.995,
     draws: int = 400,
     seed: int = 0,
+    record: np.ndarray | None = None,
 ) -> dict[str, float]:
     """Chance level of the held-out gain by simulation, for short or strongly correlated records.
 
@@ -321,13 +341,20 @@ def chance_threshold_mc(
     cross-validates every candidate (name -> grid alternatives) on the same draws, and returns per
     candidate the ``quantile`` of its gain (the null distribution is skewed for few effective
     samples, so a quantile rather than mean plus sigmas). Used where the large-sample
-    ``chance_threshold`` does not hold.
+    ``chance_threshold`` does not hold. ``record``: (n,) record index per window on a day of
+    records, whose residual the diagnosis demeans per record: the draws are demeaned alike.
     """
     rng = np.random.default_rng(seed)
     n = valid.shape[0]
     e = rng.standard_normal((n, 2, draws))
     e[0] /= np.sqrt(max(1e-12, 1.0 - phi**2))  # stationary start
     noise = lfilter([1.0], [1.0, -phi], e, axis=0)
+    if record is not None:
+        for k in np.unique(record[record >= 0]):
+            for ch in range(2):
+                m = (record == k) & valid[:, ch]
+                if m.any():
+                    noise[m, ch] -= noise[m, ch].mean(axis=0)
     before = {name: np.zeros(draws) for name in designs}
     after = {name: np.zeros(draws) for name in designs}
     # Every draw at once: the fits are linear in the data (one right-hand side per draw). The

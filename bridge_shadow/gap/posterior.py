@@ -39,6 +39,8 @@ class ModelChange:
         springs_n_per_m: support springs [south, north] in N/m (``inf``: none).
         springs_levelled: the supports were levelled under the dead load (``u0`` kept).
         additive_n: (n, 2) N on the window grid, the summed additive contributions.
+        replaced: a whole model to start from instead of the one in use (the imposed steps'
+            explanation of a day of records, ``gap.levels``), or None.
 
     """
 
@@ -47,11 +49,20 @@ class ModelChange:
     springs_n_per_m: tuple[float, float] = (np.inf, np.inf)
     springs_levelled: bool = False
     additive_n: np.ndarray | None = None
+    replaced: Surrogate | None = None
 
     @property
     def empty(self) -> bool:
         """Nothing is added."""
         return not self.effects
+
+    def surrogate(self, base: Surrogate, sensitivities: Mapping[str, StiffnessSensitivity]) -> Surrogate:
+        """Return the model with this change: ``replaced`` (or ``base``), then ratios and springs."""
+        start = self.replaced if self.replaced is not None else base
+        changed, _ = change_surrogate(
+            start, dict(sensitivities), self.ratios, self.springs_n_per_m, levelled=self.springs_levelled
+        )
+        return changed
 
 
 def shadow_config(params_path: str | None = None, surrogate_path: str | None = None) -> Any:
@@ -78,10 +89,12 @@ def subtract_contribution(
 
 def _posterior_json(result: Any) -> dict[str, Any]:
     mean, cov = np.asarray(result.mean_m, float), np.asarray(result.covariance_m2, float)
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     return {
         "mean_m": mean.tolist(),
         "covariance_m2": cov.tolist(),
-        "sigma_m": np.sqrt(np.maximum(np.diag(cov), 0.0)).tolist(),
+        "sigma_m": sd.tolist(),
+        "interval95_m": [[float(m - 1.96 * v), float(m + 1.96 * v)] for m, v in zip(mean, sd, strict=True)],
         "updates": int(result.updates),
     }
 
@@ -97,17 +110,14 @@ def _after(
     """Run the shadow with ``change`` added to the model."""
     from bridge_shadow.estimate import Shadow
 
-    changed, _ = change_surrogate(
-        surrogate,
-        dict(sensitivities),
-        change.ratios,
-        change.springs_n_per_m,
-        levelled=change.springs_levelled,
-    )
+    changed = change.surrogate(surrogate, sensitivities)
     run_data = data
     if change.additive_n is not None and np.any(change.additive_n):
         run_data = subtract_contribution(data, t_ns, change.additive_n)
     after = _posterior_json(Shadow(config, changed).run(run_data))
+    if change.replaced is not None:
+        model_change = changed.provenance.get("gap_model_change", {})
+        after["model_change_from_levels"] = model_change
     after["what"] = (
         f"the shadow with {', '.join(change.effects)} added to the model (settlements stay the "
         "shadow's to estimate)"

@@ -66,7 +66,9 @@ def _plot_breakdown(summary: dict[str, Any], plt: Any, path: Path) -> None:
 
 def _plot_heldout(dg: Diagnosis, plt: Any, path: Path) -> None:
     h = _hours(dg)
-    name = dg.best if dg.best != "none" else dg.summary["candidates"][0]["effect"]
+    # the best effect's held-out fit; on a day of records a level effect has none (the records'
+    # levels are read pair by pair): the top candidate inside the records then
+    name = dg.best if dg.best in dg.cv else dg.summary["candidates"][0]["effect"]
     pred = dg.cv[name].pred_cv
     fig, axes = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
     for c, ax in enumerate(axes):
@@ -147,10 +149,13 @@ def _markdown(summary: dict[str, Any], source: str) -> str:
     if also:
         lines += ["", "Also present (forward selection, each given the ones before):", ""]
         for a in also:
-            red = a["cumulative_heldout_reduction"]
             group = f"; cannot be told apart from {', '.join(a['indistinguishable_from'])}" if a[
                 "indistinguishable_from"
             ] else ""
+            if "cumulative_heldout_reduction" not in a:  # named by the levels of a day of records
+                lines.append(f"- `{a['effect']}` ({a['part']}): {a.get('evidence', '')}{group}")
+                continue
+            red = a["cumulative_heldout_reduction"]
             lines.append(
                 f"- `{a['effect']}` ({a['part']}): removes {_pct(a['partial_heldout_gain'])} of the "
                 f"remaining held-out squared residual; cumulative held-out RMS reduction {_pct(red['total'])}"
@@ -162,6 +167,7 @@ def _markdown(summary: dict[str, Any], source: str) -> str:
         for r in rejected:
             given = f" (given {', '.join(r['given'])})" if r.get("given") else ""
             lines.append(f"- `{r['effect']}`{given}: {r['reason']}")
+    lines += _levels_markdown(summary.get("levels"))
     lines += ["", "## How far it shrinks", "", "![held-out](heldout.png)", ""]
     if post.get("computed"):
         lines += [
@@ -182,6 +188,52 @@ def _markdown(summary: dict[str, Any], source: str) -> str:
         lines.append("The shadow's posteriors were not computed (`diagnose(..., shadow=True)` does).")
     lines.append("")
     return "\n".join(lines)
+
+
+def _levels_markdown(levels: dict[str, Any] | None) -> list[str]:
+    """Describe the levels of a day of records: pairs, the imposed steps' explanations, free steps."""
+    if not levels:
+        return []
+    lines = [
+        "",
+        "## Levels of the records",
+        "",
+        f"A day of {len(levels['records'])} records: the level change across every gap (car-free levels, "
+        "test car left out), kN, south / north:",
+        "",
+        "| pair | dR south | dR north | hours | imposed [mm] |",
+        "|---|---|---|---|---|",
+    ]
+    for p in levels["pairs"]:
+        imp = p["imposed_m"]
+        imposed = "none (the shadow estimates it)"
+        if imp is not None:
+            imposed = f"{1e3 * imp[0]:+.1f} / {1e3 * imp[1]:+.1f}"
+        lines.append(
+            f"| {p['name']} | {p['dR_n'][0] / 1e3:+.2f} +- {p['dR_sd_n'][0] / 1e3:.2f} | "
+            f"{p['dR_n'][1] / 1e3:+.2f} +- {p['dR_sd_n'][1] / 1e3:.2f} | {p['hours_between']:.1f} | "
+            f"{imposed} |"
+        )
+    imp = levels.get("imposed")
+    if imp:
+        lines += ["", f"The imposed steps explained by ({imp['validation']}):", ""]
+        lines += ["| effect | probability | delta log evidence | parameters |", "|---|---|---|---|"]
+        for r in imp["explanations"]:
+            params = ", ".join(f"{k} = {v:.3g}" for k, v in r["parameters"].items()) or "as imposed"
+            lines.append(
+                f"| {r['effect']} | {r['probability']:.2f} | {r['delta_log_evidence']:.2f} | {params} |"
+            )
+        lines += ["", imp["rule"] + "."]
+    steps = levels.get("steps_between_records") or []
+    if steps:
+        lines += ["", "Steps between records (the model after the imposed analysis), mm, 95 %:", ""]
+        for st in steps:
+            x, sd = np.array(st["x_m"]) * 1e3, 1.96e3 * np.array(st["sigma_m"])
+            lines.append(
+                f"- {x[0]:+.2f} +- {sd[0]:.2f} / {x[1]:+.2f} +- {sd[1]:.2f}"
+                + ("" if st["significant"] else " (not significant)")
+            )
+    return lines
 
 
 def write_report(dg: Diagnosis, out_dir: str | Path, source: str = "") -> Path:

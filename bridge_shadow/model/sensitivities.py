@@ -26,7 +26,7 @@ import numpy as np
 import yaml
 
 from bridge_shadow.errors import ConfigError
-from bridge_shadow.model.surrogate_file import Surrogate
+from bridge_shadow.model.surrogate_file import Surrogate, read_surrogate_document
 from bridge_shadow.paths import config_file
 
 __all__ = [
@@ -198,7 +198,9 @@ def support_spring_change(
     thermal = {name: m @ v for name, v in surrogate.thermal.items()}
     u0 = surrogate.u0.copy() if levelled else m @ surrogate.u0
     # the model's own uncertainty (a calibrated surrogate's model_cov) is kept: the change is on top of it
-    return Surrogate(a_new, u0, thermal, dict(surrogate.provenance), surrogate.model_cov), m
+    prov = dict(surrogate.provenance)
+    changed = Surrogate(a_new, u0, thermal, prov, surrogate.model_cov, surrogate.discrepancy)
+    return changed, m
 
 
 def change_surrogate(
@@ -239,7 +241,8 @@ def change_surrogate(
         for k in thermal:
             thermal[k] = thermal[k] + r * d.dthermal.get(k, np.zeros(2))
         load_map = load_map + np.diag(r * d.du0 / surrogate.u0)
-    changed = Surrogate(a, u0, thermal, dict(surrogate.provenance), surrogate.model_cov)
+    prov = dict(surrogate.provenance)
+    changed = Surrogate(a, u0, thermal, prov, surrogate.model_cov, surrogate.discrepancy)
     k = np.asarray(springs_n_per_m, float).reshape(2)
     if np.any(np.isfinite(k)):
         changed, m = support_spring_change(changed, k, levelled=levelled)
@@ -267,7 +270,7 @@ def read_sensitivities_block(
     if not required and not file.is_file():
         return None
     try:
-        data = yaml.safe_load(file.read_text()) or {}
+        data = read_surrogate_document(file) or {}
         block = data.get("sensitivities")
     except (OSError, yaml.YAMLError, AttributeError) as err:
         raise ConfigError(f"{file}: not a valid surrogate file ({err})") from err

@@ -15,6 +15,9 @@
   adjoint: no extra solve, :mod:`.adjoint`); same units as the quantity. A support spring at
   ``.inf`` (absent) has no relative sensitivity; its entry carries ``compliance``: the change per
   unit compliance ``c = 1 / k`` (m/N) at ``c = 0`` instead (exact series-spring closed form).
+- ``sweeps`` (with ``sweeps=True``): ``A``, ``u0`` and ``thermal`` FE-solved over the plausible
+  range of each of ``model.sweeps.SWEEP_PARAMETERS`` (:mod:`.sweeps`), for stiffness changes far
+  beyond first order.
 """
 
 from __future__ import annotations
@@ -110,11 +113,14 @@ class SurrogateRun:
     base: BridgeSolution
     schur: np.ndarray
     extra: dict[str, Any] = field(default_factory=dict)
+    sweeps: dict[str, Any] = field(default_factory=dict)
 
     def document(self) -> dict[str, Any]:
-        """Plain-data form: the contract keys plus ``sensitivities`` (SI units)."""
+        """Plain-data form: the contract keys plus ``sensitivities`` and ``sweeps`` (SI units)."""
         doc = self.surrogate.to_dict()
         doc["sensitivities"] = self.sensitivities
+        if self.sweeps:
+            doc["sweeps"] = {name: sw.to_dict() for name, sw in self.sweeps.items()}
         return doc
 
 
@@ -267,15 +273,20 @@ def compute_surrogate(
     sensitivities: bool = True,
     names: Sequence[str] = SENSITIVITY_PARAMETERS,
     report: Callable[[float, str], None] | None = None,
+    sweeps: bool = False,
 ) -> SurrogateRun:
-    """Solve the bridge, check ``A`` against the Schur complement, add sensitivities and provenance."""
+    """Solve the bridge, check ``A`` against the Schur complement, add sensitivities and provenance.
+
+    ``sweeps``: also FE-solve the surrogate over the plausible range of each swept parameter
+    (``model.sweeps``; about 20 more solves).
+    """
     t0 = time.perf_counter()
-    steps = 3 if sensitivities else 2
+    steps = (3 if sensitivities else 2) + (4 if sweeps else 0)
     done = 0
 
-    def tick(label: str) -> None:
+    def tick(label: str, n: int = 1) -> None:
         nonlocal done
-        done += 1
+        done += n
         if report is not None:
             report(done / steps, label)
 
@@ -288,6 +299,12 @@ def compute_surrogate(
     if sensitivities:
         sens = sensitivity_block(cfg, base, names, level)
         tick("sensitivities")
+    swept: dict[str, Any] = {}
+    if sweeps:
+        from bridge_shadow.model.sweeps import compute_sweeps
+
+        swept = compute_sweeps(cfg, level, base=base)
+        tick("sweeps", 4)
     counts = base.mesh.element_counts()
     dead_total = float(base.u0.sum() + sum(base.end_reactions.values()))
     provenance: dict[str, Any] = {
@@ -313,13 +330,13 @@ def compute_surrogate(
     if has_support_springs(cfg):
         provenance["jack_preset_m"] = base.jack_preset.tolist()
     surrogate = Surrogate(base.A, base.u0, base.thermal, provenance)
-    return SurrogateRun(surrogate, sens, base, a_schur)
+    return SurrogateRun(surrogate, sens, base, a_schur, sweeps=swept)
 
 
 def write_surrogate(
     run: SurrogateRun, path: str | Path, header: str | None = None, *, force: bool = False
 ) -> Path:
-    """Write the surrogate YAML (contract keys + ``sensitivities``), atomically; return the path.
+    """Write the surrogate YAML (contract keys, ``sensitivities``, ``sweeps``), atomically; return the path.
 
     ``header``: comment lines (each starting with ``#``) put on top; a default names the command.
     ``force`` replaces an existing surrogate file (``--force``); see ``save_surrogate``.
@@ -334,7 +351,7 @@ def write_surrogate(
             "Units: A N/m, u0 N, thermal N/K,\n"
             "# sensitivities per unit relative change of the parameter (same units).\n"
         )
-    extra = {"sensitivities": run.sensitivities}
+    extra = {k: v for k, v in run.document().items() if k in ("sensitivities", "sweeps")}
     return save_surrogate(run.surrogate, path, header, force=force, extra=extra)
 
 

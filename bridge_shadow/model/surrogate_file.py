@@ -6,9 +6,13 @@ composite beam per girder), flagged in ``provenance.solver == "closed-form place
 
 Keys (DESIGN section 4): ``A`` 2x2 N/m, rows/cols [south, north]; ``u0`` [south, north] N;
 ``thermal`` map ``uniform``/``vertical_gradient``/``transverse_gradient`` -> [south, north] N/K;
-``provenance`` dict. A calibrated surrogate also carries ``model_uncertainty``: the covariance
-(6x6) of ``[A11, A12, A21, A22, u0_south, u0_north]`` implied by the parameter posterior (N/m, N),
-which the shadow adds to its settlement covariance (``Surrogate.model_covariance``).
+``provenance`` dict. A calibrated surrogate also carries ``model_uncertainty``: the covariance of
+``[A11, A12, A21, A22, u0_south, u0_north]`` (6x6, N/m, N) or of those and the three thermal
+cases (12x12, ``MODEL_UNCERTAINTY_ORDER_FULL``, N/K) implied by the calibration's posterior over
+its explanations, which the shadow adds to its settlement covariance
+(``Surrogate.model_covariance``); and ``discrepancy``: a model discrepancy in the sense of
+Kennedy and O'Hagan (2001) that is zero on the settlements the calibration saw and grows with the
+distance from them (``Discrepancy``), for a model calibrated on one step and used on larger ones.
 
 A file is checked where it is loaded (``load_surrogate`` -> ``check_surrogate``), so every command
 and the node refuse a bad one with one line before any work: every number finite, ``A``
@@ -19,6 +23,7 @@ start-up line); no unknown key.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,23 +37,30 @@ from bridge_shadow.keys import check_keys
 from bridge_shadow.paths import config_file
 
 __all__ = [
+    "DISCREPANCY_CORRELATION",
+    "DISCREPANCY_RELATIVE_SD",
     "FILE_KEYS",
     "MAX_CONDITION",
     "MODEL_UNCERTAINTY_ORDER",
+    "MODEL_UNCERTAINTY_ORDER_FULL",
     "SYMMETRY_RTOL",
     "THERMAL_CASES",
+    "Discrepancy",
     "Surrogate",
     "check_surrogate",
     "describe_surrogate",
     "load_surrogate",
     "placeholder_surrogate",
+    "read_surrogate_document",
     "save_surrogate",
     "surrogate_target",
 ]
 
 THERMAL_CASES: tuple[str, str, str] = ("uniform", "vertical_gradient", "transverse_gradient")
 #: The top-level keys of a surrogate file (DESIGN 4; ``sensitivities`` from ``model.surrogate``).
-FILE_KEYS: tuple[str, ...] = ("A", "u0", "thermal", "provenance", "model_uncertainty", "sensitivities")
+FILE_KEYS: tuple[str, ...] = (
+    "A", "u0", "thermal", "provenance", "model_uncertainty", "discrepancy", "sensitivities", "sweeps"
+)
 #: Largest relative asymmetry ``|A12 - A21| / max|A_ij|`` taken as symmetric. ``A`` is a Schur
 #: complement of a symmetric stiffness matrix; the FE solves give it symmetric to 3e-13 (the
 #: committed surrogates) and the Schur check holds them to 1e-8. An edited or foreign matrix is
@@ -61,6 +73,114 @@ SYMMETRY_RTOL = 1.0e-6
 MAX_CONDITION = 1.0e11
 #: Order of the entries of ``Surrogate.model_cov`` (A row-major, then u0).
 MODEL_UNCERTAINTY_ORDER: tuple[str, ...] = ("A11", "A12", "A21", "A22", "u0_south", "u0_north")
+#: The same followed by the thermal cases [south, north] each (``THERMAL_CASES`` order), N/K.
+MODEL_UNCERTAINTY_ORDER_FULL: tuple[str, ...] = MODEL_UNCERTAINTY_ORDER + tuple(
+    f"{case}_{side}" for case in THERMAL_CASES for side in ("south", "north")
+)
+#: Relative sd of the response beyond the calibrated settlements (``Discrepancy``). Derivation:
+#: a support seats like a Hertzian contact, tangent stiffness ~ R^(1/3) (Johnson, *Contact
+#: Mechanics*, 1985, 4.2): from the calibrated state (north reaction 192 kN after 10 mm) to a step
+#: three times larger (107 kN after 30 mm) it falls by 1 - (107/192)^(1/3) = 18 %; with the support
+#: carrying about half of the compliance (the support-spring explanation of the calibration), the
+#: effective stiffness of the extrapolated part changes by ~9 %: 0.10 is that, rounded up.
+DISCREPANCY_RELATIVE_SD = 0.10
+#: Correlation of the discrepancy between the two supports: one construction (shared seating law)
+#: at different loads (the north reaction changes about twice as much): half the variance shared.
+DISCREPANCY_CORRELATION = 0.5
+
+
+#: libyaml's loader when PyYAML was built with it (a surrogate file with its sweeps and the
+#: calibration's provenance parses about 10x faster), else the pure-Python one; the same data.
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+@functools.lru_cache(maxsize=8)
+def _parsed(path: str, mtime_ns: int, size: int) -> Any:
+    return yaml.load(Path(path).read_text(encoding="utf-8"), Loader=_LOADER)
+
+
+def read_surrogate_document(path: str | Path) -> Any:
+    """Return the parsed YAML of a surrogate file, parsed once per version of the file.
+
+    The surrogate, its ``sensitivities`` and its ``sweeps`` are read from one file by several
+    callers; the parse is cached by path, modification time and size, and a deep copy returned
+    (callers may change what they get). Raises OSError and yaml.YAMLError as reading would.
+    """
+    import copy
+
+    st = Path(path).stat()
+    return copy.deepcopy(_parsed(str(Path(path).resolve()), st.st_mtime_ns, st.st_size))
+
+
+@dataclass(frozen=True)
+class Discrepancy:
+    """Model discrepancy beyond the calibrated settlements (Kennedy and O'Hagan 2001).
+
+    The surrogate was calibrated on settlements ``x`` with ``low_m <= x <= high_m`` per support
+    (0 and the imposed steps of the calibration pairs). Inside that range the secant ``A`` is pinned
+    by the data; beyond it the true response may bend (seating, contact, slipping joints). The
+    discrepancy of the settlement read from the reactions is ``d = diag(e(x)) rho`` with
+    ``e(x) = x - clip(x, low, high)`` the distance beyond the calibrated range (m) and
+    ``rho ~ N(0, sd^2 [[1, c], [c, 1]])`` the relative error of the extrapolated part, i.e. a
+    Gaussian process with a linear-spline kernel anchored at the calibrated states:
+    ``Cov d = diag(e) Sigma_rho diag(e)``.
+
+    Attributes:
+        low_m, high_m: (2,) calibrated range per support [south, north], m.
+        relative_sd: sd of ``rho`` (``DISCREPANCY_RELATIVE_SD``).
+        correlation: correlation of ``rho`` between the supports.
+
+    """
+
+    low_m: tuple[float, float]
+    high_m: tuple[float, float]
+    relative_sd: float = DISCREPANCY_RELATIVE_SD
+    correlation: float = DISCREPANCY_CORRELATION
+
+    def __post_init__(self) -> None:
+        lo, hi = np.asarray(self.low_m, float), np.asarray(self.high_m, float)
+        if lo.shape != (2,) or hi.shape != (2,) or np.any(lo > hi) or not np.all(np.isfinite([*lo, *hi])):
+            raise ConfigError("surrogate discrepancy: need finite low_m <= high_m, [south, north] each")
+        if not (self.relative_sd >= 0 and -1 <= self.correlation <= 1):
+            raise ConfigError("surrogate discrepancy: relative_sd >= 0 and -1 <= correlation <= 1")
+
+    @classmethod
+    def from_steps(cls, steps_m: np.ndarray, **kw: float) -> Discrepancy:
+        """Return the calibrated range spanned by 0 and the imposed settlements ``steps_m`` (k, 2) m."""
+        x = np.vstack([np.zeros((1, 2)), np.asarray(steps_m, float).reshape(-1, 2)])
+        return cls(tuple(x.min(axis=0).tolist()), tuple(x.max(axis=0).tolist()), **kw)  # type: ignore[arg-type]
+
+    def beyond(self, x_m: np.ndarray) -> np.ndarray:
+        """(2,) m, ``e(x)``: how far each support's settlement lies beyond the calibrated range."""
+        x = np.asarray(x_m, float).reshape(2)
+        return x - np.clip(x, self.low_m, self.high_m)
+
+    def covariance(self, x_m: np.ndarray) -> np.ndarray:
+        """(2, 2) m^2, ``Cov d`` at settlement ``x_m``."""
+        e = self.beyond(x_m)
+        sd, c = self.relative_sd, self.correlation
+        rho = sd**2 * np.array([[1.0, c], [c, 1.0]])
+        return rho * np.outer(e, e)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (SI) for the surrogate file."""
+        return {
+            "kind": "linear spline beyond the calibrated settlements (Kennedy-O'Hagan)",
+            "low_m": list(self.low_m),
+            "high_m": list(self.high_m),
+            "relative_sd": self.relative_sd,
+            "correlation": self.correlation,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Discrepancy:
+        """Inverse of ``to_dict``."""
+        return cls(
+            tuple(float(v) for v in data["low_m"]),  # type: ignore[arg-type]
+            tuple(float(v) for v in data["high_m"]),  # type: ignore[arg-type]
+            float(data.get("relative_sd", DISCREPANCY_RELATIVE_SD)),
+            float(data.get("correlation", DISCREPANCY_CORRELATION)),
+        )
 
 
 @dataclass
@@ -73,8 +193,10 @@ class Surrogate:
         u0: (2,) N, reactions at zero settlement (self-weight + superimposed load).
         thermal: case -> (2,) N/K, reaction change per kelvin of the thermal load case.
         provenance: where the numbers come from (model hash, mesh, solver, seconds, ...).
-        model_cov: (6, 6) covariance of ``[A11, A12, A21, A22, u0_south, u0_north]`` (N/m, N) from
-            a calibration's parameter posterior, or None (the model taken as exact).
+        model_cov: (6, 6) covariance of ``[A11, A12, A21, A22, u0_south, u0_north]`` (N/m, N), or
+            (12, 12) with the thermal cases too (``MODEL_UNCERTAINTY_ORDER_FULL``), from a
+            calibration's posterior, or None (the model taken as exact).
+        discrepancy: the model discrepancy beyond the calibrated settlements, or None.
 
     """
 
@@ -83,13 +205,18 @@ class Surrogate:
     thermal: dict[str, np.ndarray] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict)
     model_cov: np.ndarray | None = None
+    discrepancy: Discrepancy | None = None
 
     def __post_init__(self) -> None:
         self.A = np.asarray(self.A, dtype=float).reshape(2, 2)
         self.u0 = np.asarray(self.u0, dtype=float).reshape(2)
         self.thermal = {k: np.asarray(v, dtype=float).reshape(2) for k, v in self.thermal.items()}
+        if self.model_cov is None and self.discrepancy is not None:
+            self.model_cov = np.zeros((6, 6))  # the shadow adds model_covariance when model_cov is set
         if self.model_cov is not None:
-            cov = np.asarray(self.model_cov, dtype=float).reshape(6, 6)
+            cov = np.asarray(self.model_cov, dtype=float)
+            n = 12 if cov.size == 144 else 6
+            cov = cov.reshape(n, n)
             if not np.all(np.isfinite(cov)) or np.linalg.eigvalsh(0.5 * (cov + cov.T)).min() < -1e-9 * max(
                 float(np.abs(cov).max()), 1e-300
             ):
@@ -103,17 +230,27 @@ class Surrogate:
         ``J = [kron(I2, x^T), I2]`` (2 x 6) and ``dtheta`` the perturbation of
         ``[A11, A12, A21, A22, u0_south, u0_north]``; the result is ``A^-1 J C J^T A^-T``.
         ``with_u0=False`` leaves ``du0`` out: the uncertainty of a *change* of settlement ``x_m``
-        (a step), in which ``u0`` cancels. Zero when the surrogate carries no ``model_cov``.
+        (a step), in which ``u0`` cancels. Plus the ``discrepancy`` beyond the calibrated
+        settlements (a step read as a change from 0). Zero when the surrogate carries neither.
         """
-        if self.model_cov is None:
-            return np.zeros((2, 2))
-        x0, x1 = np.asarray(x_m, dtype=float).reshape(2).tolist()
-        u = 1.0 if with_u0 else 0.0
-        # J = [kron(I2, x^T), I2], written out: this runs for every window output
-        jac = np.array([[x0, x1, 0.0, 0.0, u, 0.0], [0.0, 0.0, x0, x1, 0.0, u]])
-        g = np.linalg.solve(self.A, jac)  # A^-1 J
-        cov = g @ self.model_cov @ g.T
+        cov = np.zeros((2, 2))
+        if self.model_cov is not None:
+            x0, x1 = np.asarray(x_m, dtype=float).reshape(2).tolist()
+            u = 1.0 if with_u0 else 0.0
+            # J = [kron(I2, x^T), I2], written out: this runs for every window output
+            jac = np.array([[x0, x1, 0.0, 0.0, u, 0.0], [0.0, 0.0, x0, x1, 0.0, u]])
+            g = np.linalg.solve(self.A, jac)  # A^-1 J
+            cov = g @ self.model_cov[:6, :6] @ g.T
+        if self.discrepancy is not None:
+            cov = cov + self.discrepancy.covariance(np.asarray(x_m, dtype=float).reshape(2))
         return 0.5 * (cov + cov.T)
+
+    def thermal_covariance(self, case: str) -> np.ndarray:
+        """(2, 2) (N/K)^2, the covariance of ``thermal[case]`` (zeros when the file has none)."""
+        if self.model_cov is None or self.model_cov.shape[0] < 12 or case not in THERMAL_CASES:
+            return np.zeros((2, 2))
+        i = 6 + 2 * THERMAL_CASES.index(case)
+        return self.model_cov[i : i + 2, i : i + 2].copy()
 
     @property
     def condition_number(self) -> float:
@@ -143,10 +280,10 @@ class Surrogate:
             "provenance": dict(self.provenance),
         }
         if self.model_cov is not None:
-            out["model_uncertainty"] = {
-                "order": list(MODEL_UNCERTAINTY_ORDER),
-                "covariance": self.model_cov.tolist(),
-            }
+            order = MODEL_UNCERTAINTY_ORDER_FULL if self.model_cov.shape[0] == 12 else MODEL_UNCERTAINTY_ORDER
+            out["model_uncertainty"] = {"order": list(order), "covariance": self.model_cov.tolist()}
+        if self.discrepancy is not None:
+            out["discrepancy"] = self.discrepancy.to_dict()
         return out
 
 
@@ -198,7 +335,7 @@ def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = 
             raise ConfigError(f"{file}: surrogate file not found")
         return placeholder_surrogate()
     try:
-        data = yaml.safe_load(file.read_text())
+        data = read_surrogate_document(file)
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
         raise ConfigError(f"{file}: not a valid surrogate file ({yaml_problem(err)})") from None
     if not isinstance(data, dict):
@@ -207,14 +344,17 @@ def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = 
     check_keys(data.get("thermal") or {}, THERMAL_CASES, f"{file}: thermal")
     try:
         unc = data.get("model_uncertainty") or {}
-        if unc and list(unc.get("order", [])) != list(MODEL_UNCERTAINTY_ORDER):
-            raise ValueError(f"model_uncertainty.order must be {list(MODEL_UNCERTAINTY_ORDER)}")
+        orders = (list(MODEL_UNCERTAINTY_ORDER), list(MODEL_UNCERTAINTY_ORDER_FULL))
+        if unc and list(unc.get("order", [])) not in orders:
+            raise ValueError(f"model_uncertainty.order must be {orders[0]} or {orders[1]}")
+        disc = data.get("discrepancy")
         surrogate = Surrogate(
             A=data["A"],
             u0=data["u0"],
             thermal=data.get("thermal", {}),
             provenance=data.get("provenance", {}),
             model_cov=unc.get("covariance") if unc else None,
+            discrepancy=Discrepancy.from_dict(disc) if disc else None,
         )
     except (KeyError, TypeError, ValueError, AttributeError) as err:
         raise ConfigError(f"{file}: not a valid surrogate file ({err})") from None

@@ -1,0 +1,395 @@
+"""Levels on a day of records: the response to known imposed steps and the steps between records.
+
+A load-test day is not a stream: a few short records hours apart, the central support lowered
+between them (DESIGN section 3). What tells model from reality there is the *level* of each record
+against the one before it, not the variation inside a record, and a record's level cannot be held
+out and predicted (its step is unknown unless imposed). So the levels are read pair by pair,
+across every gap between records:
+
+- ``level_pairs``: the car-free level of the records on both sides of a gap
+  (:func:`bridge_shadow.calibrate.change.record_level`: test car left out, AR(1) noise, the drift
+  within the records) and their change with its covariance, the baseline's change across the gap
+  an uncertainty (:func:`~bridge_shadow.calibrate.change.measured_change`). A step given with
+  ``--imposed`` inside a continuous record splits it; at most ``PAIR_SPAN_S`` on each side is used.
+- ``explain_imposed``: at the gaps with a known imposed step, the calibration's machinery
+  (:class:`~bridge_shadow.calibrate.problem.CalibrationProblem`, Levenberg-Marquardt, Laplace
+  evidence, the priors and plausible ranges of ``model.parameters``) on the model in use, through
+  its sweeps and closed forms (:class:`~bridge_shadow.calibrate.surrogate_forward.SurrogateForward`,
+  no FE solve). The explanations are ``IMPOSED_EXPLANATIONS``; ``settlement_step`` is the model as
+  given, the settlements differing from the imposed ones by the jacks' error only (``imposed_sd``).
+  With two or more imposed pairs each explanation also gets a leave-one-pair-out score.
+- ``free_steps``: at the other gaps the settlement step ``x = A^-1 dR`` the shadow will estimate
+  (with the model after the imposed analysis), and whether it is significant.
+
+Nothing here reads a twin's ground-truth file. No ROS import.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.calibrate.change import MeasuredChange, measured_change, record_level
+from bridge_shadow.calibrate.errors import CalibrationError
+from bridge_shadow.calibrate.explain import Explanation, fit_explanation
+from bridge_shadow.calibrate.problem import PairData
+from bridge_shadow.calibrate.run import evidence_weights
+from bridge_shadow.calibrate.surrogate_forward import SurrogateForward
+from bridge_shadow.contract import CHANNELS
+from bridge_shadow.gap.records import IMPOSED_SD_M, Record
+from bridge_shadow.model.build import SUPPORT_SPRINGS
+from bridge_shadow.model.sensitivities import StiffnessSensitivity
+from bridge_shadow.model.surrogate_file import Discrepancy, Surrogate
+from bridge_shadow.model.sweeps import Sweep
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+__all__ = [
+    "IMPOSED_EXPLANATIONS",
+    "ImposedAnalysis",
+    "LevelPair",
+    "explain_imposed",
+    "free_steps",
+    "level_pairs",
+    "slice_data",
+]
+
+NS = 1_000_000_000
+#: Data used on each side of a step, s: a whole 12-minute record; inside a continuous record an
+#: hour each side (longer spans mix in the daily thermal swing the level line cannot follow).
+PAIR_SPAN_S = 3600.0
+#: Bayes factor below which two explanations are not told apart: 3, "not worth more than a bare
+#: mention" (Kass and Raftery 1995, Table 1).
+INDISTINGUISHABLE_LOG_BF = math.log(3.0)
+#: Bayes factor over the model as given above which the imposed steps say the model is wrong:
+#: 20, "strong" evidence (Kass and Raftery 1995).
+NAMED_LOG_BF = math.log(20.0)
+#: chi-square (2 dof) probability beyond which a step between two records is significant: the
+#: shadow's event probability (``event_probability`` 0.999999 in config/shadow.yaml).
+STEP_PROBABILITY = 0.999999
+
+_SPRINGS = tuple(SUPPORT_SPRINGS.values())
+#: Explanations of the response to a known imposed step: effect name -> the parameters fitted.
+IMPOSED_EXPLANATIONS: dict[str, tuple[str, ...]] = {
+    "settlement_step": (),
+    "support_spring": _SPRINGS,
+    "bearing_stiffness": ("bearing_stiffness",),
+    "connector_stiffness": ("connector_stiffness",),
+    "slab_joint_opening": ("slab_joint_opening",),
+}
+
+
+def slice_data(data: MonitoringData, start_ns: int, end_ns: int) -> MonitoringData:
+    """Return the samples of ``data`` with ``start_ns <= stamp < end_ns`` (forces and temperature)."""
+    forces = {}
+    for ch in CHANNELS:
+        s = data.forces[ch]
+        k = (s.stamp_ns >= start_ns) & (s.stamp_ns < end_ns)
+        log = s.log_ns[k] if s.log_ns is not None else None
+        forces[ch] = ForceSeries(s.stamp_ns[k], s.force_n[k], s.frame_id[k], log)
+    t = data.temperature
+    k = (t.stamp_ns >= start_ns) & (t.stamp_ns < end_ns)
+    var = t.variance[k] if t.variance is not None else None
+    log = t.log_ns[k] if t.log_ns is not None else None
+    return MonitoringData(forces, TemperatureSeries(t.stamp_ns[k], t.temp_c[k], var, t.frame_id[k], log))
+
+
+@dataclass
+class LevelPair:
+    """The level change across one gap (or one imposed step inside a record).
+
+    Attributes:
+        name: label (``step N at HH:MM``). at_ns: the step time (the imposed one, or the start of
+            the record after the gap). imposed_m: (2,) the imposed step (None: free, the shadow
+            estimates it). imposed_sd_m: (2,) its sd. change: the measured change.
+        before, after: ``(start_ns, end_ns)`` of the data on each side.
+        settlement_before_m: (2,) the imposed settlement accumulated before the step (m).
+
+    """
+
+    name: str
+    at_ns: int
+    imposed_m: np.ndarray | None
+    imposed_sd_m: np.ndarray
+    change: MeasuredChange
+    before: tuple[int, int]
+    after: tuple[int, int]
+    settlement_before_m: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    @property
+    def imposed(self) -> bool:
+        """Whether the step was given (``--imposed``)."""
+        return self.imposed_m is not None
+
+    def pair_data(self) -> PairData:
+        """Return the calibration's view of an imposed pair."""
+        assert self.imposed_m is not None
+        return PairData(self.name, self.imposed_m, self.imposed_sd_m, self.change)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (SI)."""
+        c = self.change
+        return {
+            "name": self.name,
+            "at_ns": int(self.at_ns),
+            "imposed_m": None if self.imposed_m is None else self.imposed_m.tolist(),
+            "imposed_sd_m": self.imposed_sd_m.tolist() if self.imposed else None,
+            "dR_n": c.dR_n.tolist(),
+            "dR_sd_n": c.sd_n.tolist(),
+            "hours_between": c.dt_s / 3600.0,
+            "air_temp_change_k": c.air_temp_change_k,
+            "before_ns": list(self.before),
+            "after_ns": list(self.after),
+        }
+
+
+def _hhmm(t_ns: int) -> str:
+    """Local time of the bridge (the records' own clock, Europe/Berlin) as ``HH:MM``."""
+    import datetime as dt
+    from zoneinfo import ZoneInfo
+
+    return dt.datetime.fromtimestamp(t_ns / NS, ZoneInfo("Europe/Berlin")).strftime("%H:%M")
+
+
+def level_pairs(
+    data: MonitoringData,
+    records: Sequence[Record],
+    imposed: Sequence[tuple[int, float, float]],
+    imposed_sd_m: float = IMPOSED_SD_M,
+) -> tuple[list[LevelPair], list[str]]:
+    """Measure the level change across every record gap and every imposed step.
+
+    Returns the pairs (in time order) and notes on what could not be measured (a record with too
+    few car-free windows).
+    """
+    bounds: list[tuple[int, int, np.ndarray | None]] = []  # (t, index of the record before, step)
+    steps = sorted((int(t), np.array([a, b], float)) for t, a, b in imposed)
+    for r in records[1:]:
+        prev = records[r.index - 1]
+        inside = [s for s in steps if prev.end_ns <= s[0] < r.start_ns]
+        step = sum((s[1] for s in inside), np.zeros(2)) if inside else None
+        at = inside[0][0] if inside else r.start_ns
+        bounds.append((at, prev.index, step))
+    for t, step in steps:  # imposed steps inside a record split it
+        for r in records:
+            if r.start_ns < t < r.end_ns:
+                bounds.append((t, -1 - r.index, step))
+    bounds.sort(key=lambda b: b[0])
+    pairs, notes = [], []
+    cumulative = np.zeros(2)
+    for k, (t, where, step) in enumerate(bounds):
+        if where >= 0:
+            rb, ra = records[where], records[where + 1]
+            before = (max(rb.start_ns, rb.end_ns - round(PAIR_SPAN_S * NS)), rb.end_ns)
+            after = (ra.start_ns, min(ra.end_ns, ra.start_ns + round(PAIR_SPAN_S * NS)))
+        else:
+            r = records[-1 - where]
+            before = (max(r.start_ns, t - round(PAIR_SPAN_S * NS)), t)
+            after = (t, min(r.end_ns, t + round(PAIR_SPAN_S * NS)))
+        # the data's own gaps inside a span are the records', not this pair's
+        prev_t = bounds[k - 1][0] if k else None
+        next_t = bounds[k + 1][0] if k + 1 < len(bounds) else None
+        before = (max(before[0], prev_t) if prev_t is not None else before[0], before[1])
+        after = (after[0], min(after[1], next_t) if next_t is not None else after[1])
+        name = f"step {k + 1} at {_hhmm(t)}"
+        try:
+            lb = record_level(slice_data(data, *before), window_s=_window_s(data))
+            la = record_level(slice_data(data, *after), window_s=_window_s(data))
+            change = measured_change(lb, la)
+        except (CalibrationError, ValueError) as err:
+            notes.append(f"{name}: level not measured ({err})")
+            if step is not None:
+                cumulative = cumulative + step
+            continue
+        sd = np.full(2, imposed_sd_m)
+        pairs.append(LevelPair(name, t, step, sd, change, before, after, cumulative.copy()))
+        if step is not None:
+            cumulative = cumulative + step
+    return pairs, notes
+
+
+def _window_s(data: MonitoringData) -> float:
+    """Car-free window length for the level fit: 10 s, or 5 samples where forces come slower."""
+    s = data.forces[CHANNELS[0]].stamp_ns
+    if len(s) < 3:
+        return 10.0
+    spacing = float(np.median(np.diff(s))) / NS
+    return max(10.0, 5.0 * spacing)
+
+
+@dataclass
+class ImposedAnalysis:
+    """What explains the response to the known imposed steps.
+
+    Attributes:
+        pairs: the imposed pairs. explanations: effect -> fitted explanation.
+        weights: effect -> posterior probability (equal prior odds).
+        best: the most probable effect. group: effects within ``INDISTINGUISHABLE_LOG_BF`` of it.
+        named: the model as given (``settlement_step``: jacks' error only) is beaten by a Bayes
+            factor over ``NAMED_LOG_BF``, i.e. the imposed steps say the model is wrong.
+        forward: how the surrogate was varied (sweeps, first-order, closed forms).
+
+    """
+
+    pairs: list[LevelPair]
+    explanations: dict[str, Explanation]
+    weights: dict[str, float]
+    best: str
+    group: list[str]
+    named: bool
+    forward: dict[str, Any]
+
+    def surrogate_after(self, base: Surrogate, name: str | None = None) -> Surrogate:
+        """Return the model in use with explanation ``name`` (default ``best``) at its MAP.
+
+        ``A`` and ``thermal`` from the explanation's MAP; ``u0`` stays the base's (the supports
+        were set under the dead load, which the precast deck put on the steel girders before any
+        stiffness the steps reveal; as in ``calibrate.run``), the FE's ``u0`` at the MAP entering as an
+        uncertainty; ``model_uncertainty``: the base's (12 x 12, or 6 x 6 padded) plus the
+        explanation's parameter posterior propagated (``Explanation.model_cov``); a
+        ``discrepancy`` anchored at the imposed settlements the steps passed through (beyond them,
+        larger steps are extrapolation).
+        """
+        e = self.explanations[name or self.best]
+        ev = e.evaluation
+        cov = np.zeros((12, 12))
+        if base.model_cov is not None:
+            n = base.model_cov.shape[0]
+            cov[:n, :n] = base.model_cov
+        shift = ev.u0 - base.u0
+        cov = cov + e.model_cov()
+        cov[4:6, 4:6] += np.outer(shift, shift)
+        states = [p.settlement_before_m for p in self.pairs]
+        states += [p.settlement_before_m + p.imposed_m for p in self.pairs if p.imposed_m is not None]
+        prov = dict(base.provenance)
+        prov["gap_model_change"] = {
+            "effect": e.name,
+            "parameters": e.values(),
+            "fitted_to": [p.name for p in self.pairs],
+            "log_evidence": e.post.log_evidence,
+        }
+        return Surrogate(
+            ev.A, base.u0.copy(), dict(ev.thermal), prov, cov, Discrepancy.from_steps(np.array(states))
+        )
+
+    def table(self) -> list[dict[str, Any]]:
+        """One row per explanation, most probable first (SI)."""
+        top = max(e.post.log_evidence for e in self.explanations.values())
+        rows = []
+        for name, e in sorted(self.explanations.items(), key=lambda kv: -kv[1].post.log_evidence):
+            s = e.summary()
+            rows.append(
+                {
+                    "effect": name,
+                    "parameters": {k: v["map"] for k, v in s["map"].items()},
+                    "intervals95": {k: [v["low95"], v["high95"]] for k, v in s["map"].items()},
+                    "log_evidence": e.post.log_evidence,
+                    "delta_log_evidence": e.post.log_evidence - top,
+                    "probability": self.weights[name],
+                    "chi2_data": s["chi2_data"],
+                    "heldout_logpdf": s["heldout_logpdf"],
+                    "imposed_error_m": s["imposed_error_m"],
+                    "in_sample": s["in_sample"],
+                    "A": s["A"],
+                }
+            )
+        return rows
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the ``levels.imposed`` block of the gap JSON (SI)."""
+        return {
+            "pairs": [p.to_dict() for p in self.pairs],
+            "explanations": self.table(),
+            "best": self.best,
+            "indistinguishable_from": self.group[1:],
+            "named": self.named,
+            "rule": (
+                f"an effect is named when its evidence beats the model as given (settlement_step: the "
+                f"imposed steps within the jacks' accuracy) by a Bayes factor over "
+                f"{math.exp(NAMED_LOG_BF):.0f}; effects within a factor of "
+                f"{math.exp(INDISTINGUISHABLE_LOG_BF):.0f} of the best are not told apart"
+            ),
+            "forward": self.forward,
+            "validation": "leave one imposed pair out"
+            if len(self.pairs) > 1
+            else "one imposed pair: evidence only (nothing to hold out)",
+        }
+
+
+def explain_imposed(
+    pairs: Sequence[LevelPair],
+    surrogate: Surrogate,
+    sweeps: Mapping[str, Sweep],
+    sensitivities: Mapping[str, StiffnessSensitivity],
+) -> ImposedAnalysis:
+    """Fit every explanation of ``IMPOSED_EXPLANATIONS`` to the imposed pairs (module docstring)."""
+    imposed = [p for p in pairs if p.imposed]
+    data = [p.pair_data() for p in imposed]
+
+    def make_forward(names: tuple[str, ...]) -> SurrogateForward:
+        return SurrogateForward(surrogate, names, sweeps, sensitivities)
+
+    explanations = {}
+    for effect, names in IMPOSED_EXPLANATIONS.items():
+        try:
+            make_forward(names)
+        except CalibrationError:
+            continue  # neither a sweep nor a sensitivity for it
+        explanations[effect] = fit_explanation(
+            effect,
+            names,
+            None,  # type: ignore[arg-type]
+            "",
+            data,
+            heldout=len(data) > 1,
+            make_forward=make_forward,
+        )
+    weights = evidence_weights(explanations)
+    best = max(explanations, key=lambda k: explanations[k].post.log_evidence)
+    top = explanations[best].post.log_evidence
+    group = [
+        k
+        for k, e in sorted(explanations.items(), key=lambda kv: -kv[1].post.log_evidence)
+        if top - e.post.log_evidence < INDISTINGUISHABLE_LOG_BF
+    ]
+    as_given = explanations["settlement_step"].post.log_evidence
+    named = best != "settlement_step" and top - as_given > NAMED_LOG_BF
+    fe = tuple(n for e in explanations for n in IMPOSED_EXPLANATIONS[e] if n not in _SPRINGS)
+    forward = make_forward(fe).document()
+    return ImposedAnalysis(list(imposed), explanations, weights, best, group, named, forward)
+
+
+def free_steps(pairs: Sequence[LevelPair], surrogate: Surrogate) -> list[dict[str, Any]]:
+    """Read the steps at the gaps without an imposed step: ``x = A^-1 dR`` under ``surrogate`` (SI).
+
+    Each with its covariance (the measured change's and the surrogate's own uncertainty of a
+    change), the chi-square of ``dR`` against its covariance, and whether it is a step
+    (``STEP_PROBABILITY``).
+    """
+    from scipy import stats
+
+    limit = float(stats.chi2.ppf(STEP_PROBABILITY, 2))
+    out = []
+    a_inv = np.linalg.inv(surrogate.A)
+    for p in pairs:
+        if p.imposed:
+            continue
+        c = p.change
+        x = a_inv @ c.dR_n
+        cov = a_inv @ c.cov_n2 @ a_inv.T + surrogate.model_covariance(x, with_u0=False)
+        chi2 = float(c.dR_n @ np.linalg.solve(c.cov_n2, c.dR_n))
+        out.append(
+            {
+                "name": p.name,
+                "at_ns": int(p.at_ns),
+                "x_m": x.tolist(),
+                "sigma_m": np.sqrt(np.diag(cov)).tolist(),
+                "covariance_m2": cov.tolist(),
+                "chi2": chi2,
+                "significant": bool(chi2 > limit),
+            }
+        )
+    return out

@@ -1,0 +1,57 @@
+"""Records of a monitoring bag: runs of windows with data separated by gaps (no ROS import).
+
+A load-test day is a few short records hours apart; ``records_of`` finds them on the window grid
+of the gap diagnosis. The level analysis of such a day is :mod:`bridge_shadow.gap.levels`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["IMPOSED_SD_M", "RECORD_GAP_WINDOWS", "Record", "records_of"]
+
+NS = 1_000_000_000
+#: A gap of more windows than this between two windows with data separates two records (as the
+#: gap diagnosis's ``candidates.STEP_GAP_WINDOWS``: 5 minutes of 60 s windows).
+RECORD_GAP_WINDOWS = 5
+#: The jacks' accuracy per bearing (1 sd, m) when ``--imposed-sd`` is not given: as in
+#: config/calibration.yaml, +-1 mm (95 %) on a step set by hand and read off a scale.
+IMPOSED_SD_M = 5.0e-4
+
+
+@dataclass(frozen=True)
+class Record:
+    """A run of windows with data, separated from the next by a gap.
+
+    Attributes:
+        index: position in the day. first, last: window indices (inclusive).
+        start_ns, end_ns: the first window's left edge and the last window's right edge (UTC ns).
+
+    """
+
+    index: int
+    first: int
+    last: int
+    start_ns: int
+    end_ns: int
+
+
+def records_of(t_ns: np.ndarray, valid: np.ndarray, width_s: float) -> list[Record]:
+    """Split the window grid into records: runs of windows with data on both channels.
+
+    Two windows with data belong to different records when more than ``RECORD_GAP_WINDOWS``
+    windows without data lie between them.
+    """
+    have = np.flatnonzero(np.asarray(valid).all(axis=1))
+    if not len(have):
+        return []
+    cuts = np.flatnonzero(np.diff(have) > RECORD_GAP_WINDOWS + 1)
+    starts = np.r_[have[0], have[cuts + 1]]
+    ends = np.r_[have[cuts], have[-1]]
+    half = round(0.5 * width_s * NS)
+    return [
+        Record(i, int(a), int(b), int(t_ns[a]) - half, int(t_ns[b]) + half)
+        for i, (a, b) in enumerate(zip(starts, ends, strict=True))
+    ]
