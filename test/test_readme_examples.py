@@ -59,7 +59,8 @@ NOT_RUN = {
         "this twin (3 days, 0.1 Hz, support_spring 2e7, 10 mm down at day 1.5), simulated in "
         "test_gap_model_form.py::test_a_known_lowering_lets_the_diagnosis_name_the_support_spring"
     ),
-    "$B calibrate --out config/surrogate.yaml --report docs": (
+    "$B calibrate --prior-sensitivity": "minutes of FE solves (every explanation under every prior set)",
+    "$B calibrate --out config/surrogate.yaml --report docs --prior-sensitivity --force": (
         "rewrites committed files (make models does, with --force), and takes minutes"
     ),
     "$B calibrate --only support_springs --only connector_slip --json": "20-40 s of FE solves",
@@ -78,6 +79,29 @@ NOT_RUN = {
     ".venv/bin/pip install -e '.[opensees]'": "an installer: changes the venv",
     "sudo apt-get install libsuitesparse-dev": "an installer: changes the machine",
     ".venv/bin/pip install -e '.[cholmod]'": "an installer: changes the venv (GPL extra)",
+    "$B synth --archive /tmp/fleet --bridges 3 --days 7 --rate 1": (
+        "about 100 s of twin generation; synth --archive: test_synth_stream.py::test_synth_archive_command"
+    ),
+    "$B archive /tmp/fleet": (
+        "needs the archive above (minutes); the archive of a synth fleet: "
+        "test_archive.py::test_a_synth_fleet_equals_serial_replay_per_bridge"
+    ),
+    "$B archive /tmp/fleet --scheduler tcp://127.0.0.1:8786 --out /tmp/fleet.out": (
+        "needs the scheduler below; archive --scheduler on a running scheduler: "
+        "test_archive.py::test_cli_reruns_from_the_cache_and_names_the_broken_bag"
+    ),
+    ".venv/bin/dask scheduler --host 127.0.0.1 --port 8786 --dashboard-address 127.0.0.1:0 &": (
+        "a server that runs until stopped; a scheduler on loopback: "
+        "test_archive.py::test_the_engine_listens_on_loopback_only"
+    ),
+    ".venv/bin/dask worker tcp://127.0.0.1:8786 --host 127.0.0.1 --nworkers 2 --nthreads 1 "
+    "--dashboard-address 127.0.0.1:0 &": "workers of the scheduler above, until stopped",
+    ".venv/bin/bridge_shadow_fleet fleet.yaml": (
+        "fleet.yaml is the reader's own manifest, and the nodes run until stopped; a fleet of two: "
+        "test_ros_fleet.py::test_a_fleet_runs_each_bridge_with_its_own_model"
+    ),
+    ".venv/bin/python benchmarks/archive_scale.py": "a benchmark: about 15 minutes with generation",
+    ".venv/bin/python benchmarks/archive_scale.py --cases 1hz-365d": "a benchmark: hours",
 }
 #: Examples that run here, for real (test_help_and_the_demo_replay_run).
 RUN = {".venv/bin/bridge-shadow --help", "$B replay bags/demo_3d"}
@@ -133,7 +157,7 @@ def test_every_bridge_shadow_example_parses_and_its_inputs_exist(
             words = argv[1:]
             for i, w in enumerate(words):
                 previous = words[i - 1] if i else ""
-                if previous in OUTPUT_FLAGS or w.startswith("-") or w in NOT_INPUTS or "=" in w:
+                if previous in OUTPUT_FLAGS or w.startswith("-") or w in NOT_INPUTS or "=" in w or "://" in w:
                     continue
                 if "/" in w or w.endswith((".yaml", ".zip")):
                     if w.startswith("/tmp/"):

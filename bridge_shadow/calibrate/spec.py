@@ -57,7 +57,7 @@ __all__ = [
 ]
 
 #: The keys of a calibration file, of one of its pairs and of its reference (module docstring).
-FILE_KEYS = ("mesh", "baseline_change", "window_s", "pairs", "reference", "explanations", "choose")
+FILE_KEYS = ("mesh", "baseline_change", "window_s", "pairs", "reference", "explanations", "choose", "priors")
 PAIR_KEYS = ("name", "before", "after", "imposed_m", "imposed_sd_m")
 REFERENCE_KEYS = ("name", "record", "reactions_n")
 

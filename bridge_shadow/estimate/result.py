@@ -154,10 +154,19 @@ class ChangeRecord:
 
     @property
     def likely(self) -> bool:
-        """Whether the warnings report it: a change more likely than not, or a significant run."""
+        """Whether the warnings report it.
+
+        A significant run; at a gap or a held run, a change more likely than not, or one the data
+        have not yet decided whose size's 95 % region excludes zero (two windows of a large new
+        state: too few to confirm, too large to keep quiet).
+        """
         if self.significant is not None:
             return self.significant
-        return bool(self.change_probability > 0.5)
+        if self.change_probability > 0.5:
+            return True
+        undecided = self.change_probability > 1e-3  # a merge takes it below (change_confirm_probability)
+        size_chi2 = _chi2(np.asarray(self.size_m), np.asarray(self.covariance_m2))
+        return bool(undecided and size_chi2 > CHI2_2DOF_95)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready record (SI units)."""
