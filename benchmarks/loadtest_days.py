@@ -5,8 +5,11 @@ Two studies, each printed as rates:
 - **real**: every stream the two public records of 2022-04-11 make (``twin.real_records``): the
   reference or the 10 mm record first, then either record placed 1.25 h, 3.5 h, 4 h (with the air
   temperature of 6.5 h) or 24 h (of 7.5 h) later with a step of 0, 10, 20, 30 or 10/20 mm added
-  through the calibrated A; the new state as the last record, in the middle (a third record at the
-  same state follows), or after a record of the old state. 240 streams. Per stream: one event at
+  through the calibrated A; the new state as the last record, in the middle (the same record again
+  1-1.5 h later), or after a record of the old state. 228 streams: the reference record 10 mm
+  lower through A is the lowered state only in the model (the real lowered record differs from it
+  by the model's error, 5-7 kN per bearing with the model average), so the lowered record followed
+  by it has no settlement truth and is left out. Per stream: one event at
   each record whose state changed, no window of a changed record rejected, the final estimate
   within 10 % of the truth (or 1 mm), and its 95 % interval holding it.
 - **twin**: ``twin.loadtest.load_test_day`` over ``--seeds`` seeds, with the sun (a 4 K vertical
@@ -15,16 +18,22 @@ Two studies, each printed as rates:
 
 Usage::
 
-    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin] [--verbose]
+    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin] [--workers N]
+
+Streams and seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers``
+processes, default one per core).
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
+from bridge_shadow.engine import client_mapper, dask_client
 from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.paths import shared_data_dir
@@ -49,57 +58,69 @@ def real_streams():
         for later in ("ref", "lowered"):
             for place, (at, temp_at) in PLACES.items():
                 for step_name, step in STEPS.items():
+                    if first == "lowered" and later == "ref" and step_name == "10":
+                        continue  # the same state only through the model (module docstring)
                     new = Piece(later, at, step, temp_at)
-                    same = tuple(np.asarray(new.truth_m()) - np.asarray(Piece(first, 0.0).truth_m()))
-                    after = at + 1.5 if at < 8 else at + 1.0
+                    again = Piece(later, at + 1.5 if at < 8 else at + 1.0, step, 6.0)
                     base = f"{first} > {later} -{step_name} mm at {place}"
                     yield f"{base}, last", [Piece(first, 0.0), new]
-                    yield f"{base}, middle", [Piece(first, 0.0), new, Piece(first, after, same, 6.0)]
+                    yield f"{base}, middle", [Piece(first, 0.0), new, again]
                     yield f"{base}, old between", [Piece(first, 0.0), Piece(first, 0.45), new]
 
 
-def real_study(verbose: bool) -> None:
-    folder = shared_data_dir() / "Settlements"
+def real_stream(item: tuple[str, list[Piece]]) -> tuple[str, list[bool], str]:
+    """Score one stream (a task): events right, nothing lost, within 10 % (or 1 mm), covered."""
+    name, pieces = item
     sur = load_surrogate()
-    counts = np.zeros(4, int)
-    n = 0
+    sc = build(shared_data_dir() / "Settlements", sur.A, pieces)
+    res = Shadow(load_config(), sur).run(sc.data)
+    truth = sc.truth_m
+    events_ok = [e.window for e in res.events] == [sc.starts_ns[i] // W for i in sc.changes()]
+    bounds = [*sc.starts_ns, 2**62]
+    changed = [(bounds[i], bounds[i + 1]) for i in sc.changes()]
+    lost = sum(
+        1 for o in res.outputs if o.reason == "outlier" and any(a <= o.end_ns < b + W for a, b in changed)
+    )
+    err = res.mean_m - truth
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    within = bool(np.all(np.abs(err) <= np.maximum(0.1 * np.abs(truth), 1e-3)))
+    covered = bool(np.all(np.abs(err) <= 1.96 * sd))
+    probs = [round(c.change_probability, 3) for c in res.changes if c.kind == "gap"]
+    line = (
+        f"  {name:45s} events {len(res.events)}/{len(sc.changes())} lost {lost} "
+        f"error {np.round(1e3 * err, 2)} mm, 95 % +-{np.round(1.96e3 * sd, 1)} mm"
+        + (f", unconfirmed p {probs}" if probs else "")
+    )
+    return name, [events_ok, lost == 0, within, covered], line
+
+
+def real_study(mapper: Callable[..., list[Any]], verbose: bool) -> None:
     t0 = time.perf_counter()
-    for name, pieces in real_streams():
-        sc = build(folder, sur.A, pieces)
-        res = Shadow(load_config(), sur).run(sc.data)
-        truth = sc.truth_m
-        events_ok = [e.window for e in res.events] == [sc.starts_ns[i] // W for i in sc.changes()]
-        bounds = [*sc.starts_ns, 2**62]
-        changed = [(bounds[i], bounds[i + 1]) for i in sc.changes()]
-        lost = sum(
-            1 for o in res.outputs if o.reason == "outlier" and any(a <= o.end_ns < b + W for a, b in changed)
-        )
-        err = res.mean_m - truth
-        sd = np.sqrt(np.diag(res.covariance_m2))
-        within = bool(np.all(np.abs(err) <= np.maximum(0.1 * np.abs(truth), 1e-3)))
-        covered = bool(np.all(np.abs(err) <= 1.96 * sd))
-        counts += [events_ok, lost == 0, within, covered]
-        n += 1
-        if verbose or not (events_ok and not lost and within and covered):
-            print(
-                f"  {name:45s} events {len(res.events)}/{len(sc.changes())} lost {lost} "
-                f"error {np.round(1e3 * err, 2)} mm, 95 % +-{np.round(1.96e3 * sd, 1)} mm"
-            )
+    results = mapper(real_stream, list(real_streams()))
+    counts = np.sum([r for _, r, _ in results], axis=0)
+    n = len(results)
+    for _, r, line in results:
+        if verbose or not all(r):
+            print(line)
     print(f"real records: {n} streams in {time.perf_counter() - t0:.0f} s")
     labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
     for label, c in zip(labels, counts, strict=True):
         print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
 
 
-def twin_study(seeds: int, verbose: bool) -> None:
+def twin_day(seed_sun: tuple[int, float]) -> Any:
+    """Score one twin load-test day (a task)."""
+    seed, sun = seed_sun
     sur = load_surrogate()
+    data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun), sur)
+    return score_day(Shadow(load_config(), sur).run(data), truth)
+
+
+def twin_study(mapper: Callable[..., list[Any]], seeds: int, verbose: bool) -> None:
     for sun in (4.0, 0.0):
         t0 = time.perf_counter()
-        scores = []
-        for seed in range(seeds):
-            data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun), sur)
-            s = score_day(Shadow(load_config(), sur).run(data), truth)
-            scores.append(s)
+        scores = mapper(twin_day, [(seed, sun) for seed in range(seeds)])
+        for seed, s in enumerate(scores):
             if verbose or not s.passed:
                 err = np.round(1e3 * s.error_m, 2)
                 print(f"  seed {seed}: events {s.events_right} lost {s.lost_windows} error {err} mm")
@@ -120,12 +141,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument("--only", choices=("real", "twin"))
+    ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
-    if args.only != "twin":
-        real_study(args.verbose)
-    if args.only != "real":
-        twin_study(args.seeds, args.verbose)
+    with dask_client(workers=args.workers) as client:
+        mapper = client_mapper(client)
+        if args.only != "twin":
+            real_study(mapper, args.verbose)
+        if args.only != "real":
+            twin_study(mapper, args.seeds, args.verbose)
 
 
 if __name__ == "__main__":
