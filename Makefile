@@ -33,8 +33,10 @@ demo: $(STAMP)
 	@echo "replaying $(DEMO_BAG) through the shadow (bridge-shadow replay $(DEMO_BAG))"
 	@$(VENV)/bin/bridge-shadow replay $(DEMO_BAG)
 
+# Two test processes (pytest-xdist; a file's tests stay together, so its fixtures are made once):
+# the suite is CPU-bound, and each process confines DDS to its own domain (test/conftest.py).
 test: $(STAMP)
-	$(PY) -m pytest
+	$(PY) -m pytest -n 2 --dist loadfile
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check bridge_shadow test benchmarks

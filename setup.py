@@ -33,7 +33,7 @@ setup(
     ],
     extras_require={
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
-        "test": ["pytest>=7", "ruff>=0.5"],
+        "test": ["pytest>=7", "pytest-xdist>=3", "ruff>=0.5"],
         # METIS nested-dissection ordering: about 1.6x faster factorization (fe/solve.py uses it
         # when importable and falls back to SuperLU's own ordering otherwise).
         "fast": ["pymetis>=2023.1"],

@@ -126,7 +126,7 @@ def test_surrogate_out_interrupted(tmp_path: Path, monkeypatch) -> None:
     from bridge_shadow.model.surrogate_file import load_surrogate
 
     out = tmp_path / "s.yaml"
-    argv = ["surrogate", *FE_COARSE, "--out", str(out), "--json"]
+    argv = ["surrogate", *FE_COARSE, "--out", str(out), "--json", "--no-sweeps"]
     _interrupted(monkeypatch, argv, _on_publish(monkeypatch, out, signal.SIGTERM), EXIT_TERMINATED)
     assert not out.exists() and _leftovers(tmp_path) == []
     assert main(argv) == 0 and load_surrogate(out).condition_number < 10

@@ -177,6 +177,7 @@ def test_cli_json_and_overrides(tmp_path, capsys):
             "--mesh",
             "coarse",
             "--no-sensitivities",
+            "--no-sweeps",  # the sweeps: test_model_sweeps.py
             "--set",
             "composite_action=0.5",
             "--out",
@@ -200,6 +201,7 @@ def test_cli_writes_vtk_with_deflected_shapes_and_png(tmp_path, capsys):
             "--mesh",
             "coarse",
             "--no-sensitivities",
+            "--no-sweeps",
             "--out",
             str(tmp_path / "s.yaml"),
             "--vtk",
