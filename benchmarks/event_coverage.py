@@ -47,7 +47,7 @@ import numpy as np
 
 from bridge_shadow.engine import client_mapper, dask_client
 from bridge_shadow.estimate import Shadow, ShadowConfig
-from bridge_shadow.model.surrogate_file import Surrogate, load_surrogate, placeholder_surrogate
+from bridge_shadow.model.surrogate_file import THERMAL_CASES, Surrogate, load_surrogate, placeholder_surrogate
 from bridge_shadow.paths import config_file
 from bridge_shadow.twin.simulate import simulate
 
@@ -81,8 +81,12 @@ def one(args: tuple[str, int, str]) -> dict:
     reality = sur
     if world == "calibrated" and sur.model_cov is not None:
         rng = np.random.default_rng(np.random.SeedSequence([seed, 77]))
-        theta = rng.multivariate_normal(np.r_[sur.A.ravel(), sur.u0], sur.model_cov)
-        reality = Surrogate(theta[:4].reshape(2, 2), theta[4:], sur.thermal, dict(sur.provenance))
+        cases = list(THERMAL_CASES) if sur.model_cov.shape[0] == 12 else []  # the 12x12 order
+        mean = np.concatenate([sur.A.ravel(), sur.u0, *(sur.thermal[c] for c in cases)])
+        theta = rng.multivariate_normal(mean, sur.model_cov[: len(mean), : len(mean)])
+        a = theta[:4].reshape(2, 2)
+        thermal = {**sur.thermal, **{c: theta[6 + 2 * i : 8 + 2 * i] for i, c in enumerate(cases)}}
+        reality = Surrogate(0.5 * (a + a.T), theta[4:6], thermal, dict(sur.provenance))
     effects = {k: v for k, v in sc["effects"].items() if strong or k not in THERMAL}
     data, truth = simulate(
         days=sc["days"], rate_hz=0.2, seed=seed, surrogate=reality, steps=sc["steps"], effects=effects

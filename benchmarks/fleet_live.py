@@ -30,11 +30,11 @@ import numpy as np
 import rclpy
 import yaml
 from geometry_msgs.msg import WrenchStamped
+from live_latency import messages  # the same stream as one node's benchmark (run from benchmarks/)
 from rclpy.experimental import EventsExecutor
 from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float64MultiArray
 
-from bridge_shadow.bagio import encode_stamped_floats
 from bridge_shadow.ros.fleet import FleetMember, start_fleet
 from bridge_shadow.ros.launcher import NodeProcess, wait_until
 from bridge_shadow.ros.netenv import confine_to_loopback
@@ -102,26 +102,11 @@ class FleetPlayer:
         rclpy.try_shutdown(context=self.context)
 
 
-def _messages(n_ticks: int, seed: int) -> tuple[list[bytes], list[bytes], list[bytes]]:
-    stamps = T0_NS + np.arange(n_ticks + 1, dtype=np.int64) * TICK_NS
-    rng = np.random.default_rng(seed)
-    out = []
-    for base, frame in ((2.60e5, "frc_01"), (2.21e5, "frc_02")):
-        values = np.zeros((n_ticks + 1, 6))
-        values[:, 2] = base + 60.0 * rng.standard_normal(n_ticks + 1)
-        out.append(encode_stamped_floats(stamps, frame, values))
-    temp = 8.0 + 0.5 * np.sin(np.arange(n_ticks + 1) / 3000.0)
-    out.append(
-        encode_stamped_floats(stamps, "air_temperature", np.column_stack([temp, np.zeros(n_ticks + 1)]))
-    )
-    return out[0], out[1], out[2]
-
-
 def run(n_bridges: int, seconds: float, echo: bool) -> dict:
     """Play ``seconds`` to ``n_bridges`` nodes (bare echo or shadow); return latencies and counts."""
     names = [f"b{i:02d}" for i in range(n_bridges)]
     n = int(seconds * 1e9 / TICK_NS)
-    msgs = [_messages(n, seed) for seed in range(n_bridges)]
+    msgs = [messages(n, seed, TICK_NS) for seed in range(n_bridges)]
     with tempfile.TemporaryDirectory() as tmp:
         if echo:
             nodes = [

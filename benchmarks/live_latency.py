@@ -40,18 +40,29 @@ PARAMS = [
 ]
 
 
+def messages(
+    n_ticks: int, seed: int, tick_ns: int = TICK_NS
+) -> tuple[list[bytes], list[bytes], list[bytes]]:
+    """Return serialized messages of ``n_ticks + 1`` ticks: two force channels (60 N noise), the air."""
+    stamps = T0_NS + np.arange(n_ticks + 1, dtype=np.int64) * tick_ns
+    rng = np.random.default_rng(seed)
+    out = []
+    for base, frame in ((2.60e5, "frc_01"), (2.21e5, "frc_02")):
+        values = np.zeros((n_ticks + 1, 6))
+        values[:, 2] = base + 60.0 * rng.standard_normal(n_ticks + 1)
+        out.append(encode_stamped_floats(stamps, frame, values))
+    temp = 8.0 + 0.5 * np.sin(np.arange(n_ticks + 1) / 3000.0)
+    out.append(
+        encode_stamped_floats(stamps, "air_temperature", np.column_stack([temp, np.zeros(n_ticks + 1)]))
+    )
+    return out[0], out[1], out[2]
+
+
 def run(module: str, args: list[str], seconds: float, echo: bool) -> np.ndarray:
     """Play ``seconds`` at 1 kHz to one receiver; return the latency (ms) of each window after warm-up."""
     n = int(seconds * 1e9 / TICK_NS)
-    stamps = T0_NS + np.arange(n + 1, dtype=np.int64) * TICK_NS
-    rng = np.random.default_rng(1)
-    forces = []
-    for base, frame in ((2.60e5, "frc_01"), (2.21e5, "frc_02")):
-        values = np.zeros((n + 1, 6))
-        values[:, 2] = base + 60.0 * rng.standard_normal(n + 1)
-        forces.append(encode_stamped_floats(stamps, frame, values))
-    temp_c = 8.0 + 0.5 * np.sin(np.arange(n + 1) / 3000.0)
-    temps = encode_stamped_floats(stamps, "air_temperature", np.column_stack([temp_c, np.zeros(n + 1)]))
+    f1, f2, temps = messages(n, seed=1)
+    forces = [f1, f2]
     closing: dict[int, int] = {}  # window index -> time.time_ns() when its closing message left
     extra = {ECHO_TOPIC: WrenchStamped} if echo else None
     with Player(record_diagnostics=False, extra=extra) as player, NodeProcess(args, module=module) as node:
