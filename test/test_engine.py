@@ -57,3 +57,25 @@ def test_serial_mapper_and_bad_worker_counts() -> None:
     assert serial_mapper(lambda v: v * v, range(4)) == [0, 1, 4, 9]
     with pytest.raises(InputError, match="at least 1"), dask_client(workers=0, processes=False):
         pass
+
+
+def test_calibrate_command_hands_a_dask_mapper_to_the_fits(monkeypatch, capsys) -> None:
+    """``calibrate --workers N`` hands ``calibrate()`` a local cluster's mapper; bad combinations: one line.
+
+    (That fits on the mapper equal the serial ones is the test above; the command's whole run is
+    minutes of FE solves.)
+    """
+    import bridge_shadow.calibrate.run as cal_run
+    from bridge_shadow.cli import main
+
+    def fake(spec, cfg, *, mapper=None, **kwargs):
+        assert mapper is not None
+        raise InputError(f"mapper ran: {mapper(abs, [-1, -2, 3])}")
+
+    monkeypatch.setattr(cal_run, "calibrate", fake)
+    assert main(["calibrate", "--workers", "1"]) == 2
+    assert "mapper ran: [1, 2, 3]" in capsys.readouterr().err
+    assert main(["calibrate", "--workers", "1", "--scheduler", "tcp://127.0.0.1:9"]) == 2
+    assert "a --scheduler has its own workers" in capsys.readouterr().err
+    assert main(["calibrate", "--check", "config/surrogate.yaml", "--workers", "2"]) == 2
+    assert "drop --workers" in capsys.readouterr().err

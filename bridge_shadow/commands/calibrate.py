@@ -45,6 +45,7 @@ examples:
   bridge-shadow calibrate --out config/surrogate.yaml        # the committed default surrogate
   bridge-shadow calibrate --json --only support_springs --only slab_joint_opening
   bridge-shadow calibrate my_pairs.yaml --mesh coarse --out /tmp/cal.yaml --report /tmp/cal
+  bridge-shadow calibrate --workers 2                        # the explanations in parallel on Dask
   bridge-shadow calibrate --check config/surrogate.yaml      # the default surrogate on the pair
   bridge-shadow calibrate later_pairs.yaml --check config/surrogate_fe.yaml
 """
@@ -108,11 +109,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SURROGATE",
         help="score this surrogate YAML on the file's pairs instead of calibrating (exit 1 on a miss)",
     )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="fit the explanations in parallel on a local Dask cluster of N processes (each with FE "
+        "solves of its own: more solves, the same fits); default: one after the other here",
+    )
+    parser.add_argument(
+        "--scheduler", metavar="ADDR", help="fit the explanations on a running Dask scheduler (tcp://HOST:PORT)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
 def run(args: argparse.Namespace) -> int:
     """Calibrate, print, write."""
+    import contextlib
     import sys
 
     from bridge_shadow.calibrate.report import summary_text, write_figures
@@ -154,14 +166,23 @@ def run(args: argparse.Namespace) -> int:
     if args.report is not None:
         check_output_dir(args.report, "figure directory")
     cfg = load_bridge_config(args.model, parse_overrides(args.overrides))
-    result = calibrate(
-        spec,
-        cfg,
-        only=args.only,
-        report=lambda f, s: progress(f, "calibrate"),
-        sensitivity=args.prior_sensitivity,
-        sweeps=args.out is not None and not args.no_sweeps,
-    )
+    if args.workers is not None and args.scheduler:
+        raise InputError("--workers sizes the local cluster; a --scheduler has its own workers")
+    with contextlib.ExitStack() as stack:
+        mapper = None
+        if args.workers is not None or args.scheduler:
+            from bridge_shadow.engine import client_mapper, dask_client
+
+            mapper = client_mapper(stack.enter_context(dask_client(args.scheduler, args.workers)))
+        result = calibrate(
+            spec,
+            cfg,
+            only=args.only,
+            report=lambda f, s: progress(f, "calibrate"),
+            sensitivity=args.prior_sensitivity,
+            sweeps=args.out is not None and not args.no_sweeps,
+            mapper=mapper,
+        )
     doc = result.to_dict()
     if args.out is not None:
         what = "Model average of the explanations" if spec.choose == "average" else "One explanation"
@@ -197,7 +218,7 @@ def _check(args: argparse.Namespace, spec: object) -> int:
 
     options = (
         "out", "force", "report", "only", "choose", "model", "mesh",
-        "priors", "prior_sensitivity", "no_sweeps",
+        "priors", "prior_sensitivity", "no_sweeps", "workers", "scheduler",
     )
     calibrating = [n for n in options if getattr(args, n)]
     if calibrating or args.overrides:
