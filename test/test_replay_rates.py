@@ -67,7 +67,8 @@ def test_live_replay_at_several_rates_ends_at_the_direct_posterior(synth_bag) ->
 
     # the sun of the demo, and a 2 mm step at 06:00 (an event the live run must find at the same window)
     bag: Path = synth_bag(
-        days=0.375, rate_hz=0.1, seed=1, effects=DEMO_EFFECTS, surrogate="file", steps=[(0.25, -0.002, -0.002)]
+        days=0.375, rate_hz=0.1, seed=1, effects=DEMO_EFFECTS, surrogate="file",
+        steps=[(0.25, -0.002, -0.002)],
     )
     data = read_monitoring(bag)
     direct = Shadow(load_config()).run(data).to_json()

@@ -44,12 +44,15 @@ import numpy as np
 
 from bridge_shadow.contract import CHANNELS, FORCE_FRAMES
 from bridge_shadow.estimate import report
+from bridge_shadow.estimate.checkpoint import restore, save_state
+from bridge_shadow.estimate.closed_window import Window
 from bridge_shadow.estimate.compensation import Compensation, CompensationFit
 from bridge_shadow.estimate.config import ShadowConfig
 from bridge_shadow.estimate.events import ChangeDetector, Decision
 from bridge_shadow.estimate.gate import REASONS, TopicGate
 from bridge_shadow.estimate.inputs import TOPIC_KEYS, TopicLedger
 from bridge_shadow.estimate.noise import NoiseModel
+from bridge_shadow.estimate.persistence import restore_shadow, shadow_state
 from bridge_shadow.estimate.prior import configured_prior_sigma, prior_sigma
 from bridge_shadow.estimate.report import NOISE_FULL_DAY_S
 from bridge_shadow.estimate.result import ChangeRecord, EventRecord, ReplayResult, WindowOutput
@@ -70,55 +73,6 @@ _CURVE_BLOCK = 64
 _RANGE_MARGIN_K = 0.5
 #: Rejected windows (time and reason) kept for ``/diagnostics``; replay lists every one.
 RECENT_REJECTED = 50
-
-
-class Window:
-    """A closed window on its way to an output (slots: this is the per-window hot path).
-
-    ``action`` is None while undecided, then ``invalid``, ``warm``, ``accept``, ``reject``,
-    ``event`` (the first window of a new segment) or ``change`` (the first window of a provisional
-    segment: an unconfirmed change).
-    """
-
-    __slots__ = (
-        "action",
-        "bv",
-        "event_end",
-        "force",
-        "g",
-        "g_fit",
-        "gvar",
-        "i0",
-        "k",
-        "reason",
-        "samples",
-        "seg",
-        "temp",
-    )
-
-    def __init__(
-        self,
-        k: int,
-        samples: np.ndarray,
-        force: np.ndarray,
-        temp: np.ndarray,
-        reason: str,
-        i0: np.ndarray,
-        bv: np.ndarray,
-    ) -> None:
-        self.k = k
-        self.samples = samples
-        self.force = force
-        self.temp = temp
-        self.reason = reason
-        self.i0 = i0
-        self.bv = bv
-        self.action: str | None = "invalid" if reason else None
-        self.event_end = False  # the last window of an event's confirmation run
-        self.g = (0.0, 0.0)  # the centred curve at this window's temperature, N
-        self.gvar = (0.0, 0.0)  # the curve's own variance there, N^2
-        self.g_fit = -1  # the fit that ``g`` comes from
-        self.seg = -1  # the segment of a warm-up window (set on arrival; -1 otherwise)
 
 
 class Shadow:
@@ -801,8 +755,6 @@ class Shadow:
     # -- state ----------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
         """Return the whole online state as nested plain data (arrays, numbers, strings)."""
-        from bridge_shadow.estimate.persistence import shadow_state
-
         return shadow_state(self)
 
     @classmethod
@@ -810,14 +762,10 @@ class Shadow:
         cls, state: dict[str, Any], config: ShadowConfig | None = None, surrogate: Surrogate | None = None
     ) -> Shadow:
         """Rebuild a shadow from ``state_dict`` (config and surrogate default to the saved ones)."""
-        from bridge_shadow.estimate.persistence import restore_shadow
-
         return restore_shadow(cls, state, config, surrogate)
 
     def save_checkpoint(self, path: str | Path | None = None) -> Path | None:
         """Write the state atomically to ``path`` (default ``checkpoint_path``); None if disabled."""
-        from bridge_shadow.estimate.checkpoint import save_state
-
         target = path if path is not None else self.config.checkpoint_path
         if not target:
             return None
@@ -829,9 +777,7 @@ class Shadow:
         cls, path: str | Path, config: ShadowConfig | None = None, surrogate: Surrogate | None = None
     ) -> Shadow:
         """Rebuild a shadow from a checkpoint file written by ``save_checkpoint``."""
-        from bridge_shadow.estimate.checkpoint import restore  # refuses unusable/incompatible files
-
-        return restore(path, config, surrogate, cls.from_state_dict)
+        return restore(path, config, surrogate, cls.from_state_dict)  # refuses unusable/incompatible files
 
     def _maybe_checkpoint(self) -> None:
         if not self.config.checkpoint_path or self.clock_ns is None:

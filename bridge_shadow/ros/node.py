@@ -102,7 +102,6 @@ from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from bridge_shadow.commands.output import jsonable
 from bridge_shadow.contract import (
     CHANNELS,
     COMPENSATED_TOPICS,
@@ -116,6 +115,7 @@ from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.estimate import ShadowConfig, WindowOutput, load_config
 from bridge_shadow.estimate.param_specs import SPECS, constraint_text, describe, kind_of
 from bridge_shadow.estimate.startup import open_shadow
+from bridge_shadow.jsonvalues import jsonable
 from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 from bridge_shadow.paths import config_file
 from bridge_shadow.ros import convert

@@ -1,0 +1,68 @@
+"""The package's import structure, computed with ``ast`` from the sources (tools/import_graph.py)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _tool():
+    spec = importlib.util.spec_from_file_location("import_graph", ROOT / "tools" / "import_graph.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("import_graph", module)
+    spec.loader.exec_module(module)
+    return module
+
+
+graph_tool = _tool()
+
+
+def _reachable(graph: dict[str, set[str]], start: str) -> set[str]:
+    seen: set[str] = set()
+    todo = [start]
+    while todo:
+        for t in graph[todo.pop()]:
+            if t not in seen:
+                seen.add(t)
+                todo.append(t)
+    return seen
+
+
+def test_no_import_cycles_inside_any_folder() -> None:
+    """No two modules of one folder import each other, directly or around a circle.
+
+    Function-level imports count; type-only ones (``if TYPE_CHECKING:``) do not.
+    """
+    graph = graph_tool.module_imports()
+    assert graph_tool.cycles_within_folders(graph) == []
+
+
+def test_cycle_finder_sees_function_level_imports(tmp_path: Path) -> None:
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "sub" / "__init__.py").write_text("")
+    (pkg / "sub" / "a.py").write_text("from pkg.sub.b import x\n")
+    (pkg / "sub" / "b.py").write_text("def x():\n    from pkg.sub import a\n")
+    type_only = "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from . import a\n"
+    (pkg / "sub" / "c.py").write_text(type_only)
+    graph = graph_tool.module_imports(tmp_path, "pkg")
+    assert graph["pkg.sub.b"] == {"pkg.sub", "pkg.sub.a"}
+    assert graph["pkg.sub.c"] == set()  # type-only imports are never executed
+    assert graph_tool.cycles_within_folders(graph) == [["pkg.sub.a", "pkg.sub.b"]]
+
+
+def test_live_replay_never_reaches_the_commands() -> None:
+    """``bridge-shadow replay --live`` calls live replay, never the other way round.
+
+    Live replay, the launcher and the node it launches import no command (not even through others).
+    """
+    graph = graph_tool.module_imports()
+    assert "bridge_shadow.ros.live_replay" in graph["bridge_shadow.commands.replay"]
+    for start in ("bridge_shadow.ros.live_replay", "bridge_shadow.ros.node", "bridge_shadow.ros.launcher"):
+        reached = _reachable(graph, start)
+        assert not {m for m in reached if m.startswith("bridge_shadow.commands") or m == "bridge_shadow.cli"}
