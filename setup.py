@@ -49,7 +49,7 @@ setup(
     entry_points={
         "console_scripts": [
             "bridge-shadow = bridge_shadow.cli:main",
-            "bridge_shadow_node = bridge_shadow.ros.node:main",
+            "bridge_shadow_node = bridge_shadow.ros.main:main",
             "bridge_shadow_fleet = bridge_shadow.ros.fleet:main",
         ],
     },

@@ -63,6 +63,6 @@ def test_live_replay_never_reaches_the_commands() -> None:
     """
     graph = graph_tool.module_imports()
     assert "bridge_shadow.ros.live_replay" in graph["bridge_shadow.commands.replay"]
-    for start in ("bridge_shadow.ros.live_replay", "bridge_shadow.ros.node", "bridge_shadow.ros.launcher"):
+    for start in ("bridge_shadow.ros.live_replay", "bridge_shadow.ros.main", "bridge_shadow.ros.launcher"):
         reached = _reachable(graph, start)
         assert not {m for m in reached if m.startswith("bridge_shadow.commands") or m == "bridge_shadow.cli"}
