@@ -32,28 +32,40 @@ def _reachable(graph: dict[str, set[str]], start: str) -> set[str]:
     return seen
 
 
-def test_no_import_cycles_inside_any_folder() -> None:
-    """No two modules of one folder import each other, directly or around a circle.
+def test_no_import_cycles() -> None:
+    """No module imports itself around a circle, and inside no package do two parts import each other.
 
-    Function-level imports count; type-only ones (``if TYPE_CHECKING:``) do not.
+    Parts are a package's modules and its subpackages (each as a whole). Function-level imports
+    count; type-only ones (``if TYPE_CHECKING:``) do not.
     """
     graph = graph_tool.module_imports()
-    assert graph_tool.cycles_within_folders(graph) == []
+    assert graph_tool.module_cycles(graph) == []
+    assert graph_tool.cycles_within_packages(graph) == []
 
 
 def test_cycle_finder_sees_function_level_imports(tmp_path: Path) -> None:
     pkg = tmp_path / "pkg"
-    (pkg / "sub").mkdir(parents=True)
+    for folder in ("sub", "sub/inner", "other"):
+        (pkg / folder).mkdir(parents=True)
+        (pkg / folder / "__init__.py").write_text("")
     (pkg / "__init__.py").write_text("")
-    (pkg / "sub" / "__init__.py").write_text("")
     (pkg / "sub" / "a.py").write_text("from pkg.sub.b import x\n")
     (pkg / "sub" / "b.py").write_text("def x():\n    from pkg.sub import a\n")
     type_only = "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from . import a\n"
     (pkg / "sub" / "c.py").write_text(type_only)
+    (pkg / "sub" / "inner" / "d.py").write_text("import pkg.sub.c\n")
+    (pkg / "sub" / "e.py").write_text("def f():\n    from pkg.sub.inner import d\n")
+    (pkg / "other" / "f.py").write_text("from pkg.sub.c import y\n")
     graph = graph_tool.module_imports(tmp_path, "pkg")
-    assert graph["pkg.sub.b"] == {"pkg.sub", "pkg.sub.a"}
+    assert graph["pkg.sub.b"] == {"pkg.sub.a"}
     assert graph["pkg.sub.c"] == set()  # type-only imports are never executed
-    assert graph_tool.cycles_within_folders(graph) == [["pkg.sub.a", "pkg.sub.b"]]
+    assert graph_tool.module_cycles(graph) == [["pkg.sub.a", "pkg.sub.b"]]
+    # c -> inner (through d), and inner -> c: no module circle, but one between parts of pkg.sub
+    assert ["pkg.sub.c", "pkg.sub.inner"] not in graph_tool.module_cycles(graph)
+    assert sorted(graph_tool.cycles_within_packages(graph)) == [["pkg.sub.a", "pkg.sub.b"]]
+    (pkg / "sub" / "c.py").write_text("def g():\n    from pkg.sub.inner import d\n")
+    graph = graph_tool.module_imports(tmp_path, "pkg")
+    assert ["pkg.sub.c", "pkg.sub.inner"] in graph_tool.cycles_within_packages(graph)
 
 
 def test_live_replay_never_reaches_the_commands() -> None:

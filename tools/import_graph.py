@@ -35,7 +35,8 @@ def modules(root: Path = ROOT, package: str = PACKAGE) -> dict[str, Path]:
 def _imported(tree: ast.AST, name: str, is_package: bool) -> Iterable[str]:
     """Yield the absolute names a module imports anywhere (also inside functions).
 
-    ``from x import y`` gives ``x`` and ``x.y``, so that imported submodules are seen. Imports under
+    ``from x import y`` gives ``x.y`` (resolved later to the submodule ``x.y`` or, failing that, the
+    module ``x``), so that imported submodules are seen. Imports under
     ``if TYPE_CHECKING:`` are left out: they are never executed (annotations only).
     """
     base = name if is_package else name.rpartition(".")[0]
@@ -50,7 +51,6 @@ def _imported(tree: ast.AST, name: str, is_package: bool) -> Iterable[str]:
                 mod = f"{anchor}.{node.module}" if node.module else anchor
             else:
                 mod = node.module or ""
-            yield mod
             for alias in node.names:
                 yield f"{mod}.{alias.name}"
 
@@ -89,21 +89,47 @@ def module_imports(root: Path = ROOT, package: str = PACKAGE) -> dict[str, set[s
     return graph
 
 
-def cycles_within_folders(graph: dict[str, set[str]]) -> list[list[str]]:
-    """Return the import cycles among the modules of one folder, for every folder.
+def module_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Return the import cycles among modules: strongly connected components of more than one."""
+    return [c for c in _strongly_connected(graph) if len(c) > 1]
 
-    A cycle is a strongly connected component of more than one module. A package's ``__init__`` is
-    the folder's front door, not a peer: it is not counted in its own folder.
+
+def children_graph(graph: dict[str, set[str]], package: str) -> dict[str, set[str]]:
+    """Return the imports among the children of ``package``: its modules and subpackages (one box each).
+
+    The package's own ``__init__`` is its front door, not a child.
     """
-    found: list[list[str]] = []
-    folders: dict[str, list[str]] = {}
-    for name in graph:
-        folders.setdefault(name.rpartition(".")[0], []).append(name)
-    for folder, members in folders.items():
-        inside = {m for m in members if m != folder}
-        sub = {m: {t for t in graph[m] if t in inside} for m in inside}
-        found.extend(c for c in _strongly_connected(sub) if len(c) > 1)
-    return found
+    prefix = package + "."
+
+    def child(name: str) -> str | None:
+        return prefix + name[len(prefix) :].split(".")[0] if name.startswith(prefix) else None
+
+    out: dict[str, set[str]] = {}
+    for src, targets in graph.items():
+        box = child(src)
+        if box is None:
+            continue
+        out.setdefault(box, set())
+        for t in targets:
+            other = child(t)
+            if other is not None and other != box:
+                out[box].add(other)
+                out.setdefault(other, set())
+    return out
+
+
+def packages(graph: dict[str, set[str]]) -> list[str]:
+    """Return the packages (modules with modules below them)."""
+    return sorted({n for n in graph if any(m.startswith(n + ".") for m in graph)})
+
+
+def cycles_within_packages(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Return the import cycles inside every package, its subpackages collapsed to one box each.
+
+    A cycle is a strongly connected component of more than one child; two subpackages that import
+    each other (through any of their modules) are one.
+    """
+    return [c for p in packages(graph) for c in module_cycles(children_graph(graph, p))]
 
 
 def _strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -197,14 +223,14 @@ def render(text: str, block: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Rewrite (or ``--check``) docs/architecture.md, or list the cycles inside folders."""
+    """Rewrite (or ``--check``) docs/architecture.md, or list the import cycles."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="exit 1 when docs/architecture.md is stale")
-    parser.add_argument("--cycles", action="store_true", help="list import cycles inside folders")
+    parser.add_argument("--cycles", action="store_true", help="list the import cycles (modules, packages)")
     args = parser.parse_args(argv)
     graph = module_imports()
     if args.cycles:
-        for cycle in cycles_within_folders(graph):
+        for cycle in module_cycles(graph) + cycles_within_packages(graph):
             print(" <-> ".join(cycle))
         return 0
     text = DOC.read_text() if DOC.exists() else ""
