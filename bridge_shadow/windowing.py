@@ -3,7 +3,7 @@
 Windows are ``[k W, (k + 1) W)`` since the epoch, so the same sample always falls into the same
 window. ``window_index`` places samples; ``window_stats`` groups values by window row with
 ``np.bincount`` (count and mean; with ``spread`` also the within-window standard deviation,
-maximum and median). The online shadow closes windows with it (``estimate.windows``), and the gap
+maximum and median). The online shadow closes windows with it (``estimate.inputs.windows``), and the gap
 diagnosis aggregates a whole record with it (``gap.windows``).
 """
 

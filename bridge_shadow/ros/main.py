@@ -65,7 +65,7 @@ def params_files(argv: Sequence[str]) -> list[str]:
 
 def _check_params_file(path: str) -> None:
     """Read a ``--params-file`` before rcl does, so a broken one gives one line (not an RCLError)."""
-    from bridge_shadow.estimate.config import read_params_file
+    from bridge_shadow.estimate.parameters.config import read_params_file
 
     try:
         read_params_file(Path(path))

@@ -37,7 +37,7 @@ for such a window that arrives later still is counted ``late``. Data after the g
 Checkpoint: with ``checkpoint_path`` set, the node resumes from that file when it exists, the shadow
 saves it every ``checkpoint_period_s`` of stamp time, and the node saves it on SIGINT/SIGTERM
 after ingesting what it has buffered. A file that cannot be read, or was saved under parameters
-that shape the state differently (``estimate.checkpoint``), stops the node with one line naming
+that shape the state differently (``estimate.state.checkpoint``), stops the node with one line naming
 it (``checkpoint_unusable: fresh`` sets it aside and starts from the prior); it is never
 overwritten. At start the node logs the surrogate, the parameter files, the topics and the
 checkpoint it uses.
@@ -78,7 +78,7 @@ from bridge_shadow.contract import (
 )
 from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.estimate import ShadowConfig, WindowOutput
-from bridge_shadow.estimate.param_specs import SPECS
+from bridge_shadow.estimate.parameters.specs import SPECS
 from bridge_shadow.estimate.startup import open_shadow
 from bridge_shadow.jsonvalues import jsonable
 from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate

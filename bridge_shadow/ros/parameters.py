@@ -2,7 +2,7 @@
 
 The parameters are every entry of ``config/shadow.yaml`` (its values are the declared defaults), overridable
 with ``--ros-args -p name:=value`` or ``--params-file FILE``. Each is declared with a
-ParameterDescriptor built from ``estimate.param_specs`` (type, description with unit, constraint,
+ParameterDescriptor built from ``estimate.parameters.specs`` (type, description with unit, constraint,
 range), and checked as strictly as ``replay --params`` checks it: an unknown name, a wrong type or
 an out-of-range value stops the node at start with one line and exit code 2. Only
 ``diagnostics_period_s`` may change at run time (the set-parameters callback refuses a bad value
@@ -21,14 +21,14 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.node import Node
 
 from bridge_shadow.estimate import ShadowConfig, load_config
-from bridge_shadow.estimate.param_specs import SPECS, constraint_text, describe, kind_of
+from bridge_shadow.estimate.parameters.specs import SPECS, constraint_text, describe, kind_of
 
 __all__ = ["declare_parameters", "is_ros_own", "parameter_descriptor", "plain_value"]
 
 
 #: Parameters rclpy itself reads (not the shadow's, and not unknown either).
 _ROS_OWN = ("use_sim_time", "start_type_description_service", "qos_overrides.")
-#: ROS parameter type of each value kind of ``param_specs``.
+#: ROS parameter type of each value kind of ``estimate.parameters.specs``.
 _ROS_TYPES = {
     "bool": ParameterType.PARAMETER_BOOL,
     "int": ParameterType.PARAMETER_INTEGER,
@@ -51,7 +51,7 @@ def plain_value(value: Any) -> Any:
 
 
 def parameter_descriptor(name: str, kind: str) -> ParameterDescriptor:
-    """Build the ParameterDescriptor of a shadow parameter from ``param_specs`` (one table).
+    """Build the ParameterDescriptor of a shadow parameter from ``estimate.parameters.specs`` (one table).
 
     Type, description (the comment of config/shadow.yaml, unit, constraint, role), the constraint
     in words, and the range where both ends are finite. Parameters that cannot change while the
@@ -85,7 +85,7 @@ def declare_parameters(node: Node) -> ShadowConfig:
     """Check the start-up parameters, declare each with its descriptor, and return them read back.
 
     Defaults are config/shadow.yaml. The overrides (``--params-file``, ``-p``) are checked by the
-    same strict rules as ``replay --params`` (``estimate.param_specs``): an unknown name, a wrong
+    same strict rules as ``replay --params`` (``estimate.parameters.specs``): an unknown name, a wrong
     type or an out-of-range value raises ConfigError, one line.
     """
     overrides = {
