@@ -78,3 +78,19 @@ def test_live_replay_never_reaches_the_commands() -> None:
     for start in ("bridge_shadow.ros.live_replay", "bridge_shadow.ros.main", "bridge_shadow.ros.launcher"):
         reached = _reachable(graph, start)
         assert not {m for m in reached if m.startswith("bridge_shadow.commands") or m == "bridge_shadow.cli"}
+
+
+def test_architecture_doc_is_current() -> None:
+    """docs/architecture.md holds the graph the sources give (``python tools/import_graph.py``)."""
+    text = graph_tool.DOC.read_text()
+    assert graph_tool.BEGIN in text and graph_tool.END in text
+    assert graph_tool.render(text, graph_tool.generated_block()) == text, "run: python tools/import_graph.py"
+
+
+def test_architecture_doc_draws_every_module() -> None:
+    """Every module is a box in its package's graph, and every package has a graph."""
+    graph = graph_tool.module_imports()
+    block = graph_tool.generated_block()
+    for pkg in graph_tool.packages(graph):
+        for child in graph_tool.children_graph(graph, pkg):
+            assert f'    {child.replace(".", "_")}["' in block

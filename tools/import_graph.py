@@ -166,28 +166,22 @@ def _strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:
     return out
 
 
-def folder_graph(graph: dict[str, set[str]], package: str = PACKAGE) -> dict[str, set[str]]:
-    """Collapse the graph to the package's top-level parts (subpackages and top modules)."""
-    def top(name: str) -> str:
-        parts = name.split(".")
-        return ".".join(parts[:2]) if len(parts) > 1 else name
-
-    out: dict[str, set[str]] = {}
-    for src, targets in graph.items():
-        box = top(src)
-        out.setdefault(box, set()).update(top(t) for t in targets if top(t) != box)
-    return out
+def _count(n: int, word: str) -> str:
+    return f"{n} {word}" + ("" if n == 1 else "s")
 
 
 def _node_id(name: str) -> str:
     return name.replace(".", "_")
 
 
-def mermaid(graph: dict[str, set[str]], package: str = PACKAGE) -> str:
-    """Draw a Mermaid flowchart: one box per node, one arrow per import."""
+def mermaid(graph: dict[str, set[str]], package: str, subpackages: set[str]) -> str:
+    """Draw a Mermaid flowchart of ``package``'s children: one box per node, one arrow per import.
+
+    A subpackage's box is labelled with a trailing ``/``.
+    """
     lines = ["```mermaid", "flowchart LR"]
     for name in sorted(graph):
-        label = name.removeprefix(package + ".") if name != package else package
+        label = name.removeprefix(package + ".") + ("/" if name in subpackages else "")
         lines.append(f'    {_node_id(name)}["{label}"]')
     for src in sorted(graph):
         for dst in sorted(graph[src]):
@@ -197,18 +191,23 @@ def mermaid(graph: dict[str, set[str]], package: str = PACKAGE) -> str:
 
 
 def generated_block(root: Path = ROOT, package: str = PACKAGE) -> str:
-    """Return the generated part of docs/architecture.md: the part-level graph, then one graph per folder."""
+    """Return the generated part of docs/architecture.md: one graph per package, the top one first."""
     graph = module_imports(root, package)
-    parts = [BEGIN, "", "### The package by parts", "",
-             "Subpackages and top-level modules; an arrow is \"imports\".", "",
-             mermaid(folder_graph(graph, package), package)]
-    folders = sorted({n.rpartition(".")[0] for n in graph if n.count(".") >= 2})
-    for folder in folders:
-        inside = {n for n in graph if n.rpartition(".")[0] == folder or n == folder}
-        if len(inside) < 3:
-            continue
-        sub = {n: {t for t in graph[n] if t in inside} for n in inside}
-        parts += ["", f"### {folder.removeprefix(package + '.')}", "", mermaid(sub, package)]
+    subpackages = set(packages(graph))
+    parts = [BEGIN]
+    for pkg in packages(graph):
+        children = children_graph(graph, pkg)
+        folder = pkg.removeprefix(package + ".").replace(".", "/") + "/"
+        title = "The package by parts" if pkg == package else folder
+        n_arrows = sum(len(t) for t in children.values())
+        parts += [
+            "",
+            f"### {title}",
+            "",
+            f"{_count(len(children), 'part')}, {_count(n_arrows, 'import')}.",
+            "",
+            mermaid(children, pkg, subpackages),
+        ]
     parts += ["", END]
     return "\n".join(parts)
 
