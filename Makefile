@@ -39,7 +39,7 @@ test: $(STAMP)
 	$(PY) -m pytest -n 2 --dist loadfile
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check bridge_shadow test benchmarks
+	$(VENV)/bin/ruff check bridge_shadow test benchmarks tools
 
 # Regenerate the generated model files after config/bridge.yaml, config/calibration.yaml or the FE
 # code change: the uncalibrated FE surrogate, the calibrated default surrogate (with the README's

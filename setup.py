@@ -19,7 +19,7 @@ setup(
     install_requires=[
         "numpy>=1.24",
         "scipy>=1.11",
-        # 2.0.0 has the 1-D z shape bug (DESIGN 7); estimate/kalman.py passes z as a column and
+        # 2.0.0 has the 1-D z shape bug (DESIGN 7); estimate/settlement/kalman.py passes z as a column and
         # test/test_kalman.py checks the workaround against this exact version.
         "filterpy==2.0.0",
         "rosbags>=0.10",
@@ -49,7 +49,7 @@ setup(
     entry_points={
         "console_scripts": [
             "bridge-shadow = bridge_shadow.cli:main",
-            "bridge_shadow_node = bridge_shadow.ros.node:main",
+            "bridge_shadow_node = bridge_shadow.ros.main:main",
             "bridge_shadow_fleet = bridge_shadow.ros.fleet:main",
         ],
     },

@@ -5,7 +5,7 @@ surrogate), every ``--every`` hours:
 
 - the *online* value: the posterior the shadow published for the window at that time, in a run
   over the whole record (curve, lambda and noise model as refitted on their schedule so far);
-- the *batch* value: the paper's batch method (``estimate.batch.paper_batch``, dense and direct) on
+- the *batch* value: the paper's batch method (``estimate.settlement.batch.paper_batch``, dense and direct) on
   the windows up to that time, with the same lambda and slope prior as a shadow that stops there.
 
 Printed: the largest and the median ``|online - batch| / sigma_batch`` per support over all
@@ -22,7 +22,7 @@ import argparse
 import numpy as np
 
 from bridge_shadow.estimate import Shadow, ShadowConfig
-from bridge_shadow.estimate.batch import paper_batch_of_run
+from bridge_shadow.estimate.settlement.batch import paper_batch_of_run
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 from bridge_shadow.twin.simulate import simulate

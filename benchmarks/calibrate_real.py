@@ -21,7 +21,7 @@ import numpy as np
 from bridge_shadow.calibrate.run import calibrate, default_spec_path
 from bridge_shadow.calibrate.spec import load_spec
 from bridge_shadow.model.config import load_bridge_config
-from bridge_shadow.model.surrogate import solve_bridge
+from bridge_shadow.model.solution import solve_bridge
 
 
 def _table(result, rows: int = 6) -> None:

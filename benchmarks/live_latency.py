@@ -104,7 +104,7 @@ def main() -> None:
     args = ["--ros-args", *[x for p in PARAMS for x in ("-p", p)]]
     print(f"{seconds:g} s at 1 kHz per force channel (temperature 100 Hz), 0.1 s windows, loopback DDS")
     bare = run("bridge_shadow.ros.bare", ["--echo"], seconds, echo=True)
-    node = run("bridge_shadow.ros.node", args, seconds, echo=False)
+    node = run("bridge_shadow.ros.main", args, seconds, echo=False)
     b50, b99 = np.percentile(bare, [50, 99])
     n50, n99 = np.percentile(node, [50, 99])
     print(f"bare echo (frc_02 -> echo)       : p50 {b50:6.2f} ms  p99 {b99:6.2f} ms  (baseline)")

@@ -77,7 +77,7 @@ def main() -> None:
     receivers = {
         "bare subscriber, raw CDR": ("bridge_shadow.ros.bare", [], False),
         "bare subscriber, typed msgs": ("bridge_shadow.ros.bare", ["--typed"], False),
-        "bridge_shadow_node": ("bridge_shadow.ros.node", [], True),
+        "bridge_shadow_node": ("bridge_shadow.ros.main", [], True),
     }
     rates: dict[str, list[float]] = {name: [] for name in receivers}
     names = list(receivers)

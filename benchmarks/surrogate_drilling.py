@@ -19,7 +19,7 @@ from bridge_shadow.fe import LinearStaticSolver
 from bridge_shadow.fe.elements.shell import DRILL_FACTOR
 from bridge_shadow.model.config import load_bridge_config
 from bridge_shadow.model.mesh import CENTRAL_BEARINGS
-from bridge_shadow.model.surrogate import solve_bridge
+from bridge_shadow.model.solution import solve_bridge
 
 FACTORS = (1e-6, 1e-4, 1e-2, 1e-1, 1.0, 10.0)
 

@@ -13,7 +13,8 @@ import sys
 import time
 
 from bridge_shadow.model.config import load_bridge_config
-from bridge_shadow.model.surrogate import schur_A, solve_bridge
+from bridge_shadow.model.solution import solve_bridge
+from bridge_shadow.model.surrogate import schur_A
 
 
 def main(levels: list[str]) -> None:

@@ -1,7 +1,7 @@
 """Writing files safely: check output paths before the work, write atomically, leave nothing behind.
 
 Every file the package writes goes through here (or through ``bagio``'s staged bag writer, or
-``estimate.checkpoint``):
+``estimate.state.checkpoint``):
 
 - ``check_output_file``/``check_output_dir`` check a path argument up front and create nothing,
   so a command that runs for minutes fails in its first millisecond on ``--out /tmp`` (a

@@ -1,7 +1,7 @@
 """The bad-input matrix: every case a user can cause ends with one line on stderr and a non-zero exit.
 
 Each case runs through the command line (``bridge_shadow.cli.main``) or the node
-(``bridge_shadow.ros.node.main``; three cases through the installed ``bridge_shadow_node``
+(``bridge_shadow.ros.main.main``; three cases through the installed ``bridge_shadow_node``
 process itself) in a scratch directory holding the inputs (a file, a directory, random bytes, a
 bag, a checkpoint, parameter files, broken surrogates, a calibration file, a bridge model).
 Asserted for every case: a non-zero exit, exactly one non-empty line on stderr (no traceback),
@@ -334,7 +334,7 @@ NODE_EXPECT = {
 def test_node_case_gives_one_line_and_changes_nothing(case: str, scratch: Path, root: Path, capfd) -> None:
     """The node's main() in this process (the entry point's code, without a process start each)."""
     pytest.importorskip("rclpy")
-    from bridge_shadow.ros.node import main as node_main
+    from bridge_shadow.ros.main import main as node_main
 
     argv = ["--ros-args", *(a.format(w=scratch) for a in NODE_CASES[case])]
     watched = (scratch, root / "bags", root / "config")

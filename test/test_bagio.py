@@ -282,7 +282,8 @@ def test_undecodable_message_is_a_corrupt_bag(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("compress", [False, True])
 def test_mcap_index_fast_path_equals_rosbags_iteration(tmp_path: Path, compress: bool) -> None:
-    from bridge_shadow.bagio.mcap_direct import mcap_files, read_mcap_topics
+    from bridge_shadow.bagio.mcap_direct import read_mcap_topics
+    from bridge_shadow.bagio.mcap_format import mcap_files
 
     data = _data(3000)
     write_monitoring(tmp_path / "bag", data, "mcap", compress=compress)
@@ -299,7 +300,7 @@ def test_mcap_index_fast_path_equals_rosbags_iteration(tmp_path: Path, compress:
 
 def test_mcap_fallback_to_rosbags_gives_the_same_data(tmp_path: Path, monkeypatch) -> None:
     import bridge_shadow.bagio.reader as reader_module
-    from bridge_shadow.bagio.mcap_direct import McapLayoutError
+    from bridge_shadow.bagio.mcap_format import McapLayoutError
 
     data = _data(300)
     write_monitoring(tmp_path / "bag", data, "mcap")

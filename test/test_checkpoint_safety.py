@@ -23,8 +23,8 @@ import pytest
 from bridge_shadow.bagio import write_monitoring
 from bridge_shadow.cli import main
 from bridge_shadow.estimate import Shadow, ShadowConfig
-from bridge_shadow.estimate.checkpoint import CheckpointError, save_state
 from bridge_shadow.estimate.startup import open_shadow
+from bridge_shadow.estimate.state.checkpoint import CheckpointError, save_state
 from bridge_shadow.model.surrogate_file import Surrogate, placeholder_surrogate
 
 T0 = 1_700_000_040 * 10**9

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from bridge_shadow.estimate.compensation import Compensation
-from bridge_shadow.estimate.spline import _basis
-from bridge_shadow.estimate.sums import FitSums, WindowRows
+from bridge_shadow.estimate.compensation.fit import Compensation
+from bridge_shadow.estimate.compensation.spline import _basis
+from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows
 
 
 def _fit_rows(comp: Compensation, k, m, y, t, seg) -> FitSums:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 
-from bridge_shadow.estimate.events import ChangeDetector
+from bridge_shadow.estimate.events.detector import ChangeDetector
 
 PHI = 0.9
 R = (1.0, 0.3, 1.0)  # single-window covariance of the innovations (unit sd, correlated channels)
@@ -154,7 +154,7 @@ def test_a_run_that_stays_away_at_the_end_or_before_a_gap_is_never_rejected() ->
 
 def test_the_jump_rule_keeps_a_misjudged_noise_scale_from_raising_events(monkeypatch) -> None:
     """``JUMP_OVER_SEEN``: with the noise twice what the detector is told, it cuts false events."""
-    import bridge_shadow.estimate.events as ev
+    import bridge_shadow.estimate.events.detector as ev
 
     def n_events() -> int:
         return sum(len(run(2.0 * ar1(2000, seed))[1]) for seed in range(4))  # 2 and 13 here
@@ -167,7 +167,7 @@ def test_the_jump_rule_keeps_a_misjudged_noise_scale_from_raising_events(monkeyp
 
 def test_the_jump_test_looks_ahead_over_a_two_window_change(monkeypatch) -> None:
     """``JUMP_LOOKAHEAD``: a support lowered over three windows jumps by its whole size."""
-    import bridge_shadow.estimate.events as ev
+    import bridge_shadow.estimate.events.detector as ev
 
     det = ChangeDetector()
     det.set_noise(np.array([PHI, PHI]), 1e6)

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 
-from bridge_shadow.estimate.noise import NoiseModel, ar1_factor
-from bridge_shadow.estimate.sums import Moments
+from bridge_shadow.estimate.compensation.noise import NoiseModel, ar1_factor
+from bridge_shadow.estimate.compensation.sums import Moments
 
 
 def test_ar1_factor_is_the_variance_of_a_mean_of_an_ar1_run() -> None:

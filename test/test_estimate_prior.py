@@ -7,7 +7,7 @@ import pytest
 
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.estimate import Shadow, ShadowConfig
-from bridge_shadow.estimate.prior import prior_sigma
+from bridge_shadow.estimate.settlement.prior import prior_sigma
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.paths import config_file
 

@@ -14,7 +14,7 @@ import pytest
 from scipy.signal import lfilter
 
 from bridge_shadow.estimate import Shadow, ShadowConfig
-from bridge_shadow.estimate.batch import paper_batch_of_run
+from bridge_shadow.estimate.settlement.batch import paper_batch_of_run
 from bridge_shadow.model.surrogate_file import placeholder_surrogate
 from bridge_shadow.series import MonitoringData
 from bridge_shadow.twin.simulate import simulate

@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from bridge_shadow.estimate.compensation import Compensation
-from bridge_shadow.estimate.noise import NoiseModel
-from bridge_shadow.estimate.segments import SegmentChain
+from bridge_shadow.estimate.compensation.fit import Compensation
+from bridge_shadow.estimate.compensation.noise import NoiseModel
+from bridge_shadow.estimate.compensation.sums import FitSums, Moments, WindowRows
+from bridge_shadow.estimate.settlement.segments import SegmentChain
 from bridge_shadow.estimate.small import congruence, inv_sym, mat_vec, quad_inv, sym_vec
-from bridge_shadow.estimate.sums import FitSums, Moments, WindowRows
 from bridge_shadow.model.surrogate_file import placeholder_surrogate
 
 SUR = placeholder_surrogate()

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bridge_shadow.estimate.compensation import Compensation
-from bridge_shadow.estimate.sums import FitSums, WindowRows, residual_moments
+from bridge_shadow.estimate.compensation.fit import Compensation
+from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows, residual_moments
 
 
 def rows(n: int = 300, seed: int = 0, n_seg: int = 3) -> WindowRows:

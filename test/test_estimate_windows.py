@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bridge_shadow.estimate.windows import WindowBuffer
+from bridge_shadow.estimate.inputs.windows import WindowBuffer
 
 W = 60 * 10**9
 T0 = 1_700_000_040 * 10**9

@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 
 from bridge_shadow.cli import main
-from bridge_shadow.commands.output import jsonable
 from bridge_shadow.effects import EFFECT_NAMES, EFFECTS, SETTLEMENT_EFFECTS, plausible_range
 from bridge_shadow.gap.candidates import CANDIDATES
 from bridge_shadow.gap.diagnose import diagnose
+from bridge_shadow.jsonvalues import jsonable
 from bridge_shadow.twin.simulate import simulate
 
 SEED = 11

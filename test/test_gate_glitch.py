@@ -18,7 +18,7 @@ import pytest
 
 from bridge_shadow.bagio import read_monitoring
 from bridge_shadow.estimate import Shadow, load_config
-from bridge_shadow.estimate.gate import TopicGate
+from bridge_shadow.estimate.inputs.gate import TopicGate
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.series import MonitoringData
 

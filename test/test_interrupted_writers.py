@@ -14,7 +14,7 @@ streamed and replacing with --force; import-csv and synth through ``write_monito
 replay's --out uses the same staged writer), the surrogate writer (surrogate --out; calibrate
 --out calls the same ``save_surrogate``), reports and plots (``fileio.atomic_write``: a
 calibration figure here; replay --plots and gap --report write each file through the same
-helper), checkpoints (``estimate.checkpoint.save_state``: replay --checkpoint; the node's SIGTERM
+helper), checkpoints (``estimate.state.checkpoint.save_state``: replay --checkpoint; the node's SIGTERM
 checkpoint in ``test_ros_node.py``).
 """
 
@@ -133,7 +133,7 @@ def test_surrogate_out_interrupted(tmp_path: Path, monkeypatch) -> None:
 
 
 def test_replay_checkpoint_interrupted(small_bag: str, tmp_path: Path, monkeypatch) -> None:
-    from bridge_shadow.estimate.checkpoint import load_state
+    from bridge_shadow.estimate.state.checkpoint import load_state
 
     state = tmp_path / "state.npz"
     argv = ["replay", small_bag, "--checkpoint", str(state), "--json"]

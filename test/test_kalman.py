@@ -8,7 +8,7 @@ import pytest
 from filterpy.kalman import KalmanFilter
 
 from bridge_shadow.estimate import Shadow, ShadowConfig
-from bridge_shadow.estimate.kalman import SettlementFilter, batch_posterior
+from bridge_shadow.estimate.settlement.kalman import SettlementFilter, batch_posterior
 from bridge_shadow.model.surrogate_file import placeholder_surrogate
 from bridge_shadow.series import MonitoringData
 

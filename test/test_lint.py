@@ -9,7 +9,7 @@ from bridge_shadow.paths import repo_root
 def test_ruff_clean() -> None:
     root = repo_root()
     proc = subprocess.run(
-        [sys.executable, "-m", "ruff", "check", "bridge_shadow", "test", "benchmarks"],
+        [sys.executable, "-m", "ruff", "check", "bridge_shadow", "test", "benchmarks", "tools"],
         cwd=root,
         capture_output=True,
         text=True,

@@ -12,7 +12,7 @@ import pytest
 
 from bridge_shadow.model.adjoint import parameter_derivatives
 from bridge_shadow.model.config import load_bridge_config
-from bridge_shadow.model.surrogate import solve_bridge
+from bridge_shadow.model.solution import solve_bridge
 
 # a point away from the as-built one: springs, a partly open joint, a slipping connector
 POINT = {

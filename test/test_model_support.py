@@ -9,7 +9,8 @@ from bridge_shadow.calibrate.forward import series_springs
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.model.config import load_bridge_config
 from bridge_shadow.model.mesh import build_mesh, hogging_zone
-from bridge_shadow.model.surrogate import schur_A, solve_bridge
+from bridge_shadow.model.solution import solve_bridge
+from bridge_shadow.model.surrogate import schur_A
 
 K_S, K_N = 2.0e7, 6.0e7
 

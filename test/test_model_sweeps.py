@@ -15,7 +15,7 @@ from bridge_shadow.calibrate.forward import ForwardModel, SolutionStore
 from bridge_shadow.calibrate.surrogate_forward import SurrogateForward
 from bridge_shadow.model.config import load_bridge_config
 from bridge_shadow.model.parameters import PARAMETERS
-from bridge_shadow.model.surrogate import solve_bridge
+from bridge_shadow.model.solution import solve_bridge
 from bridge_shadow.model.surrogate_file import Surrogate
 from bridge_shadow.model.sweeps import SWEEP_POINTS, Sweep, compute_sweeps, read_sweeps, sweep_values
 

@@ -35,7 +35,8 @@ def test_node_start_up_lines_name_surrogate_parameter_files_topics_and_checkpoin
     from bridge_shadow.model.surrogate_file import load_surrogate
 
     pytest.importorskip("rclpy")
-    from bridge_shadow.ros.node import params_files, startup_lines
+    from bridge_shadow.ros.main import params_files
+    from bridge_shadow.ros.node import startup_lines
 
     argv = ["--ros-args", "-p", "window_s:=30.0", "--params-file", "/etc/shadow.yaml"]
     assert params_files(argv) == ["/etc/shadow.yaml"]

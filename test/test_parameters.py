@@ -11,7 +11,7 @@ import pytest
 
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.estimate import ShadowConfig, load_config
-from bridge_shadow.estimate.param_specs import SPECS, constraint_text, kind_of, parameter_docs, yaml_unit
+from bridge_shadow.estimate.parameters.specs import SPECS, constraint_text, kind_of, parameter_docs, yaml_unit
 
 FIELDS = {f.name: f for f in dataclasses.fields(ShadowConfig)}
 

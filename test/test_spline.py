@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import make_smoothing_spline
 
-from bridge_shadow.estimate.spline import OnlinePSpline, clamped_knots, gram_penalty
+from bridge_shadow.estimate.compensation.spline import OnlinePSpline, clamped_knots, gram_penalty
 
 
 def _data(n: int = 300, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -150,7 +150,7 @@ def test_leverage_gives_leave_one_out_residuals() -> None:
 
 def test_few_point_basis_equals_vectorized_basis() -> None:
     """The plain-float path for a handful of points is the same recursion as the vectorized one."""
-    from bridge_shadow.estimate.spline import _SCALAR_PATH_MAX, _basis
+    from bridge_shadow.estimate.compensation.spline import _SCALAR_PATH_MAX, _basis
 
     sp = OnlinePSpline(np.array([-20.0, -7.0, -1.0, 0.0, 4.5, 12.0, 30.0, 45.0]))
     x = np.concatenate([np.linspace(-20.0, 45.0, 97), [-7.0, 45.0, 30.0 - 1e-12]])

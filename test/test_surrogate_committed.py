@@ -17,7 +17,8 @@ import pytest
 import yaml
 
 from bridge_shadow.model.config import load_bridge_config
-from bridge_shadow.model.surrogate import SENSITIVITY_PARAMETERS, load_sensitivities, solve_bridge
+from bridge_shadow.model.solution import solve_bridge
+from bridge_shadow.model.surrogate import SENSITIVITY_PARAMETERS, load_sensitivities
 from bridge_shadow.model.surrogate_file import THERMAL_CASES, load_surrogate
 
 

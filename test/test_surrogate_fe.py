@@ -9,12 +9,12 @@ import pytest
 
 from bridge_shadow.cli import main
 from bridge_shadow.model.config import load_bridge_config
+from bridge_shadow.model.solution import solve_bridge
 from bridge_shadow.model.surrogate import (
     SENSITIVITY_PARAMETERS,
     closed_forms,
     compute_surrogate,
     load_sensitivities,
-    solve_bridge,
     write_surrogate,
 )
 from bridge_shadow.model.surrogate_file import load_surrogate

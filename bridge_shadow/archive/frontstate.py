@@ -1,8 +1,8 @@
 """The front end of a ``Shadow`` as plain data: its gates and window buffer, and its bookkeeping.
 
 The front end is what turns messages into closed windows: one ``TopicGate`` per input topic and
-the ``WindowBuffer`` (``estimate.gate``, ``estimate.windows``). Its *behaviour* on later messages
-is a function of the gates' and the buffer's state alone (stamps, values and flags, never a
+the ``WindowBuffer`` (``estimate.inputs.gate``, ``estimate.inputs.windows``). Its *behaviour* on
+later messages is a function of the gates' and the buffer's state alone (stamps, values and flags, never a
 computed float), so two shadows whose front ends hold equal states close equal windows from
 equal messages. The *bookkeeping* (rejections by reason, accepted messages per topic, the
 per-topic ledgers) only adds up what the gates decided.

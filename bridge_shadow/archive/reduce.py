@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from bridge_shadow.archive.frontstate import FrontState, front_state
-from bridge_shadow.estimate.windows import WindowBatch
+from bridge_shadow.estimate.inputs.windows import WindowBatch
 from bridge_shadow.replay.chunks import DEFAULT_CHUNK, FeedChunk, arrival_chunks
 from bridge_shadow.replay.feed import feed_shadow
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries

@@ -158,8 +158,8 @@ def write_outputs(out: Path, run: ArchiveRun, plans: list[BridgePlan], cache: Pa
     ``out/summary.png`` and ``out/index.json``, each written atomically.
     """
     from bridge_shadow.archive.summary import plot_summary, write_csv
-    from bridge_shadow.commands.output import jsonable
     from bridge_shadow.fileio import atomic_write_text
+    from bridge_shadow.jsonvalues import jsonable
 
     rows = [r for b in run.bridges for r in b.rows]
     files = {"summary_csv": str(write_csv(out / "summary.csv", rows))}

@@ -4,7 +4,7 @@ Opening walks the top-level record headers only (seek and read a few bytes per r
 records per megabyte), collecting channels, schemas, the Statistics count and, per Chunk, its
 declared log-time range and its MessageIndex records. Iterating then reads one chunk at a time
 (decompressed if zstd/lz4), places each message of the wanted channels with ``np.frombuffer``
-on its index, exactly as ``mcap_direct`` does for the whole file, and yields the chunk's blocks
+on its index, with the record layout of ``mcap_format`` for the whole file, and yields the chunk's blocks
 with a *horizon*: every later chunk declares a start time at or after it, so a message before
 the horizon can be handed on in log-time order. Memory is one chunk plus the messages of
 overlapping chunks (none for a bag written in time order).
@@ -23,7 +23,7 @@ from typing import BinaryIO
 import numpy as np
 
 from bridge_shadow.bagio.cdr import RawBlock
-from bridge_shadow.bagio.mcap_direct import (
+from bridge_shadow.bagio.mcap_format import (
     _MAGIC,
     _OP_CHANNEL,
     _OP_CHUNK,

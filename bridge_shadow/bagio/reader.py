@@ -28,7 +28,8 @@ from bridge_shadow.bagio.errors import (
     NotABagError,
     UnexpectedTypeError,
 )
-from bridge_shadow.bagio.mcap_direct import McapLayoutError, mcap_files, read_mcap_topics
+from bridge_shadow.bagio.mcap_direct import read_mcap_topics
+from bridge_shadow.bagio.mcap_format import McapLayoutError, mcap_files
 from bridge_shadow.bagio.sqlite_direct import plain_sqlite_files, read_sqlite_topics
 from bridge_shadow.contract import (
     CHANNELS,

@@ -38,7 +38,7 @@ from bridge_shadow.bagio.cdr import (
     frame_value,
 )
 from bridge_shadow.bagio.errors import CorruptBagError, MissingTopicError, NotABagError, UnexpectedTypeError
-from bridge_shadow.bagio.mcap_direct import McapLayoutError, mcap_files
+from bridge_shadow.bagio.mcap_format import McapLayoutError, mcap_files
 from bridge_shadow.bagio.mcap_stream import McapChunks
 from bridge_shadow.bagio.reader import _required_topics, _translated, open_bag
 from bridge_shadow.bagio.sqlite_direct import plain_sqlite_files

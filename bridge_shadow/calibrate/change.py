@@ -8,7 +8,7 @@ Per record (``record_level``):
 3. per channel a straight line ``level + rate (t - t_c)`` is fitted to the window means, ``t_c``
    the mean time of the windows (there the level and the rate are uncorrelated);
 4. the uncertainty of the level is the shadow's noise model of window residuals
-   (:class:`bridge_shadow.estimate.noise.NoiseModel`: AR(1) variance of the mean of a run of
+   (:class:`bridge_shadow.estimate.compensation.noise.NoiseModel`: AR(1) variance of the mean of a run of
    window means, with the channels' correlation).
 
 Between the records (``measured_change``): ``dR = level_after - level_before``. The car-free
@@ -37,8 +37,8 @@ import numpy as np
 
 from bridge_shadow.calibrate.car import Binned, CarDetection, bin_record, detect_car
 from bridge_shadow.calibrate.errors import CalibrationError
-from bridge_shadow.estimate.noise import NoiseModel
-from bridge_shadow.estimate.sums import Moments
+from bridge_shadow.estimate.compensation.noise import NoiseModel
+from bridge_shadow.estimate.compensation.sums import Moments
 from bridge_shadow.series import MonitoringData
 
 __all__ = ["BASELINE_CHANGES", "MeasuredChange", "RecordLevel", "measured_change", "record_level"]

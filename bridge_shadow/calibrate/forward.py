@@ -31,7 +31,7 @@ import numpy as np
 from bridge_shadow.model.adjoint import parameter_derivatives
 from bridge_shadow.model.build import SUPPORT_SPRINGS, THERMAL_CASE_NAMES
 from bridge_shadow.model.config import BridgeConfig
-from bridge_shadow.model.surrogate import BridgeSolution, solve_bridge
+from bridge_shadow.model.solution import BridgeSolution, solve_bridge
 
 __all__ = ["Evaluation", "ForwardModel", "SolutionStore", "assemble", "series_springs"]
 

@@ -22,7 +22,7 @@ Keys (SI units)::
 
 Relative paths resolve against the file's directory, then the shared data directory. Every key
 is checked: an unknown one is an error with the key meant (``keys.check_keys``), and each number
-must lie in its physical range (``estimate.param_specs.VALUE_SPECS``: a settlement under a metre,
+must lie in its physical range (``estimate.parameters.specs.VALUE_SPECS``: a settlement under a metre,
 the jacks' accuracy in (0, 0.1] m, car-free windows of 0.1 to 600 s), named in the message.
 """
 
@@ -40,7 +40,7 @@ import yaml
 from bridge_shadow.calibrate.change import BASELINE_CHANGES
 from bridge_shadow.calibrate.errors import CalibrationError
 from bridge_shadow.errors import ConfigError
-from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
+from bridge_shadow.estimate.parameters.specs import VALUE_SPECS, check_value
 from bridge_shadow.keys import check_keys
 from bridge_shadow.model.config import MESH_LEVELS
 from bridge_shadow.model.parameters import PARAMETERS, PRIOR_SETS

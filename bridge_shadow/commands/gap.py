@@ -265,7 +265,7 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.bagio import read_monitoring
     from bridge_shadow.commands.output import emit_json, require_finite
     from bridge_shadow.errors import InputError
-    from bridge_shadow.estimate.param_specs import SPECS, check_value
+    from bridge_shadow.estimate.parameters.specs import SPECS, check_value
     from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.gap.diagnose import diagnose
     from bridge_shadow.gap.posterior import shadow_config

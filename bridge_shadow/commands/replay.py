@@ -110,7 +110,7 @@ def _summary(js: dict[str, Any]) -> str:
         f"{js['messages_per_s']:.0f} msg/s",
         f"windows: {js['windows']['closed']} closed, {js['windows']['updates']} updates",
     ]
-    from bridge_shadow.estimate.gate import MESSAGE_REASONS
+    from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
 
     rejected = {k: v for k, v in js["rejected"].items() if v}
     messages = {k: v for k, v in rejected.items() if k in MESSAGE_REASONS}
@@ -207,7 +207,7 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.commands.output import progress
     from bridge_shadow.errors import InputError
     from bridge_shadow.estimate import load_config
-    from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
+    from bridge_shadow.estimate.parameters.specs import VALUE_SPECS, check_value
     from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 
@@ -317,7 +317,7 @@ def _this_run(js: dict[str, Any], before: dict[str, Any]) -> None:
     since the checkpoint's first window, which could add up to more than the messages read.
     ``resumed`` keeps what the checkpoint held.
     """
-    from bridge_shadow.estimate.gate import MESSAGE_REASONS
+    from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
 
     msgs = js["messages"]
     for topic, n in before["used"].items():

@@ -138,7 +138,7 @@ def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
     import math
 
     from bridge_shadow.errors import InputError
-    from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
+    from bridge_shadow.estimate.parameters.specs import VALUE_SPECS, check_value
 
     steps = []
     for item in items:
@@ -180,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.bagio import check_bag_target
     from bridge_shadow.commands.output import emit_json
     from bridge_shadow.errors import InputError
-    from bridge_shadow.estimate.param_specs import VALUE_SPECS, check_value
+    from bridge_shadow.estimate.parameters.specs import VALUE_SPECS, check_value
     from bridge_shadow.twin.bag import write_twin_bag
     from bridge_shadow.twin.simulate import parse_effects
     from bridge_shadow.twin.stream import SEGMENT_SAMPLES, record_samples, record_segments, write_stream_bag

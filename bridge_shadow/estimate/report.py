@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bridge_shadow.contract import CHANNELS, SUPPORTS
-from bridge_shadow.estimate.inputs import TOPIC_KEYS
+from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS
 from bridge_shadow.estimate.result import ChangeRecord, EventRecord, ReplayResult, WindowOutput
 from bridge_shadow.timefmt import iso_utc
 

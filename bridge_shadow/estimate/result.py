@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from bridge_shadow.contract import SUPPORTS
-from bridge_shadow.estimate.gate import MESSAGE_REASONS
+from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
 from bridge_shadow.timefmt import iso_utc
 
 __all__ = ["ChangeRecord", "EventRecord", "ReplayResult", "WindowOutput", "rejected_windows"]

@@ -9,27 +9,31 @@ offline replay (big chunks) through the same methods, so both give the same post
     for out in shadow.poll():                                 # closed windows, in order
         publish(out.mean_m, out.covariance_m2, out.compensated_n)
 
-It composes small parts, one idea each:
+It composes small parts, one idea each, from the subpackages of ``estimate``:
 
-- ``gate.TopicGate`` per topic (drop and count bad messages) and ``inputs.TopicLedger`` (say
-  which topic lost what);
-- ``windows.WindowBuffer``: buffered samples -> closed 60 s windows, many at once;
-- ``events.ChangeDetector``: GLR test for a settlement step on each window's innovation; it holds
-  suspicious windows until it knows whether they are a passing load, an outlier or an event;
-- ``sums.FitSums``: the sufficient statistics of every accepted window;
-- ``compensation.Compensation``: the temperature curve fitted jointly with the segment levels
-  (it cannot absorb a step), refitted every ``refit_windows`` windows, ``lambda`` reselected on a
-  geometric schedule;
-- ``noise.NoiseModel``: R from the residuals of that fit (AR(1), long-run variance);
-- ``segments.SegmentChain``: the settlement posterior over segments of constant settlement, with
-  the paper's prior (``prior.prior_sigma``); an event opens the covariance by the prior's, and with
-  a random walk (``process_noise_m2_per_s`` > 0) a new segment starts every ``drift_block_s``
-  with the covariance opened by ``Q`` times its duration (a piecewise-constant random walk).
+- ``inputs``: ``gate.TopicGate`` per topic (drop and count bad messages), ``ledger.TopicLedger``
+  (say which topic lost what), and ``windows.WindowBuffer``: buffered samples -> closed 60 s
+  windows, many at once (``closed_window.Window`` on its way to an output);
+- ``events``: ``detector.ChangeDetector``, a GLR test for a settlement step on each window's
+  innovation; it holds suspicious windows until it knows whether they are a passing load, an
+  outlier or an event;
+- ``compensation``: ``sums.FitSums``, the sufficient statistics of every accepted window;
+  ``fit.Compensation``, the temperature curve fitted jointly with the segment levels (it cannot
+  absorb a step), refitted every ``refit_windows`` windows, ``lambda`` reselected on a geometric
+  schedule; ``noise.NoiseModel``, R from the residuals of that fit (AR(1), long-run variance);
+- ``settlement``: ``segments.SegmentChain``, the settlement posterior over segments of constant
+  settlement, with the paper's prior (``prior.prior_sigma``); an event opens the covariance by the
+  prior's, and with a random walk (``process_noise_m2_per_s`` > 0) a new segment starts every
+  ``drift_block_s`` with the covariance opened by ``Q`` times its duration (a piecewise-constant
+  random walk);
+- ``state``: the whole online state as plain data (``persistence``) and checkpoint files
+  (``checkpoint``); ``parameters``: ``config.ShadowConfig`` and the table of specs.
 
 Windows are fixed in stamp time, so results depend on the stamps, never on how messages were
 chunked. The first ``warmup_windows`` are held until the curve and the noise model have data,
 then applied in order. ``flush`` (end of a record) refits with a fresh ``lambda``: without events,
-the posterior then equals the paper's batch method on the whole record (``estimate.batch``).
+the posterior then equals the paper's batch method on the whole record
+(``estimate.settlement.batch``).
 """
 
 from __future__ import annotations
@@ -44,19 +48,22 @@ import numpy as np
 
 from bridge_shadow.contract import CHANNELS, FORCE_FRAMES
 from bridge_shadow.estimate import report
-from bridge_shadow.estimate.compensation import Compensation, CompensationFit
-from bridge_shadow.estimate.config import ShadowConfig
-from bridge_shadow.estimate.events import ChangeDetector, Decision
-from bridge_shadow.estimate.gate import REASONS, TopicGate
-from bridge_shadow.estimate.inputs import TOPIC_KEYS, TopicLedger
-from bridge_shadow.estimate.noise import NoiseModel
-from bridge_shadow.estimate.prior import configured_prior_sigma, prior_sigma
+from bridge_shadow.estimate.compensation.fit import Compensation, CompensationFit
+from bridge_shadow.estimate.compensation.noise import NoiseModel
+from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows, residual_moments
+from bridge_shadow.estimate.events.detector import ChangeDetector, Decision
+from bridge_shadow.estimate.inputs.closed_window import Window
+from bridge_shadow.estimate.inputs.gate import REASONS, TopicGate
+from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS, TopicLedger
+from bridge_shadow.estimate.inputs.windows import WindowBatch, WindowBuffer
+from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.estimate.report import NOISE_FULL_DAY_S
 from bridge_shadow.estimate.result import ChangeRecord, EventRecord, ReplayResult, WindowOutput
-from bridge_shadow.estimate.segments import SegmentChain
+from bridge_shadow.estimate.settlement.prior import configured_prior_sigma, prior_sigma
+from bridge_shadow.estimate.settlement.segments import SegmentChain
 from bridge_shadow.estimate.small import congruence, quad_inv
-from bridge_shadow.estimate.sums import FitSums, WindowRows, residual_moments
-from bridge_shadow.estimate.windows import WindowBatch, WindowBuffer
+from bridge_shadow.estimate.state.checkpoint import restore, save_state
+from bridge_shadow.estimate.state.persistence import restore_shadow, shadow_state
 from bridge_shadow.model.surrogate_file import Surrogate, load_surrogate
 from bridge_shadow.series import MonitoringData
 
@@ -70,55 +77,6 @@ _CURVE_BLOCK = 64
 _RANGE_MARGIN_K = 0.5
 #: Rejected windows (time and reason) kept for ``/diagnostics``; replay lists every one.
 RECENT_REJECTED = 50
-
-
-class Window:
-    """A closed window on its way to an output (slots: this is the per-window hot path).
-
-    ``action`` is None while undecided, then ``invalid``, ``warm``, ``accept``, ``reject``,
-    ``event`` (the first window of a new segment) or ``change`` (the first window of a provisional
-    segment: an unconfirmed change).
-    """
-
-    __slots__ = (
-        "action",
-        "bv",
-        "event_end",
-        "force",
-        "g",
-        "g_fit",
-        "gvar",
-        "i0",
-        "k",
-        "reason",
-        "samples",
-        "seg",
-        "temp",
-    )
-
-    def __init__(
-        self,
-        k: int,
-        samples: np.ndarray,
-        force: np.ndarray,
-        temp: np.ndarray,
-        reason: str,
-        i0: np.ndarray,
-        bv: np.ndarray,
-    ) -> None:
-        self.k = k
-        self.samples = samples
-        self.force = force
-        self.temp = temp
-        self.reason = reason
-        self.i0 = i0
-        self.bv = bv
-        self.action: str | None = "invalid" if reason else None
-        self.event_end = False  # the last window of an event's confirmation run
-        self.g = (0.0, 0.0)  # the centred curve at this window's temperature, N
-        self.gvar = (0.0, 0.0)  # the curve's own variance there, N^2
-        self.g_fit = -1  # the fit that ``g`` comes from
-        self.seg = -1  # the segment of a warm-up window (set on arrival; -1 otherwise)
 
 
 class Shadow:
@@ -801,8 +759,6 @@ class Shadow:
     # -- state ----------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
         """Return the whole online state as nested plain data (arrays, numbers, strings)."""
-        from bridge_shadow.estimate.persistence import shadow_state
-
         return shadow_state(self)
 
     @classmethod
@@ -810,14 +766,10 @@ class Shadow:
         cls, state: dict[str, Any], config: ShadowConfig | None = None, surrogate: Surrogate | None = None
     ) -> Shadow:
         """Rebuild a shadow from ``state_dict`` (config and surrogate default to the saved ones)."""
-        from bridge_shadow.estimate.persistence import restore_shadow
-
         return restore_shadow(cls, state, config, surrogate)
 
     def save_checkpoint(self, path: str | Path | None = None) -> Path | None:
         """Write the state atomically to ``path`` (default ``checkpoint_path``); None if disabled."""
-        from bridge_shadow.estimate.checkpoint import save_state
-
         target = path if path is not None else self.config.checkpoint_path
         if not target:
             return None
@@ -829,9 +781,7 @@ class Shadow:
         cls, path: str | Path, config: ShadowConfig | None = None, surrogate: Surrogate | None = None
     ) -> Shadow:
         """Rebuild a shadow from a checkpoint file written by ``save_checkpoint``."""
-        from bridge_shadow.estimate.checkpoint import restore  # refuses unusable/incompatible files
-
-        return restore(path, config, surrogate, cls.from_state_dict)
+        return restore(path, config, surrogate, cls.from_state_dict)  # refuses unusable/incompatible files
 
     def _maybe_checkpoint(self) -> None:
         if not self.config.checkpoint_path or self.clock_ns is None:

@@ -9,9 +9,9 @@ readable and was saved under the parameters in force. Otherwise ``checkpoint_unu
 
 from __future__ import annotations
 
-from bridge_shadow.estimate.checkpoint import CheckpointError, check_target, remove_orphans, set_aside
-from bridge_shadow.estimate.config import ShadowConfig
+from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.estimate.shadow import Shadow
+from bridge_shadow.estimate.state.checkpoint import CheckpointError, check_target, remove_orphans, set_aside
 from bridge_shadow.model.surrogate_file import Surrogate
 
 __all__ = ["open_shadow"]

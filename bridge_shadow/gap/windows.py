@@ -1,4 +1,4 @@
-"""Window aggregation of the monitoring data to 60 s statistics on a regular grid.
+"""A record's 60 s windows on a regular grid, for the gap diagnosis (aggregator: ``bridge_shadow.windowing``).
 
 The paper aggregates to 60 s means; the gap diagnosis also needs the within-window spread and
 maximum (traffic events). Windows are aligned to multiples of the window length since the epoch,
@@ -14,6 +14,7 @@ import numpy as np
 from bridge_shadow.contract import CHANNELS
 from bridge_shadow.gap.errors import GapError
 from bridge_shadow.series import MonitoringData
+from bridge_shadow.windowing import window_index, window_stats
 
 __all__ = ["Windows", "aggregate"]
 
@@ -69,29 +70,6 @@ class Windows:
         )
 
 
-def _grouped_stats(idx: np.ndarray, values: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
-    """Mean, std, max, median and count of ``values`` grouped by window index ``idx`` in [0, n)."""
-    order = np.lexsort((values, idx))
-    idx, values = idx[order], values[order]
-    count = np.bincount(idx, minlength=n)
-    total = np.bincount(idx, values, minlength=n)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = total / count
-        dev = values - mean[idx]
-        var = np.bincount(idx, dev * dev, minlength=n) / (count - 1)
-    starts = np.concatenate(([0], np.cumsum(count)[:-1]))
-    full = count > 0
-    vmax = np.full(n, np.nan)
-    vmax[full] = values[starts[full] + count[full] - 1]
-    # Values are sorted within each window, so the median is the middle element(s).
-    lo = starts + (count - 1) // 2
-    hi = starts + count // 2
-    median = np.full(n, np.nan)
-    median[full] = 0.5 * (values[lo[full]] + values[hi[full]])
-    std = np.where(count > 1, np.sqrt(np.maximum(var, 0.0)), np.nan)
-    return mean, std, vmax, median, count
-
-
 def aggregate(data: MonitoringData, width_s: float = 60.0) -> Windows:
     """Aggregate forces and air temperature to windows of ``width_s`` seconds.
 
@@ -111,24 +89,23 @@ def aggregate(data: MonitoringData, width_s: float = 60.0) -> Windows:
         raise GapError("no finite force samples on one of the load-cell channels")
     temp = data.temperature
     tok = np.isfinite(temp.temp_c)
-    first = min(int(s.min()) for s in stamps) // width_ns
-    last = max(int(s.max()) for s in stamps) // width_ns
+    first = int(window_index(min(int(s.min()) for s in stamps), width_ns))
+    last = int(window_index(max(int(s.max()) for s in stamps), width_ns))
     n = last - first + 1
     t_ns = (np.arange(first, last + 1, dtype=np.int64) * width_ns) + width_ns // 2
     stats = [
-        _grouped_stats((s // width_ns - first).astype(np.int64), v, n)
+        window_stats((window_index(s, width_ns) - first).astype(np.int64), v, n, spread=True)
         for s, v in zip(stamps, values, strict=True)
     ]
-    mean, std, vmax, median, count = (np.stack([st[k] for st in stats], axis=1) for k in range(5))
+    names = ("mean", "std", "max", "median", "count")
+    mean, std, vmax, median, count = (np.stack([getattr(st, name) for st in stats], axis=1) for name in names)
     if not tok.any():
         return Windows(t_ns, width_s, mean, std, vmax, median, count.astype(np.int64), np.full(n, np.nan))
     ts, tv = temp.stamp_ns[tok], temp.temp_c[tok]
-    widx = ts // width_ns - first
+    widx = window_index(ts, width_ns) - first
     inside = (widx >= 0) & (widx < n)
-    tcount = np.bincount(widx[inside], minlength=n)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tmean = np.bincount(widx[inside], tv[inside], minlength=n) / tcount
-    have = tcount > 0
+    tstats = window_stats(widx[inside], tv[inside], n)
+    tmean, have = tstats.mean, tstats.count > 0
     order = np.argsort(ts)
     temp_c = np.where(have, tmean, np.interp(t_ns, ts[order], tv[order]))
     return Windows(t_ns, width_s, mean, std, vmax, median, count.astype(np.int64), temp_c)

@@ -30,7 +30,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -41,9 +40,7 @@ from bridge_shadow.fe.solve import assemble_stiffness
 from bridge_shadow.model.build import build_model
 from bridge_shadow.model.config import BridgeConfig
 from bridge_shadow.model.mesh import BridgeMesh, build_mesh
-
-if TYPE_CHECKING:  # pragma: no cover
-    from bridge_shadow.model.surrogate import BridgeSolution
+from bridge_shadow.model.solution import BridgeSolution, dead_and_thermal_cases
 
 __all__ = ["ParameterDerivative", "changed_sets", "parameter_derivatives"]
 
@@ -150,8 +147,6 @@ def parameter_derivatives(
     ``solution`` is ``solve_bridge(cfg, level)`` (it carries the unit, dead and thermal fields and
     the load cases). A parameter at ``.inf`` gets zeros.
     """
-    from bridge_shadow.model.surrogate import dead_and_thermal_cases
-
     mesh = mesh if mesh is not None else solution.mesh
     base = solution.model
     cases = dead_and_thermal_cases(cfg, mesh)

@@ -143,7 +143,7 @@ def compute_sweeps(
 
     ``base``: the solution at ``cfg`` itself (reused for the built value when given).
     """
-    from bridge_shadow.model.surrogate import solve_bridge
+    from bridge_shadow.model.solution import solve_bridge  # lazy: reading sweeps needs no FE
 
     out = {}
     total = sum(len(sweep_values(n, cfg.params[n])) for n in names)

@@ -76,7 +76,7 @@ def main(args: list[str] | None = None) -> int:
         node = BareSubscriber(typed="--typed" in argv, echo="--echo" in argv)
         executor = EventsExecutor()
         executor.add_node(node)
-        never = Future()  # the node's own loop (see bridge_shadow.ros.node)
+        never = Future()  # the node's own loop (see bridge_shadow.ros.main)
         while not stop and rclpy.ok():
             executor.spin_until_future_complete(never, timeout_sec=0.2)
         node.destroy_node()

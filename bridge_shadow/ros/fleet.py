@@ -101,7 +101,7 @@ def member_params(member: FleetMember) -> dict[str, Any]:
         ConfigError, InputError: a bad parameter or surrogate file (one line naming it).
 
     """
-    from bridge_shadow.estimate.config import load_config
+    from bridge_shadow.estimate.parameters.config import load_config
     from bridge_shadow.model.surrogate_file import load_surrogate
 
     over = {"surrogate_path": str(member.surrogate.resolve())} if member.surrogate else None

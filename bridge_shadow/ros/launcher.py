@@ -62,7 +62,7 @@ class NodeProcess:
         self,
         args: Sequence[str] = (),
         *,
-        module: str = "bridge_shadow.ros.node",
+        module: str = "bridge_shadow.ros.main",
         env: dict[str, str] | None = None,
     ) -> None:
         self.args = list(args)

@@ -28,17 +28,6 @@ transport skew are hours of stamp time. A decoded message therefore waits until 
 has delivered a stamp at least as new (or that topic has been quiet, or the message has waited,
 for ``REORDER_HOLD_S``). Live, the window-closing message never waits: the others are past it.
 
-Parameters: every entry of ``config/shadow.yaml`` (its values are the declared defaults), overridable
-with ``--ros-args -p name:=value`` or ``--params-file FILE``. Each is declared with a
-ParameterDescriptor built from ``estimate.param_specs`` (type, description with unit, constraint,
-range), and checked as strictly as ``replay --params`` checks it: an unknown name, a wrong type or
-an out-of-range value stops the node at start with one line and exit code 2. Only
-``diagnostics_period_s`` may change at run time (the set-parameters callback refuses a bad value
-with the reason); every other parameter is read-only once the node runs. ``qos_depth`` is the input history
-depth (RELIABLE, KEEP_LAST; 0 means KEEP_ALL). Note that a full reliable reader drops samples for
-the writer to resend at its next heartbeat (seconds later, in Fast DDS), so a fast replay keeps
-fewer than ``qos_depth`` messages in flight using the status service instead.
-
 Quiet inputs (wall clock): windows close on stamp time, so when every input stops the window holding
 the last data would wait for the next message. Once no input has arrived for
 ``max(topic_timeout_s, window_s)`` of wall time (what /diagnostics reports as an ERROR), the node closes
@@ -48,32 +37,20 @@ for such a window that arrives later still is counted ``late``. Data after the g
 Checkpoint: with ``checkpoint_path`` set, the node resumes from that file when it exists, the shadow
 saves it every ``checkpoint_period_s`` of stamp time, and the node saves it on SIGINT/SIGTERM
 after ingesting what it has buffered. A file that cannot be read, or was saved under parameters
-that shape the state differently (``estimate.checkpoint``), stops the node with one line naming
+that shape the state differently (``estimate.state.checkpoint``), stops the node with one line naming
 it (``checkpoint_unusable: fresh`` sets it aside and starts from the prior); it is never
 overwritten. At start the node logs the surrogate, the parameter files, the topics and the
 checkpoint it uses.
 
-Network: before ``rclpy.init`` the node confines DDS discovery to loopback
-(``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ``ROS_DOMAIN_ID`` if none is set) unless the
-environment already sets ``ROS_AUTOMATIC_DISCOVERY_RANGE``: an explicit choice (e.g. ``SUBNET`` on
-a real monitoring network) is respected.
-
-Executor: ``rclpy.experimental.EventsExecutor``, driven by ``spin_until_future_complete`` with a
-0.2 s timeout in a loop that checks the stop flag; SIGINT/SIGTERM also complete the future it
-waits on, which ends the spin even when a callback is always due. In rclpy 7.1 its ``spin()`` (and
-``spin_until_future_complete`` without a timeout) neither returns on SIGINT/SIGTERM nor idles (it
-busy-waits a core), so it is not used; ``spin_once`` per message costs a Python call per event.
+Parameter declarations: ``ros.parameters``; the command line (``bridge_shadow_node``): ``ros.main``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import re
-import signal
 import struct
-import sys
 import time
 from collections import deque
 from collections.abc import Sequence
@@ -81,28 +58,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    ParameterType,
-    SetParametersResult,
-)
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
-from rclpy.task import Future
 from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from bridge_shadow.commands.output import jsonable
 from bridge_shadow.contract import (
     CHANNELS,
     COMPENSATED_TOPICS,
@@ -113,14 +77,15 @@ from bridge_shadow.contract import (
     NODE_NAME,
 )
 from bridge_shadow.errors import BridgeShadowError
-from bridge_shadow.estimate import ShadowConfig, WindowOutput, load_config
-from bridge_shadow.estimate.param_specs import SPECS, constraint_text, describe, kind_of
+from bridge_shadow.estimate import ShadowConfig, WindowOutput
+from bridge_shadow.estimate.parameters.specs import SPECS
 from bridge_shadow.estimate.startup import open_shadow
+from bridge_shadow.jsonvalues import jsonable
 from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 from bridge_shadow.paths import config_file
 from bridge_shadow.ros import convert
 from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
-from bridge_shadow.ros.netenv import confine_to_loopback
+from bridge_shadow.ros.parameters import declare_parameters, is_ros_own, plain_value
 
 __all__ = [
     "BATCH",
@@ -133,10 +98,7 @@ __all__ = [
     "STATUS_SERVICE",
     "ShadowNode",
     "input_qos",
-    "main",
     "outputs_from_history",
-    "parameter_descriptor",
-    "params_files",
     "startup_lines",
     "window_history",
 ]
@@ -162,18 +124,6 @@ MIN_DRAIN_GAP_S = 0.002
 #: Longest wall time a message waits for the other topics to catch up with its stamp [s].
 REORDER_HOLD_S = 5.0
 _NS = 1_000_000_000
-_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-_USAGE = """\
-usage: bridge_shadow_node [--ros-args [-p NAME:=VALUE ...] [--params-file FILE]]
-
-The live digital shadow of the UniBw Munich test bridge: subscribes to the two central-bearing
-load cells and the air temperature, publishes the posterior settlements, their covariance, the
-temperature-compensated forces and /diagnostics. Parameters: config/shadow.yaml (documented there;
-unknown names and bad values stop the node with one line). Stop with Ctrl-C or SIGTERM (a
-checkpoint is written when checkpoint_path is set).
-"""
-
 
 def input_qos(depth: int) -> QoSProfile:
     """RELIABLE QoS of the given history depth; ``depth <= 0`` means KEEP_ALL (lossless)."""
@@ -248,29 +198,16 @@ class ShadowNode(Node):
 
     # -- parameters ------------------------------------------------------------------------
     def _read_parameters(self) -> ShadowConfig:
-        """Check the start-up parameters, declare each with its descriptor, and read them back.
-
-        Defaults are config/shadow.yaml. The overrides (``--params-file``, ``-p``) are checked by
-        the same strict rules as ``replay --params`` (``estimate.param_specs``): an unknown name,
-        a wrong type or an out-of-range value raises ConfigError, one line.
-        """
-        overrides = {
-            name: _plain(p.value)
-            for name, p in getattr(self, "_parameter_overrides", {}).items()
-            if not _ros_own(name)
-        }
-        config = ShadowConfig.from_params({**load_config().to_params(), **overrides})
-        for f in dataclasses.fields(ShadowConfig):
-            value = getattr(config, f.name)
-            descriptor = parameter_descriptor(f.name, kind_of(f))
-            self.declare_parameter(f.name, value, descriptor, ignore_override=True)
+        """Declare the parameters (``ros.parameters.declare_parameters``) and watch their changes."""
+        config = declare_parameters(self)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         return config
 
     def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
         """Refuse a new value that breaks its spec, with the reason (read-only ones rclpy refuses)."""
-        changes = {p.name: _plain(p.value) for p in params if not _ros_own(p.name)}  # use_sim_time: rclpy's
+        # use_sim_time and the like are rclpy's own
+        changes = {p.name: plain_value(p.value) for p in params if not is_ros_own(p.name)}
         if not changes:
             return SetParametersResult(successful=True)
         frozen = [n for n in changes if n not in SPECS or not SPECS[n].live]
@@ -513,60 +450,6 @@ class ShadowNode(Node):
         return self.shadow.save_checkpoint() if self.config.checkpoint_path else None
 
 
-#: Parameters rclpy itself reads (not the shadow's, and not unknown either).
-_ROS_OWN = ("use_sim_time", "start_type_description_service", "qos_overrides.")
-#: ROS parameter type of each value kind of ``param_specs``.
-_ROS_TYPES = {
-    "bool": ParameterType.PARAMETER_BOOL,
-    "int": ParameterType.PARAMETER_INTEGER,
-    "float": ParameterType.PARAMETER_DOUBLE,
-    "str": ParameterType.PARAMETER_STRING,
-    "float_pair": ParameterType.PARAMETER_DOUBLE_ARRAY,
-}
-
-
-def _ros_own(name: str) -> bool:
-    return any(name == own or (own.endswith(".") and name.startswith(own)) for own in _ROS_OWN)
-
-
-def _plain(value: Any) -> Any:
-    """Return a ROS parameter value as plain Python (arrays as lists)."""
-    if value is None or isinstance(value, (str, bool, int, float)):
-        return value
-    return list(value)
-
-
-def parameter_descriptor(name: str, kind: str) -> ParameterDescriptor:
-    """Build the ParameterDescriptor of a shadow parameter from ``param_specs`` (one table).
-
-    Type, description (the comment of config/shadow.yaml, unit, constraint, role), the constraint
-    in words, and the range where both ends are finite. Parameters that cannot change while the
-    node runs are read-only; the live ones take an integer for a real (dynamic typing) and carry
-    no range: the set-parameters callback checks the value and says why it refuses one (rclpy's
-    own range check would answer first, without the reason).
-    """
-    spec = SPECS.get(name)
-    live = spec is not None and spec.live
-    descriptor = ParameterDescriptor(
-        name=name,
-        type=_ROS_TYPES[kind],
-        description=describe(name, kind),
-        additional_constraints=constraint_text(name, kind),
-        read_only=not live,
-        dynamic_typing=live,
-    )
-    if spec is not None and not live and spec.low is not None and spec.high is not None:
-        if kind == "float":
-            descriptor.floating_point_range = [
-                FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)
-            ]
-        elif kind == "int":
-            descriptor.integer_range = [
-                IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)
-            ]
-    return descriptor
-
-
 def startup_lines(config: ShadowConfig, surrogate: Any, params_files: Sequence[str] = ()) -> list[str]:
     """Return what the node says at start: surrogate, parameter files, topics, checkpoint."""
     files = ", ".join(params_files) if params_files else "none (defaults only)"
@@ -604,135 +487,3 @@ def outputs_from_history(windows: list[dict[str, Any]]) -> list[WindowOutput]:
         for w in windows
     ]
 
-
-def params_files(argv: Sequence[str]) -> list[str]:
-    """Return the ``--params-file FILE`` arguments of a ROS command line (after ``--ros-args``)."""
-    files, in_ros = [], False
-    for k, arg in enumerate(argv):
-        if arg == "--ros-args":
-            in_ros = True
-        elif arg == "--":
-            in_ros = False
-        elif in_ros and arg == "--params-file" and k + 1 < len(argv):
-            files.append(argv[k + 1])
-    return files
-
-
-def _check_params_file(path: str) -> None:
-    """Read a ``--params-file`` before rcl does, so a broken one gives one line (not an RCLError)."""
-    from bridge_shadow.estimate.config import read_params_file
-
-    try:
-        read_params_file(Path(path))
-    except BridgeShadowError as err:
-        if "expected" in str(err) and "ros__parameters" in str(err):
-            return  # a file for other nodes only: legal in ROS, it sets nothing here
-        raise
-
-
-class _stderr_held:
-    """Hold what C code writes to file descriptor 2 in a block; pass it on unless ``drop()``ped."""
-
-    def __enter__(self) -> _stderr_held:
-        import tempfile
-
-        sys.stderr.flush()
-        self._file = tempfile.TemporaryFile()
-        self._saved = os.dup(2)
-        os.dup2(self._file.fileno(), 2)
-        self._keep = True
-        return self
-
-    def drop(self) -> None:
-        self._keep = False
-
-    def __exit__(self, *exc: object) -> None:
-        sys.stderr.flush()
-        os.dup2(self._saved, 2)
-        os.close(self._saved)
-        if self._keep:
-            self._file.seek(0)
-            text = self._file.read()
-            if text:
-                sys.stderr.buffer.write(text)
-                sys.stderr.flush()
-        self._file.close()
-
-
-def _one_line(err: BaseException) -> str:
-    text = " ".join(str(err).split())
-    return text[:400]
-
-
-def main(args: list[str] | None = None) -> int:
-    """Run the node until SIGINT/SIGTERM; return 0, or 2 with one line on a configuration error."""
-    argv = sys.argv[1:] if args is None else list(args)
-    if "--ros-args" not in argv and any(a in ("-h", "--help") for a in argv):
-        print(_USAGE, end="")
-        return 0
-    prog = "bridge_shadow_node"
-    files = params_files(argv)
-    try:
-        for file in files:
-            _check_params_file(file)
-    except BridgeShadowError as err:
-        print(f"{prog}: {err}", file=sys.stderr)
-        return 2
-    if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in os.environ:
-        confine_to_loopback()
-    # SIGINT/SIGTERM set a flag and complete the future the executor waits on: the loop ends
-    # between callbacks, so no callback is cut off by a context shut down under it, the exit path
-    # still has a valid context, and a busy executor (a timer that is always due) still returns.
-    stop: list[int] = []
-    never = Future()
-
-    def on_signal(signum: int, frame: Any) -> None:
-        stop.append(signum)
-        if not never.done():
-            never.set_result(None)
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in _STOP_SIGNALS}
-    node = None
-    code = 0
-    try:
-        init_error = None
-        with _stderr_held() as held:
-            try:
-                rclpy.init(args=[sys.argv[0], *argv], signal_handler_options=SignalHandlerOptions.NO)
-            except Exception as err:  # RCLError: a -p rule or a file rcl cannot parse
-                held.drop()  # rcl's own "[ERROR] ... Failed to parse" line: ours says it once
-                init_error = err
-        if init_error is not None:
-            print(f"{prog}: cannot read the ROS arguments: {_one_line(init_error)}", file=sys.stderr)
-            return 2
-        node = ShadowNode(params_files=files)
-        executor = EventsExecutor()
-        executor.add_node(node)
-        while not stop and rclpy.ok():
-            executor.spin_until_future_complete(never, timeout_sec=0.2)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except BridgeShadowError as err:
-        print(f"{prog}: {err}", file=sys.stderr)
-        code = 2
-    except ParameterException as err:  # refused by rclpy itself
-        print(f"{prog}: {_one_line(err)}", file=sys.stderr)
-        code = 2
-    finally:
-        if node is not None:
-            try:
-                path = node.save_on_exit()
-                if path is not None:
-                    print(f"{prog}: checkpoint written to {path}", file=sys.stderr)
-            except BridgeShadowError as err:
-                print(f"{prog}: checkpoint not written: {err}", file=sys.stderr)
-                code = 2
-            node.destroy_node()
-        rclpy.try_shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-    return code
-
-
-if __name__ == "__main__":
-    sys.exit(main())

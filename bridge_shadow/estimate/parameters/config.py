@@ -28,7 +28,7 @@ from bridge_shadow.contract import (
     TEMPERATURE_TOPIC,
 )
 from bridge_shadow.errors import ConfigError
-from bridge_shadow.estimate.param_specs import check_value, kind_of
+from bridge_shadow.estimate.parameters.specs import check_value, kind_of
 from bridge_shadow.fileio import yaml_problem
 from bridge_shadow.keys import check_keys
 from bridge_shadow.paths import config_file
@@ -145,7 +145,7 @@ class ShadowConfig:
         self.validate()
 
     def validate(self) -> None:
-        """Check every value against its spec (``param_specs.SPECS``) and the cross-field rules.
+        """Check every value against its spec (``parameters.specs.SPECS``) and the cross-field rules.
 
         Values are normalized in place (an integer given for a real becomes a float); the first
         problem raises ConfigError with one line naming the parameter, what it must be and what
@@ -201,7 +201,7 @@ class ShadowConfig:
     def from_params(cls, params: dict[str, Any], *, strict: bool = True) -> ShadowConfig:
         """Build from a flat ``{name: value}`` map; unknown names raise ConfigError when strict.
 
-        Types are strict (see ``param_specs``): ``true`` is not 1.0, 2.7 is not 2.
+        Types are strict (see ``parameters.specs``): ``true`` is not 1.0, 2.7 is not 2.
         """
         names = [f.name for f in dataclasses.fields(cls)]
         if strict:

@@ -1,5 +1,7 @@
 """Window buffer: accepted samples in, closed 60 s windows out, many windows per call, vectorized.
 
+The per-window counts and means come from the one window aggregator, ``bridge_shadow.windowing``.
+
 Windows are fixed in stamp time, ``[k W, (k + 1) W)``. Window ``k`` is *due* once every force
 topic has an accepted stamp at or past its end (or the data clock is ``topic_timeout_s`` past it)
 and the air temperature has a reading at or past its end (or the clock is the temperature horizon
@@ -22,6 +24,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from bridge_shadow.windowing import window_index, window_stats
 
 __all__ = ["SampleBuffer", "WindowBatch", "WindowBuffer"]
 
@@ -222,7 +226,7 @@ class WindowBuffer:
 
     def _aggregate(self, taken: list[tuple[np.ndarray, np.ndarray]]) -> WindowBatch:
         w = self.w_ns
-        ks = [s // w for s, _ in taken]
+        ks = [window_index(s, w) for s, _ in taken]
         present = [np.unique(k) for k in ks]
         k_all = np.union1d(present[0], present[1])
         n = len(k_all)
@@ -237,14 +241,14 @@ class WindowBuffer:
             if not len(stamps):
                 continue
             row = np.searchsorted(k_all, k)
-            count = np.bincount(row, minlength=n)
-            has = count > 0
-            samples[:, c] = count
-            force[has, c] = np.bincount(row, weights=values, minlength=n)[has] / count[has]
+            forces = window_stats(row, values, n)
+            has = forces.count > 0
+            samples[:, c] = forces.count
+            force[has, c] = forces.mean[has]
             if not self.temp_seen:
                 continue
             matched, flag = self._match(stamps, k, ts, tv)
-            temp[has, c] = np.bincount(row, weights=matched, minlength=n)[has] / count[has]
+            temp[has, c] = window_stats(row, matched, n).mean[has]
             stale |= np.bincount(row, weights=flag, minlength=n) > 0
         reason = np.full(n, "", dtype=object)
         reason[stale] = "stale_temperature"

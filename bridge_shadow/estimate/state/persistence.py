@@ -15,10 +15,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bridge_shadow.estimate.compensation import CompensationFit
-from bridge_shadow.estimate.config import ShadowConfig
-from bridge_shadow.estimate.events import Pending
-from bridge_shadow.estimate.gate import REASONS
+from bridge_shadow.estimate.compensation.fit import CompensationFit
+from bridge_shadow.estimate.events.detector import Pending
+from bridge_shadow.estimate.inputs.closed_window import Window
+from bridge_shadow.estimate.inputs.gate import REASONS
+from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.model.surrogate_file import Surrogate
 
 if TYPE_CHECKING:
@@ -182,8 +183,6 @@ def restore_shadow(
     cls: type[Shadow], state: dict[str, Any], config: ShadowConfig | None, surrogate: Surrogate | None
 ) -> Shadow:
     """Rebuild a shadow of class ``cls`` from ``shadow_state`` output."""
-    from bridge_shadow.estimate.shadow import Window
-
     if int(state.get("version", 1)) != _VERSION:
         from bridge_shadow.errors import InputError
 

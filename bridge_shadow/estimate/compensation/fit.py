@@ -38,14 +38,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
-from bridge_shadow.estimate.spline import (
+from bridge_shadow.estimate.compensation.spline import (
     basis_nonzero,
     clamped_knots,
     gram_penalty,
     gram_slope,
     select_lambda,
 )
-from bridge_shadow.estimate.sums import FitSums
+from bridge_shadow.estimate.compensation.sums import FitSums
 
 __all__ = ["Compensation", "CompensationFit"]
 

@@ -59,10 +59,10 @@ from typing import Any
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
-from bridge_shadow.estimate.compensation import CompensationFit
-from bridge_shadow.estimate.noise import NoiseModel
+from bridge_shadow.estimate.compensation.fit import CompensationFit
+from bridge_shadow.estimate.compensation.noise import NoiseModel
+from bridge_shadow.estimate.compensation.sums import FitSums
 from bridge_shadow.estimate.small import Sym, Vec, congruence, inv_sym, mat_vec, quad_inv, sym_vec
-from bridge_shadow.estimate.sums import FitSums
 
 __all__ = ["SegmentChain", "SegmentSummary", "mixture_update"]
 

@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 from scipy import special, stats
 
-from bridge_shadow.estimate.noise import ar1_factor
+from bridge_shadow.estimate.compensation.noise import ar1_factor
 from bridge_shadow.estimate.small import Sym, Vec, quad_inv
 
 __all__ = ["JUMP_LOOKAHEAD", "JUMP_MEMORY", "JUMP_OVER_SEEN", "ChangeDetector", "Decision", "Pending"]

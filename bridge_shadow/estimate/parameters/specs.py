@@ -1,6 +1,6 @@
 """The one table of the shadow's parameters: type, unit, range or choices, and what each shapes.
 
-``ShadowConfig`` (``estimate/config.py``) holds the values and their defaults; this table adds,
+``ShadowConfig`` (``estimate/parameters/config.py``) holds the values and their defaults; this table adds,
 per field, what a user needs to set it right and what the code needs to refuse it:
 
 - the **type** comes from the dataclass field (bool, int, float, str, or two floats [south,
@@ -9,7 +9,7 @@ per field, what a user needs to set it right and what the code needs to refuse i
 - the **unit** (SI, as in ``config/shadow.yaml``) and the **range** (open or closed ends) or the
   **choices**; a real must be finite (``.inf`` and NaN are refused) unless its spec allows it;
 - ``shapes_state``: a checkpoint saved under another value cannot be resumed (its arrays mean
-  something else), see ``estimate.checkpoint.check_compatible``;
+  something else), see ``estimate.state.checkpoint.check_compatible``;
 - ``live``: the node applies a new value while it runs; every other parameter is read-only in
   the node once it has started (restart it with the new value).
 

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from bridge_shadow.estimate.noise import ar1_factor
-from bridge_shadow.estimate.spline import _basis, clamped_knots, gram_penalty, gram_slope
+from bridge_shadow.estimate.compensation.noise import ar1_factor
+from bridge_shadow.estimate.compensation.spline import _basis, clamped_knots, gram_penalty, gram_slope
 
 __all__ = ["BatchResult", "paper_batch", "paper_batch_of_run"]
 

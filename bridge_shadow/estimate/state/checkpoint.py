@@ -9,7 +9,7 @@ killed mid-write are removed at the next start (``remove_orphans``).
 Reading refuses, with one line naming the file, anything that is not a whole checkpoint (an empty
 or truncated file, random bytes, an archive without the shadow's entries) and a checkpoint saved
 under parameters that shape the state differently from the ones in force (``check_compatible``:
-the ``shapes_state`` entries of ``param_specs.SPECS`` and the surrogate's ``A`` and ``u0``). Such a
+the ``shapes_state`` entries of ``parameters.specs.SPECS`` and the surrogate's ``A`` and ``u0``). Such a
 file is never overwritten here: the caller stops, or sets it aside (``set_aside``) and starts fresh.
 """
 
@@ -146,7 +146,7 @@ def load_state(path: str | Path) -> dict[str, Any]:
 
 def shaping_parameters() -> tuple[str, ...]:
     """Names of the parameters a checkpoint must have been saved under to be resumed."""
-    from bridge_shadow.estimate.param_specs import SPECS
+    from bridge_shadow.estimate.parameters.specs import SPECS
 
     return tuple(name for name, spec in SPECS.items() if spec.shapes_state)
 

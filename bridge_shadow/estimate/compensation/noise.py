@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from bridge_shadow.estimate.sums import Moments
+from bridge_shadow.estimate.compensation.sums import Moments
 
 __all__ = ["NoiseModel", "ar1_factor"]
 

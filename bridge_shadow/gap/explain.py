@@ -1,0 +1,166 @@
+"""What the named effects mean: the model change they make, its stand-ins, the statement for people.
+
+``model_change`` turns the named effects into a change of the model (settlements are left to the
+shadow); ``stand_in_changes`` lets each model-form member of a group stand in for the effect named
+there; ``settlement_if_softer`` reads a settlement effect through a softer model; ``statement``
+and ``level_statement`` say the answer in one paragraph.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.effects import EFFECTS, MODEL_FORM_EFFECTS, SETTLEMENT_EFFECTS, plausible_range
+from bridge_shadow.gap.day_levels import DayLevels
+from bridge_shadow.gap.fit import CvResult
+from bridge_shadow.gap.fitter import BY_NAME, Fitter
+from bridge_shadow.gap.posterior import ModelChange
+from bridge_shadow.gap.rank import Named, Ranking, own_beta
+from bridge_shadow.model.surrogate_file import Surrogate
+
+__all__ = ["level_statement", "model_change", "settlement_if_softer", "stand_in_changes", "statement"]
+
+def model_change(entries: list[Named]) -> ModelChange:
+    """Return what the named effects add to the model (not settlements: the shadow estimates them)."""
+    change = ModelChange()
+    additive = None
+    for e in entries:
+        if e.name in SETTLEMENT_EFFECTS:
+            continue
+        change.effects.append(e.name)
+        c = BY_NAME[e.name]
+        if c.nonlinear:
+            springs = [np.inf if v <= 0 else 1.0 / v for v in e.cv.beta]
+            change.springs_n_per_m = (float(springs[0]), float(springs[1]))
+            change.springs_levelled = str(c.grid[e.cv.grid_index]).endswith("levelled")
+        elif e.name in MODEL_FORM_EFFECTS:
+            # the joint fit's own r when the effect was added later, else its own fit
+            change.ratios[e.name] = float(own_beta(e.name, e.cv)[0])
+        else:
+            contrib = np.nan_to_num(e.contribution if e.contribution is not None else e.cv.pred_full)
+            additive = contrib if additive is None else additive + contrib
+    change.additive_n = additive
+    return change
+
+
+def stand_in_changes(fitter: Fitter, entries: list[Named], max_runs: int = 2) -> dict[str, ModelChange]:
+    """Model changes where a model-form member of a group stands in for the effect named there.
+
+    The data cannot tell such a member from the named effect, but the shadow's settlements differ
+    between them (a support spring rescales A): each alternative is refitted beside the other
+    named effects (inside its plausible range) and run too.
+    """
+    out: dict[str, ModelChange] = {}
+    for k, e in enumerate(entries):
+        for g in e.group[1:]:
+            if g not in MODEL_FORM_EFFECTS or g in out or len(out) >= max_runs:
+                continue
+            others = [fitter.block(o.name, o.cv) for j, o in enumerate(entries) if j != k]
+            fixed = np.concatenate(others, axis=2) if others else None
+            r = fitter.cv(g, fixed=fixed)
+            stand_in = Named(g, [g], e.gain, r, {}, {}, None)
+            out[g] = model_change([*entries[:k], stand_in, *entries[k + 1 :]])
+    return out
+
+
+def settlement_if_softer(name: str, params: dict[str, Any], s: Surrogate) -> dict[str, Any] | None:
+    """Read the same reaction change with support springs at the soft end of their plausible range.
+
+    Without a known settlement, the size of a settlement effect depends on ``A``: a model with a
+    spring ``k`` under each bearing reads the reactions ``A x`` as ``x' = A'^-1 A x``.
+    """
+    from bridge_shadow.model.sensitivities import support_spring_change
+
+    if name == "settlement_offset":
+        x = np.array([params["x_south [m]"], params["x_north [m]"]])
+        unit = "m"
+    elif name == "settlement_step":
+        x = np.array([params["dx_south [m]"], params["dx_north [m]"]])
+        unit = "m"
+    elif name == "settlement_drift":
+        x = np.array([params["v_south [m/day]"], params["v_north [m/day]"]])
+        unit = "m/day"
+    else:
+        return None
+    k_low = plausible_range("support_spring")[0]
+    soft, _ = support_spring_change(s, [k_low, k_low])
+    return {
+        "as_built": x.tolist(),
+        "with_support_springs_n_per_m": k_low,
+        "value": np.linalg.solve(soft.A, s.A @ x).tolist(),
+        "unit": unit,
+        "why": "without a known settlement the reactions fix A x, not x: a softer model reads the same "
+        "change as a larger settlement (support_spring at the soft end of its plausible range)",
+    }
+
+
+def statement(
+    group: list[str],
+    also: list[Named],
+    rk: Ranking,
+    cv: dict[str, CvResult],
+    rejected: list[dict[str, Any]],
+) -> str:
+    """One paragraph for people: the answer, its ambiguity, what else is present, what was rejected."""
+    top = rk.top.name
+    if not group:
+        text = (
+            f"No candidate beats the noise: the largest plausible held-out gain ({top}, "
+            f"{cv[top].mse_gain:.3f} of the squared residual) is below the chance level "
+            f"{rk.threshold[top]:.3f} for AR(1) noise with phi = {rk.phi:.2f}."
+        )
+    else:
+        best, others = group[0], group[1:]
+        red = cv[best].reduction
+        text = (
+            f"{best} ({EFFECTS[best].part}) explains the gap: held-out RMS down by "
+            f"{100 * red[0]:.0f}% (south) and {100 * red[1]:.0f}% (north)."
+        )
+        if others:
+            text += (
+                f" It cannot be told apart from {', '.join(others)} with two reactions alone: their fitted "
+                "reaction changes are nearly collinear and neither adds a significant held-out gain to "
+                f"the other; {best} is listed first by the information criterion."
+            )
+        if also:
+            listed = []
+            for a in also:
+                item = f"{a.name} ({100 * a.gain:.0f}% of what remained"
+                if len(a.group) > 1:
+                    item += f"; cannot be told apart from {', '.join(a.group[1:])}"
+                listed.append(item + ")")
+            text += f" Also present, each given the ones before: {', '.join(listed)}."
+    if rejected:
+        names = ", ".join(dict.fromkeys(r["effect"] for r in rejected))
+        text += (
+            f" Rejected as implausible, though the data would take them: {names} (the fit needs a value "
+            "outside the plausible range)."
+        )
+    return text
+
+
+def level_statement(lv: DayLevels, named: list[dict[str, Any]], inside: str) -> str:
+    """One paragraph for a day of records: the levels, then what happens inside the records."""
+    mm = 1e3
+    text = f"A day of {len(lv.records)} records."
+    an = lv.imposed
+    if an is not None:
+        rows = {r["effect"]: r for r in an.table()}
+        if an.named:
+            p = ", ".join(f"{k} {v:.3g}" for k, v in rows[an.best]["parameters"].items())
+            text += (
+                f" The response to the imposed step(s) is not the model's: {an.best} ({p}) explains it "
+                f"(probability {an.weights[an.best]:.2f}; the imposed steps within the jacks' accuracy, "
+                f"settlement_step, {rows['settlement_step']['delta_log_evidence']:.1f} in log evidence)."
+            )
+            if an.group[1:]:
+                text += f" It cannot be told apart from {', '.join(an.group[1:])}."
+        else:
+            text += " The model explains the response to the imposed step(s) within the jacks' accuracy."
+    steps = [st for st in lv.steps if st["significant"]]
+    if steps:
+        sizes = "; ".join(f"{st['x_m'][0] * mm:+.2f} / {st['x_m'][1] * mm:+.2f} mm" for st in steps)
+        text += f" Between records the settlements stepped by {sizes} (the steps the shadow estimates)."
+    return text + " Inside the records: " + inside
