@@ -60,7 +60,7 @@ def test_serial_mapper_and_bad_worker_counts() -> None:
 
 
 def test_calibrate_command_hands_a_dask_mapper_to_the_fits(monkeypatch, capsys) -> None:
-    """``calibrate --workers N`` hands ``calibrate()`` a local cluster's mapper; bad combinations: one line.
+    """``calibrate --scheduler ADDR`` hands ``calibrate()`` a Dask mapper; bad combinations: one line.
 
     (That fits on the mapper equal the serial ones is the test above; the command's whole run is
     minutes of FE solves.)
@@ -73,7 +73,8 @@ def test_calibrate_command_hands_a_dask_mapper_to_the_fits(monkeypatch, capsys) 
         raise InputError(f"mapper ran: {mapper(abs, [-1, -2, 3])}")
 
     monkeypatch.setattr(cal_run, "calibrate", fake)
-    assert main(["calibrate", "--workers", "1"]) == 2
+    with dask_client(workers=1, processes=False) as client:  # a running scheduler, as on a cluster
+        assert main(["calibrate", "--scheduler", client.scheduler.address]) == 2
     assert "mapper ran: [1, 2, 3]" in capsys.readouterr().err
     assert main(["calibrate", "--workers", "1", "--scheduler", "tcp://127.0.0.1:9"]) == 2
     assert "a --scheduler has its own workers" in capsys.readouterr().err
