@@ -80,3 +80,48 @@ def test_calibrate_command_hands_a_dask_mapper_to_the_fits(monkeypatch, capsys) 
     assert "a --scheduler has its own workers" in capsys.readouterr().err
     assert main(["calibrate", "--check", "config/surrogate.yaml", "--workers", "2"]) == 2
     assert "drop --workers" in capsys.readouterr().err
+
+
+def test_gap_folds_on_a_running_scheduler_give_the_serial_diagnosis(root, capsys) -> None:
+    """``gap BAG --scheduler ADDR``: every candidate's folds as Dask tasks, the same diagnosis.
+
+    The same arithmetic in another thread: numbers agree to rtol 1e-12, everything else exactly.
+    """
+    import json
+
+    from bridge_shadow.cli import main
+
+    def gap_json(*extra: str) -> dict:
+        assert main(["gap", str(root / "bags" / "scour_3d"), "--json", *extra]) == 0
+        doc = json.loads(capsys.readouterr().out)
+        doc.pop("seconds")
+        return doc
+
+    serial = gap_json()
+    with dask_client(workers=2, processes=False) as client:
+        mapped = gap_json("--scheduler", client.scheduler.address)
+    assert mapped["best"] == serial["best"] and serial["best"] != "none"
+    assert mapped["also_present"] == serial["also_present"]
+    assert [c["effect"] for c in mapped["candidates"]] == [c["effect"] for c in serial["candidates"]]
+    for a, b in zip(serial["candidates"], mapped["candidates"], strict=True):
+        _same(a, b, a["effect"])
+    np.testing.assert_allclose(mapped["posterior"]["after"]["mean_m"], serial["posterior"]["after"]["mean_m"])
+    both = ["--workers", "2", "--scheduler", "tcp://127.0.0.1:9"]
+    assert main(["gap", str(root / "bags" / "scour_3d"), *both]) == 2
+    assert "a --scheduler has its own workers" in capsys.readouterr().err
+
+
+def _same(a: object, b: object, where: str) -> None:
+    """``a`` and ``b`` alike: numbers to rtol 1e-12, containers item by item, the rest equal."""
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and set(a) == set(b), where
+        for k in a:
+            _same(a[k], b[k], f"{where}.{k}")
+    elif isinstance(a, list):
+        assert isinstance(b, list) and len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _same(x, y, f"{where}[{i}]")
+    elif isinstance(a, float) and isinstance(b, float):
+        assert b == pytest.approx(a, rel=1e-12, abs=1e-300, nan_ok=True), where
+    else:
+        assert a == b, where

@@ -89,6 +89,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--force", action="store_true", help="replace an existing surrogate file at --out-surrogate"
     )
     parser.add_argument("--window", type=float, default=60.0, metavar="S", help="window length in s (60)")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="fit the held-out folds as Dask tasks on a local cluster of N processes (for long "
+        "archives; the same fits; default: one after the other here)",
+    )
+    parser.add_argument(
+        "--scheduler", metavar="ADDR", help="fit the held-out folds on a running Dask scheduler (tcp://HOST:PORT)"
+    )
 
 
 def parse_imposed(
@@ -257,36 +267,19 @@ def _human(summary: dict) -> str:
     return "\n".join(lines)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Read the bag, diagnose, print, and write the report."""
-    import math
-    import sys
-
-    from bridge_shadow.bagio import read_monitoring
-    from bridge_shadow.commands.output import emit_json, require_finite
-    from bridge_shadow.errors import InputError
-    from bridge_shadow.estimate.parameters.specs import SPECS, check_value
-    from bridge_shadow.fileio import check_output_dir
+def _diagnose(
+    args: argparse.Namespace,
+    data: Any,
+    surrogate: Any,
+    config: Any,
+    imposed: list[tuple[int, float, float]],
+    imposed_sd: float,
+    mapper: Any,
+) -> Any:
+    """Run the diagnosis the command asks for (``mapper``: the folds on Dask, or None)."""
     from bridge_shadow.gap.diagnose import diagnose
-    from bridge_shadow.gap.posterior import shadow_config
-    from bridge_shadow.gap.records import IMPOSED_SD_M
-    from bridge_shadow.model.surrogate_file import load_surrogate, save_surrogate, surrogate_target
 
-    check_value("--window", args.window, "float", SPECS["window_s"])  # the shadow's window_s range
-    imposed_sd = IMPOSED_SD_M if args.imposed_sd is None else args.imposed_sd
-    if not (imposed_sd > 0 and math.isfinite(imposed_sd)):
-        raise InputError("--imposed-sd must be a positive, finite number of metres (jacks are never exact)")
-    if args.report:
-        check_output_dir(args.report, "--report directory")  # before the work
-    if args.out_surrogate:
-        surrogate_target(args.out_surrogate, create=False, force=args.force)
-    config = shadow_config(args.params, args.surrogate)
-    surrogate = load_surrogate(config.surrogate_path or None)
-    data = read_monitoring(args.bag, topics=config.input_topics())
-    first = min(int(s.stamp_ns.min()) for s in data.forces.values() if len(s))
-    last = max(int(s.stamp_ns.max()) for s in data.forces.values() if len(s))
-    imposed = parse_imposed(args.imposed, first, last)
-    dg = diagnose(
+    return diagnose(
         data,
         surrogate,
         width_s=args.window,
@@ -297,7 +290,48 @@ def run(args: argparse.Namespace) -> int:
         shadow_config=config,
         alternatives=args.alternatives,
         surrogate_path=config.surrogate_path or None,
+        mapper=mapper,
     )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the bag, diagnose, print, and write the report."""
+    import contextlib
+    import math
+    import sys
+
+    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.commands.output import emit_json, require_finite
+    from bridge_shadow.errors import InputError
+    from bridge_shadow.estimate.parameters.specs import SPECS, check_value
+    from bridge_shadow.fileio import check_output_dir
+    from bridge_shadow.gap.posterior import shadow_config
+    from bridge_shadow.gap.records import IMPOSED_SD_M
+    from bridge_shadow.model.surrogate_file import load_surrogate, save_surrogate, surrogate_target
+
+    check_value("--window", args.window, "float", SPECS["window_s"])  # the shadow's window_s range
+    imposed_sd = IMPOSED_SD_M if args.imposed_sd is None else args.imposed_sd
+    if not (imposed_sd > 0 and math.isfinite(imposed_sd)):
+        raise InputError("--imposed-sd must be a positive, finite number of metres (jacks are never exact)")
+    if args.workers is not None and args.scheduler:
+        raise InputError("--workers sizes the local cluster; a --scheduler has its own workers")
+    if args.report:
+        check_output_dir(args.report, "--report directory")  # before the work
+    if args.out_surrogate:
+        surrogate_target(args.out_surrogate, create=False, force=args.force)
+    config = shadow_config(args.params, args.surrogate)
+    surrogate = load_surrogate(config.surrogate_path or None)
+    data = read_monitoring(args.bag, topics=config.input_topics())
+    first = min(int(s.stamp_ns.min()) for s in data.forces.values() if len(s))
+    last = max(int(s.stamp_ns.max()) for s in data.forces.values() if len(s))
+    imposed = parse_imposed(args.imposed, first, last)
+    with contextlib.ExitStack() as stack:
+        mapper = None
+        if args.workers is not None or args.scheduler:
+            from bridge_shadow.engine import client_mapper, dask_client
+
+            mapper = client_mapper(stack.enter_context(dask_client(args.scheduler, args.workers)))
+        dg = _diagnose(args, data, surrogate, config, imposed, imposed_sd, mapper)
     summary = dict(dg.summary)
     post = summary.get("posterior", {})
     if post.get("computed"):  # the shadow's answers before and after: never printed as NaN

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from bridge_shadow.engine import Mapper
 from bridge_shadow.gap.drivers import Drivers
 from bridge_shadow.gap.explain import model_change, stand_in_changes
 from bridge_shadow.gap.fit import CvResult
@@ -80,6 +81,7 @@ def diagnose(
     shadow_config: Any = None,
     alternatives: bool = False,
     surrogate_path: str | None = None,
+    mapper: Mapper | None = None,
 ) -> Diagnosis:
     """Diagnose the sim-to-real gap of a monitoring record (see the module docstring).
 
@@ -100,6 +102,8 @@ def diagnose(
             data cannot tell from a named one standing in for it (``posterior.alternatives``).
         surrogate_path: the file ``surrogate`` came from, whose ``sensitivities`` and ``sweeps``
             blocks are read (default ``config/surrogate.yaml``).
+        mapper: how the held-out folds of every candidate are fitted (``engine.client_mapper``: as
+            Dask tasks; default one after the other here). The same fits either way.
 
     """
     t0 = time.perf_counter()
@@ -108,7 +112,7 @@ def diagnose(
     r = residual_of(data, s, width_s, holdout_days, imposed, imposed_sd_m, surrogate_path)
     # Which effect: every candidate cross-validated inside its plausible range; a candidate whose
     # data-optimal fit lies outside it is rejected; the rest ranked, grouped, then further effects.
-    sel = select_effects(Fitter(r.ctx, r.resid, r.valid, r.fold, r.candidates, r.record), z)
+    sel = select_effects(Fitter(r.ctx, r.resid, r.valid, r.fold, r.candidates, r.record, mapper), z)
     # How far: the shadow's posterior before and after adding the named effects to the model.
     change = model_change(sel.named)
     lv = r.levels

@@ -14,6 +14,7 @@ import numpy as np
 
 from bridge_shadow.contract import SUPPORTS
 from bridge_shadow.effects import EFFECTS, plausible_range
+from bridge_shadow.engine import Mapper
 from bridge_shadow.gap.candidates import CANDIDATES, Candidate, Context, spring_bearings
 from bridge_shadow.gap.fit import CvResult, cross_validate, fit_best
 from bridge_shadow.gap.spring import SpringModel, best_spring, cross_validate_spring
@@ -76,7 +77,8 @@ class Fitter:
     """Cross-validated fits of candidates, alone or added to fixed columns, inside their bounds.
 
     ``candidates``: the effects tried (all by default). ``record``: (n,) record index per window on
-    a day of records: the residual and every design are then demeaned per record.
+    a day of records: the residual and every design are then demeaned per record. ``mapper``: how
+    the held-out folds are fitted (``engine.client_mapper`` on Dask; default one after the other).
     """
 
     def __init__(
@@ -87,7 +89,9 @@ class Fitter:
         fold: np.ndarray,
         candidates: tuple[Candidate, ...] = CANDIDATES,
         record: np.ndarray | None = None,
+        mapper: Mapper | None = None,
     ) -> None:
+        self.mapper = mapper
         self.candidates = candidates
         self.record = record
         if record is not None:
@@ -130,7 +134,7 @@ class Fitter:
         if c.nonlinear:
             c_max = self.c_plausible if bounded else self.c_search
             r, _ = cross_validate_spring(
-                self.spring, self.spring_alts, self.resid, self.valid, self.fold, c_max, fixed
+                self.spring, self.spring_alts, self.resid, self.valid, self.fold, c_max, fixed, self.mapper
             )
             return r
         alts = self.designs[name]
@@ -138,7 +142,7 @@ class Fitter:
             alts = [np.concatenate([fixed, x], axis=2) for x in alts]
         bounds = c.plausible_bounds(self.ctx) if bounded else None
         caps = c.alternative_caps(self.ctx) if bounded else None
-        return cross_validate(alts, self.resid, self.valid, self.fold, bounds, caps)
+        return cross_validate(alts, self.resid, self.valid, self.fold, bounds, caps, self.mapper)
 
     def block(self, name: str, r: CvResult) -> np.ndarray:
         """Design block of a named effect for later joint fits (n, 2, p).

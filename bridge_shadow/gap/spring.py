@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bridge_shadow.engine import Mapper
 from bridge_shadow.gap.fit import CvResult, held_out
 
 __all__ = ["SpringFit", "SpringModel", "best_spring", "cross_validate_spring", "spring_change"]
@@ -229,8 +230,9 @@ def cross_validate_spring(
     fold: np.ndarray,
     c_max: float,
     extra: np.ndarray | None = None,
+    mapper: Mapper | None = None,
 ) -> tuple[CvResult, SpringFit]:
-    """Cross-validate the spring candidate as ``cross_validate`` does a linear one.
+    """Cross-validate the spring candidate as ``cross_validate`` does a linear one (``mapper``: the folds').
 
     Returns the ``CvResult`` (``beta`` = the compliances (2,), ``grid_index`` = the choice,
     ``pred_part`` = the spring's own change) and the all-data ``SpringFit``.
@@ -239,7 +241,7 @@ def cross_validate_spring(
     def predict(train: np.ndarray, hold: np.ndarray) -> np.ndarray:
         return best_spring(model, alts, resid, train, c_max, extra)[1].pred[hold]
 
-    pred, scores = held_out(resid, valid, fold, predict)
+    pred, scores = held_out(resid, valid, fold, predict, mapper)
     i, fit = best_spring(model, alts, resid, valid, c_max, extra)
     cv = CvResult(
         pred_cv=pred,
