@@ -161,12 +161,12 @@ def run(n_bridges: int, seconds: float, echo: bool) -> dict:
         else:
             got = dict(enumerate(t for t, _ in player.arrivals[b]))
         lat += [(got[k] - closing[b, k]) / 1e6 for k in range(2 * WARMUP, closing.shape[1]) if k in got]
-    messages = n_bridges * (2 * (n + 1) + (n // 10 + 1))
+    n_messages = n_bridges * (2 * (n + 1) + (n // 10 + 1))
     return {
         "latency_ms": np.array(lat),
         "behind_ms": behind_ms,
         "complete": complete,
-        "messages_per_s": messages / wall,
+        "messages_per_s": n_messages / wall,
     }
 
 
