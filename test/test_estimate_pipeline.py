@@ -372,3 +372,30 @@ def test_gap_s_decides_whether_an_outage_is_a_gap(outage_min: int, kind: str) ->
     assert len(shadow.gaps) == (kind == "gap")
     sd = np.sqrt(np.diag(res.events[0].covariance_m2))
     np.testing.assert_allclose(res.events[0].size_m, [-1e-3, -1e-3], atol=4 * sd.max())
+
+
+def test_a_scheduled_refit_runs_after_the_window_output_and_before_the_next(monkeypatch) -> None:
+    """A window that schedules a refit is output first; the refit runs at ``settle`` or the next window.
+
+    The node calls ``settle`` in its idle time; every number is the same as without the pause.
+    """
+    data = synthetic(minutes=60, rate=2, seed=3)
+    pauses: list[int] = []
+    poll = Shadow.poll
+
+    def poll_and_look(self: Shadow, now_ns=None):
+        out = poll(self, now_ns)
+        if self._pending_refit is not None:  # the state as published: the refit has not run yet
+            fit_id = self._fit_id
+            self.settle()
+            assert self._fit_id > fit_id and self._pending_refit is None
+            pauses.append(fit_id)
+        return out
+
+    direct = Shadow(small_config()).run(data, chunk=10**7)
+    monkeypatch.setattr(Shadow, "poll", poll_and_look)
+    paced = Shadow(small_config()).run(data, chunk=40)  # about a window at a time, as the node
+    assert len(pauses) >= 3
+    np.testing.assert_allclose(paced.mean_m, direct.mean_m, rtol=1e-10, atol=1e-15)
+    a, b = (np.array([o.mean_m for o in r.outputs]) for r in (direct, paced))
+    np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-15)

@@ -186,6 +186,7 @@ class Shadow:
         self._rows: list[tuple[Any, ...]] = []
         self._n_accepted = 0
         self._refit_at = 0
+        self._pending_refit: bool | None = None  # a scheduled refit not yet run: reselect lambda?
         self._lambda_at = 0
         self._ckpt_ns: int | None = None
         self._first_ns: int | None = None
@@ -316,6 +317,7 @@ class Shadow:
         Then refit with a freshly selected ``lambda`` (the batch-equivalent posterior); the last
         output carries it.
         """
+        self.settle()
         for c, gate in enumerate(self.gates):  # the end of the data: a message held after a gap is taken
             if gate.release_held():
                 none = np.empty(0, np.int64), np.empty(0)
@@ -354,6 +356,7 @@ class Shadow:
         ]
         outputs: list[WindowOutput] = []
         for j, w in enumerate(windows):
+            self.settle()  # the state this window is judged against
             if w.reason:
                 self.counts[w.reason] += 1
             elif not np.isfinite(w.temp[0]):
@@ -591,7 +594,14 @@ class Shadow:
         return outputs
 
     def _accept(self, w: Window, add_rows: bool = True, event: bool = False) -> WindowOutput:
-        """Use one window: settlement update, its row for the sums, refit on schedule."""
+        """Use one window: settlement update, its row for the sums, refit on schedule.
+
+        A scheduled refit runs after the window's output is made, before anything reads the state
+        again (``settle``): the output leaves without waiting for it, and a node publishes it
+        first and refits in its idle time; the sequence of operations, hence every number, is the
+        same at any pace.
+        """
+        self.settle()
         g0, g1 = self._curve(w)
         end_ns = (w.k + 1) * self._w_ns
         if self.drifting and add_rows and not event and w.k >= self.filter.starts[-1] + self._block_k:
@@ -614,8 +624,14 @@ class Shadow:
             if w.event_end:
                 self._refit()
             elif self._n_accepted >= self._refit_at or out_of_range:
-                self._refit(reselect=self._n_accepted >= self._lambda_at)
+                self._pending_refit = self._n_accepted >= self._lambda_at
         return self._output(w, w.force - np.array((g0, g1)), True, "", event)
+
+    def settle(self) -> None:
+        """Run the refit the last accepted window scheduled, if any (idempotent; see ``_accept``)."""
+        if self._pending_refit is not None:
+            reselect, self._pending_refit = self._pending_refit, None
+            self._refit(reselect=reselect)
 
     def _finish_warmup(self) -> None:
         """Fit on the warm-up windows, then apply them in order (outputs from the warm fit)."""
@@ -713,6 +729,7 @@ class Shadow:
     @property
     def posterior(self) -> tuple[np.ndarray, np.ndarray]:
         """Posterior mean (2,) m and published covariance (2, 2) m^2 (+ systematic + model terms)."""
+        self.settle()
         x, P = self.filter.posterior()
         return x, self._published_cov(x, P)
 
@@ -730,22 +747,27 @@ class Shadow:
 
     def event_records(self) -> list[EventRecord]:
         """Return the detected events with their size and covariance as the data now say."""
+        self.settle()
         return report.event_records(self)
 
     def unconfirmed_changes(self) -> list[ChangeRecord]:
         """Return the possible changes not confirmed (gaps, held runs) with their probability and size."""
+        self.settle()
         return report.unconfirmed_changes(self)
 
     def warnings(self) -> list[str]:
         """Return what a user must hear about (one line each): silent failures made loud."""
+        self.settle()
         return report.warnings(self)
 
     def spline_info(self) -> dict[str, dict[str, float]]:
         """Return, per channel, the curve's edf, lambda, level, windows and temperature range."""
+        self.settle()
         return report.spline_info(self)
 
     def noise_info(self) -> dict[str, Any]:
         """Return the noise model: mode, phi per channel, per-sample sigma (N), windows behind it."""
+        self.settle()
         return report.noise_info(self)
 
     def prior_info(self) -> dict[str, Any]:
@@ -754,11 +776,13 @@ class Shadow:
 
     def diagnostics(self, now_ns: int | None = None) -> dict[str, Any]:
         """Return health and key values (SI): level OK/WARN/ERROR, message, posterior, counts, events."""
+        self.settle()
         return report.diagnostics(self, now_ns)
 
     # -- state ----------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
         """Return the whole online state as nested plain data (arrays, numbers, strings)."""
+        self.settle()
         return shadow_state(self)
 
     @classmethod
@@ -794,6 +818,7 @@ class Shadow:
     # -- offline ----------------------------------------------------------------------------
     def result(self, outputs: list[WindowOutput], messages: int, seconds: float) -> ReplayResult:
         """Return the replay result of what this shadow has seen."""
+        self.settle()
         return report.replay_result(self, outputs, messages, seconds)
 
     def run(

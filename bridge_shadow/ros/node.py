@@ -337,6 +337,7 @@ class ShadowNode(Node):
         self._last_drain = time.monotonic()
         self.ingest_pending(everything)
         self._publish(self.shadow.poll())
+        self.shadow.settle()  # a scheduled refit, after the posterior is out (Shadow._accept)
         self._next_end_ns = self._window_end()
 
     def _on_drain_timer(self) -> None:
