@@ -10,6 +10,7 @@ Nothing of the scheduling is written here: Dask's ``map``, ``submit`` and ``gath
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import logging
 import os
@@ -18,7 +19,16 @@ from typing import Any
 
 from bridge_shadow.errors import InputError
 
-__all__ = ["CONNECT_TIMEOUT_S", "Mapper", "client_mapper", "dask_client", "serial_mapper"]
+__all__ = [
+    "CONNECT_TIMEOUT_S",
+    "Mapper",
+    "add_engine_options",
+    "check_engine_options",
+    "client_mapper",
+    "dask_client",
+    "optional_mapper",
+    "serial_mapper",
+]
 
 #: ``mapper(fn, items)``: ``[fn(x) for x in items]``, in order, computed however the mapper likes.
 Mapper = Callable[[Callable[[Any], Any], Iterable[Any]], list[Any]]
@@ -101,3 +111,37 @@ def client_mapper(client: Any) -> Mapper:
         return client.gather(client.map(fn, client.scatter(list(items)), pure=False))
 
     return mapper
+
+
+def add_engine_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """Add ``--workers N`` and ``--scheduler ADDR`` for a job whose ``what`` may run on Dask.
+
+    Without either the job runs here, one piece after the other (``optional_mapper``).
+    """
+    parser.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help=f"{what} in parallel on a local Dask cluster of N processes (the same results); "
+        "default: one after the other here",
+    )
+    parser.add_argument(
+        "--scheduler", metavar="ADDR", help=f"{what} on a running Dask scheduler (tcp://HOST:PORT)"
+    )
+
+
+def check_engine_options(scheduler: str | None, workers: int | None) -> None:
+    """InputError (one line) when both a local cluster's size and a scheduler are given."""
+    if workers is not None and scheduler:
+        raise InputError("--workers sizes the local cluster; a --scheduler has its own workers")
+
+
+@contextlib.contextmanager
+def optional_mapper(scheduler: str | None, workers: int | None) -> Iterator[Mapper | None]:
+    """Yield a Dask mapper when ``--scheduler`` or ``--workers`` asks for one, else None (serial)."""
+    check_engine_options(scheduler, workers)
+    if workers is None and not scheduler:
+        yield None
+        return
+    with dask_client(scheduler, workers) as client:
+        yield client_mapper(client)

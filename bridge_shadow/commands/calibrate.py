@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from bridge_shadow.engine import add_engine_options
+
 HELP = "calibrate the FE model on records with a known imposed settlement; write a calibrated surrogate"
 DESCRIPTION = """\
 Bayesian updating of named FE parameters (priors in bridge_shadow/model/parameters.py) against
@@ -109,28 +111,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SURROGATE",
         help="score this surrogate YAML on the file's pairs instead of calibrating (exit 1 on a miss)",
     )
-    parser.add_argument(
-        "--workers",
-        type=int,
-        metavar="N",
-        help="fit the explanations in parallel on a local Dask cluster of N processes (each with FE "
-        "solves of its own: more solves, the same fits); default: one after the other here",
-    )
-    parser.add_argument(
-        "--scheduler", metavar="ADDR", help="fit the explanations on a running Dask scheduler (tcp://HOST:PORT)"
+    add_engine_options(
+        parser, "fit the explanations (each with FE solves of its own: more solves, the same fits)"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
 def run(args: argparse.Namespace) -> int:
     """Calibrate, print, write."""
-    import contextlib
     import sys
 
     from bridge_shadow.calibrate.report import summary_text, write_figures
     from bridge_shadow.calibrate.run import calibrate, default_spec_path
     from bridge_shadow.calibrate.spec import load_spec
     from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.engine import optional_mapper
     from bridge_shadow.errors import InputError
     from bridge_shadow.model.config import MESH_LEVELS, load_bridge_config, parse_overrides
     from bridge_shadow.model.surrogate import write_surrogate
@@ -166,14 +161,7 @@ def run(args: argparse.Namespace) -> int:
     if args.report is not None:
         check_output_dir(args.report, "figure directory")
     cfg = load_bridge_config(args.model, parse_overrides(args.overrides))
-    if args.workers is not None and args.scheduler:
-        raise InputError("--workers sizes the local cluster; a --scheduler has its own workers")
-    with contextlib.ExitStack() as stack:
-        mapper = None
-        if args.workers is not None or args.scheduler:
-            from bridge_shadow.engine import client_mapper, dask_client
-
-            mapper = client_mapper(stack.enter_context(dask_client(args.scheduler, args.workers)))
+    with optional_mapper(args.scheduler, args.workers) as mapper:
         result = calibrate(
             spec,
             cfg,

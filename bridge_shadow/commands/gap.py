@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from bridge_shadow.engine import add_engine_options
+
 HELP = "diagnose the sim-to-real gap: where it lies, which effect causes it, how far it shrinks"
 DESCRIPTION = """\
 Diagnose the gap between the baseline model (FE surrogate u0, plus A x for a known imposed
@@ -89,16 +91,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--force", action="store_true", help="replace an existing surrogate file at --out-surrogate"
     )
     parser.add_argument("--window", type=float, default=60.0, metavar="S", help="window length in s (60)")
-    parser.add_argument(
-        "--workers",
-        type=int,
-        metavar="N",
-        help="fit the held-out folds as Dask tasks on a local cluster of N processes (for long "
-        "archives; the same fits; default: one after the other here)",
-    )
-    parser.add_argument(
-        "--scheduler", metavar="ADDR", help="fit the held-out folds on a running Dask scheduler (tcp://HOST:PORT)"
-    )
+    add_engine_options(parser, "fit every candidate's held-out folds (for long archives)")
 
 
 def parse_imposed(
@@ -296,12 +289,12 @@ def _diagnose(
 
 def run(args: argparse.Namespace) -> int:
     """Read the bag, diagnose, print, and write the report."""
-    import contextlib
     import math
     import sys
 
     from bridge_shadow.bagio import read_monitoring
     from bridge_shadow.commands.output import emit_json, require_finite
+    from bridge_shadow.engine import check_engine_options, optional_mapper
     from bridge_shadow.errors import InputError
     from bridge_shadow.estimate.parameters.specs import SPECS, check_value
     from bridge_shadow.fileio import check_output_dir
@@ -313,8 +306,7 @@ def run(args: argparse.Namespace) -> int:
     imposed_sd = IMPOSED_SD_M if args.imposed_sd is None else args.imposed_sd
     if not (imposed_sd > 0 and math.isfinite(imposed_sd)):
         raise InputError("--imposed-sd must be a positive, finite number of metres (jacks are never exact)")
-    if args.workers is not None and args.scheduler:
-        raise InputError("--workers sizes the local cluster; a --scheduler has its own workers")
+    check_engine_options(args.scheduler, args.workers)  # before the work
     if args.report:
         check_output_dir(args.report, "--report directory")  # before the work
     if args.out_surrogate:
@@ -325,12 +317,7 @@ def run(args: argparse.Namespace) -> int:
     first = min(int(s.stamp_ns.min()) for s in data.forces.values() if len(s))
     last = max(int(s.stamp_ns.max()) for s in data.forces.values() if len(s))
     imposed = parse_imposed(args.imposed, first, last)
-    with contextlib.ExitStack() as stack:
-        mapper = None
-        if args.workers is not None or args.scheduler:
-            from bridge_shadow.engine import client_mapper, dask_client
-
-            mapper = client_mapper(stack.enter_context(dask_client(args.scheduler, args.workers)))
+    with optional_mapper(args.scheduler, args.workers) as mapper:
         dg = _diagnose(args, data, surrogate, config, imposed, imposed_sd, mapper)
     summary = dict(dg.summary)
     post = summary.get("posterior", {})
