@@ -38,7 +38,7 @@ from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.paths import shared_data_dir
 from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
-from bridge_shadow.twin.loadtest_score import score_day
+from bridge_shadow.twin.loadtest_score import score_day, score_stream
 from bridge_shadow.twin.real_records import Piece, build
 
 W = 60 * 10**9
@@ -74,24 +74,15 @@ def real_stream(item: tuple[str, list[Piece]]) -> tuple[str, list[bool], str]:
     sur = load_surrogate()
     sc = build(shared_data_dir() / "Settlements", sur.A, pieces)
     res = Shadow(load_config(), sur).run(sc.data)
-    truth = sc.truth_m
-    events_ok = [e.window for e in res.events] == [sc.starts_ns[i] // W for i in sc.changes()]
-    bounds = [*sc.starts_ns, 2**62]
-    changed = [(bounds[i], bounds[i + 1]) for i in sc.changes()]
-    lost = sum(
-        1 for o in res.outputs if o.reason == "outlier" and any(a <= o.end_ns < b + W for a, b in changed)
-    )
-    err = res.mean_m - truth
-    sd = np.sqrt(np.diag(res.covariance_m2))
-    within = bool(np.all(np.abs(err) <= np.maximum(0.1 * np.abs(truth), 1e-3)))
-    covered = bool(np.all(np.abs(err) <= 1.96 * sd))
+    s = score_stream(sc, res)
+    lost, err, sd = s.lost_windows, s.error_m, s.sigma_m
     probs = [round(c.change_probability, 3) for c in res.changes if c.kind == "gap"]
     line = (
         f"  {name:45s} events {len(res.events)}/{len(sc.changes())} lost {lost} "
         f"error {np.round(1e3 * err, 2)} mm, 95 % +-{np.round(1.96e3 * sd, 1)} mm"
         + (f", unconfirmed p {probs}" if probs else "")
     )
-    return name, [events_ok, lost == 0, within, covered], line
+    return name, [s.events_right, lost == 0, s.within, s.covered], line
 
 
 def real_study(mapper: Callable[..., list[Any]], verbose: bool) -> None:

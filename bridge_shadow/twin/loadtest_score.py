@@ -1,4 +1,7 @@
-"""Score a shadow's replay of a twin load-test day against the day's truth (for tests and benchmarks).
+"""Score a shadow's replay of a load-test day against its truth (for tests and benchmarks).
+
+``score_day``: a twin load-test day (``twin.loadtest``); ``score_stream``: a stream built from
+the real records (``twin.real_records``).
 
 The criteria of issue 19 for one seed: every step found as an event at the right record (the first
 record with data after the change), no car-free window of a new state rejected, the final estimate
@@ -15,7 +18,7 @@ import numpy as np
 
 from bridge_shadow.estimate.result import ReplayResult
 
-__all__ = ["DayScore", "score_day"]
+__all__ = ["DayScore", "StreamScore", "score_day", "score_stream"]
 
 
 @dataclass(frozen=True)
@@ -72,6 +75,57 @@ def score_day(res: ReplayResult, truth: dict[str, Any], window_s: float = 60.0) 
         events_right,
         lost,
         bool(np.all(np.abs(err) <= 0.1 * np.abs(end))),
+        bool(np.all(np.abs(err) <= 1.96 * sd)),
+        err,
+        sd,
+    )
+
+
+@dataclass(frozen=True)
+class StreamScore:
+    """One real-record stream's result (``twin.real_records.Scenario``).
+
+    Attributes:
+        events_right: the events are exactly one at the first window of each changed record.
+        spurious: event windows where no record's state changed.
+        unreported: changed records with neither an event nor a likely unconfirmed change.
+        lost_windows: windows of a changed record rejected as outliers.
+        within: the final estimate within 10 % of the truth, or 1 mm (per support).
+        covered: the final 95 % interval holds the truth (per support).
+        error_m: (2,) final estimate minus truth, m; sigma_m: (2,) its published sd, m.
+
+    """
+
+    events_right: bool
+    spurious: list[int]
+    unreported: list[int]
+    lost_windows: int
+    within: bool
+    covered: bool
+    error_m: np.ndarray
+    sigma_m: np.ndarray
+
+
+def score_stream(sc: Any, res: ReplayResult, window_s: float = 60.0) -> StreamScore:
+    """Score ``res`` (a replay of ``sc.data``) against the scenario's truth (scoring only)."""
+    w = round(window_s * 1e9)
+    want = [sc.starts_ns[i] // w for i in sc.changes()]
+    events = [e.window for e in res.events]
+    likely = {c.window for c in res.changes if c.likely}
+    bounds = [*sc.starts_ns, 2**62]
+    changed = [(bounds[i], bounds[i + 1]) for i in sc.changes()]
+    lost = sum(
+        1 for o in res.outputs if o.reason == "outlier" and any(a <= o.end_ns < b + w for a, b in changed)
+    )
+    truth = np.asarray(sc.truth_m, float)
+    err = res.mean_m - truth
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    return StreamScore(
+        events == want,
+        sorted(set(events) - set(want)),
+        sorted(set(want) - set(events) - likely),
+        lost,
+        bool(np.all(np.abs(err) <= np.maximum(0.1 * np.abs(truth), 1e-3))),
         bool(np.all(np.abs(err) <= 1.96 * sd)),
         err,
         sd,
