@@ -108,6 +108,8 @@ RUN = {".venv/bin/bridge-shadow --help", "$B replay bags/demo_3d"}
 #: Input paths of the examples that must exist (outputs and the reader's own files are exempt).
 OUTPUT_FLAGS = {"--out", "--plots", "--report"}
 NOT_INPUTS = {"later_pairs.yaml"}
+#: Where the README's examples read the real records (``../shared`` beside the checkout).
+SHARED_IN_README = "../shared/data/munich-bridge-data"
 
 
 def _examples(readme: str) -> list[str]:
@@ -148,7 +150,9 @@ def test_every_bridge_shadow_example_parses_and_its_inputs_exist(
     checked = 0
     with contextlib.chdir(root):
         for command in examples:
-            argv = _argv(command)
+            # the README names the shared records beside the checkout; a clone elsewhere finds
+            # them where ``shared_data_dir`` does (the ``munich_data`` fixture)
+            argv = _argv(command.replace(SHARED_IN_README, str(munich_data)))
             if argv is None:
                 continue
             if argv == ["--help"]:
