@@ -42,7 +42,7 @@ NOT_RUN = {
     "$B verify": "the verification suite: test_fe_verify.py",
     "$B surrogate --json": (
         "a default-mesh FE solve with sensitivities; surrogate --json: "
-        "test_surrogate_fe.py::test_cli_json_and_overrides"
+        "test_surrogate_fe.py::test_cli_json_overrides_vtk_with_deflected_shapes_and_png"
     ),
     "$B calibrate": "60-90 s of FE solves (minutes on a busy machine)",
     "$B synth --out /tmp/scour --days 3 --rate 0.1 --effect settlement_drift=2e-4": (

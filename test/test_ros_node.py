@@ -53,6 +53,35 @@ def direct(bag: Path):
     return Shadow(load_config(None, OVERRIDES)).run(read_monitoring(bag))
 
 
+#: Log time kept by ``short_bag``: 8 h, 480 windows (the whole day runs once, in the first test).
+SHORT_NS = 8 * 3600 * 10**9
+
+
+def _head_of(bag: Path, out: Path, topics: dict[str, str], span_ns: int) -> Path:
+    """Write the first ``span_ns`` of log time of ``topics`` (name -> type) of ``bag`` to ``out``."""
+    from bridge_shadow.bagio import BagOutputWriter
+
+    with BagOutputWriter(out) as writer:
+        for topic, (log_ns, raws) in read_raw_topics(bag, INPUT_TOPICS).items():
+            if topic in topics:
+                keep = log_ns < log_ns[0] + span_ns
+                kept = [r for r, k in zip(raws, keep, strict=True) if k]
+                writer.write_many_raw(topic, INPUT_TOPICS[topic], log_ns[keep], kept)
+    return out
+
+
+@pytest.fixture(scope="module")
+def short_bag(bag: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The bag's first eight hours, every input topic (for the tests that need a node run, not a day)."""
+    return _head_of(bag, tmp_path_factory.mktemp("short") / "bag", INPUT_TOPICS, SHORT_NS)
+
+
+@pytest.fixture(scope="module")
+def short_direct(short_bag: Path):
+    """The offline replay of ``short_bag`` (the reference of the tests that use it)."""
+    return Shadow(load_config(None, OVERRIDES)).run(read_monitoring(short_bag))
+
+
 def test_live_replay_equals_direct_replay(bag: Path, direct, tmp_path: Path) -> None:
     shown: list[float] = []
     live = run_live(
@@ -94,10 +123,11 @@ def test_live_replay_equals_direct_replay(bag: Path, direct, tmp_path: Path) -> 
     assert shown and shown[-1] == 1.0 and shown == sorted(shown)
 
 
-def test_history_service_returns_the_window_outputs(bag: Path, direct) -> None:
+def test_history_service_returns_the_window_outputs(short_bag: Path, short_direct) -> None:
     """The node's history service gives every window output the offline replay produced, exactly."""
+    direct = short_direct
     params = load_config(None, OVERRIDES)
-    data = read_raw_topics(bag, INPUT_TOPICS)
+    data = read_raw_topics(short_bag, INPUT_TOPICS)
     raws = [data[t][1] for t in INPUT_ORDER]
     topic, pos, _ = merge_log_order([data[t][0] for t in INPUT_ORDER])
     with tempfile.TemporaryDirectory() as tmp:
@@ -108,7 +138,7 @@ def test_history_service_returns_the_window_outputs(bag: Path, direct) -> None:
             wait_until(lambda: player.taken(node) >= len(topic), TIMEOUT_S, "every message", node.check_alive)
             player.flush(node, TIMEOUT_S)
             history = player.history(node, TIMEOUT_S)
-    assert len(history) == len(direct.outputs) > 1000
+    assert len(history) == len(direct.outputs) > 400
     got, ref = direct.history(), _history_arrays(history)
     for key, value in ref.items():
         np.testing.assert_allclose(got[key], value, rtol=1e-12, atol=0, err_msg=key)  # NaN = NaN
@@ -129,11 +159,12 @@ def _diagnostic_values(raw: bytes) -> dict[str, tuple[int, dict[str, str]]]:
     return {s.name: (s.level[0], {kv.key: kv.value for kv in s.values}) for s in msg.status}
 
 
-def test_sigterm_writes_checkpoint_and_restart_resumes(bag: Path, direct, tmp_path: Path) -> None:
+def test_sigterm_writes_checkpoint_and_restart_resumes(short_bag: Path, short_direct, tmp_path: Path) -> None:
+    direct = short_direct
     ckpt = tmp_path / "shadow.npz"
     params = load_config(None, OVERRIDES).replace(checkpoint_path=str(ckpt), diagnostics_period_s=0.2)
     args = ["--ros-args", "--params-file", str(write_params_file(params.to_params(), tmp_path))]
-    data = read_raw_topics(bag, INPUT_TOPICS)
+    data = read_raw_topics(short_bag, INPUT_TOPICS)
     raws = [data[t][1] for t in INPUT_ORDER]
     topic, pos, _ = merge_log_order([data[t][0] for t in INPUT_ORDER])
     half = len(topic) // 2
@@ -263,13 +294,14 @@ def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
     np.testing.assert_allclose(mean, ref.mean_m, rtol=1e-12, atol=0)
 
 
-def test_topic_parameters_rename_the_node_graph(bag: Path, direct, tmp_path: Path) -> None:
+def test_topic_parameters_rename_the_node_graph(short_bag: Path, short_direct, tmp_path: Path) -> None:
     """The node subscribes and publishes under the topic_* parameters; the posterior is unchanged."""
     from renamed_topics import RENAMED, renamed_bag
 
     from bridge_shadow.contract import FLOAT_ARRAY_TYPE
 
-    renamed = renamed_bag(bag, tmp_path / "renamed")
+    direct = short_direct
+    renamed = renamed_bag(short_bag, tmp_path / "renamed")
     live = run_live(renamed, overrides={**OVERRIDES, **RENAMED}, out=tmp_path / "out", timeout_s=TIMEOUT_S)
     np.testing.assert_allclose(live["posterior"]["mean_m"], direct.mean_m, rtol=1e-12, atol=0)
     assert live["messages"]["used_by_topic"] == direct.used
@@ -282,20 +314,10 @@ def test_live_replay_of_a_bag_without_temperature_runs_uncompensated(
     bag: Path, tmp_path: Path, capfd
 ) -> None:
     """As the direct mode: no temperature topic is not an error, it is a loud uncompensated run."""
-    from bridge_shadow.bagio import BagOutputWriter
     from bridge_shadow.contract import FORCE_TOPICS
 
-    forces_only = tmp_path / "forces_only"
-    with BagOutputWriter(forces_only) as writer:
-        for topic, (log_ns, raws) in read_raw_topics(bag, INPUT_TOPICS).items():
-            if topic in FORCE_TOPICS.values():
-                keep = log_ns < log_ns[0] + 6 * 3600 * 10**9  # six hours are enough to say it
-                writer.write_many_raw(
-                    topic,
-                    INPUT_TOPICS[topic],
-                    log_ns[keep],
-                    [r for r, k in zip(raws, keep, strict=True) if k],
-                )
+    forces = {t: INPUT_TOPICS[t] for t in FORCE_TOPICS.values()}
+    forces_only = _head_of(bag, tmp_path / "forces_only", forces, 3 * 3600 * 10**9)  # three hours say it
     ref = Shadow(load_config(None, OVERRIDES)).run(
         read_monitoring(forces_only, required=list(INPUT_TOPICS)[:2])
     )

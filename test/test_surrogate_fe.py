@@ -169,7 +169,9 @@ def test_write_and_load_round_trip(coarse_run, tmp_path):
     assert back.provenance["mesh"] == "coarse"
 
 
-def test_cli_json_and_overrides(tmp_path, capsys):
+def test_cli_json_overrides_vtk_with_deflected_shapes_and_png(tmp_path, capsys):
+    """One FE run of the CLI: its JSON, a ``--set`` override, the file, the VTK and the PNG."""
+    meshio = pytest.importorskip("meshio")
     out = tmp_path / "s.yaml"
     code = main(
         [
@@ -182,28 +184,6 @@ def test_cli_json_and_overrides(tmp_path, capsys):
             "composite_action=0.5",
             "--out",
             str(out),
-            "--json",
-        ]
-    )
-    assert code == 0
-    doc = json.loads(capsys.readouterr().out)
-    assert {"A", "u0", "thermal", "provenance"} <= set(doc)
-    assert doc["provenance"]["overrides"] == {"composite_action": 0.5}
-    assert set(doc["thermal"]) == {"uniform", "vertical_gradient", "transverse_gradient"}
-    assert out.is_file()
-
-
-def test_cli_writes_vtk_with_deflected_shapes_and_png(tmp_path, capsys):
-    meshio = pytest.importorskip("meshio")
-    code = main(
-        [
-            "surrogate",
-            "--mesh",
-            "coarse",
-            "--no-sensitivities",
-            "--no-sweeps",
-            "--out",
-            str(tmp_path / "s.yaml"),
             "--vtk",
             str(tmp_path / "vtk"),
             "--png",
@@ -213,6 +193,10 @@ def test_cli_writes_vtk_with_deflected_shapes_and_png(tmp_path, capsys):
     )
     assert code == 0
     doc = json.loads(capsys.readouterr().out)
+    assert {"A", "u0", "thermal", "provenance"} <= set(doc)
+    assert doc["provenance"]["overrides"] == {"composite_action": 0.5}
+    assert set(doc["thermal"]) == {"uniform", "vertical_gradient", "transverse_gradient"}
+    assert out.is_file()
     mesh = meshio.read(doc["provenance"]["vtk"])
     assert len(mesh.points) == doc["provenance"]["nodes"]
     names = set(mesh.point_data)
