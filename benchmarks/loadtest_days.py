@@ -16,9 +16,15 @@ Two studies, each printed as rates:
   difference at full clear sky) and without it: every step an event at its record, no car-free
   window of a new state rejected, the final estimate within 10 %, the 95 % interval holding it.
 
+``--car cut`` is a what-if for the real study: before the shadow sees a stream, the samples that
+``calibrate``'s test-car detector (``calibrate.car.detect_car``, 1 s bins of each 12-minute record)
+flags are dropped, as a car screen in front of the shadow would drop them. It measures what the
+parked test car costs the shadow (issue 19); the shadow itself has no such screen.
+
 Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin] [--workers N]
+        [--car recorded|cut]
 
 Streams and seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers``
 processes, default one per core).
@@ -33,15 +39,19 @@ from typing import Any
 
 import numpy as np
 
+from bridge_shadow.calibrate.car import bin_record, detect_car
 from bridge_shadow.engine import client_mapper, dask_client
 from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.paths import shared_data_dir
+from bridge_shadow.series import ForceSeries, MonitoringData
 from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
 from bridge_shadow.twin.loadtest_score import score_day, score_stream
 from bridge_shadow.twin.real_records import Piece, build
 
 W = 60 * 10**9
+#: Length of one public record (12 minutes) and a margin, ns.
+RECORD_NS = 13 * W
 PLACES = {"1.25 h": (1.25, None), "3.5 h": (3.5, None), "4 h": (4.0, 6.5), "24 h": (24.0, 7.5)}
 STEPS = {
     "0": (0.0, 0.0),
@@ -68,11 +78,35 @@ def real_streams():
                     yield f"{base}, old between", [Piece(first, 0.0), Piece(first, 0.45), new]
 
 
-def real_stream(item: tuple[str, list[Piece]]) -> tuple[str, list[bool], str]:
+def _between(s: ForceSeries, keep: np.ndarray) -> ForceSeries:
+    return ForceSeries(s.stamp_ns[keep], s.force_n[keep], s.frame_id[keep])
+
+
+def without_car(data: MonitoringData, starts_ns: list[int]) -> MonitoringData:
+    """Drop the force samples ``detect_car`` flags in each record (records start at ``starts_ns``)."""
+    cut = []
+    for t0 in starts_ns:
+        inside = {ch: (s.stamp_ns >= t0) & (s.stamp_ns < t0 + RECORD_NS) for ch, s in data.forces.items()}
+        record = {ch: _between(s, inside[ch]) for ch, s in data.forces.items()}
+        binned = bin_record(MonitoringData(record, data.temperature), 1.0)
+        for a, b in detect_car(binned).intervals_s:
+            cut.append((binned.start_ns + round(a * 1e9), binned.start_ns + round(b * 1e9)))
+    forces = {}
+    for ch, s in data.forces.items():
+        keep = np.ones(len(s.stamp_ns), bool)
+        for a, b in cut:
+            keep &= (s.stamp_ns < a) | (s.stamp_ns >= b)
+        forces[ch] = _between(s, keep)
+    return MonitoringData(forces, data.temperature)
+
+
+def real_stream(item: tuple[str, list[Piece], str]) -> tuple[str, list[bool], str]:
     """Score one stream (a task): events right, nothing lost, within 10 % (or 1 mm), covered."""
-    name, pieces = item
+    name, pieces, car = item
     sur = load_surrogate()
     sc = build(shared_data_dir() / "Settlements", sur.A, pieces)
+    if car == "cut":
+        sc.data = without_car(sc.data, sc.starts_ns)
     res = Shadow(load_config(), sur).run(sc.data)
     s = score_stream(sc, res)
     lost, err, sd = s.lost_windows, s.error_m, s.sigma_m
@@ -85,15 +119,15 @@ def real_stream(item: tuple[str, list[Piece]]) -> tuple[str, list[bool], str]:
     return name, [s.events_right, lost == 0, s.within, s.covered], line
 
 
-def real_study(mapper: Callable[..., list[Any]], verbose: bool) -> None:
+def real_study(mapper: Callable[..., list[Any]], verbose: bool, car: str = "recorded") -> None:
     t0 = time.perf_counter()
-    results = mapper(real_stream, list(real_streams()))
+    results = mapper(real_stream, [(name, pieces, car) for name, pieces in real_streams()])
     counts = np.sum([r for _, r, _ in results], axis=0)
     n = len(results)
     for _, r, line in results:
         if verbose or not all(r):
             print(line)
-    print(f"real records: {n} streams in {time.perf_counter() - t0:.0f} s")
+    print(f"real records, test car {car}: {n} streams in {time.perf_counter() - t0:.0f} s")
     labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
     for label, c in zip(labels, counts, strict=True):
         print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
@@ -133,12 +167,18 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument("--only", choices=("real", "twin"))
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
+    ap.add_argument(
+        "--car",
+        choices=("recorded", "cut"),
+        default="recorded",
+        help="real study: the records as recorded, or with the test car's samples cut (a what-if)",
+    )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
     with dask_client(workers=args.workers) as client:
         mapper = client_mapper(client)
         if args.only != "twin":
-            real_study(mapper, args.verbose)
+            real_study(mapper, args.verbose, args.car)
         if args.only != "real":
             twin_study(mapper, args.seeds, args.verbose)
 
