@@ -9,7 +9,13 @@ import pytest
 
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.model.parameters import PARAMETERS
-from bridge_shadow.model.surrogate_file import Surrogate, load_surrogate, save_surrogate
+from bridge_shadow.model.surrogate_file import (
+    Discrepancy,
+    ModelCovariance,
+    Surrogate,
+    load_surrogate,
+    save_surrogate,
+)
 
 A = np.array([[17.6e6, -11.9e6], [-11.9e6, 17.6e6]])
 U0 = np.array([234e3, 234e3])
@@ -29,6 +35,25 @@ def test_linearized_covariance_matches_monte_carlo_of_the_inverse_map() -> None:
     theta = rng.multivariate_normal(np.r_[A.ravel(), U0], cov, size=20000)
     xs = np.array([np.linalg.solve(t[:4].reshape(2, 2), y - t[4:]) for t in theta])
     np.testing.assert_allclose(s.model_covariance(x), np.cov(xs.T), rtol=0.05)
+
+
+@pytest.mark.parametrize("kind", ["committed", "six", "discrepancy only"])
+def test_the_float_hot_path_equals_the_matrix_formula(kind: str) -> None:
+    """``ModelCovariance`` (the shadow's per-window form) against ``Surrogate.model_covariance``."""
+    rng = np.random.default_rng(11)
+    disc = Discrepancy((-0.01, -0.012), (0.0, 0.001), 0.3, 0.6)
+    s = {
+        "committed": load_surrogate(),  # 12 x 12 model uncertainty and a discrepancy
+        "six": Surrogate(A, U0, model_cov=_cov(rng)),
+        "discrepancy only": Surrogate(A, U0, discrepancy=disc),
+    }[kind]
+    fast = ModelCovariance(s)
+    xs = np.vstack([rng.uniform(-0.04, 0.01, size=(50, 2)), [[0.0, 0.0], [-0.01, -0.012], [-0.03, 0.002]]])
+    for x in xs:
+        c00, c01, c11 = fast(float(x[0]), float(x[1]))
+        ref = s.model_covariance(x)
+        scale = float(np.max(np.abs(ref))) + 1e-300
+        np.testing.assert_allclose([[c00, c01], [c01, c11]], ref, rtol=1e-10, atol=1e-12 * scale)
 
 
 def test_no_model_uncertainty_adds_nothing_and_round_trips(tmp_path: Path) -> None:

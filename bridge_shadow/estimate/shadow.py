@@ -64,7 +64,7 @@ from bridge_shadow.estimate.settlement.segments import SegmentChain
 from bridge_shadow.estimate.small import congruence, quad_inv
 from bridge_shadow.estimate.state.checkpoint import restore, save_state
 from bridge_shadow.estimate.state.persistence import restore_shadow, shadow_state
-from bridge_shadow.model.surrogate_file import Surrogate, load_surrogate
+from bridge_shadow.model.surrogate_file import ModelCovariance, Surrogate, load_surrogate
 from bridge_shadow.series import MonitoringData
 
 __all__ = ["NOISE_FULL_DAY_S", "TOPIC_KEYS", "ReplayResult", "Shadow", "WindowOutput"]
@@ -171,6 +171,7 @@ class Shadow:
         sys_sd = np.asarray(config.systematic_sigma_n, float)
         a_inv = np.linalg.inv(self.A)
         self._systematic = a_inv @ np.diag(sys_sd**2) @ a_inv.T
+        self._model_cov = ModelCovariance(surrogate) if surrogate.model_cov is not None else None
         self.events: list[dict[str, Any]] = []
         self.unconfirmed_runs: list[dict[str, Any]] = []  # runs at event_max_pending, used as data
         self.recent_rejected: deque[tuple[int, str]] = deque(maxlen=RECENT_REJECTED)  # (window, reason)
@@ -736,8 +737,9 @@ class Shadow:
     def _published_cov(self, x: np.ndarray, P: np.ndarray) -> np.ndarray:
         """Filter covariance + ``A^-1 diag(systematic^2) A^-T`` + the surrogate's model covariance at x."""
         cov = P + self._systematic
-        if self.surrogate.model_cov is not None:
-            cov = cov + self.surrogate.model_covariance(x)
+        if self._model_cov is not None:
+            c00, c01, c11 = self._model_cov(float(x[0]), float(x[1]))
+            cov = cov + np.array([[c00, c01], [c01, c11]])
         return cov
 
     @property

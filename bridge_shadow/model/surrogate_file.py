@@ -46,6 +46,7 @@ __all__ = [
     "SYMMETRY_RTOL",
     "THERMAL_CASES",
     "Discrepancy",
+    "ModelCovariance",
     "Surrogate",
     "check_surrogate",
     "describe_surrogate",
@@ -285,6 +286,56 @@ class Surrogate:
         if self.discrepancy is not None:
             out["discrepancy"] = self.discrepancy.to_dict()
         return out
+
+
+class ModelCovariance:
+    """``Surrogate.model_covariance(x)`` (with ``u0``) on plain floats: the per-window hot path.
+
+    The covariance is a quadratic form in ``v = (x_s, x_n, 1)``: with ``A^-1 J = [G_0 v; G_1 v]``
+    (``G_i`` 6 x 3, fixed by ``A^-1``), ``cov_ij = v' G_i' C G_j v`` and the three 3 x 3 matrices
+    ``G_i' C G_j`` are computed once. The discrepancy term is added on floats. The surrogate must
+    not change afterwards (the shadow holds one for its lifetime); ``test_model_uncertainty``
+    checks it against ``Surrogate.model_covariance``.
+    """
+
+    def __init__(self, surrogate: Surrogate) -> None:
+        self._forms: tuple[tuple[float, ...], ...] | None = None
+        if surrogate.model_cov is not None:
+            a_inv = np.linalg.inv(surrogate.A)
+            g = np.zeros((2, 6, 3))
+            for i in range(2):
+                g[i, 0, 0] = g[i, 1, 1] = g[i, 4, 2] = a_inv[i, 0]
+                g[i, 2, 0] = g[i, 3, 1] = g[i, 5, 2] = a_inv[i, 1]
+            c = surrogate.model_cov[:6, :6]
+            q = [g[i].T @ c @ g[j] for i, j in ((0, 0), (0, 1), (1, 1))]
+            self._forms = tuple(tuple(float(v) for v in np.ravel(0.5 * (m + m.T))) for m in q)
+        d = surrogate.discrepancy
+        self._disc: tuple[float, ...] | None = None
+        if d is not None:
+            rho = d.relative_sd**2
+            self._disc = (*map(float, d.low_m), *map(float, d.high_m), rho, rho * d.correlation)
+
+    def __call__(self, x0: float, x1: float) -> tuple[float, float, float]:
+        """``(c00, c01, c11)`` m^2 at settlement ``(x0, x1)`` m."""
+        c00 = c01 = c11 = 0.0
+        if self._forms is not None:
+            v = (x0, x1, 1.0)
+            out = []
+            for f in self._forms:
+                out.append(
+                    v[0] * (f[0] * v[0] + f[1] * v[1] + f[2] * v[2])
+                    + v[1] * (f[3] * v[0] + f[4] * v[1] + f[5] * v[2])
+                    + v[2] * (f[6] * v[0] + f[7] * v[1] + f[8] * v[2])
+                )
+            c00, c01, c11 = out
+        if self._disc is not None:
+            lo0, lo1, hi0, hi1, rho, rho_c = self._disc
+            e0 = x0 - min(max(x0, lo0), hi0)
+            e1 = x1 - min(max(x1, lo1), hi1)
+            c00 += rho * e0 * e0
+            c01 += rho_c * e0 * e1
+            c11 += rho * e1 * e1
+        return c00, c01, c11
 
 
 def placeholder_surrogate() -> Surrogate:
