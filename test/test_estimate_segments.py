@@ -57,7 +57,7 @@ def test_one_segment_is_the_papers_closed_form_and_online_equals_refresh() -> No
     online.start(0)
     online.use_noise(noise)
     for mi, yi in zip(rows.m, rows.y, strict=True):
-        online.accept(0, mi, yi)
+        online.accept(mi, yi)
     np.testing.assert_allclose(online.x, chain.x, rtol=1e-9)
     np.testing.assert_allclose(online.P, chain.P, rtol=1e-9)
 

@@ -137,7 +137,7 @@ def test_temperature_files_merged_day_first_and_deduplicated(munich_data: Path, 
     )
     np.testing.assert_allclose(np.sort(t.temp_c), np.sort([float(r[1]) for r in rows]))
     assert t.temp_c.min() >= 1.0 and t.temp_c.max() <= 16.0  # an April morning to afternoon
-    np.testing.assert_array_equal(t.variance, 0.0)
+    np.testing.assert_array_equal(t.variance, 0.0)  # set, not computed: the files carry no variance
     # one file given twice (inside the zip and on its own): its stamps are dropped once
     name = "UniBw_2022-04-11_support_load_02.csv"
     (tmp_path / name).write_bytes(members[name])
@@ -161,7 +161,8 @@ def test_rejected_rows_cp1252_crlf_trailing_comma(tmp_path: Path) -> None:
     path = tmp_path / "t.csv"
     path.write_bytes(text.encode("cp1252"))
     data, report = import_csv([path])
-    np.testing.assert_array_equal(data.temperature.temp_c, [5.5, 5.5, np.nan])  # a NaN reading is kept
+    # parsed text, not computed (float() of a decimal string is exact): a NaN reading is kept
+    np.testing.assert_array_equal(data.temperature.temp_c, [5.5, 5.5, np.nan])
     assert data.temperature.stamp_ns[0] == _ns("2022-03-07T15:35:00")
     assert report.repeats["air_temperature"] == 1 and report.non_finite["air_temperature"] == 1
     reasons = {(r["line"], r["reason"]) for r in report.rejected}
@@ -211,7 +212,7 @@ def test_cli_round_trip_both_storages(april, tmp_path: Path, storage: str, capsy
     assert summary["time_span"]["frc_01"]["start"] == "2022-04-11T06:36:24.897Z"
     assert summary["date_fix"][0]["used"] == "2022-04-11" and summary["rejected"]["count"] == 0
     got = read_monitoring(out)
-    for ch in ("frc_01", "frc_02"):
+    for ch in ("frc_01", "frc_02"):  # a storage round trip of the same imported floats: a copy
         np.testing.assert_array_equal(got.forces[ch].stamp_ns, expected.forces[ch].stamp_ns)
         np.testing.assert_array_equal(got.forces[ch].force_n, expected.forces[ch].force_n)
     np.testing.assert_array_equal(got.temperature.temp_c, expected.temperature.temp_c)

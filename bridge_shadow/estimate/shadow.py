@@ -482,7 +482,7 @@ class Shadow:
     def _innovation(self, w: Window) -> tuple[float, float]:
         """``v = y - u0 - g(T) - A x`` (N) of one window against the current curve and estimate."""
         g0, g1 = self._curve(w)
-        (x0, x1), _ = self.filter.predict_floats((w.k + 1) * self._w_ns)
+        (x0, x1), _ = self.filter.predict_floats()
         a = self._af
         return (
             float(w.force[0]) - self._u0f[0] - g0 - (a[0] * x0 + a[1] * x1),
@@ -497,7 +497,7 @@ class Shadow:
         """
         self._last_judged = w.k
         v = self._innovation(w)
-        apa = congruence(self._af, self.filter.predict_floats((w.k + 1) * self._w_ns)[1])
+        apa = congruence(self._af, self.filter.predict_floats()[1])
         gv0, gv1 = w.gvar  # the curve's own uncertainty (large beyond the temperatures seen so far)
         apa = (apa[0] + gv0, apa[1], apa[2] + gv1)
         r_window = self.noise.window_floats(float(w.samples[0]), float(w.samples[1]))
@@ -604,13 +604,12 @@ class Shadow:
         """
         self.settle()
         g0, g1 = self._curve(w)
-        end_ns = (w.k + 1) * self._w_ns
         if self.drifting and add_rows and not event and w.k >= self.filter.starts[-1] + self._block_k:
             # a random walk, piecewise constant: a new block opens the covariance by Q dt
             self.filter.open_segment(w.k, self._drift_jump(w.k), kind="drift")
         z = (float(w.force[0]) - self._u0f[0] - g0, float(w.force[1]) - self._u0f[1] - g1)
         if w.seg < 0 or w.seg == self.filter.segment:  # a warm-up window of an earlier segment is in the sums
-            self.filter.accept(end_ns, w.samples, z)
+            self.filter.accept(w.samples, z)
             if self.filter.provisional:
                 self._settle_provisional(w.k)  # a confirmation is noted at once (merges at refits)
         self._last_ok = w

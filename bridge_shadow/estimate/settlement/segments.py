@@ -316,15 +316,11 @@ class SegmentChain:
         self._update_current()
 
     # -- windows --------------------------------------------------------------------------------
-    def predict_floats(self, end_ns: int) -> tuple[Vec, Sym]:
+    def predict_floats(self) -> tuple[Vec, Sym]:
         """Return the prediction for the next window as floats (the settlement does not move)."""
         return self._x, self._P
 
-    def predict(self, end_ns: int) -> tuple[np.ndarray, np.ndarray]:
-        """Prediction for the next window: the current posterior (the settlement does not move)."""
-        return self.x, self.P
-
-    def accept(self, end_ns: int, samples: np.ndarray, z_n: np.ndarray) -> None:
+    def accept(self, samples: np.ndarray, z_n: np.ndarray) -> None:
         """Add one compensated window ``z_n`` (2,) N over ``samples`` (2,) to the current segment."""
         m0, m1 = float(samples[0]), float(samples[1])
         z0, z1 = float(z_n[0]), float(z_n[1])
