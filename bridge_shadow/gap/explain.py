@@ -141,7 +141,7 @@ def statement(
     return text
 
 
-def level_statement(lv: DayLevels, named: list[dict[str, Any]], inside: str) -> str:
+def level_statement(lv: DayLevels, inside: str) -> str:
     """One paragraph for a day of records: the levels, then what happens inside the records."""
     mm = 1e3
     text = f"A day of {len(lv.records)} records."

@@ -187,7 +187,7 @@ def gap_summary(
             inside = ([best_json] if best_json is not None else []) + also_json
             best_json, also_json = named_by_levels[0], named_by_levels[1:] + inside
             best, indistinguishable = best_json["effect"], best_json["indistinguishable_from"]
-        text = level_statement(lv, named_by_levels, text)
+        text = level_statement(lv, text)
     where_json["model_part"] = {
         "heldout_gain_by_part": parts,
         "part": EFFECTS[best].part if best != "none" else "none",
