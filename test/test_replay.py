@@ -122,7 +122,8 @@ def test_replay_on_the_real_records(
     cov = np.array(js["posterior"]["covariance_m2"]) - load_surrogate().model_covariance(mean)
     data_sd = np.sqrt(np.diag(cov))
     assert np.all(sd > 0) and np.all(data_sd < 0.5 * np.array(js["prior"]["sigma_m"]))
-    assert js["windows"]["updates"] >= 10
+    # the test car's excursions are cut (traffic screen): the car-free windows remain
+    assert js["windows"]["updates"] >= 5 and js["traffic"]["windows_cut"] >= 8
     assert js["messages"]["used"] > 100_000
 
 

@@ -23,7 +23,9 @@ message after a gap is held for one message) or a clock jump (``clock_jump_confi
 messages), and (3) the temperature kept as the left bracket is a reading of this bag: with
 readings once a minute, two windows. Ten windows (10 min of log time) cover that with room for
 a slower temperature topic; a bag whose seam does not settle within them is fed whole by the
-join (exact, only slower), and the join counts it.
+join (exact, only slower), and the join counts it. With the traffic screen on, (4) a record that
+runs through the seam is held by the bag's fresh front end until it passes ``traffic_hold_s``
+and is released as the archive's was, so the head grows by that hold (``head_windows``).
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from bridge_shadow.replay.chunks import DEFAULT_CHUNK, FeedChunk, arrival_chunks
 from bridge_shadow.replay.feed import feed_shadow
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
-__all__ = ["HEAD_WINDOWS", "BagReduction", "reduce_bag", "split_log", "take_head"]
+__all__ = ["HEAD_WINDOWS", "BagReduction", "head_windows", "reduce_bag", "split_log", "take_head"]
 
 #: Windows of log time at a bag's start fed again by the join (see the module docstring).
 HEAD_WINDOWS = 10
@@ -81,9 +83,7 @@ class BagReduction:
 
     def windows_after(self, j: int) -> WindowBatch:
         """Return the windows closed after head chunk ``j`` (by later chunks of this bag)."""
-        sel = self.closed_at > j
-        w = self.windows
-        return WindowBatch(w.k[sel], w.samples[sel], w.force_n[sel], w.temp_c[sel], w.reason[sel])
+        return self.windows.select(self.closed_at > j)
 
 
 def _force_slice(s: ForceSeries, sl: slice) -> ForceSeries:
@@ -176,14 +176,13 @@ class _Windowing:
         if not b:
             return WindowBatch.empty(), np.empty(0, np.int64)
         at = np.concatenate([np.full(len(x), a, np.int64) for x, a in zip(b, self.at, strict=True)])
-        joined = WindowBatch(
-            np.concatenate([x.k for x in b]),
-            np.concatenate([x.samples for x in b]),
-            np.concatenate([x.force_n for x in b]),
-            np.concatenate([x.temp_c for x in b]),
-            np.concatenate([x.reason for x in b]),
-        )
-        return joined, at
+        return WindowBatch.concat(b), at
+
+
+def head_windows(config: Any) -> int:
+    """Windows of log time in a bag's head: ``HEAD_WINDOWS`` plus the traffic screen's hold."""
+    hold = -(-round(config.traffic_hold_s * 1e9) // round(config.window_s * 1e9))
+    return HEAD_WINDOWS + int(hold)
 
 
 def head_cuts(first_log_ns: int, window_ns: int, n: int = HEAD_WINDOWS) -> list[int]:
@@ -216,7 +215,7 @@ def reduce_bag(bag: str | Path, config: Any, surrogate: Any, chunk: int = DEFAUL
         red.backend = stream.backend
         pieces = iter(stream)
         if stream.first_ns is not None:
-            cuts = head_cuts(int(stream.first_ns), shadow.buffer.w_ns)
+            cuts = head_cuts(int(stream.first_ns), shadow.buffer.w_ns, head_windows(config))
             parts, pieces = take_head(pieces, cuts)
             red.head_end_ns = cuts[-1]
             for part in parts:

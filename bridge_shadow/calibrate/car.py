@@ -21,6 +21,7 @@ import numpy as np
 
 from bridge_shadow.contract import CHANNELS
 from bridge_shadow.series import MonitoringData
+from bridge_shadow.traffic import flag_car, line_fit, runs
 
 __all__ = ["Binned", "CarDetection", "Plateau", "bin_record", "detect_car"]
 
@@ -127,28 +128,6 @@ class CarDetection:
         return float(np.mean(~self.car)) if len(self.car) else 0.0
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Half-open index runs ``[i, j)`` where ``mask`` is True."""
-    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    d = np.diff(m)
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True))
-
-
-def _dilate(mask: np.ndarray, k: int) -> np.ndarray:
-    if k <= 0 or not mask.any():
-        return mask
-    kernel = np.ones(2 * k + 1)
-    return np.convolve(mask.astype(float), kernel, mode="same") > 0
-
-
-def _line(t: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Least-squares ``[intercept at t = 0, slope]``; a flat line through one point."""
-    if len(t) < 2 or np.ptp(t) == 0:
-        return np.array([float(np.mean(y)) if len(y) else np.nan, 0.0])
-    slope, intercept = np.polyfit(t, y, 1)
-    return np.array([intercept, slope])
-
-
 def detect_car(
     binned: Binned,
     threshold_n: float = 300.0,
@@ -174,26 +153,16 @@ def detect_car(
     valid = np.isfinite(s)
     if not valid.any():
         return CarDetection(np.ones(len(s), bool), np.full((2, 2), np.nan))
-    k = round(margin_s / binned.bin_s)
-    free = valid & (s <= np.quantile(s[valid], 0.2))
-    it = 0
-    for it in range(1, max_iter + 1):  # noqa: B007 - the count is reported
-        line = _line(t[free], s[free])
-        resid = s - (line[0] + line[1] * t)
-        car = _dilate(valid & (np.abs(resid) > threshold_n), k) | ~valid
-        new_free = ~car
-        if not new_free.any() or np.array_equal(new_free, free):
-            free = new_free
-            break
-        free = new_free
-    baseline = np.array([_line(t[free], y[free, c]) for c in range(2)])
+    flags = flag_car(t, s, threshold_n, round(margin_s / binned.bin_s), max_iter)
+    free, it = flags.free, flags.iterations
+    baseline = np.array([line_fit(t[free], y[free, c]) for c in range(2)])
     det = CarDetection(~free, baseline, iterations=it)
     base_at = baseline[:, 0][None, :] + baseline[:, 1][None, :] * t[:, None]
-    for i, j in _runs(det.car & valid):
+    for i, j in runs(det.car & valid):
         det.intervals_s.append((float(t[i] - binned.bin_s / 2), float(t[j - 1] + binned.bin_s / 2)))
         flat = np.zeros(j - i, bool)
         flat[1:] = np.abs(np.diff(s[i:j])) < plateau_rate_n_per_s * binned.bin_s
-        for a, b in _runs(flat):
+        for a, b in runs(flat):
             a, b = i + a, i + b
             if (b - a) * binned.bin_s >= plateau_min_s:
                 above = y[a:b] - base_at[a:b]

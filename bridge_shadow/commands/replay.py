@@ -119,6 +119,13 @@ def _summary(js: dict[str, Any]) -> str:
         lines.append("rejected messages: " + ", ".join(f"{k} {v}" for k, v in messages.items()))
     if windows:
         lines.append("windows not used: " + ", ".join(_windows_text(k, v, js) for k, v in windows.items()))
+    traffic = js.get("traffic", {})
+    if traffic.get("windows_cut"):
+        cut = traffic["samples_cut"]
+        lines.append(
+            f"traffic screen: {cut[0]} / {cut[1]} samples (south/north) of vehicles cut from "
+            f"{traffic['windows_cut']} windows of short records (JSON `traffic`)"
+        )
     prior = js.get("prior", {})
     if prior:
         lines.append(

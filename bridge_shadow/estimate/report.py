@@ -206,7 +206,11 @@ def warnings(shadow: Shadow) -> list[str]:
     if shadow.uncompensated:
         out.append(
             f"no air temperature: {shadow.uncompensated} windows used without temperature compensation "
-            f"(topic {shadow.config.topic_air_temperature} delivered no accepted reading)"
+            + (
+                f"(before the first reading of {shadow.config.topic_air_temperature})"
+                if shadow.buffer.temp_seen
+                else f"(topic {shadow.config.topic_air_temperature} delivered no accepted reading)"
+            )
         )
     for ledger in shadow.ledgers:
         line = ledger.all_rejected_message()
@@ -296,6 +300,8 @@ def diagnostics(shadow: Shadow, now_ns: int | None = None) -> dict[str, Any]:
         level, message = "WARN", "; ".join(lines)
     elif stale:
         level, message = "WARN", f"stale or missing topic(s): {', '.join(stale)}"
+    elif not shadow.warm and shadow.buffer.held_since_ns is not None:
+        level, message = "OK", "waiting for the first record to end"
     elif not shadow.warm:
         level, message = "WARN", f"warming up ({len(shadow._warm)}/{shadow.config.warmup_windows} windows)"
     elif shadow.noise.adaptive and (seen_s := shadow.noise.n * shadow.config.window_s) < NOISE_FULL_DAY_S:
@@ -306,6 +312,8 @@ def diagnostics(shadow: Shadow, now_ns: int | None = None) -> dict[str, Any]:
         )
     else:
         level, message = "OK", "tracking"
+    if (held := shadow.buffer.held_since_ns) is not None:  # the posterior follows at the record's end
+        message += f"; holding the record since {iso_utc(held)} for the traffic screen"
     sigma = np.sqrt(np.diag(cov))
     summary = ", ".join(
         f"{s} {1e3 * mu:+.3f} ± {1e3 * sd:.3f} mm" for s, mu, sd in zip(SUPPORTS, mean, sigma, strict=True)
@@ -332,6 +340,7 @@ def diagnostics(shadow: Shadow, now_ns: int | None = None) -> dict[str, Any]:
             for k, r in shadow.recent_rejected
         ],
         "warnings": lines,
+        "traffic": traffic_info(shadow),
         "windows": {
             "closed": shadow.n_windows,
             "fitted": int(shadow.sums.n + len(shadow._rows)),
@@ -341,6 +350,27 @@ def diagnostics(shadow: Shadow, now_ns: int | None = None) -> dict[str, Any]:
             "warm": shadow.warm,
         },
         "clock_ns": clock,
+    }
+
+
+def traffic_info(shadow: Shadow) -> dict[str, Any]:
+    """Return what the traffic screen cut: samples per channel; per window its time, cut and kept.
+
+    ``held_since`` names the record held for the screen now (None: nothing held).
+    """
+    rows = shadow.traffic_windows
+    w = shadow._w_ns
+    held = shadow.buffer.held_since_ns
+    return {
+        "samples_cut": [int(sum(r[1] for r in rows)), int(sum(r[2] for r in rows))],
+        "windows_cut": len(rows),
+        "hold_s": float(shadow.config.traffic_hold_s),
+        "held_since_ns": held,
+        "held_since": None if held is None else iso_utc(held),
+        "windows": [
+            {"time_ns": r[0] * w, "time": iso_utc(r[0] * w), "window": r[0], "cut": r[1:3], "kept": r[3:5]}
+            for r in rows
+        ],
     }
 
 
@@ -366,4 +396,5 @@ def replay_result(shadow: Shadow, outputs: list[WindowOutput], messages: int, se
         changes=unconfirmed_changes(shadow),
         state=posterior_state(shadow),
         gaps=gaps(shadow),
+        traffic=traffic_info(shadow),
     )

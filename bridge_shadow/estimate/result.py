@@ -219,6 +219,7 @@ class ReplayResult:
     changes: list[ChangeRecord] = field(default_factory=list)
     state: dict[str, Any] = field(default_factory=dict)
     gaps: list[dict[str, Any]] = field(default_factory=list)
+    traffic: dict[str, Any] = field(default_factory=dict)
 
     @property
     def messages_per_s(self) -> float:
@@ -271,6 +272,7 @@ class ReplayResult:
             "unconfirmed_changes": [c.to_json() for c in self.changes],
             "gaps": list(self.gaps),
             "rejected_windows": self.rejected_windows(),
+            "traffic": dict(self.traffic),
             "warnings": list(self.warnings),
             "prior": dict(self.prior),
             "spline": self.spline,

@@ -129,6 +129,10 @@ class Shadow:
             config.temperature_stale_s,
             config.temperature_match,
             config.window_min_samples,
+            config.gap_s,
+            config.traffic_hold_s,
+            config.traffic_threshold_n,
+            config.traffic_margin_s,
         )
         self.compensation = Compensation(
             config.spline_t_min_c,
@@ -181,6 +185,8 @@ class Shadow:
         self._last_usable_k: int | None = None
         self.n_windows = 0
         self.uncompensated = 0
+        # windows the traffic screen cut samples from: [k, cut south, cut north, kept south, kept north]
+        self.traffic_windows: list[list[int]] = []
         self.warm = False
         self._queue: deque[Window] = deque()
         self._warm: list[Window] = []
@@ -342,6 +348,9 @@ class Shadow:
         if not n:
             return []
         self.n_windows += n
+        for j in np.flatnonzero(batch.cut.sum(axis=1) > 0):
+            row = [int(batch.k[j]), *map(int, batch.cut[j]), *map(int, batch.samples[j])]
+            self.traffic_windows.append(row)
         i0, bv = self.compensation.basis_rows(batch.temp_c)
         windows = [
             Window(

@@ -7,7 +7,8 @@ estimates, from the residuals of the current fit (``e = y - l_s - g(T)`` of ever
 computed from the sufficient statistics, never from innovations), per channel:
 
 - the lag-1 autocorrelation ``phi_c`` of the scaled residuals ``sqrt(m) e`` of adjacent windows
-  (with Kendall's first-order bias correction ``+ (1 + 3 phi) / n``), capped at ``phi_max``;
+  (with Kendall's first-order bias correction ``+ (1 + 3 phi) / n``), capped at ``phi_max`` and at
+  the correlation time of the mean run of adjacent windows (``run_cap``);
 - the per-sample-equivalent variance ``s_c^2 = sum m e^2 / dof`` with
   ``dof = n - sum_s f(n_s) - edf``: a fitted level of an AR(1) run of ``n_s`` windows takes
   ``f(n_s)`` windows' worth of residual variance (not one), and the curve ``edf``; and the
@@ -32,7 +33,23 @@ import numpy as np
 
 from bridge_shadow.estimate.compensation.sums import Moments
 
-__all__ = ["NoiseModel", "ar1_factor"]
+__all__ = ["NoiseModel", "ar1_factor", "run_cap"]
+
+
+def run_cap(n: int, n_pairs: int) -> float:
+    """Largest ``phi`` the adjacent windows can show: ``1 - runs / n`` (1 for one unbroken run).
+
+    ``phi`` is read from pairs of adjacent windows; ``n`` windows in ``runs = n - n_pairs`` runs of
+    adjacent windows have a mean run of ``L = n / runs``. A correlation time ``1 / (1 - phi)``
+    longer than ``L`` looks, within every run the data hold, like a constant offset of that run,
+    and the bias correction of a few short runs sends the estimate to ``phi_max`` whatever the
+    truth (a load-test day with its test car cut: runs of 2 to 4 windows, phi 0.999, and each
+    record's level then takes all of its windows' variance). So ``phi`` is capped at the
+    correlation time of the mean run, ``1 - 1 / L``; continuous monitoring (runs of hundreds of
+    windows) is not affected.
+    """
+    runs = n - n_pairs
+    return 1.0 if runs <= 0 or n <= 0 else 1.0 - runs / n
 
 
 def ar1_factor(phi: np.ndarray | float, n: np.ndarray | float) -> np.ndarray:
@@ -93,7 +110,7 @@ class NoiseModel:
             mean_sq = np.maximum(np.diag(moments.s2) / moments.n, 1e-300)
             phi = (moments.lag / moments.n_pairs) / mean_sq
             phi = phi + (1.0 + 3.0 * phi) / moments.n_pairs  # Kendall's first-order bias
-            self.phi = np.clip(phi, 0.0, self.phi_max)
+            self.phi = np.clip(phi, 0.0, min(self.phi_max, run_cap(moments.n, moments.n_pairs)))
         else:
             self.phi = np.zeros(2)
         # E[sum (e - mean)^2] = s^2 (n - f(n)) for an AR(1) run of n windows: each fitted level

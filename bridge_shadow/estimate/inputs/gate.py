@@ -59,6 +59,7 @@ REASONS: tuple[str, ...] = (
     "stale_temperature",
     "missing_topic",
     "sparse_window",
+    "traffic",
     "outlier",
 )
 

@@ -15,8 +15,10 @@ Temperature at each force stamp is ``linear`` (interpolated between the bracketi
 ``hold`` (the last reading); a sample is stale when the reading it relies on is further than
 ``temperature_stale_s`` away. Window ``k`` only sees readings stamped before its end plus the
 horizon, so a window's result does not depend on how much later data had been ingested when it
-closed (chunking). While no temperature reading has ever been accepted, windows are not stale but
-*uncompensated* (temperature NaN): a record without a temperature topic still estimates, loudly.
+closed (chunking). A window that cannot see the first temperature reading ever accepted (none
+yet, or it lies past the window's end plus the horizon) is not stale but *uncompensated*
+(temperature NaN): a record without a temperature topic still estimates, loudly, also when a
+later record with temperature arrives before its windows close (the traffic screen's hold).
 """
 
 from __future__ import annotations
@@ -25,11 +27,74 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bridge_shadow.estimate.inputs.traffic import screen_record
 from bridge_shadow.windowing import window_index, window_stats
 
 __all__ = ["SampleBuffer", "WindowBatch", "WindowBuffer"]
 
 _NEVER = np.iinfo(np.int64).max
+_NONE = -(2**62)
+_SEEN = _NONE + 1  # the first temperature reading is visible to every window still open
+
+
+class _Record:
+    """Where the current record stands for the traffic screen (plain data, compared exactly).
+
+    Attributes:
+        scan_ns: force stamps before this were followed already.
+        last_ns: the latest force stamp followed (None before the first).
+        mode: ``0`` no open record (none yet, or it ended), ``1`` open and held since ``start_ns``,
+            ``2`` open and released (it grew longer than the hold: passes unscreened).
+        start_ns: first stamp of a held record (kept only while held, so that two front ends that
+            both released a record behave alike whenever it started).
+
+    """
+
+    def __init__(
+        self, scan_ns: int = _NONE, last_ns: int | None = None, mode: int = 0, start_ns: int = _NONE
+    ) -> None:
+        self.scan_ns, self.last_ns, self.mode, self.start_ns = scan_ns, last_ns, mode, start_ns
+
+    @property
+    def open(self) -> bool:
+        """Whether a record is open."""
+        return self.mode != 0
+
+    @property
+    def holding(self) -> bool:
+        """Whether the open record is held."""
+        return self.mode == 1
+
+    def begin(self, first_ns: int) -> None:
+        """Start a held record at ``first_ns``."""
+        self.mode, self.start_ns, self.last_ns = 1, first_ns, first_ns
+
+    def extend(self, last_ns: int, hold_ns: int) -> None:
+        """Extend the open record to ``last_ns``; release it once longer than ``hold_ns``."""
+        self.last_ns = last_ns
+        if self.mode == 1 and last_ns - self.start_ns > hold_ns:
+            self.mode, self.start_ns = 2, _NONE
+
+    def end(self) -> list[tuple[int, int]]:
+        """End the open record; return ``[(first, last)]`` when it was held (to screen), else ``[]``."""
+        done = [(self.start_ns, int(self.last_ns))] if self.mode == 1 and self.last_ns is not None else []
+        self.mode, self.start_ns = 0, _NONE
+        return done
+
+    def state_dict(self) -> dict[str, int]:
+        """Plain-data state."""
+        last = _NONE if self.last_ns is None else self.last_ns
+        return {"scan_ns": self.scan_ns, "last_ns": last, "mode": self.mode, "start_ns": self.start_ns}
+
+    @classmethod
+    def from_state_dict(cls, state: dict[str, int] | None) -> _Record:
+        """Restore (a state without a record: none followed yet)."""
+        if not state:
+            return cls()
+        last = int(state["last_ns"])
+        return cls(
+            int(state["scan_ns"]), None if last == _NONE else last, int(state["mode"]), int(state["start_ns"])
+        )
 
 
 class SampleBuffer:
@@ -96,7 +161,8 @@ class WindowBatch:
         force_n: (n, 2) N, mean force per channel (NaN where a channel is empty).
         temp_c: (n, 2) C, mean matched air temperature per channel (NaN when unknown).
         reason: (n,) object, ``""`` (usable) or ``missing_topic`` / ``sparse_window`` /
-            ``stale_temperature``.
+            ``stale_temperature`` / ``traffic``.
+        cut: (n, 2) int64, samples per channel the traffic screen cut (``estimate.inputs.traffic``).
 
     """
 
@@ -105,6 +171,7 @@ class WindowBatch:
     force_n: np.ndarray
     temp_c: np.ndarray
     reason: np.ndarray
+    cut: np.ndarray
 
     def __len__(self) -> int:
         return len(self.k)
@@ -118,7 +185,29 @@ class WindowBatch:
             np.empty((0, 2)),
             np.empty((0, 2)),
             np.empty(0, object),
+            np.empty((0, 2), np.int64),
         )
+
+    def select(self, rows: np.ndarray) -> WindowBatch:
+        """Return the windows at ``rows`` (a boolean mask or indices)."""
+        return WindowBatch(
+            self.k[rows],
+            self.samples[rows],
+            self.force_n[rows],
+            self.temp_c[rows],
+            self.reason[rows],
+            self.cut[rows],
+        )
+
+    @classmethod
+    def concat(cls, batches: list[WindowBatch]) -> WindowBatch:
+        """Return the windows of ``batches`` one after the other."""
+        if not batches:
+            return cls.empty()
+        return cls(*(np.concatenate([getattr(b, f) for b in batches]) for f in _FIELDS))
+
+
+_FIELDS = ("k", "samples", "force_n", "temp_c", "reason", "cut")
 
 
 class WindowBuffer:
@@ -132,7 +221,12 @@ class WindowBuffer:
         min_samples: fewer accepted samples in a channel make the window ``sparse_window``.
         force: one ``SampleBuffer`` per channel; temp: the air-temperature readings.
         next_k: the first window not closed yet (None before the first force sample).
-        temp_seen: whether any temperature reading was ever accepted.
+        temp_first_ns: stamp of the first temperature reading accepted (None: none yet). A window
+            that cannot see it (it lies past the window's end plus the horizon) is uncompensated,
+            however late the window closes (a record held for the traffic screen).
+        gap_ns: a silence of both force channels this long ends a record (``gap_s``).
+        hold_ns: records at most this long are held until they end and traffic-screened
+            (``traffic_hold_s``; 0: no screen). record: where the current record stands.
 
     """
 
@@ -143,9 +237,18 @@ class WindowBuffer:
         stale_s: float,
         match: str = "linear",
         min_samples: int = 1,
+        gap_s: float = 600.0,
+        hold_s: float = 0.0,
+        traffic_threshold_n: float = 300.0,
+        traffic_margin_s: float = 10.0,
     ) -> None:
         ns = 1_000_000_000
         self.w_ns = round(window_s * ns)
+        self.gap_ns = round(gap_s * ns)
+        self.hold_ns = round(hold_s * ns)
+        self.traffic_threshold_n = float(traffic_threshold_n)
+        self.traffic_margin_s = float(traffic_margin_s)
+        self.record = _Record()
         self.timeout_ns = round(timeout_s * ns)
         self.stale_ns = round(stale_s * ns)
         self.horizon_ns = round(max(timeout_s, stale_s) * ns)
@@ -154,7 +257,7 @@ class WindowBuffer:
         self.force = [SampleBuffer(), SampleBuffer()]
         self.temp = SampleBuffer()
         self.next_k: int | None = None
-        self.temp_seen = False
+        self.temp_first_ns: int | None = None
 
     # -- input --------------------------------------------------------------------------------
     def add_forces(self, channel: int, stamps: np.ndarray, values: np.ndarray) -> int:
@@ -173,8 +276,14 @@ class WindowBuffer:
     def add_temperature(self, stamps: np.ndarray, values: np.ndarray) -> None:
         """Buffer accepted air-temperature readings."""
         if len(stamps):
-            self.temp_seen = True
+            first = int(stamps[0])
+            self.temp_first_ns = first if self.temp_first_ns is None else min(self.temp_first_ns, first)
             self.temp.append(stamps, values)
+
+    @property
+    def temp_seen(self) -> bool:
+        """Whether any temperature reading was ever accepted."""
+        return self.temp_first_ns is not None
 
     @property
     def holds_data(self) -> bool:
@@ -192,15 +301,35 @@ class WindowBuffer:
         k_temp = max(-(2**62) if t_last is None else t_last // w, (clock_ns - self.horizon_ns) // w)
         return min(k_forces, k_temp)
 
-    def close_until(self, k_end: int, force_last_ns: list[int | None]) -> WindowBatch:
-        """Close every window before ``k_end`` and aggregate those that held force data."""
+    def close_until(self, k_end: int, force_last_ns: list[int | None], final: bool = False) -> WindowBatch:
+        """Close every window before ``k_end`` and aggregate those that held force data.
+
+        With the traffic screen on, the windows of a record that has not ended and is not yet
+        longer than the hold stay open; a record that ended is screened as its windows close.
+        ``final``: the data ends here (``flush``).
+        """
         if self.next_k is None or k_end <= self.next_k:
             return WindowBatch.empty()
+        screened: list[tuple[int, int]] = []
+        if self.hold_ns > 0:
+            screened = self._scan(k_end * self.w_ns, final)
+            if self.record.holding:
+                k_end = min(k_end, self.record.start_ns // self.w_ns)
+            if k_end <= self.next_k:
+                return WindowBatch.empty()
         end_ns = k_end * self.w_ns
         taken = [b.take_before(end_ns) for b in self.force]
-        batch = self._aggregate(taken)
+        cut: list[np.ndarray] = [np.empty(0, np.int64), np.empty(0, np.int64)]
+        for start, last in screened:
+            taken, cut = self._screen(taken, cut, start, last)
+        batch = self._aggregate(taken, cut)
         self.next_k = self._next_window(k_end, force_last_ns)
         self._prune_temperature(self.next_k * self.w_ns)
+        first = self.temp_first_ns
+        if first is not None and first != _SEEN and (self.next_k + 1) * self.w_ns + self.horizon_ns > first:
+            # every window still to close sees a reading: when it came no longer matters (two front
+            # ends that saw their first reading at different times behave alike from here)
+            self.temp_first_ns = _SEEN
         return batch
 
     def flush(self, force_last_ns: list[int | None]) -> WindowBatch:
@@ -209,7 +338,68 @@ class WindowBuffer:
         if self.next_k is None or not any(s is not None for s in last):
             return WindowBatch.empty()
         k_end = max(s for s in last if s is not None) // self.w_ns + 1
-        return self.close_until(k_end, force_last_ns)
+        return self.close_until(k_end, force_last_ns, final=True)
+
+    @property
+    def held_since_ns(self) -> int | None:
+        """First stamp of the record held for the traffic screen (None: nothing held)."""
+        return self.record.start_ns if self.record.holding else None
+
+    # -- the traffic screen ---------------------------------------------------------------------
+    def _scan(self, end_ns: int, final: bool) -> list[tuple[int, int]]:
+        """Follow the records through the force stamps before ``end_ns`` not scanned yet.
+
+        Every window before ``end_ns`` is due, so every sample before it has arrived (a later one
+        is late). Returns the records that ended and are to be screened, as ``(first, last)``
+        stamps; a record that grew longer than the hold is released (``record.holding`` False).
+        """
+        rec = self.record
+        parts = []
+        for b in self.force:
+            for st in reversed(b.stamps):  # the unscanned samples are in the last chunks
+                if st[-1] < rec.scan_ns:
+                    break
+                parts.append(st[(st >= rec.scan_ns) & (st < end_ns)])
+        rec.scan_ns = max(rec.scan_ns, end_ns)
+        new = np.sort(np.concatenate(parts)) if parts else np.empty(0, np.int64)
+        ended: list[tuple[int, int]] = []
+        if len(new):
+            prev = np.empty(len(new), np.int64)
+            prev[1:] = new[:-1]
+            prev[0] = new[0] if rec.last_ns is None else rec.last_ns
+            cuts = np.flatnonzero(new - prev >= self.gap_ns).tolist()
+            if not rec.open:
+                cuts = [0, *[c for c in cuts if c > 0]]
+            for i, seg in zip([-1, *cuts], np.split(new, cuts), strict=True):
+                if not len(seg):
+                    continue
+                if i >= 0:  # a new record starts at seg[0]
+                    ended.extend(rec.end())
+                    rec.begin(int(seg[0]))
+                rec.extend(int(seg[-1]), self.hold_ns)
+        if rec.open and (final or end_ns - rec.last_ns >= self.gap_ns):
+            ended.extend(rec.end())
+        return ended
+
+    def _screen(
+        self, taken: list[tuple[np.ndarray, np.ndarray]], cut: list[np.ndarray], first: int, last: int
+    ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[np.ndarray]]:
+        """Cut the traffic of the record ``[first, last]`` (stamps) from the samples ``taken``."""
+        lo = [int(np.searchsorted(s, first, side="left")) for s, _ in taken]
+        hi = [int(np.searchsorted(s, last, side="right")) for s, _ in taken]
+        res = screen_record(
+            [s[a:b] for (s, _), a, b in zip(taken, lo, hi, strict=True)],
+            [v[a:b] for (_, v), a, b in zip(taken, lo, hi, strict=True)],
+            self.traffic_threshold_n,
+            self.traffic_margin_s,
+        )
+        out, gone = [], []
+        for (s, v), a, b, keep, c in zip(taken, lo, hi, res.keep, cut, strict=True):
+            mask = np.ones(len(s), bool)
+            mask[a:b] = keep
+            out.append((s[mask], v[mask]))
+            gone.append(np.concatenate([c, s[~mask]]))
+        return out, gone
 
     def _next_window(self, k: int, force_last_ns: list[int | None]) -> int:
         """Skip windows that can never receive data (empty buffers, every channel past them)."""
@@ -224,14 +414,15 @@ class WindowBuffer:
         ts, _ = self.temp.arrays()
         self.temp.keep_from(int(np.searchsorted(ts, end_ns, side="right")) - 1)
 
-    def _aggregate(self, taken: list[tuple[np.ndarray, np.ndarray]]) -> WindowBatch:
+    def _aggregate(self, taken: list[tuple[np.ndarray, np.ndarray]], cut: list[np.ndarray]) -> WindowBatch:
         w = self.w_ns
         ks = [window_index(s, w) for s, _ in taken]
-        present = [np.unique(k) for k in ks]
-        k_all = np.union1d(present[0], present[1])
+        k_cut = [window_index(c, w) for c in cut]
+        k_all = np.unique(np.concatenate([*ks, *k_cut]))
         n = len(k_all)
         if not n:
             return WindowBatch.empty()
+        n_cut = np.stack([np.bincount(np.searchsorted(k_all, k), minlength=n) for k in k_cut], axis=1)
         samples = np.zeros((n, 2), np.int64)
         force = np.full((n, 2), np.nan)
         temp = np.full((n, 2), np.nan)
@@ -245,16 +436,19 @@ class WindowBuffer:
             has = forces.count > 0
             samples[:, c] = forces.count
             force[has, c] = forces.mean[has]
-            if not self.temp_seen:
+            if self.temp_first_ns is None:
                 continue
             matched, flag = self._match(stamps, k, ts, tv)
+            blind = (k + 1) * w + self.horizon_ns <= self.temp_first_ns  # no reading visible yet
+            matched[blind], flag[blind] = np.nan, 0.0
             temp[has, c] = window_stats(row, matched, n).mean[has]
             stale |= np.bincount(row, weights=flag, minlength=n) > 0
         reason = np.full(n, "", dtype=object)
         reason[stale] = "stale_temperature"
         reason[np.any(samples < self.min_samples, axis=1)] = "sparse_window"
         reason[np.any(samples == 0, axis=1)] = "missing_topic"
-        return WindowBatch(k_all.astype(np.int64), samples, force, temp, reason)
+        reason[np.any(samples < self.min_samples, axis=1) & np.any(n_cut > 0, axis=1)] = "traffic"
+        return WindowBatch(k_all.astype(np.int64), samples, force, temp, reason, n_cut.astype(np.int64))
 
     def _match(
         self, t: np.ndarray, k: np.ndarray, ts: np.ndarray, tv: np.ndarray
@@ -290,7 +484,8 @@ class WindowBuffer:
             "force": [b.state_dict() for b in self.force],
             "temp": self.temp.state_dict(),
             "next_k": -(2**62) if self.next_k is None else self.next_k,
-            "temp_seen": self.temp_seen,
+            "temp_first_ns": _NONE if self.temp_first_ns is None else self.temp_first_ns,
+            "record": self.record.state_dict(),
         }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
@@ -300,4 +495,6 @@ class WindowBuffer:
         self.temp.load_state_dict(state["temp"])  # type: ignore[arg-type]
         k = int(state["next_k"])  # type: ignore[call-overload]
         self.next_k = None if k == -(2**62) else k
-        self.temp_seen = bool(state["temp_seen"])
+        first = int(state["temp_first_ns"])  # type: ignore[call-overload]
+        self.temp_first_ns = None if first == _NONE else first
+        self.record = _Record.from_state_dict(state.get("record"))  # type: ignore[arg-type]

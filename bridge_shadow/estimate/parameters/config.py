@@ -82,6 +82,10 @@ class ShadowConfig:
     temperature_match: str = "linear"
     temperature_stale_s: float = 120.0
     topic_timeout_s: float = 30.0
+    # traffic screen of short records (estimate/inputs/traffic.py)
+    traffic_hold_s: float = 1800.0
+    traffic_threshold_n: float = 300.0
+    traffic_margin_s: float = 10.0
     # temperature compensation (fitted jointly with the settlement levels)
     smoothing: str = "reml"
     spline_lambda: float = 10.0

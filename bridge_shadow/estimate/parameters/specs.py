@@ -121,6 +121,11 @@ SPECS: dict[str, ParamSpec] = {
     "temperature_match": ParamSpec(choices=("hold", "linear")),
     "temperature_stale_s": _gt0("s", DAY_S),
     "topic_timeout_s": _ge(0.0, DAY_S, "s"),
+    # the screen holds a record in memory until it ends: a day at most (0 switches it off)
+    "traffic_hold_s": _ge(0.0, DAY_S, "s"),
+    # a vehicle adds at least the 1 s noise (~20 N); more than the whole dead load is not a vehicle
+    "traffic_threshold_n": _gt0("N", 1.0e6),
+    "traffic_margin_s": _ge(0.0, 600.0, "s"),
     # temperature compensation (fitted jointly with the settlement levels)
     "smoothing": ParamSpec(choices=("reml", "gcv", "fixed", "none")),
     # lambda is in C^3 (the penalty integrates g''^2 over C). At 1e12 the fitted curve is a straight

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
 __all__ = ["restore_shadow", "shadow_state"]
 
-_VERSION = 3
+_VERSION = 4
 _NONE = -(2**62)
 _FIT_FIELDS = ("beta", "lam", "edf", "level", "dof", "minv", "t_lo", "t_hi", "kappa", "mbar", "sbar", "n")
 
@@ -164,6 +164,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "confirmed_at": json.dumps([[k, v] for k, v in shadow.confirmed_at.items()]),
         "unconfirmed_runs": json.dumps(shadow.unconfirmed_runs),
         "recent_rejected": json.dumps(list(shadow.recent_rejected)),
+        "traffic_windows": json.dumps(shadow.traffic_windows),
         "scalars": {
             "last_usable_k": _opt(shadow._last_usable_k),
             "n_windows": shadow.n_windows,
@@ -284,6 +285,7 @@ def restore_shadow(
     shadow.confirmed_at = {int(k): int(v) for k, v in json.loads(str(state["confirmed_at"]))}
     shadow.unconfirmed_runs = list(json.loads(str(state["unconfirmed_runs"])))
     shadow.recent_rejected.extend((int(k), str(r)) for k, r in json.loads(str(state["recent_rejected"])))
+    shadow.traffic_windows = [[int(v) for v in row] for row in json.loads(str(state["traffic_windows"]))]
     sc = state["scalars"]
     shadow._last_usable_k = _unopt(sc["last_usable_k"])
     shadow.n_windows = int(sc["n_windows"])

@@ -1,0 +1,205 @@
+"""The traffic screen of short records (``estimate/inputs/traffic.py``, the window buffer's hold).
+
+Checked against the calibration's own test-car detector on the real records (a batch reference
+computed without the window buffer), against the unscreened front end where the screen must not
+act (a long record, a change of state that does not come back), and for exactness: chunking and a
+checkpoint taken while a record is held change nothing.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bridge_shadow.calibrate.car import bin_record, detect_car
+from bridge_shadow.calibrate.records import load_record
+from bridge_shadow.contract import CHANNELS
+from bridge_shadow.estimate import Shadow, load_config
+from bridge_shadow.estimate.compensation.noise import run_cap
+from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+NS = 10**9
+W = 60 * NS
+RECORDS = (
+    "UniBw_2022-04-11_ref_support_load_01ForceAt100Hz.csv.zip",
+    "UniBw_2022-04-11_support_load_01ForceAt100Hz.csv.zip",
+)
+
+
+def _record(
+    minutes: float, start_h: float = 8.0, step_hz: float = 1.0, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Stamps (ns) and a quiet (2, n) force record near the surrogate's u0 (noise 20 N)."""
+    rng = np.random.default_rng(seed)
+    t = (
+        round(start_h * 3600 * NS)
+        + 1_650_000_000 * NS
+        + np.arange(0, round(minutes * 60 * step_hz)) * round(NS / step_hz)
+    )
+    u0 = load_surrogate().u0
+    return t.astype(np.int64), u0[:, None] + rng.normal(0.0, 20.0, (2, len(t)))
+
+
+def _data(t: np.ndarray, f: np.ndarray) -> MonitoringData:
+    forces = {ch: ForceSeries(t.copy(), f[c].copy()) for c, ch in enumerate(CHANNELS)}
+    tt = t[:: max(1, len(t) // 40)]
+    return MonitoringData(forces, TemperatureSeries(tt, np.full(len(tt), 12.0)))
+
+
+def _windows(data: MonitoringData, hold_s: float) -> dict[int, tuple[np.ndarray, str, np.ndarray]]:
+    """Every closed window: k -> (mean force, reason, samples cut), the front end alone."""
+    shadow = Shadow(load_config().replace(traffic_hold_s=hold_s), load_surrogate())
+    for c, ch in enumerate(CHANNELS):
+        shadow.ingest_forces(c, data.forces[ch].stamp_ns, data.forces[ch].force_n, None)
+    shadow.ingest_temperature(data.temperature.stamp_ns, data.temperature.temp_c, None)
+    batch = shadow.close_windows()
+    rest = shadow.buffer.flush([g.last_ns for g in shadow.gates[:2]])
+    out = {}
+    for b in (batch, rest):
+        for j in range(len(b)):
+            out[int(b.k[j])] = (b.force_n[j], str(b.reason[j]), b.cut[j])
+    return out
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("name", RECORDS)
+def test_the_screen_cuts_what_the_calibrations_car_detector_flags(munich_data: Path, name: str) -> None:
+    """On both real records: each window is a batch mean outside ``detect_car``'s car intervals.
+
+    The reference bins the record on its own (``calibrate.car.bin_record``), not the window buffer.
+    """
+    data = load_record([munich_data / "Settlements" / name])
+    det = detect_car(bin_record(data))
+    t0 = bin_record(data).start_ns
+    cars = [(t0 + round(a * NS), t0 + round(b * NS)) for a, b in det.intervals_s]
+    assert 3 <= len(cars) and det.free_fraction < 0.5  # the parked test car covers most of the record
+    got = _windows(data, 1800.0)
+    n_cut = 0
+    for c, ch in enumerate(CHANNELS):
+        s = data.forces[ch]
+        ok = np.isfinite(s.force_n)
+        stamps, values = s.stamp_ns[ok], s.force_n[ok]
+        car = np.zeros(len(stamps), bool)
+        for a, b in cars:
+            car |= (stamps >= a) & (stamps < b)
+        n_cut += int(car.sum())
+        k = stamps // W
+        for kk in np.unique(k):
+            keep = (k == kk) & ~car
+            mean, reason, cut = got[int(kk)]
+            assert cut[c] == int(np.count_nonzero((k == kk) & car))
+            if np.count_nonzero(keep) >= load_config().window_min_samples:
+                assert mean[c] == pytest.approx(float(np.mean(values[keep])), rel=1e-12)
+            else:
+                assert reason == "traffic"
+    assert n_cut > 0.5 * sum(np.isfinite(data.forces[ch].force_n).sum() for ch in CHANNELS)
+
+
+@pytest.mark.realdata
+def test_chunking_and_a_checkpoint_while_a_record_is_held_change_nothing(munich_data: Path) -> None:
+    """The real reference record replayed in 997-message chunks, in one, and stopped mid-record."""
+    data = load_record([munich_data / "Settlements" / RECORDS[0]])
+    config, sur = load_config(), load_surrogate()
+    whole = Shadow(config, sur).run(data, chunk=10**7).to_json()
+    small = Shadow(config, sur).run(data, chunk=997).to_json()
+    assert small["traffic"] == whole["traffic"] and whole["traffic"]["windows_cut"] >= 8
+    assert np.allclose(small["posterior"]["mean_m"], whole["posterior"]["mean_m"], rtol=1e-9, atol=1e-12)
+
+    half = len(data.forces[CHANNELS[0]].stamp_ns) // 2
+    first = Shadow(config, sur)
+    first.run(_head(data, half), chunk=5000, flush=False)
+    assert first.buffer.held_since_ns is not None  # the record is still held: nothing closed yet
+    assert first.n_windows == 0
+    resumed = Shadow.from_state_dict(first.state_dict(), config, sur)
+    rest = resumed.run(_tail(data, half), chunk=5000).to_json()
+    assert rest["traffic"] == whole["traffic"]
+    assert np.allclose(rest["posterior"]["mean_m"], whole["posterior"]["mean_m"], rtol=1e-9, atol=1e-12)
+
+
+def _head(data: MonitoringData, n: int) -> MonitoringData:
+    return _part(data, slice(0, n))
+
+
+def _tail(data: MonitoringData, n: int) -> MonitoringData:
+    return _part(data, slice(n, None))
+
+
+def _part(data: MonitoringData, sl: slice) -> MonitoringData:
+    """The same slice of both channels, and the temperature readings in its time span."""
+    forces = {}
+    for ch in CHANNELS:
+        s = data.forces[ch]
+        forces[ch] = ForceSeries(
+            s.stamp_ns[sl], s.force_n[sl], s.frame_id[sl], None if s.log_ns is None else s.log_ns[sl]
+        )
+    tp, first = data.temperature, data.forces[CHANNELS[0]].stamp_ns
+    if sl.start == 0:
+        keep = tp.stamp_ns <= first[sl.stop - 1]
+    else:
+        keep = tp.stamp_ns > first[sl.start - 1]
+    return MonitoringData(forces, TemperatureSeries(tp.stamp_ns[keep], tp.temp_c[keep]))
+
+
+def test_a_vehicle_that_comes_back_is_cut_and_a_change_that_stays_is_kept() -> None:
+    """A 20-min record: +4 kN for 5 minutes in the middle is cut; +4 kN from minute 14 on is data."""
+    t, f = _record(20.0)
+    car = f.copy()
+    car[:, 300:600] += 4000.0
+    got = _windows(_data(t, car), 1800.0)
+    k0 = int(t[0] // W)
+    cut_windows = {k - k0 for k, (_, _, cut) in got.items() if cut.sum()}
+    assert cut_windows and min(cut_windows) >= 4 and max(cut_windows) <= 10  # minutes 5-10 and margins
+    for _k, (mean, _, _) in got.items():
+        if np.all(np.isfinite(mean)):
+            assert np.all(np.abs(mean - load_surrogate().u0) < 100.0)  # nothing of the car is left
+
+    step = f.copy()
+    step[:, 840:] += 4000.0
+    kept = _windows(_data(t, step), 1800.0)
+    assert not any(cut.sum() for _, _, cut in kept.values())
+    assert np.all(kept[k0 + 16][0] - load_surrogate().u0 > 3900.0)
+
+
+def test_a_record_longer_than_the_hold_is_released_unscreened() -> None:
+    """40 minutes with the same 5-min excursion: released after 30 min, windows as without a screen."""
+    t, f = _record(40.0)
+    f[:, 300:600] += 4000.0
+    data = _data(t, f)
+    held, plain = _windows(data, 1800.0), _windows(data, 0.0)
+    assert held.keys() == plain.keys()
+    for k in plain:
+        assert held[k][1] == plain[k][1] and not held[k][2].any()
+        assert np.allclose(held[k][0], plain[k][0], rtol=1e-12)
+
+
+def test_the_run_cap_is_the_correlation_time_of_the_mean_run() -> None:
+    """``phi <= 1 - runs / n``: runs of 3 windows cap at 2/3, one unbroken run does not cap."""
+    assert run_cap(30, 20) == pytest.approx(2.0 / 3.0)
+    assert run_cap(1000, 999) == pytest.approx(0.999)
+    assert run_cap(5, 5) == 1.0
+    assert run_cap(0, 0) == 1.0
+
+
+def test_a_held_record_without_temperature_stays_uncompensated_when_a_later_one_has_it() -> None:
+    """A record without air temperature, then one with it 2 h later: the first stays uncompensated.
+
+    As the 2022-03-07 record before the 2022-04-11 pair: the first record's windows close after
+    the second record's readings arrived, and are used uncompensated, not stale, as unscreened.
+    """
+    t1, f1 = _record(20.0, start_h=8.0, seed=1)
+    t2, f2 = _record(20.0, start_h=10.0, seed=2)
+    t, f = np.concatenate([t1, t2]), np.concatenate([f1, f2], axis=1)
+    forces = {ch: ForceSeries(t.copy(), f[c].copy()) for c, ch in enumerate(CHANNELS)}
+    tt = t2[::30]
+    data = MonitoringData(forces, TemperatureSeries(tt, np.full(len(tt), 12.0)))
+    for hold in (1800.0, 0.0):
+        got = _windows(data, hold)
+        first = [got[k] for k in got if k < t2[0] // W]
+        later = [got[k] for k in got if k >= t2[0] // W]
+        assert len(first) == 20 and all(reason == "" for _, reason, _ in first)
+        assert all(reason == "" for _, reason, _ in later[1:])
+    res = Shadow(load_config(), load_surrogate()).run(data)
+    assert res.uncompensated_windows == 20 and res.rejected["stale_temperature"] == 0
