@@ -16,15 +16,18 @@ Two studies, each printed as rates:
   difference at full clear sky) and without it: every step an event at its record, no car-free
   window of a new state rejected, the final estimate within 10 %, the 95 % interval holding it.
 
-``--car cut`` is a what-if for the real study: before the shadow sees a stream, the samples that
-``calibrate``'s test-car detector (``calibrate.car.detect_car``, 1 s bins of each 12-minute record)
-flags are dropped, as a car screen in front of the shadow would drop them. It measures what the
-parked test car costs the shadow (issue 19); the shadow itself has no such screen.
+The shadow cuts the test car itself (its traffic screen, ``traffic_hold_s``); ``--hold 0`` runs
+it without the screen (the previous stop's numbers). ``--car cut`` is the what-if that preceded
+the screen: before the shadow sees a stream, the samples that ``calibrate``'s test-car detector
+(``calibrate.car.detect_car``, 1 s bins of each 12-minute record) flags are dropped.
+``--u0 reference`` is the what-if of issue 19's missing half: the surrogate's ``u0`` replaced by
+the reference record's car-free level (``calibrate.change.record_level``; in-sample, that record
+is in every stream).
 
 Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin] [--workers N]
-        [--car recorded|cut]
+        [--car recorded|cut] [--hold S] [--u0 model|reference]
 
 Streams and seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers``
 processes, default one per core).
@@ -33,6 +36,8 @@ processes, default one per core).
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import functools
 import time
 from collections.abc import Callable
 from typing import Any
@@ -100,14 +105,27 @@ def without_car(data: MonitoringData, starts_ns: list[int]) -> MonitoringData:
     return MonitoringData(forces, data.temperature)
 
 
-def real_stream(item: tuple[str, list[Piece], str]) -> tuple[str, list[bool], str]:
+@functools.cache
+def reference_level() -> np.ndarray:
+    """(2,) N, the car-free level of the 2022-04-11 reference record (``--u0 reference``)."""
+    from bridge_shadow.calibrate.change import record_level
+    from bridge_shadow.calibrate.records import load_record
+
+    folder = shared_data_dir() / "Settlements"
+    ref = folder / "UniBw_2022-04-11_ref_support_load_01ForceAt100Hz.csv.zip"
+    return record_level(load_record([ref, folder / "TemperatureData2022-04-11.zip"])).level_n
+
+
+def real_stream(item: tuple[str, list[Piece], str, float | None, str]) -> tuple[str, list[bool], str]:
     """Score one stream (a task): events right, nothing lost, within 10 % (or 1 mm), covered."""
-    name, pieces, car = item
+    name, pieces, car, hold, u0 = item
     sur = load_surrogate()
     sc = build(shared_data_dir() / "Settlements", sur.A, pieces)
     if car == "cut":
         sc.data = without_car(sc.data, sc.starts_ns)
-    res = Shadow(load_config(), sur).run(sc.data)
+    if u0 == "reference":
+        sur = dataclasses.replace(sur, u0=reference_level())
+    res = Shadow(_config(hold), sur).run(sc.data)
     s = score_stream(sc, res)
     lost, err, sd = s.lost_windows, s.error_m, s.sigma_m
     probs = [round(c.change_probability, 3) for c in res.changes if c.kind == "gap"]
@@ -119,32 +137,46 @@ def real_stream(item: tuple[str, list[Piece], str]) -> tuple[str, list[bool], st
     return name, [s.events_right, lost == 0, s.within, s.covered], line
 
 
-def real_study(mapper: Callable[..., list[Any]], verbose: bool, car: str = "recorded") -> None:
+def _config(hold: float | None) -> Any:
+    """Return the shipped parameters, ``traffic_hold_s`` replaced when ``hold`` is given."""
+    config = load_config()
+    return config if hold is None else config.replace(traffic_hold_s=hold)
+
+
+def real_study(
+    mapper: Callable[..., list[Any]],
+    verbose: bool,
+    car: str = "recorded",
+    hold: float | None = None,
+    u0: str = "model",
+) -> None:
     t0 = time.perf_counter()
-    results = mapper(real_stream, [(name, pieces, car) for name, pieces in real_streams()])
+    results = mapper(real_stream, [(name, pieces, car, hold, u0) for name, pieces in real_streams()])
     counts = np.sum([r for _, r, _ in results], axis=0)
     n = len(results)
     for _, r, line in results:
         if verbose or not all(r):
             print(line)
-    print(f"real records, test car {car}: {n} streams in {time.perf_counter() - t0:.0f} s")
+    print(f"real records, test car {car}, u0 {u0}: {n} streams in {time.perf_counter() - t0:.0f} s")
     labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
     for label, c in zip(labels, counts, strict=True):
         print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
 
 
-def twin_day(seed_sun: tuple[int, float]) -> Any:
+def twin_day(item: tuple[int, float, float | None]) -> Any:
     """Score one twin load-test day (a task)."""
-    seed, sun = seed_sun
+    seed, sun, hold = item
     sur = load_surrogate()
     data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun), sur)
-    return score_day(Shadow(load_config(), sur).run(data), truth)
+    return score_day(Shadow(_config(hold), sur).run(data), truth)
 
 
-def twin_study(mapper: Callable[..., list[Any]], seeds: int, verbose: bool) -> None:
+def twin_study(
+    mapper: Callable[..., list[Any]], seeds: int, verbose: bool, hold: float | None = None
+) -> None:
     for sun in (4.0, 0.0):
         t0 = time.perf_counter()
-        scores = mapper(twin_day, [(seed, sun) for seed in range(seeds)])
+        scores = mapper(twin_day, [(seed, sun, hold) for seed in range(seeds)])
         for seed, s in enumerate(scores):
             if verbose or not s.passed:
                 err = np.round(1e3 * s.error_m, 2)
@@ -173,14 +205,23 @@ def main() -> None:
         default="recorded",
         help="real study: the records as recorded, or with the test car's samples cut (a what-if)",
     )
+    ap.add_argument(
+        "--hold", type=float, default=None, help="traffic_hold_s (default: shipped; 0: no screen)"
+    )
+    ap.add_argument(
+        "--u0",
+        choices=("model", "reference"),
+        default="model",
+        help="real study: the surrogate's u0, or the reference record's car-free level (a what-if)",
+    )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
     with dask_client(workers=args.workers) as client:
         mapper = client_mapper(client)
         if args.only != "twin":
-            real_study(mapper, args.verbose, args.car)
+            real_study(mapper, args.verbose, args.car, args.hold, args.u0)
         if args.only != "real":
-            twin_study(mapper, args.seeds, args.verbose)
+            twin_study(mapper, args.seeds, args.verbose, args.hold)
 
 
 if __name__ == "__main__":
