@@ -113,6 +113,9 @@ def test_chunking_and_a_checkpoint_while_a_record_is_held_change_nothing(munich_
     first.run(_head(data, half), chunk=5000, flush=False)
     assert first.buffer.held_since_ns is not None  # the record is still held: nothing closed yet
     assert first.n_windows == 0
+    diag = first.diagnostics()
+    assert "holding the record since 2022-04-11" in diag["message"]
+    assert diag["traffic"]["held_since_ns"] == first.buffer.held_since_ns
     resumed = Shadow.from_state_dict(first.state_dict(), config, sur)
     rest = resumed.run(_tail(data, half), chunk=5000).to_json()
     assert rest["traffic"] == whole["traffic"]

@@ -8,10 +8,13 @@ settlement stays an unconfirmed change (issue 19). The window buffer therefore h
 until it ends (a silence of ``gap_s`` in both force channels, or the end of the data) and, when
 it is at most ``traffic_hold_s`` long, screens it here before its windows close:
 
-1. 1 s bins from the record's first stamp, the mean force of each channel per bin;
-2. the calibration's car rule (``bridge_shadow.traffic.flag_car``) on the sum of the two;
+1. 1 s bins from the record's first stamp, the mean force of each channel per bin; the bins
+   holding both channels carry the sum (a record sampled every few seconds leaves the rest empty);
+2. the calibration's car rule (``bridge_shadow.traffic.flag_car``) on that sum, its first
+   baseline from the lowest fifth of each half of the record (a drift of ~1 kN through a record
+   must not put the whole start at one end);
 3. a flagged run is *traffic* when it lies above the baseline (a vehicle only adds load) and
-   comes back inside the record: it neither touches the record's first nor its last bin. A run
+   comes back inside the record: it touches neither the first nor the last bin with data. A run
    that does not come back is a change of state and stays data; so does one below the baseline.
 
 The samples of the traffic bins are cut; the windows are built from the rest (a window left
