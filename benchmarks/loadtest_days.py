@@ -20,14 +20,15 @@ The shadow cuts the test car itself (its traffic screen, ``traffic_hold_s``); ``
 it without the screen (the previous stop's numbers). ``--car cut`` is the what-if that preceded
 the screen: before the shadow sees a stream, the samples that ``calibrate``'s test-car detector
 (``calibrate.car.detect_car``, 1 s bins of each 12-minute record) flags are dropped.
-``--u0 reference`` is the what-if of issue 19's missing half: the surrogate's ``u0`` replaced by
-the reference record's car-free level (``calibrate.change.record_level``; in-sample, that record
-is in every stream).
+``--u0 as_built`` replaces the calibrated surrogate's ``u0`` (the reference record's car-free level,
+``zero: before`` in ``config/calibration.yaml``) by the as-built FE's dead-load reactions (the
+previous stops' ``u0``); ``--u0 reference`` recomputes the reference record's car-free level here
+(``calibrate.change.record_level``; in-sample, that record is in every stream).
 
 Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin] [--workers N]
-        [--car recorded|cut] [--hold S] [--u0 model|reference]
+        [--car recorded|cut] [--hold S] [--u0 model|as_built|reference]
 
 Streams and seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers``
 processes, default one per core).
@@ -48,7 +49,7 @@ from bridge_shadow.calibrate.car import bin_record, detect_car
 from bridge_shadow.engine import client_mapper, dask_client
 from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.model.surrogate_file import load_surrogate
-from bridge_shadow.paths import shared_data_dir
+from bridge_shadow.paths import config_file, shared_data_dir
 from bridge_shadow.series import ForceSeries, MonitoringData
 from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
 from bridge_shadow.twin.loadtest_score import score_day, score_stream
@@ -105,6 +106,9 @@ def without_car(data: MonitoringData, starts_ns: list[int]) -> MonitoringData:
     return MonitoringData(forces, data.temperature)
 
 
+AS_BUILT = config_file("surrogate_fe.yaml")
+
+
 @functools.cache
 def reference_level() -> np.ndarray:
     """(2,) N, the car-free level of the 2022-04-11 reference record (``--u0 reference``)."""
@@ -125,6 +129,8 @@ def real_stream(item: tuple[str, list[Piece], str, float | None, str]) -> tuple[
         sc.data = without_car(sc.data, sc.starts_ns)
     if u0 == "reference":
         sur = dataclasses.replace(sur, u0=reference_level())
+    elif u0 == "as_built":
+        sur = dataclasses.replace(sur, u0=load_surrogate(AS_BUILT).u0)
     res = Shadow(_config(hold), sur).run(sc.data)
     s = score_stream(sc, res)
     lost, err, sd = s.lost_windows, s.error_m, s.sigma_m
@@ -210,9 +216,9 @@ def main() -> None:
     )
     ap.add_argument(
         "--u0",
-        choices=("model", "reference"),
+        choices=("model", "as_built", "reference"),
         default="model",
-        help="real study: the surrogate's u0, or the reference record's car-free level (a what-if)",
+        help="real study: the surrogate's u0, the as-built FE's, or the reference record's car-free level",
     )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()

@@ -109,12 +109,12 @@ def test_the_two_records_in_either_order_end_at_the_right_state(munich_data: Pat
     """Either order, spacings of 1, 4 and 24 h, steps of 0 to 20 mm added to the later record.
 
     63 streams. In every one: nothing lost, every change reported, the interval holds the final
-    state; with the test car cut by the traffic screen every change is an event at its record.
-    The 10 % criterion is a rate, pinned at what the calibrated model gives
-    (``benchmarks/loadtest_days.py`` prints it): the model's ``u0`` (the as-built dead load, tuned
-    to the reference record's whole-record level, car included) lies 4.3 / 5.0 kN above the
-    record's car-free level, so with the car cut every absolute level reads about 1.4 mm low (held
-    by the interval; a car-free ``u0`` gives 1.0 in the benchmark's what-if, README).
+    state; with the test car cut by the traffic screen every change is an event at its record, and
+    the final estimate is within 10 % (or 1 mm) of the truth: ``u0`` is the reference record's
+    car-free level (``zero: before`` in ``config/calibration.yaml``; in-sample, that record is in
+    every stream). With the as-built ``u0`` (4.3 / 5.0 kN above it: tuned to a level with the car
+    on the bridge) every absolute level read 1.4 mm low (``benchmarks/loadtest_days.py --u0
+    as_built``: 144 of 228 within).
     """
     cases = [
         (first, spacing, step, variant)
@@ -132,7 +132,7 @@ def test_the_two_records_in_either_order_end_at_the_right_state(munich_data: Pat
     assert not failed, "\n".join(failed)
     scores = [r for _, r in results]
     assert all(r["event"] for r in scores)
-    assert np.mean([r["within"] for r in scores]) >= 0.5  # 0.57 measured (u0, see above)
+    assert all(r["within"] for r in scores)
 
 
 @pytest.mark.realdata

@@ -143,11 +143,12 @@ def summary_text(result: CalibrationResult) -> str:
             f"{v['posterior_to_prior_sd']:6.2f}{bound}"
         )
     a, u0 = result.run.surrogate.A, result.run.surrogate.u0
+    zero = "the car-free level of the first pair's before record" if spec.zero == "before" else "as built"
     lines.append(
         f"  A (kN/mm) [[{a[0, 0] / 1e6:.3f}, {a[0, 1] / 1e6:.3f}], "
-        f"[{a[1, 0] / 1e6:.3f}, {a[1, 1] / 1e6:.3f}]], "
-        f"u0 {u0[0] / KN:.1f} / {u0[1] / KN:.1f} kN "
+        f"[{a[1, 0] / 1e6:.3f}, {a[1, 1] / 1e6:.3f}]] "
         + ("(the model average, below)" if spec.choose == "average" else "(FE re-solved at the MAP)")
+        + f", u0 {u0[0] / KN:.1f} / {u0[1] / KN:.1f} kN ({zero}: x = 0 there)"
     )
     for s in chosen.in_sample():
         lines.append(

@@ -14,11 +14,15 @@ priors and plausible ranges from :mod:`bridge_shadow.model.parameters`); combine
 - ``choose: best`` or a name: that one explanation, with its own posterior as the uncertainty.
 
 The FE model is re-solved at the MAP of the most probable explanation (with the support springs
-in the FE itself) for the sensitivities the gap diagnosis reads. ``u0`` stays the as-built FE's:
-a pair of records measures changes, not the dead-load reactions, and the supports were set under
-the dead load, which the precast deck put on the steel girders before the joints and connectors
-the explanations soften took part (so their FE ``u0`` at the MAP enters as an uncertainty, the
-second moment of ``u0`` about the as-built value). The surrogate also carries a
+in the FE itself) for the sensitivities the gap diagnosis reads. ``u0`` is where ``x = 0`` is
+(``zero``): with ``before`` the car-free level of the first pair's before record (the imposed
+settlements are counted from that state; a monitor is zeroed at a reference record), with
+``as_built`` the as-built FE's dead-load reactions. A pair of records measures changes, not the
+dead-load reactions, and the supports were set under the dead load, which the precast deck put
+on the steel girders before the joints and connectors the explanations soften took part, so the
+explanations' FE ``u0`` at the MAP enters as an uncertainty either way (the second moment of
+``u0`` about the as-built value), kept with ``before`` too: a record's level moves by kN with the
+deck's temperature field between records hours apart. The surrogate also carries a
 model ``discrepancy`` beyond the calibrated settlements (``model.surrogate_file.Discrepancy``).
 ``prior_sensitivity`` refits the explanations under every prior set of
 ``model.parameters.PRIOR_SETS`` and says which explanation wins under each.
@@ -376,7 +380,7 @@ def calibrate(
     shift = np.asarray(u0_mean, float) - u0_built  # u0 as built; what moved it, as an uncertainty
     cov = cov.copy()
     cov[4:6, 4:6] += np.outer(shift, shift)
-    sur.u0 = u0_built.copy()
+    sur.u0 = u0_built.copy() if spec.zero == "as_built" else _zero_level(pairs)
     sur.model_cov = cov
     sur.discrepancy = Discrepancy.from_steps(np.array([p.imposed_m for p in pairs]))
     result = CalibrationResult(
@@ -385,6 +389,14 @@ def calibrate(
     _provenance(result, cfg)
     tick(1.0, "done")
     return result
+
+
+def _zero_level(pairs: list[PairData]) -> np.ndarray:
+    """(2,) N, ``u0`` for ``zero: before``: the car-free level of the first pair's before record."""
+    before = pairs[0].change.before
+    if before is None:
+        raise CalibrationError("zero: before needs the first pair's before record (its car-free level)")
+    return np.asarray(before.level_n, float).copy()
 
 
 def _provenance(result: CalibrationResult, cfg: BridgeConfig) -> None:
@@ -417,6 +429,10 @@ def _provenance(result: CalibrationResult, cfg: BridgeConfig) -> None:
             for ps, pd in zip(spec.pairs, result.pairs, strict=True)
         ],
         "baseline_change": spec.baseline_change,
+        "zero": {
+            "before": "x = 0 is the car-free state of the first pair's before record: u0 is its level",
+            "as_built": "x = 0 is the as-built FE's dead-load state: u0 is its reactions",
+        }[spec.zero],
         "chosen_explanation": result.chosen,
         "choice_rule": {
             "average": "model average over the explanations by their evidence (A, u0, thermal and "

@@ -5,6 +5,7 @@ Keys (SI units)::
     mesh: default                       # FE mesh level of the calibration
     baseline_change: uncertainty        # or linear (see bridge_shadow.calibrate.change)
     window_s: 10                        # car-free window length, s
+    zero: as_built                      # or before: u0 := the first pair's before record's level
     pairs:                              # one or more record pairs with a known imposed settlement
       - name: lowering_10mm
         before: [FILE, ...]             # one bag, or CSV/zip files (forces and temperature)
@@ -57,7 +58,20 @@ __all__ = [
 ]
 
 #: The keys of a calibration file, of one of its pairs and of its reference (module docstring).
-FILE_KEYS = ("mesh", "baseline_change", "window_s", "pairs", "reference", "explanations", "choose", "priors")
+FILE_KEYS = (
+    "mesh",
+    "baseline_change",
+    "window_s",
+    "zero",
+    "pairs",
+    "reference",
+    "explanations",
+    "choose",
+    "priors",
+)
+#: Where ``x = 0`` is (``zero``): the first pair's before record (its car-free level is ``u0``), or
+#: the as-built FE's dead-load reactions.
+ZERO_CHOICES = ("before", "as_built")
 PAIR_KEYS = ("name", "before", "after", "imposed_m", "imposed_sd_m")
 REFERENCE_KEYS = ("name", "record", "reactions_n")
 
@@ -93,7 +107,7 @@ class CalibrationSpec:
     """A parsed calibration file (see the module docstring).
 
     Attributes:
-        pairs, mesh, baseline_change, window_s, explanations, choose, priors: as in the file.
+        pairs, mesh, baseline_change, window_s, zero, explanations, choose, priors: as in the file.
         reference_name, reference_record, reference_reactions_n: the optional reference record
             (paths) or reactions (2,) N.
         base_dir: where relative paths start. path, sha256: the file (None when built in code).
@@ -104,6 +118,7 @@ class CalibrationSpec:
     mesh: str = "default"
     baseline_change: str = "uncertainty"
     window_s: float = 10.0
+    zero: str = "as_built"
     explanations: dict[str, tuple[str, ...]] = field(default_factory=lambda: dict(DEFAULT_EXPLANATIONS))
     choose: str = "average"
     priors: str = "sources"
@@ -119,6 +134,8 @@ class CalibrationSpec:
             raise CalibrationError("the calibration needs at least one record pair")
         if self.mesh not in MESH_LEVELS:
             raise CalibrationError(f"mesh must be one of {', '.join(MESH_LEVELS)}, got {self.mesh!r}")
+        if self.zero not in ZERO_CHOICES:
+            raise CalibrationError(f"zero must be one of {', '.join(ZERO_CHOICES)}, got {self.zero!r}")
         if self.baseline_change not in BASELINE_CHANGES:
             raise CalibrationError(
                 f"baseline_change must be one of {', '.join(BASELINE_CHANGES)}, got {self.baseline_change!r}"
@@ -215,6 +232,7 @@ def spec_from_dict(data: Mapping[str, Any], base_dir: Path | None = None) -> Cal
         mesh=str(data.get("mesh", "default")),
         baseline_change=str(data.get("baseline_change", "uncertainty")),
         window_s=_checked("window_s", data.get("window_s", 10.0), "float", "calibration_window_s"),
+        zero=str(data.get("zero", "as_built")),
         explanations=_explanations(data.get("explanations")),
         choose=str(data.get("choose", "average")),
         priors=str(data.get("priors", "sources")),
