@@ -22,13 +22,12 @@ the screen: before the shadow sees a stream, the samples that ``calibrate``'s te
 (``calibrate.car.detect_car``, 1 s bins of each 12-minute record) flags are dropped.
 ``--u0 as_built`` replaces the calibrated surrogate's ``u0`` (the reference record's car-free level,
 ``zero: before`` in ``config/calibration.yaml``) by the as-built FE's dead-load reactions (the
-previous stops' ``u0``); ``--u0 reference`` recomputes the reference record's car-free level here
-(``calibrate.change.record_level``; in-sample, that record is in every stream).
+previous stops' ``u0``).
 
 Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin] [--workers N]
-        [--car recorded|cut] [--hold S] [--u0 model|as_built|reference]
+        [--car recorded|cut] [--hold S] [--u0 model|as_built]
 
 Streams and seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers``
 processes, default one per core).
@@ -38,7 +37,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import functools
 import time
 from collections.abc import Callable
 from typing import Any
@@ -109,17 +107,6 @@ def without_car(data: MonitoringData, starts_ns: list[int]) -> MonitoringData:
 AS_BUILT = config_file("surrogate_fe.yaml")
 
 
-@functools.cache
-def reference_level() -> np.ndarray:
-    """(2,) N, the car-free level of the 2022-04-11 reference record (``--u0 reference``)."""
-    from bridge_shadow.calibrate.change import record_level
-    from bridge_shadow.calibrate.records import load_record
-
-    folder = shared_data_dir() / "Settlements"
-    ref = folder / "UniBw_2022-04-11_ref_support_load_01ForceAt100Hz.csv.zip"
-    return record_level(load_record([ref, folder / "TemperatureData2022-04-11.zip"])).level_n
-
-
 def real_stream(item: tuple[str, list[Piece], str, float | None, str]) -> tuple[str, list[bool], str]:
     """Score one stream (a task): events right, nothing lost, within 10 % (or 1 mm), covered."""
     name, pieces, car, hold, u0 = item
@@ -127,9 +114,7 @@ def real_stream(item: tuple[str, list[Piece], str, float | None, str]) -> tuple[
     sc = build(shared_data_dir() / "Settlements", sur.A, pieces)
     if car == "cut":
         sc.data = without_car(sc.data, sc.starts_ns)
-    if u0 == "reference":
-        sur = dataclasses.replace(sur, u0=reference_level())
-    elif u0 == "as_built":
+    if u0 == "as_built":
         sur = dataclasses.replace(sur, u0=load_surrogate(AS_BUILT).u0)
     res = Shadow(_config(hold), sur).run(sc.data)
     s = score_stream(sc, res)
@@ -216,9 +201,9 @@ def main() -> None:
     )
     ap.add_argument(
         "--u0",
-        choices=("model", "as_built", "reference"),
+        choices=("model", "as_built"),
         default="model",
-        help="real study: the surrogate's u0, the as-built FE's, or the reference record's car-free level",
+        help="real study: the surrogate's u0 (the reference record's car-free level) or the as-built FE's",
     )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()

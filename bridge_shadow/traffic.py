@@ -15,6 +15,8 @@ Used by ``calibrate.car.detect_car`` (record levels for the calibration) and by
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 __all__ = ["CarFlags", "dilate", "flag_car", "line_fit", "runs"]
@@ -43,22 +45,21 @@ def line_fit(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.array([intercept, slope])
 
 
+@dataclass(frozen=True)
 class CarFlags:
     """Result of ``flag_car``.
 
     Attributes:
-        car: (n,) bool, bins further than the threshold from the baseline (widened), or without data.
-        free: (n,) bool, the car-free bins the baseline was fitted on (``~car``).
+        car: (n,) bool, bins further than the threshold from the baseline (widened), and bins
+            without data unless ``empty_is_car`` was False.
         residual_n: (n,) N, ``s`` minus the baseline (NaN without data).
         iterations: refits until the flags settled.
 
     """
 
-    def __init__(self, car: np.ndarray, residual_n: np.ndarray, iterations: int) -> None:
-        self.car = car
-        self.free = ~car
-        self.residual_n = residual_n
-        self.iterations = iterations
+    car: np.ndarray
+    residual_n: np.ndarray
+    iterations: int
 
 
 def flag_car(
@@ -90,11 +91,9 @@ def flag_car(
     for it in range(1, max_iter + 1):  # noqa: B007 - the count is reported
         line = line_fit(t_s[free], s_n[free])
         resid = s_n - (line[0] + line[1] * t_s)
-        car = dilate(valid & (np.abs(resid) > threshold_n), margin_bins)
-        car = car | ~valid if empty_is_car else car & valid
-        new_free = ~car & valid
+        new_free = valid & ~dilate(valid & (np.abs(resid) > threshold_n), margin_bins)
         if not new_free.any() or np.array_equal(new_free, free):
             free = new_free
             break
         free = new_free
-    return CarFlags(~free if empty_is_car else ~free & valid, resid, it)
+    return CarFlags(~free if empty_is_car else valid & ~free, resid, it)

@@ -22,6 +22,7 @@ import numpy as np
 from bridge_shadow.contract import CHANNELS
 from bridge_shadow.series import MonitoringData
 from bridge_shadow.traffic import flag_car, line_fit, runs
+from bridge_shadow.windowing import window_stats
 
 __all__ = ["Binned", "CarDetection", "Plateau", "bin_record", "detect_car"]
 
@@ -61,19 +62,13 @@ def bin_record(data: MonitoringData, bin_s: float = 1.0) -> Binned:
     for c, ch in enumerate(CHANNELS):
         s = data.forces[ch]
         ok = np.isfinite(s.force_n)
-        idx = (s.stamp_ns[ok] - t0) // width
-        count[:, c] = np.bincount(idx, minlength=n)
-        total = np.bincount(idx, weights=s.force_n[ok], minlength=n)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            force[:, c] = np.where(count[:, c] > 0, total / np.maximum(count[:, c], 1), np.nan)
+        stats = window_stats((s.stamp_ns[ok] - t0) // width, s.force_n[ok], n)
+        count[:, c], force[:, c] = stats.count, stats.mean
     temp = np.full(n, np.nan)
     ts = data.temperature
     if len(ts):
         ok = np.isfinite(ts.temp_c) & (ts.stamp_ns >= t0) & (ts.stamp_ns < t0 + n * width)
-        idx = (ts.stamp_ns[ok] - t0) // width
-        k = np.bincount(idx, minlength=n)
-        tot = np.bincount(idx, weights=ts.temp_c[ok], minlength=n)
-        temp = np.where(k > 0, tot / np.maximum(k, 1), np.nan)
+        temp = window_stats((ts.stamp_ns[ok] - t0) // width, ts.temp_c[ok], n).mean
     t_s = (np.arange(n) + 0.5) * bin_s
     return Binned(t0, float(bin_s), t_s, force, count, temp)
 
@@ -154,9 +149,9 @@ def detect_car(
     if not valid.any():
         return CarDetection(np.ones(len(s), bool), np.full((2, 2), np.nan))
     flags = flag_car(t, s, threshold_n, round(margin_s / binned.bin_s), max_iter)
-    free, it = flags.free, flags.iterations
+    free = ~flags.car
     baseline = np.array([line_fit(t[free], y[free, c]) for c in range(2)])
-    det = CarDetection(~free, baseline, iterations=it)
+    det = CarDetection(flags.car, baseline, iterations=flags.iterations)
     base_at = baseline[:, 0][None, :] + baseline[:, 1][None, :] * t[:, None]
     for i, j in runs(det.car & valid):
         det.intervals_s.append((float(t[i] - binned.bin_s / 2), float(t[j - 1] + binned.bin_s / 2)))

@@ -24,30 +24,15 @@ limit is released unscreened (continuous monitoring: the detector's transients h
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from bridge_shadow.traffic import flag_car, runs
+from bridge_shadow.windowing import window_stats
 
-__all__ = ["BIN_NS", "TrafficCut", "screen_record"]
+__all__ = ["BIN_NS", "screen_record"]
 
 #: Bin width of the screen, ns: the calibration's 1 s bins (a car crossing takes seconds).
 BIN_NS = 1_000_000_000
-
-
-@dataclass(frozen=True)
-class TrafficCut:
-    """What the screen cut from one record.
-
-    Attributes:
-        keep: per channel, (n_c,) bool over the record's samples (True: kept).
-        intervals_ns: ``(start, end)`` stamps (UTC ns) of the cut stretches.
-
-    """
-
-    keep: list[np.ndarray]
-    intervals_ns: list[tuple[int, int]]
 
 
 def screen_record(
@@ -55,30 +40,26 @@ def screen_record(
     values: list[np.ndarray],
     threshold_n: float,
     margin_s: float,
-) -> TrafficCut:
-    """Screen the samples of one record (per channel, sorted stamps in ns and forces in N)."""
-    firsts = [int(s[0]) for s in stamps if len(s)]
-    if not firsts or any(not len(s) for s in stamps):
-        return TrafficCut([np.ones(len(s), bool) for s in stamps], [])
-    t0 = min(firsts)
+) -> list[np.ndarray]:
+    """Screen the samples of one record (per channel, sorted stamps in ns and forces in N).
+
+    Returns, per channel, a (n_c,) bool mask over the record's samples: True where kept.
+    """
+    if any(not len(s) for s in stamps):
+        return [np.ones(len(s), bool) for s in stamps]
+    t0 = min(int(s[0]) for s in stamps)
     n = (max(int(s[-1]) for s in stamps) - t0) // BIN_NS + 1
     idx = [(s - t0) // BIN_NS for s in stamps]
-    mean = np.zeros(n)
-    for i, v in zip(idx, values, strict=True):
-        count = np.bincount(i, minlength=n)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean += np.where(count > 0, np.bincount(i, weights=v, minlength=n) / count, np.nan)
-    t_s = np.arange(n) + 0.5
-    flags = flag_car(t_s, mean, threshold_n, round(margin_s * 1e9 / BIN_NS), empty_is_car=False, parts=2)
-    valid = np.flatnonzero(np.isfinite(mean))  # bins with both channels (sparse data leaves gaps)
+    total = sum(window_stats(i, v, n).mean for i, v in zip(idx, values, strict=True))  # NaN: a channel empty
+    flags = flag_car(
+        np.arange(n) + 0.5, total, threshold_n, round(margin_s * 1e9 / BIN_NS), empty_is_car=False, parts=2
+    )
+    valid = np.flatnonzero(np.isfinite(total))  # bins with both channels (sparse data leaves gaps)
     cut = np.zeros(n, bool)
-    intervals: list[tuple[int, int]] = []
     for a, b in runs(flags.car[valid]):
         if a == 0 or b == len(valid):
             continue  # it does not come back within the record: a change of state
-        first, last = valid[a], valid[b - 1]
         if np.mean(flags.residual_n[valid[a:b]]) <= 0:
             continue  # below the baseline: not a vehicle
-        cut[first : last + 1] = True
-        intervals.append((t0 + first * BIN_NS, t0 + (last + 1) * BIN_NS))
-    return TrafficCut([~cut[i] for i in idx], intervals)
+        cut[valid[a] : valid[b - 1] + 1] = True
+    return [~cut[i] for i in idx]

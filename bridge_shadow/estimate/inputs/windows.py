@@ -87,10 +87,8 @@ class _Record:
         return {"scan_ns": self.scan_ns, "last_ns": last, "mode": self.mode, "start_ns": self.start_ns}
 
     @classmethod
-    def from_state_dict(cls, state: dict[str, int] | None) -> _Record:
-        """Restore (a state without a record: none followed yet)."""
-        if not state:
-            return cls()
+    def from_state_dict(cls, state: dict[str, int]) -> _Record:
+        """Restore from ``state_dict``."""
         last = int(state["last_ns"])
         return cls(
             int(state["scan_ns"]), None if last == _NONE else last, int(state["mode"]), int(state["start_ns"])
@@ -364,10 +362,8 @@ class WindowBuffer:
         new = np.sort(np.concatenate(parts)) if parts else np.empty(0, np.int64)
         ended: list[tuple[int, int]] = []
         if len(new):
-            prev = np.empty(len(new), np.int64)
-            prev[1:] = new[:-1]
-            prev[0] = new[0] if rec.last_ns is None else rec.last_ns
-            cuts = np.flatnonzero(new - prev >= self.gap_ns).tolist()
+            step = np.diff(new, prepend=new[0] if rec.last_ns is None else rec.last_ns)
+            cuts = np.flatnonzero(step >= self.gap_ns).tolist()
             if not rec.open:
                 cuts = [0, *[c for c in cuts if c > 0]]
             for i, seg in zip([-1, *cuts], np.split(new, cuts), strict=True):
@@ -387,14 +383,14 @@ class WindowBuffer:
         """Cut the traffic of the record ``[first, last]`` (stamps) from the samples ``taken``."""
         lo = [int(np.searchsorted(s, first, side="left")) for s, _ in taken]
         hi = [int(np.searchsorted(s, last, side="right")) for s, _ in taken]
-        res = screen_record(
+        keeps = screen_record(
             [s[a:b] for (s, _), a, b in zip(taken, lo, hi, strict=True)],
             [v[a:b] for (_, v), a, b in zip(taken, lo, hi, strict=True)],
             self.traffic_threshold_n,
             self.traffic_margin_s,
         )
         out, gone = [], []
-        for (s, v), a, b, keep, c in zip(taken, lo, hi, res.keep, cut, strict=True):
+        for (s, v), a, b, keep, c in zip(taken, lo, hi, keeps, cut, strict=True):
             mask = np.ones(len(s), bool)
             mask[a:b] = keep
             out.append((s[mask], v[mask]))
@@ -422,7 +418,10 @@ class WindowBuffer:
         n = len(k_all)
         if not n:
             return WindowBatch.empty()
-        n_cut = np.stack([np.bincount(np.searchsorted(k_all, k), minlength=n) for k in k_cut], axis=1)
+        n_cut = np.zeros((n, 2), np.int64)
+        for c, k in enumerate(k_cut):
+            if len(k):  # only a screened record has cut samples
+                n_cut[:, c] = np.bincount(np.searchsorted(k_all, k), minlength=n)
         samples = np.zeros((n, 2), np.int64)
         force = np.full((n, 2), np.nan)
         temp = np.full((n, 2), np.nan)
@@ -443,12 +442,13 @@ class WindowBuffer:
             matched[blind], flag[blind] = np.nan, 0.0
             temp[has, c] = window_stats(row, matched, n).mean[has]
             stale |= np.bincount(row, weights=flag, minlength=n) > 0
+        sparse = np.any(samples < self.min_samples, axis=1)
         reason = np.full(n, "", dtype=object)
         reason[stale] = "stale_temperature"
-        reason[np.any(samples < self.min_samples, axis=1)] = "sparse_window"
+        reason[sparse] = "sparse_window"
         reason[np.any(samples == 0, axis=1)] = "missing_topic"
-        reason[np.any(samples < self.min_samples, axis=1) & np.any(n_cut > 0, axis=1)] = "traffic"
-        return WindowBatch(k_all.astype(np.int64), samples, force, temp, reason, n_cut.astype(np.int64))
+        reason[sparse & np.any(n_cut > 0, axis=1)] = "traffic"
+        return WindowBatch(k_all.astype(np.int64), samples, force, temp, reason, n_cut)
 
     def _match(
         self, t: np.ndarray, k: np.ndarray, ts: np.ndarray, tv: np.ndarray
@@ -483,7 +483,7 @@ class WindowBuffer:
         return {
             "force": [b.state_dict() for b in self.force],
             "temp": self.temp.state_dict(),
-            "next_k": -(2**62) if self.next_k is None else self.next_k,
+            "next_k": _NONE if self.next_k is None else self.next_k,
             "temp_first_ns": _NONE if self.temp_first_ns is None else self.temp_first_ns,
             "record": self.record.state_dict(),
         }
@@ -494,7 +494,7 @@ class WindowBuffer:
             b.load_state_dict(s)
         self.temp.load_state_dict(state["temp"])  # type: ignore[arg-type]
         k = int(state["next_k"])  # type: ignore[call-overload]
-        self.next_k = None if k == -(2**62) else k
+        self.next_k = None if k == _NONE else k
         first = int(state["temp_first_ns"])  # type: ignore[call-overload]
         self.temp_first_ns = None if first == _NONE else first
-        self.record = _Record.from_state_dict(state.get("record"))  # type: ignore[arg-type]
+        self.record = _Record.from_state_dict(state["record"])  # type: ignore[arg-type]
