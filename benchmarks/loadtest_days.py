@@ -24,10 +24,17 @@ the screen: before the shadow sees a stream, the samples that ``calibrate``'s te
 ``zero: before`` in ``config/calibration.yaml``) by the as-built FE's dead-load reactions (the
 previous stops' ``u0``).
 
+``--sun-term`` runs the shadow with its sun term (``sun_gradient: true``); ``--monitor-days N``
+gives the twin's load-test day N days of continuous monitoring (no car, no step) before it.
+``--only continuous`` is a third study, not run by default: three sunny days of continuous twin
+monitoring (0.1 Hz, a 0.7 mm offset, 4 K at full sun), the sun term off and on: days without a
+false event, the final error and interval, and the ``g`` the term learns.
+
 Usage::
 
-    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin] [--workers N]
-        [--car recorded|cut] [--hold S] [--u0 model|as_built]
+    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin|continuous]
+        [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term]
+        [--monitor-days N]
 
 Streams and seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers``
 processes, default one per core).
@@ -107,16 +114,16 @@ def without_car(data: MonitoringData, starts_ns: list[int]) -> MonitoringData:
 AS_BUILT = config_file("surrogate_fe.yaml")
 
 
-def real_stream(item: tuple[str, list[Piece], str, float | None, str]) -> tuple[str, list[bool], str]:
+def real_stream(item: tuple[str, list[Piece], str, dict, str]) -> tuple[str, list[bool], str, list[float]]:
     """Score one stream (a task): events right, nothing lost, within 10 % (or 1 mm), covered."""
-    name, pieces, car, hold, u0 = item
+    name, pieces, car, over, u0 = item
     sur = load_surrogate()
     sc = build(shared_data_dir() / "Settlements", sur.A, pieces)
     if car == "cut":
         sc.data = without_car(sc.data, sc.starts_ns)
     if u0 == "as_built":
         sur = dataclasses.replace(sur, u0=load_surrogate(AS_BUILT).u0)
-    res = Shadow(_config(hold), sur).run(sc.data)
+    res = Shadow(_config(over), sur).run(sc.data)
     s = score_stream(sc, res)
     lost, err, sd = s.lost_windows, s.error_m, s.sigma_m
     probs = [round(c.change_probability, 3) for c in res.changes if c.kind == "gap"]
@@ -125,49 +132,56 @@ def real_stream(item: tuple[str, list[Piece], str, float | None, str]) -> tuple[
         f"error {np.round(1e3 * err, 2)} mm, 95 % +-{np.round(1.96e3 * sd, 1)} mm"
         + (f", unconfirmed p {probs}" if probs else "")
     )
-    return name, [s.events_right, lost == 0, s.within, s.covered], line
+    return name, [s.events_right, lost == 0, s.within, s.covered], line, (1.96e3 * sd).tolist()
 
 
-def _config(hold: float | None) -> Any:
-    """Return the shipped parameters, ``traffic_hold_s`` replaced when ``hold`` is given."""
-    config = load_config()
-    return config if hold is None else config.replace(traffic_hold_s=hold)
+def _config(over: dict[str, Any]) -> Any:
+    """Return the shipped parameters with ``over`` replaced (``traffic_hold_s``, ``sun_gradient``)."""
+    return load_config().replace(**over)
 
 
 def real_study(
     mapper: Callable[..., list[Any]],
     verbose: bool,
     car: str = "recorded",
-    hold: float | None = None,
+    over: dict[str, Any] | None = None,
     u0: str = "model",
 ) -> None:
     t0 = time.perf_counter()
-    results = mapper(real_stream, [(name, pieces, car, hold, u0) for name, pieces in real_streams()])
-    counts = np.sum([r for _, r, _ in results], axis=0)
+    over = over or {}
+    results = mapper(real_stream, [(name, pieces, car, over, u0) for name, pieces in real_streams()])
+    counts = np.sum([r for _, r, _, _ in results], axis=0)
     n = len(results)
-    for _, r, line in results:
+    for _, r, line, _ in results:
         if verbose or not all(r):
             print(line)
-    print(f"real records, test car {car}, u0 {u0}: {n} streams in {time.perf_counter() - t0:.0f} s")
+    print(f"real records, test car {car}, u0 {u0}, {over}: {n} streams in {time.perf_counter() - t0:.0f} s")
     labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
     for label, c in zip(labels, counts, strict=True):
         print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
+    widths = np.array([w for _, _, _, w in results])
+    print(f"  final 95 % half-width, median {np.round(np.median(widths, axis=0), 2)} mm")
 
 
-def twin_day(item: tuple[int, float, float | None]) -> Any:
+def twin_day(item: tuple[int, float, dict, float]) -> Any:
     """Score one twin load-test day (a task)."""
-    seed, sun, hold = item
+    seed, sun, over, monitor_days = item
     sur = load_surrogate()
-    data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun), sur)
-    return score_day(Shadow(_config(hold), sur).run(data), truth)
+    data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun, monitor_days=monitor_days), sur)
+    return score_day(Shadow(_config(over), sur).run(data), truth)
 
 
 def twin_study(
-    mapper: Callable[..., list[Any]], seeds: int, verbose: bool, hold: float | None = None
+    mapper: Callable[..., list[Any]],
+    seeds: int,
+    verbose: bool,
+    over: dict[str, Any] | None = None,
+    monitor_days: float = 0.0,
 ) -> None:
+    over = over or {}
     for sun in (4.0, 0.0):
         t0 = time.perf_counter()
-        scores = mapper(twin_day, [(seed, sun, hold) for seed in range(seeds)])
+        scores = mapper(twin_day, [(seed, sun, over, monitor_days) for seed in range(seeds)])
         for seed, s in enumerate(scores):
             if verbose or not s.passed:
                 err = np.round(1e3 * s.error_m, 2)
@@ -179,16 +193,57 @@ def twin_study(
             "95 % holds": np.mean([s.covered for s in scores]),
         }
         err = np.array([s.error_m for s in scores]) * 1e3
-        print(f"twin load-test day, sun {sun:g} K: {seeds} seeds in {time.perf_counter() - t0:.0f} s")
+        head = f"twin load-test day, sun {sun:g} K, {monitor_days:g} days monitored before, {over}"
+        print(f"{head}: {seeds} seeds in {time.perf_counter() - t0:.0f} s")
         for label, r in rates.items():
             print(f"  {label:16s} {r:.3f}")
         print(f"  final error mean {np.round(err.mean(axis=0), 2)} mm, sd {np.round(err.std(axis=0), 2)} mm")
+        half = 1.96e3 * np.array([s.sigma_m for s in scores])
+        print(f"  final 95 % half-width, median {np.round(np.median(half, axis=0), 2)} mm")
+
+
+def continuous_day(item: tuple[int, bool]) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+    """Three days of monitoring under the sun (4 K), a 0.7 mm offset: error, sd, events, fitted g (a task)."""
+    from bridge_shadow.twin.simulate import simulate
+
+    seed, term = item
+    sur = load_surrogate()
+    data, truth = simulate(3.0, 0.1, seed, {"settlement_offset": 7e-4, "vertical_gradient": 4.0})
+    shadow = Shadow(load_config().replace(sun_gradient=term), sur)
+    res = shadow.run(data)
+    err = res.mean_m - np.array(truth["settlement"]["end_m"])
+    g = shadow.fit.beta[:, -1] / sur.thermal["vertical_gradient"] if term else np.full(2, np.nan)
+    return err, np.sqrt(np.diag(res.covariance_m2)), len(res.events), g
+
+
+def continuous_study(mapper: Callable[..., list[Any]], seeds: int) -> None:
+    """Run the twin's three sunny days of continuous monitoring, the sun term off and on."""
+    for term in (False, True):
+        t0 = time.perf_counter()
+        out = mapper(continuous_day, [(seed, term) for seed in range(seeds)])
+        err = 1e3 * np.array([o[0] for o in out])
+        sd = 1e3 * np.array([o[1] for o in out])
+        print(f"three sunny days monitored, sun term {'on' if term else 'off'}: {seeds} seeds in "
+              f"{time.perf_counter() - t0:.0f} s")
+        print(f"  days without a false event {np.mean([o[2] == 0 for o in out]):.3f}")
+        print(f"  95 % holds                 {np.mean(np.all(np.abs(err) <= 1.96 * sd, axis=1)):.3f}")
+        worst = np.round(np.abs(err).max(axis=0), 3)
+        print(f"  final error mean {np.round(err.mean(axis=0), 3)} mm, largest {worst} mm")
+        print(f"  final 95 % half-width, median {np.round(np.median(1.96 * sd, axis=0), 2)} mm")
+        if term:
+            g = np.array([o[3] for o in out])
+            spread = np.round(g.std(axis=0), 2)
+            print(f"  sun term g {np.round(g.mean(axis=0), 2)} K (sd over seeds {spread}), twin 4 K")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, default=200)
-    ap.add_argument("--only", choices=("real", "twin"))
+    ap.add_argument(
+        "--only",
+        choices=("real", "twin", "continuous"),
+        help="one study (continuous: three sunny days of monitoring, sun term off and on; not by default)",
+    )
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
     ap.add_argument(
         "--car",
@@ -205,14 +260,30 @@ def main() -> None:
         default="model",
         help="real study: the surrogate's u0 (the reference record's car-free level) or the as-built FE's",
     )
+    ap.add_argument(
+        "--sun-term", action="store_true", help="the shadow with its sun term (sun_gradient: true)"
+    )
+    ap.add_argument(
+        "--monitor-days",
+        type=float,
+        default=0.0,
+        help="twin study: days of continuous monitoring before the load-test day (default 0)",
+    )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
+    over: dict[str, Any] = {}
+    if args.hold is not None:
+        over["traffic_hold_s"] = args.hold
+    if args.sun_term:
+        over["sun_gradient"] = True
     with dask_client(workers=args.workers) as client:
         mapper = client_mapper(client)
-        if args.only != "twin":
-            real_study(mapper, args.verbose, args.car, args.hold, args.u0)
-        if args.only != "real":
-            twin_study(mapper, args.seeds, args.verbose, args.hold)
+        if args.only in (None, "real"):
+            real_study(mapper, args.verbose, args.car, over, args.u0)
+        if args.only in (None, "twin"):
+            twin_study(mapper, args.seeds, args.verbose, over, args.monitor_days)
+        if args.only == "continuous":
+            continuous_study(mapper, args.seeds)
 
 
 if __name__ == "__main__":

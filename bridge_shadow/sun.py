@@ -15,11 +15,24 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["LAT_DEG", "LON_DEG", "clear_sky", "haurwitz_ghi", "solar_elevation_deg"]
+__all__ = [
+    "CLEAR_SWING_K",
+    "LAT_DEG",
+    "LON_DEG",
+    "OVERCAST_SWING_K",
+    "clear_sky",
+    "haurwitz_ghi",
+    "solar_elevation_deg",
+]
 
 #: Site of the bridge (UniBw Munich campus, Neubiberg), degrees north and east.
 LAT_DEG: float = 48.08
 LON_DEG: float = 11.64
+#: Daily air-temperature swing at the bridge on an overcast and on a clear day, K: the smallest and
+#: largest daily ranges of March 2022 (``Weather/TemperatureComparisonMUC.csv``: 3.7 and 23.6 K,
+#: DESIGN section 3), less about 1 K of irregular weather in each. A day's clearness maps its
+#: swing linearly between them (``gap.drivers``, ``estimate.compensation.sunlight``).
+OVERCAST_SWING_K, CLEAR_SWING_K = 3.0, 22.5
 
 _NS_PER_DAY = 86_400 * 1_000_000_000
 #: 2000-01-01 12:00 UTC (J2000.0) in ns since the Unix epoch.

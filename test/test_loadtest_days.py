@@ -171,15 +171,15 @@ def test_every_rejected_window_is_listed_with_its_time_and_reason(folder: Path, 
         assert w["time"].endswith("Z") and w["time"][:4] == "2022"
 
 
-def _twin_day(seed_sun: tuple[int, float]):
-    """Score one twin load-test day (``seed``, sun in K): a Dask task."""
+def _twin_day(seed_sun: tuple[int, float, bool]):
+    """Score one twin load-test day (``seed``, sun in K, the shadow's sun term on): a Dask task."""
     from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
     from bridge_shadow.twin.loadtest_score import score_day
 
-    seed, sun_k = seed_sun
+    seed, sun_k, term = seed_sun
     sur = load_surrogate()
     data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun_k), sur)
-    return score_day(Shadow(load_config(), sur).run(data), truth)
+    return score_day(Shadow(load_config().replace(sun_gradient=term), sur).run(data), truth)
 
 
 @pytest.mark.slow
@@ -192,10 +192,17 @@ def test_twin_load_test_days_find_every_step_and_keep_every_window(engine) -> No
     rejected, the final 95 % interval holds the truth in at least 90 % of the days. Without the
     sun the final estimate is within 10 % of the truth on every day; with it, the afternoon records
     carry the sun's unmodelled reaction (2-3 mm at -30 mm), which the interval holds but the 10 %
-    does not always (``benchmarks/loadtest_days.py`` prints both).
+    does not always (``benchmarks/loadtest_days.py`` prints both). The shadow's sun term
+    (``sun_gradient``) learns part of the sun from the day itself: within 10 % on at least 90 % of
+    the days, nothing lost, the interval holding; some steps stay unconfirmed changes (the prior's
+    spread of the sun widens the steps between records), so "every step an event" is not asked of it.
     """
-    days = engine(_twin_day, [(seed, 4.0) for seed in range(100)] + [(seed, 0.0) for seed in range(30)])
-    sunny, clear = days[:100], days[100:]
+    runs = [(seed, 4.0, False) for seed in range(100)] + [(seed, 0.0, False) for seed in range(30)]
+    days = engine(_twin_day, runs + [(seed, 4.0, True) for seed in range(100)])
+    sunny, clear, term = days[:100], days[100:130], days[130:]
+    assert not any(s.lost_windows for s in term)
+    assert np.mean([s.within_10pct for s in term]) >= 0.9 > np.mean([s.within_10pct for s in sunny])
+    assert np.mean([s.covered for s in term]) >= 0.9
     assert all(s.events_right for s in sunny), [i for i, s in enumerate(sunny) if not s.events_right]
     assert not any(s.lost_windows for s in sunny)
     assert np.mean([s.covered for s in sunny]) >= 0.9

@@ -164,6 +164,11 @@ def _summary(js: dict[str, Any]) -> str:
         lines.append(
             f"compensation {ch}: {sp['edf']:.2f} effective degrees of freedom, lambda {lam:.3g} °C³, "
             f"level {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
+            + (
+                f", sun term {sp['sun_gradient_k']:.2f} ± {1.96 * sp['sun_gradient_sd_k']:.2f} K at full sun"
+                if "sun_gradient_k" in sp
+                else ""
+            )
         )
     return "\n".join(lines)
 

@@ -243,7 +243,11 @@ def warnings(shadow: Shadow) -> list[str]:
 
 
 def spline_info(shadow: Shadow) -> dict[str, dict[str, float]]:
-    """Per channel: edf, lambda, level, windows fitted, temperature range (NaN before a fit)."""
+    """Per channel: edf, lambda, level, windows fitted, temperature range (NaN before a fit).
+
+    With the sun term (``sun_gradient``) also its vertical temperature difference at a covariate of
+    1 and that estimate's sd, K (``sun_gradient_k``, ``sun_gradient_sd_k``).
+    """
     info: dict[str, dict[str, float]] = {}
     fit = shadow.fit
     for c, ch in enumerate(CHANNELS):
@@ -258,6 +262,12 @@ def spline_info(shadow: Shadow) -> dict[str, dict[str, float]]:
             "t_min_c": float(fit.t_lo[c]) if fit is not None else float("nan"),
             "t_max_c": float(fit.t_hi[c]) if fit is not None else float("nan"),
         }
+        comp = shadow.compensation
+        if comp.sun and fit is not None:  # the sun term's difference at a covariate of 1, K
+            slope = float(comp.sun_slope[c])
+            var = float(fit.kappa[c]) * comp.slope_sd**2 * float(fit.minv[c, -1, -1])
+            info[ch]["sun_gradient_k"] = float(fit.beta[c, -1]) / slope
+            info[ch]["sun_gradient_sd_k"] = float(np.sqrt(max(var, 0.0))) / abs(slope)
     return info
 
 

@@ -51,6 +51,7 @@ from bridge_shadow.estimate import report
 from bridge_shadow.estimate.compensation.fit import Compensation, CompensationFit
 from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows, residual_moments
+from bridge_shadow.estimate.compensation.sunlight import SunCovariate
 from bridge_shadow.estimate.events.detector import ChangeDetector, Decision
 from bridge_shadow.estimate.inputs.closed_window import Window
 from bridge_shadow.estimate.inputs.gate import REASONS, TopicGate
@@ -142,8 +143,11 @@ class Shadow:
             lam=config.spline_lambda,
             slope_fe=surrogate.thermal.get("uniform", np.zeros(2)),
             slope_sd=config.thermal_prior_sd_n_per_k,
+            sun_slope=surrogate.thermal.get("vertical_gradient") if config.sun_gradient else None,
+            sun_prior_k=(config.sun_gradient_prior_mean_k, config.sun_gradient_prior_sd_k),
         )
-        self.sums = FitSums(self.compensation.q)
+        self.sums = FitSums(self.compensation.q, self.compensation.width)
+        self.sun = SunCovariate() if config.sun_gradient else None
         self.noise = NoiseModel(
             config.noise_sigma_n, config.noise_mode == "adaptive", config.noise_phi_max, config.noise_floor
         )
@@ -351,7 +355,11 @@ class Shadow:
         for j in np.flatnonzero(batch.cut.sum(axis=1) > 0):
             row = [int(batch.k[j]), *map(int, batch.cut[j]), *map(int, batch.samples[j])]
             self.traffic_windows.append(row)
-        i0, bv = self.compensation.basis_rows(batch.temp_c)
+        sun, svar = None, np.zeros(n)
+        if self.sun is not None:  # one air temperature for both channels: the first one known
+            temp = np.where(np.isfinite(batch.temp_c[:, 0]), batch.temp_c[:, 0], batch.temp_c[:, 1])
+            sun, svar = self.sun.values(batch.k * self._w_ns + self._w_ns // 2, temp)
+        i0, bv = self.compensation.basis_rows(batch.temp_c, sun)
         windows = [
             Window(
                 int(batch.k[j]),
@@ -361,6 +369,7 @@ class Shadow:
                 str(batch.reason[j]),
                 i0[j],
                 bv[j],
+                float(svar[j]),
             )
             for j in range(n)
         ]
@@ -404,9 +413,13 @@ class Shadow:
             return
         g = self.compensation.curve_rows(self.fit, temp, i0, bv).tolist()
         gvar = self.compensation.curve_variance(self.fit, i0, bv).tolist()
+        sun = self.fit.beta[:, -1] if self.compensation.sun else np.zeros(2)
+        s0, s1 = float(sun[0]), float(sun[1])
         for w, gw, vw in zip(windows, g, gvar, strict=True):
             w.g = (gw[0], gw[1])
-            w.gvar = (vw[0], vw[1])
+            # the sun covariate's own uncertainty moves both channels' predictions together
+            sv = w.svar if w.i0[0] >= 0 else 0.0
+            w.gvar = (vw[0] + s0 * s0 * sv, s0 * s1 * sv, vw[1] + s1 * s1 * sv)
             w.g_fit = self._fit_id
 
     # -- gaps and provisional segments ---------------------------------------------------------
@@ -507,8 +520,8 @@ class Shadow:
         self._last_judged = w.k
         v = self._innovation(w)
         apa = congruence(self._af, self.filter.predict_floats()[1])
-        gv0, gv1 = w.gvar  # the curve's own uncertainty (large beyond the temperatures seen so far)
-        apa = (apa[0] + gv0, apa[1], apa[2] + gv1)
+        gv = w.gvar  # the curve's own uncertainty (large beyond the temperatures seen so far)
+        apa = (apa[0] + gv[0], apa[1] + gv[1], apa[2] + gv[2])
         r_window = self.noise.window_floats(float(w.samples[0]), float(w.samples[1]))
         if not self.config.event_detection:
             infl = self.detector.inflation

@@ -13,15 +13,11 @@ import numpy as np
 from scipy.signal import lfilter
 
 from bridge_shadow.gap.windows import NS, Windows
-from bridge_shadow.sun import LON_DEG, clear_sky
+from bridge_shadow.sun import CLEAR_SWING_K, LON_DEG, OVERCAST_SWING_K, clear_sky
 
 __all__ = ["Drivers", "compute_drivers", "lowpass"]
 
 DAY_S = 86400.0
-#: Daily air-temperature swing at the bridge on an overcast and on a clear day, K: the smallest and
-#: largest daily ranges of March 2022 (``Weather/TemperatureComparisonMUC.csv``: 3.7 and 23.6 K,
-#: DESIGN section 3), less about 1 K of irregular weather in each.
-OVERCAST_SWING_K, CLEAR_SWING_K = 3.0, 22.5
 
 
 def lowpass(x: np.ndarray, tau_s: float, dt_s: float) -> np.ndarray:

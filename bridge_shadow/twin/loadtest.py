@@ -179,6 +179,7 @@ def synthetic_day(
     car_weight_n: float = CAR_WEIGHT_N,
     config: TwinConfig | None = None,
     day: dt.date = DAY,
+    monitor_days: float = 0.0,
 ) -> tuple[MonitoringData, dict[str, Any]]:
     """Simulate a load-test day with the truth twin: records at ``record_times_h``, a step per gap.
 
@@ -195,6 +196,8 @@ def synthetic_day(
         car_plateaus: the car's plateaus per record (``parked_car``); default ``CAR_PLATEAUS`` in each.
         car_weight_n: the test car's weight, N.
         config: the twin's world (weather, noise; ``TwinConfig()`` by default).
+        monitor_days: days of continuous monitoring (no car, no step) before the load-test day,
+            ending at its midnight: what a monitored bridge's shadow has seen before a test.
 
     Returns:
         ``(data, truth)``; ``truth["settlement_m"]``: (records, 2) the true settlement of each
@@ -212,15 +215,16 @@ def synthetic_day(
     if len(steps_m) != len(record_times_h) - 1:
         raise ValueError("one step per gap between records")
     t0 = _local_ns(day, 0.0)
+    begin = t0 - round(monitor_days * 86400 * NS)
     starts = [_local_ns(day, h) for h in record_times_h]
     gaps = [(starts[i] + round(RECORD_S * NS) + starts[i + 1]) / 2 for i in range(len(steps_m))]
-    twin_steps = [((g - t0) / (86400 * NS), dx[0], dx[1]) for g, dx in zip(gaps, steps_m, strict=True)]
+    twin_steps = [((g - begin) / (86400 * NS), dx[0], dx[1]) for g, dx in zip(gaps, steps_m, strict=True)]
     data, truth = simulate(
-        1.0,
+        1.0 + monitor_days,
         rate_hz,
         seed,
         effects or {},
-        start=t0,
+        start=begin,
         steps=twin_steps,
         surrogate=reality,
         temp_rate_hz=1 / 60,
@@ -243,7 +247,8 @@ def synthetic_day(
             if car:
                 f[m] += parked_car(s.stamp_ns[m], a, car_weight_n, span_m, plateaus[k])[:, i]
         forces[ch] = ForceSeries(s.stamp_ns, f, FORCE_FRAMES[ch])
-    day_data = _cut(MonitoringData(forces, data.temperature), spans)
+    monitored = [(begin, t0)] if monitor_days > 0 else []
+    day_data = _cut(MonitoringData(forces, data.temperature), monitored + spans)
     out = {
         "seed": seed,
         "record_start_ns": starts,
@@ -283,6 +288,7 @@ class LoadTestDay:
             inside EN 1991-1-5's 15 K for composite decks in summer).
         rate_hz: force messages per second per channel.
         twin: the rest of the world (weather, noise; traffic crossings stay off).
+        monitor_days: days of continuous monitoring before the test day (``synthetic_day``).
 
     """
 
@@ -295,6 +301,7 @@ class LoadTestDay:
     vertical_gradient_k: float = 4.0
     rate_hz: float = 0.2
     twin: TwinConfig = field(default_factory=TwinConfig)
+    monitor_days: float = 0.0
 
     def __post_init__(self) -> None:
         if len(self.steps_m) != len(self.record_h) - 1:
@@ -342,6 +349,7 @@ def load_test_day(
         car_plateaus=spec.car_plateaus(rng),
         car_weight_n=spec.car_weight_n,
         config=spec.twin,
+        monitor_days=spec.monitor_days,
     )
     truth["record_x_m"] = np.asarray(truth["settlement_m"], float)
     return data, truth

@@ -45,7 +45,7 @@ from bridge_shadow.estimate.compensation.spline import (
     gram_slope,
     select_lambda,
 )
-from bridge_shadow.estimate.compensation.sums import FitSums
+from bridge_shadow.estimate.compensation.sums import FitSums, row_columns
 
 __all__ = ["Compensation", "CompensationFit"]
 
@@ -63,8 +63,11 @@ class CompensationFit:
         minv: (2, q, q) inverse of the fit matrix ``M`` (for the curve's uncertainty).
         t_lo, t_hi: (2,) C, temperature range the curve was fitted on.
         kappa: (2,) K, the slope prior's weight used.
-        mbar: (2, q) ``M^-1 bbar``; sbar: (2,) ``bbar' M^-1 bbar`` (``bbar = sb / W``), for the variance.
+        mbar: (2, q) ``M^-1 bbar``; sbar: (2,) ``bbar' M^-1 bbar`` (``bbar = sb / W`` on the spline
+            columns, 0 on the sun's: the curve is centred, the sun term is not), for the variance.
         n: windows in the fit.
+        bbar: (2, q) the centring direction ``bbar``.
+        sun: the fit has a sun term (its coefficient is ``beta[:, -1]``, N per unit of the sun covariate).
 
     """
 
@@ -80,16 +83,21 @@ class CompensationFit:
     mbar: np.ndarray
     sbar: np.ndarray
     n: int
+    bbar: np.ndarray
+    sun: bool = False
 
     def beta_variance_factor(self, sums: FitSums, s: int) -> np.ndarray:
-        """Return (2,) ``v_s' M^-1 v_s``: the curve's share of segment ``s``'s level variance / sigma^2."""
+        """Return (2,) ``v_s' M^-1 v_s``: the curve's share of segment ``s``'s level variance / sigma^2.
+
+        ``v_s = sb_s / W_s - bbar``: zero with one segment unless a sun term (not centred) is fitted.
+        """
         out = np.zeros(2)
-        if sums.n_segments < 2:
+        if sums.n_segments < 2 and not self.sun:
             return out
         for c in range(2):
             if sums.Ws[s, c] <= 0 or sums.W[c] <= 0:
                 continue
-            v = sums.sbs[s, c] / sums.Ws[s, c] - sums.sb[c] / sums.W[c]
+            v = sums.sbs[s, c] / sums.Ws[s, c] - self.bbar[c]
             out[c] = max(float(v @ self.minv[c] @ v), 0.0)
         return out
 
@@ -104,7 +112,20 @@ class Compensation:
         slope_fe: (2,) N/K, FE uniform-temperature sensitivity (prior slope and extrapolation).
         slope_sd: N/K, the slope prior's standard deviation over one kelvin.
         omega1: (q, q) slope penalty ``int b' b'^T``; e: (q,) ``int b'`` (``e' beta = g(t_max) - g(t_min)``).
+        sun: a sun term is fitted (one more column, last: ``gamma clear_sky(t)``, see below).
+        q_spline: B-spline basis size (``q`` less the sun column); width: basis values per row.
+        sun_slope: (2,) N/K, the FE response to 1 K of vertical temperature difference.
+        sun_prior_k: (mean, sd) K, the prior of the difference at a covariate of 1.
 
+    The sun term (``sun_slope`` given): the deck's sun-driven vertical temperature difference is
+    ``dT_v = g s(t)`` with ``s`` the sun covariate (clear-sky irradiance over its yearly peak times
+    the day's clearness, ``sunlight.SunCovariate``), its force ``gamma_c s(t)``,
+    ``gamma_c = sun_slope_c g``.
+    ``gamma`` is fitted with the curve, on the variation inside segments like it, under the prior
+    ``g ~ N(sun_prior_k)`` weighed like the slope prior (``sigma^2 / sd_gamma^2``). It is *not*
+    centred: a level is the state without sun (the night), so the sun's mean over the data does
+    not end up in the settlement. Days of monitoring fix ``gamma``; short records hours apart do
+    not, and then the prior's spread reaches the level differences (``beta_variance_factor``).
     """
 
     def __init__(
@@ -116,31 +137,64 @@ class Compensation:
         lam: float = 10.0,
         slope_fe: np.ndarray | None = None,
         slope_sd: float = 500.0,
+        sun_slope: np.ndarray | None = None,
+        sun_prior_k: tuple[float, float] = (0.0, 6.75),
     ) -> None:
         self.knots = clamped_knots(np.linspace(t_min_c, t_max_c, segments + 1))
         self.t_min, self.t_max = float(self.knots[0]), float(self.knots[-1])
-        self.q = len(self.knots) - 4
-        self.omega = gram_penalty(self.knots)
+        self.sun = sun_slope is not None
+        self.q_spline = qs = len(self.knots) - 4
+        self.q = qs + int(self.sun)
+        self.width = 4 + int(self.sun)
+        self.sun_slope = np.zeros(2) if sun_slope is None else np.asarray(sun_slope, float).reshape(2)
+        self.sun_prior_k = (float(sun_prior_k[0]), float(sun_prior_k[1]))
+        if self.sun and (self.sun_prior_k[1] <= 0 or not np.all(np.abs(self.sun_slope) > 0)):
+            raise ValueError("a sun term needs a prior sd > 0 and a non-zero FE vertical-gradient response")
+        self.omega = self._pad(gram_penalty(self.knots))
         self.mode = mode
         self.lam_fixed = float(lam)
         self.slope_fe = np.zeros(2) if slope_fe is None else np.asarray(slope_fe, float).reshape(2)
         self.slope_sd = float(slope_sd)
-        self.omega1 = gram_slope(self.knots)
+        self.omega1 = self._pad(gram_slope(self.knots))
         self.e = np.zeros(self.q)
-        self.e[0], self.e[-1] = -1.0, 1.0
+        self.e[0], self.e[qs - 1] = -1.0, 1.0
         self.span = self.t_max - self.t_min
-        # orthonormal basis of the coefficients orthogonal to the constant (for REML)
-        q_full, _ = np.linalg.qr(np.column_stack([np.ones(self.q), np.eye(self.q)[:, : self.q - 1]]))
+        # the constant curve (B-splines sum to one), and an orthonormal basis orthogonal to it (REML)
+        self._one = np.r_[np.ones(qs), np.zeros(self.q - qs)]
+        q_full, _ = np.linalg.qr(np.column_stack([self._one, np.eye(self.q)[:, : self.q - 1]]))
         self._z = q_full[:, 1:]
 
+    def _pad(self, mat: np.ndarray) -> np.ndarray:
+        """Return a spline-basis matrix with a zero row and column for the sun term, if any."""
+        out = np.zeros((self.q, self.q))
+        out[: self.q_spline, : self.q_spline] = mat
+        return out
+
     # -- basis ----------------------------------------------------------------------------------
-    def basis_rows(self, temp_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Non-zero basis of window temperatures (n, 2): first index (n, 2) (-1 if NaN), values (n, 2, 4)."""
+    def basis_rows(self, temp_c: np.ndarray, sun: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Non-zero basis of windows (n, 2): first spline index (n, 2) (-1 if NaN), values (n, 2, width).
+
+        With a sun term the fifth value is the windows' sun covariate ``sun`` (n,)
+        (``sunlight.SunCovariate``; None: 0, the curve of temperature alone).
+        """
         t = np.asarray(temp_c, float).reshape(-1, 2)
         ok = np.isfinite(t)
         i0, bv = basis_nonzero(self.knots, np.clip(np.where(ok, t, self.t_min), self.t_min, self.t_max))
         i0 = np.where(ok.ravel(), i0, -1).reshape(-1, 2)
-        return i0, bv.reshape(-1, 2, 4)
+        bv = bv.reshape(-1, 2, 4)
+        if not self.sun:
+            return i0, bv
+        s = np.zeros(len(t)) if sun is None else np.asarray(sun, float).reshape(-1)
+        return i0, np.concatenate([bv, np.repeat(s[:, None, None], 2, axis=1)], axis=2)
+
+    def sun_weight(self, kappa: float, c: int) -> tuple[float, float]:
+        """Return the sun prior of channel ``c`` as data: its weight ``sigma^2 / sd_gamma^2`` and mean (N).
+
+        ``sigma^2 = kappa slope_sd^2`` is the noise model's per-sample variance (as for the slope prior).
+        """
+        mean_k, sd_k = self.sun_prior_k
+        sigma2 = kappa * self.slope_sd**2
+        return sigma2 / (sd_k * self.sun_slope[c]) ** 2, mean_k * self.sun_slope[c]
 
     # -- fitting --------------------------------------------------------------------------------
     def slope_weight(self, sigma2: np.ndarray) -> np.ndarray:
@@ -177,6 +231,11 @@ class Compensation:
             gp = gw + kap * self.omega1  # the slope prior, counted as data for lambda's choice
             rp = rw + kap * s_fe * self.e
             yyp = yyw + kap * s_fe**2 * self.span
+            if self.sun:  # the sun prior, as data (a tiny ridge without the noise model's variance)
+                ks, g0 = self.sun_weight(kap, c) if kap > 0 else (1e-9 * (1.0 + gw[-1, -1]), 0.0)
+                gp[-1, -1] += ks
+                rp[-1] += ks * g0
+                yyp += ks * g0**2
             if lam is not None and np.isfinite(lam[c]):
                 lams[c] = float(lam[c])
             elif self.mode == "fixed":
@@ -186,7 +245,7 @@ class Compensation:
                 lams[c] = select_lambda(
                     z.T @ gp @ z, z.T @ self.omega @ z, z.T @ rp, yyp, max(sums.n - n_levels, 2), self.mode
                 )
-            cvec = sums.sb[c] / np.sqrt(sums.W[c])
+            cvec = self._one * sums.sb[c] / np.sqrt(sums.W[c])
             mat = gp + lams[c] * self.omega + np.outer(cvec, cvec)  # + c c' fixes sb' beta = 0
             rhs = rp
             chol = linalg.cho_factor(mat, lower=True, check_finite=False)
@@ -199,7 +258,7 @@ class Compensation:
         level[~used] = 0.0
         dof = np.maximum(sums.n - n_levels - edf, 1.0)
         kap = np.zeros(2) if kappa is None else np.asarray(kappa, float).reshape(2)
-        bbar = sums.sb / np.maximum(sums.W, 1e-300)[:, None]
+        bbar = self._one * sums.sb / np.maximum(sums.W, 1e-300)[:, None]
         mbar = np.einsum("cij,cj->ci", minv, bbar)
         sbar = np.einsum("ci,ci->c", bbar, mbar)
         return CompensationFit(
@@ -215,6 +274,8 @@ class Compensation:
             mbar,
             sbar,
             sums.n,
+            bbar,
+            self.sun,
         )
 
     # -- evaluation -------------------------------------------------------------------------------
@@ -244,7 +305,9 @@ class Compensation:
             if not ok.any():
                 continue
             coef = fit.beta[c][i0[ok, c][:, None] + np.arange(4)]
-            out[ok, c] = np.sum(bv[ok, c] * coef, axis=1)
+            out[ok, c] = np.sum(bv[ok, c, :4] * coef, axis=1)
+            if self.sun:
+                out[ok, c] += fit.beta[c, -1] * bv[ok, c, 4]
             beyond = ok & ((t[:, c] < self.t_min) | (t[:, c] > self.t_max))
             if beyond.any():
                 tc = t[beyond, c]
@@ -261,12 +324,11 @@ class Compensation:
         out = np.zeros(i0.shape, float)
         if self.mode == "none":
             return out
-        idx = np.arange(4)
         for c in range(2):
             ok = i0[:, c] >= 0
             if not ok.any():
                 continue
-            cols = i0[ok, c][:, None] + idx  # (n, 4)
+            cols = row_columns(i0[ok, c], self.width, self.q)  # (n, width)
             block = fit.minv[c][cols[:, :, None], cols[:, None, :]]  # (n, 4, 4)
             b = bv[ok, c]
             quad = np.einsum("ni,nij,nj->n", b, block, b) - 2.0 * np.sum(b * fit.mbar[c][cols], axis=1)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FitSums", "Moments", "WindowRows", "residual_moments"]
+__all__ = ["FitSums", "Moments", "WindowRows", "residual_moments", "row_columns"]
 
 _FIELDS = ("k", "m", "y", "t", "i0", "bv", "seg")
 
@@ -44,7 +44,8 @@ class WindowRows:
         y: (n, 2) N, window-mean force minus ``u0`` (minus ``A x`` when the settlement moves).
         t: (n, 2) C, window-mean air temperature (NaN when unknown).
         i0: (n, 2) int, first non-zero basis index, -1 when the temperature is unknown.
-        bv: (n, 2, 4) the four non-zero basis values.
+        bv: (n, 2, w) the non-zero basis values: the four B-splines, and the sun covariate when the
+            compensation has a sun term (``w = 5``, ``row_columns``).
         seg: (n,) int, settlement segment.
 
     """
@@ -66,7 +67,7 @@ class WindowRows:
         for c in range(2):
             ok = self.i0[:, c] >= 0
             rows = np.flatnonzero(ok)
-            cols = self.i0[ok, c][:, None] + np.arange(4)
+            cols = row_columns(self.i0[ok, c], self.bv.shape[-1], q)
             out[rows[:, None], c, cols] = self.bv[ok, c]
         return out
 
@@ -76,40 +77,49 @@ class WindowRows:
         return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in _FIELDS))
 
 
-def _scatter_vec(i0: np.ndarray, vals: np.ndarray, q: int) -> np.ndarray:
-    """Sum over rows of a q-vector with ``vals`` (n, 4) at ``i0 .. i0 + 3``."""
-    if not len(i0):
+def row_columns(i0: np.ndarray, width: int, q: int) -> np.ndarray:
+    """Basis columns (n, width) of rows whose spline part starts at ``i0``.
+
+    The four cubic B-splines sit at ``i0 .. i0 + 3``; a fifth value (``width == 5``) is the sun
+    covariate, in the last column ``q - 1`` (``Compensation`` with a sun term).
+    """
+    cols = np.asarray(i0)[:, None] + np.arange(4)
+    if width == 4:
+        return cols
+    return np.column_stack([cols, np.full(len(cols), q - 1)])
+
+
+def _scatter_vec(idx: np.ndarray, vals: np.ndarray, q: int) -> np.ndarray:
+    """Sum over rows of a q-vector with ``vals`` (n, k) at columns ``idx`` (n, k)."""
+    if not len(idx):
         return np.zeros(q)
-    idx = (i0[:, None] + np.arange(4)).ravel()
-    return np.bincount(idx, weights=vals.ravel(), minlength=q)
+    return np.bincount(idx.ravel(), weights=vals.ravel(), minlength=q)
 
 
 def _scatter_outer(
-    i0: np.ndarray, a: np.ndarray, j0: np.ndarray, b: np.ndarray, w: np.ndarray, q: int
+    ia: np.ndarray, a: np.ndarray, ib: np.ndarray, b: np.ndarray, w: np.ndarray, q: int
 ) -> np.ndarray:
-    """Sum over rows of ``w a b'`` (a at i0.., b at j0..) as a (q, q) matrix."""
-    if not len(i0):
+    """Sum over rows of ``w a b'`` (a at columns ia, b at ib) as a (q, q) matrix."""
+    if not len(ia):
         return np.zeros((q, q))
-    rows = (i0[:, None] + np.arange(4))[:, :, None]
-    cols = (j0[:, None] + np.arange(4))[:, None, :]
-    idx = (rows * q + cols).ravel()
+    idx = (ia[:, :, None] * q + ib[:, None, :]).ravel()
     vals = (w[:, None, None] * a[:, :, None] * b[:, None, :]).ravel()
     return np.bincount(idx, weights=vals, minlength=q * q).reshape(q, q)
 
 
-def _scatter_seg_vec(seg: np.ndarray, i0: np.ndarray, vals: np.ndarray, n_seg: int, q: int) -> np.ndarray:
+def _scatter_seg_vec(seg: np.ndarray, idx: np.ndarray, vals: np.ndarray, n_seg: int, q: int) -> np.ndarray:
     """Per-segment q-vectors (n_seg, q)."""
-    if not len(i0):
+    if not len(idx):
         return np.zeros((n_seg, q))
-    idx = (seg[:, None] * q + i0[:, None] + np.arange(4)).ravel()
-    return np.bincount(idx, weights=vals.ravel(), minlength=n_seg * q).reshape(n_seg, q)
+    flat = (seg[:, None] * q + idx).ravel()
+    return np.bincount(flat, weights=vals.ravel(), minlength=n_seg * q).reshape(n_seg, q)
 
 
 class FitSums:
     """The additive sums of the accepted windows (see the module docstring for each name).
 
     Attributes:
-        q: number of basis functions.
+        q: number of basis functions; width: basis values per row (4, or 5 with a sun term).
         n: windows added; n_pairs: (2,) lag-1 pairs added per channel (the same for both).
         t_lo, t_hi: (2,) C, lowest and highest window temperature added per channel.
         prev: the last window added (for the lag-1 pair with the next one), or None.
@@ -134,8 +144,9 @@ class FitSums:
         "Lbcs",
     )
 
-    def __init__(self, q: int) -> None:
+    def __init__(self, q: int, width: int = 4) -> None:
         self.q = q
+        self.width = width
         self.n = 0
         self.n_pairs = 0
         self.W = np.zeros(2)
@@ -198,7 +209,7 @@ class FitSums:
         n = len(rows)
         if not n:
             return
-        q = self.q
+        q, width = self.q, rows.bv.shape[-1]
         self.ensure_segment(int(rows.seg.max()))
         n_seg = self.n_segments
         m, y, seg = rows.m, rows.y, rows.seg
@@ -212,11 +223,12 @@ class FitSums:
             self.sys[:, c] += np.bincount(seg, weights=m[:, c] * y[:, c], minlength=n_seg)
             ok = rows.i0[:, c] >= 0
             if ok.any():
-                i0, bv, mc, yc = rows.i0[ok, c], rows.bv[ok, c], m[ok, c], y[ok, c]
-                self.sb[c] += _scatter_vec(i0, mc[:, None] * bv, q)
-                self.r[c] += _scatter_vec(i0, (mc * yc)[:, None] * bv, q)
-                self.G[c] += _scatter_outer(i0, bv, i0, bv, mc, q)
-                self.sbs[:, c] += _scatter_seg_vec(seg[ok], i0, mc[:, None] * bv, n_seg, q)
+                bv, mc, yc = rows.bv[ok, c], m[ok, c], y[ok, c]
+                ix = row_columns(rows.i0[ok, c], width, q)
+                self.sb[c] += _scatter_vec(ix, mc[:, None] * bv, q)
+                self.r[c] += _scatter_vec(ix, (mc * yc)[:, None] * bv, q)
+                self.G[c] += _scatter_outer(ix, bv, ix, bv, mc, q)
+                self.sbs[:, c] += _scatter_seg_vec(seg[ok], ix, mc[:, None] * bv, n_seg, q)
                 self.t_lo[c] = min(self.t_lo[c], float(np.min(rows.t[ok, c])))
                 self.t_hi[c] = max(self.t_hi[c], float(np.max(rows.t[ok, c])))
         # across channels
@@ -226,16 +238,17 @@ class FitSums:
         self.Xy0s += np.bincount(seg, weights=p * y[:, 0], minlength=n_seg)
         self.Xy1s += np.bincount(seg, weights=p * y[:, 1], minlength=n_seg)
         ok0, ok1 = rows.i0[:, 0] >= 0, rows.i0[:, 1] >= 0
+        cols = [row_columns(np.where(rows.i0[:, c] >= 0, rows.i0[:, c], 0), width, q) for c in range(2)]
         if ok0.any():
-            self.Xb0s += _scatter_seg_vec(seg[ok0], rows.i0[ok0, 0], p[ok0, None] * rows.bv[ok0, 0], n_seg, q)
-            self.Xb0y1 += _scatter_vec(rows.i0[ok0, 0], (p * y[:, 1])[ok0, None] * rows.bv[ok0, 0], q)
+            self.Xb0s += _scatter_seg_vec(seg[ok0], cols[0][ok0], p[ok0, None] * rows.bv[ok0, 0], n_seg, q)
+            self.Xb0y1 += _scatter_vec(cols[0][ok0], (p * y[:, 1])[ok0, None] * rows.bv[ok0, 0], q)
         if ok1.any():
-            self.Xb1s += _scatter_seg_vec(seg[ok1], rows.i0[ok1, 1], p[ok1, None] * rows.bv[ok1, 1], n_seg, q)
-            self.Xy0b1 += _scatter_vec(rows.i0[ok1, 1], (p * y[:, 0])[ok1, None] * rows.bv[ok1, 1], q)
+            self.Xb1s += _scatter_seg_vec(seg[ok1], cols[1][ok1], p[ok1, None] * rows.bv[ok1, 1], n_seg, q)
+            self.Xy0b1 += _scatter_vec(cols[1][ok1], (p * y[:, 0])[ok1, None] * rows.bv[ok1, 1], q)
         both = ok0 & ok1
         if both.any():
             self.XBB += _scatter_outer(
-                rows.i0[both, 0], rows.bv[both, 0], rows.i0[both, 1], rows.bv[both, 1], p[both], q
+                cols[0][both], rows.bv[both, 0], cols[1][both], rows.bv[both, 1], p[both], q
             )
         self._add_pairs(rows)
         self.prev = WindowRows(*(getattr(rows, f)[-1:].copy() for f in _FIELDS))
@@ -247,7 +260,7 @@ class FitSums:
         if not len(a):
             return
         b = a + 1
-        q, n_seg = self.q, self.n_segments
+        q, n_seg, width = self.q, self.n_segments, full.bv.shape[-1]
         seg = full.seg[b]
         self.n_pairs += len(a)
         for c in range(2):
@@ -259,17 +272,22 @@ class FitSums:
             self.Lycs[:, c] += np.bincount(seg, weights=p * yb, minlength=n_seg)
             oka, okb = full.i0[a, c] >= 0, full.i0[b, c] >= 0
             if oka.any():
-                ia, va = full.i0[a, c][oka], full.bv[a, c][oka]
+                ia, va = row_columns(full.i0[a, c][oka], width, q), full.bv[a, c][oka]
                 self.Lbps[:, c] += _scatter_seg_vec(seg[oka], ia, p[oka, None] * va, n_seg, q)
                 self.Lby[c] += _scatter_vec(ia, (p * yb)[oka, None] * va, q)
             if okb.any():
-                ib, vb = full.i0[b, c][okb], full.bv[b, c][okb]
+                ib, vb = row_columns(full.i0[b, c][okb], width, q), full.bv[b, c][okb]
                 self.Lbcs[:, c] += _scatter_seg_vec(seg[okb], ib, p[okb, None] * vb, n_seg, q)
                 self.Lyb[c] += _scatter_vec(ib, (p * ya)[okb, None] * vb, q)
             ab = oka & okb
             if ab.any():
                 self.LBB[c] += _scatter_outer(
-                    full.i0[a, c][ab], full.bv[a, c][ab], full.i0[b, c][ab], full.bv[b, c][ab], p[ab], q
+                    row_columns(full.i0[a, c][ab], width, q),
+                    full.bv[a, c][ab],
+                    row_columns(full.i0[b, c][ab], width, q),
+                    full.bv[b, c][ab],
+                    p[ab],
+                    q,
                 )
 
     def merge_into_previous(self, s: int) -> None:
@@ -304,7 +322,7 @@ class FitSums:
             np.zeros((1, 2)),
             np.zeros((1, 2)),
             np.zeros((1, 2), int),
-            np.zeros((1, 2, 4)),
+            np.zeros((1, 2, self.width)),
             np.zeros(1, int),
         )
         out["prev"] = {f: getattr(prev, f) for f in _FIELDS}
@@ -327,7 +345,7 @@ class FitSums:
                 np.asarray(p["y"], float).reshape(1, 2),  # type: ignore[index]
                 np.asarray(p["t"], float).reshape(1, 2),  # type: ignore[index]
                 np.asarray(p["i0"], int).reshape(1, 2),  # type: ignore[index]
-                np.asarray(p["bv"], float).reshape(1, 2, 4),  # type: ignore[index]
+                np.asarray(p["bv"], float).reshape(1, 2, -1),  # type: ignore[index]
                 np.asarray(p["seg"], int).reshape(1),  # type: ignore[index]
             )
             if bool(state["has_prev"])

@@ -28,6 +28,7 @@ class Window:
         "reason",
         "samples",
         "seg",
+        "svar",
         "temp",
     )
 
@@ -40,6 +41,7 @@ class Window:
         reason: str,
         i0: np.ndarray,
         bv: np.ndarray,
+        svar: float = 0.0,
     ) -> None:
         self.k = k
         self.samples = samples
@@ -48,9 +50,10 @@ class Window:
         self.reason = reason
         self.i0 = i0
         self.bv = bv
+        self.svar = svar  # variance of the sun covariate (the sun term's; 0 without it)
         self.action: str | None = "invalid" if reason else None
         self.event_end = False  # the last window of an event's confirmation run
         self.g = (0.0, 0.0)  # the centred curve at this window's temperature, N
-        self.gvar = (0.0, 0.0)  # the curve's own variance there, N^2
+        self.gvar = (0.0, 0.0, 0.0)  # the curve's own covariance there (a, b, d), N^2
         self.g_fit = -1  # the fit that ``g`` comes from
         self.seg = -1  # the segment of a warm-up window (set on arrival; -1 otherwise)

@@ -93,6 +93,9 @@ class ShadowConfig:
     spline_t_max_c: float = 45.0
     spline_segments: int = 13
     thermal_prior_sd_n_per_k: float = 500.0
+    sun_gradient: bool = False
+    sun_gradient_prior_mean_k: float = 0.0
+    sun_gradient_prior_sd_k: float = 6.75
     warmup_windows: int = 10
     refit_windows: int = 60
     lambda_reselect_growth: float = 1.25

@@ -138,6 +138,12 @@ SPECS: dict[str, ParamSpec] = {
     # the uniform-temperature response is +9 to +21 N/K (README, The model); a prior sd of the whole
     # central reaction per kelvin is no prior
     "thermal_prior_sd_n_per_k": _gt0("N/K", FORCE_LIMIT_N),
+    # the sun term adds a basis column; EN 1991-1-5 Table 6.1 gives at most 15-18 K for any deck
+    # type (heating, cooling): +-30 K is beyond every deck and every weather (the default sd is
+    # half the top of effects.py's vertical_gradient range; test_sun_term)
+    "sun_gradient": ParamSpec(shapes_state=True),
+    "sun_gradient_prior_mean_k": _ge(-30.0, 30.0, "K"),
+    "sun_gradient_prior_sd_k": _gt0("K", 30.0),
     "warmup_windows": _ge(1, WINDOWS_MAX),
     "refit_windows": _ge(1, WINDOWS_MAX),
     # a factor of growth: 1000 is never reached by a year of windows after a few hundred of them

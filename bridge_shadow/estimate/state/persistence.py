@@ -27,9 +27,12 @@ if TYPE_CHECKING:
 
 __all__ = ["restore_shadow", "shadow_state"]
 
-_VERSION = 4
+_VERSION = 5  # 5: the sun term (basis width, the FE vertical-gradient response, the fit's bbar)
 _NONE = -(2**62)
-_FIT_FIELDS = ("beta", "lam", "edf", "level", "dof", "minv", "t_lo", "t_hi", "kappa", "mbar", "sbar", "n")
+_FIT_FIELDS = (
+    *("beta", "lam", "edf", "level", "dof", "minv", "t_lo", "t_hi", "kappa", "mbar", "sbar"),
+    *("n", "bbar"),
+)
 
 
 def _opt(value: int | None) -> int:
@@ -98,6 +101,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
     """Return the state of ``shadow`` as nested plain data."""
     queue = list(shadow._queue)
     index = {id(w): i for i, w in enumerate(queue)}
+    width = shadow.compensation.width
     det = shadow.detector
     rows = shadow._rows
     fit = shadow.fit
@@ -108,9 +112,11 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "A": shadow.surrogate.A,
             "u0": shadow.surrogate.u0,
             "uniform": shadow.surrogate.thermal.get("uniform", np.zeros(2)),
+            "vertical_gradient": shadow.surrogate.thermal.get("vertical_gradient", np.zeros(2)),
         },
         "gates": [g.state_dict() for g in shadow.gates],
         "ledgers": [led.state_dict() for led in shadow.ledgers],
+        "sun": shadow.sun.state_dict() if shadow.sun is not None else {},
         "counts": json.dumps({k: int(v) for k, v in shadow.counts.items()}),
         "used": json.dumps(shadow.used),
         "buffer": shadow.buffer.state_dict(),
@@ -140,7 +146,8 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "reason": json.dumps([w.reason for w in queue]),
             "action": json.dumps([w.action for w in queue]),
             "i0": np.array([w.i0 for w in queue], np.int64).reshape(-1, 2),
-            "bv": np.array([w.bv for w in queue], float).reshape(-1, 2, 4),
+            "bv": np.array([w.bv for w in queue], float).reshape(-1, 2, width),
+            "svar": np.array([w.svar for w in queue], float),
             "event_end": np.array([w.event_end for w in queue], bool),
             "seg": np.array([w.seg for w in queue], np.int64),
             "warm": np.array([index[id(w)] for w in shadow._warm], np.int64),
@@ -151,7 +158,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "y": np.array([r[2] for r in rows], float).reshape(-1, 2),
             "t": np.array([r[3] for r in rows], float).reshape(-1, 2),
             "i0": np.array([r[4] for r in rows], np.int64).reshape(-1, 2),
-            "bv": np.array([r[5] for r in rows], float).reshape(-1, 2, 4),
+            "bv": np.array([r[5] for r in rows], float).reshape(-1, 2, width),
             "seg": np.array([r[6] for r in rows], np.int64),
         },
         "events": json.dumps(
@@ -192,8 +199,10 @@ def restore_shadow(
         config = ShadowConfig.from_params(json.loads(str(state["config"])))
     if surrogate is None:
         s = state["surrogate"]
-        surrogate = Surrogate(np.asarray(s["A"]), np.asarray(s["u0"]), {"uniform": np.asarray(s["uniform"])})
+        thermal = {k: np.asarray(s[k]) for k in ("uniform", "vertical_gradient")}
+        surrogate = Surrogate(np.asarray(s["A"]), np.asarray(s["u0"]), thermal)
     shadow = cls(config, surrogate)
+    width = shadow.compensation.width
     for g, s in zip(shadow.gates, state["gates"], strict=True):
         g.load_state_dict(s)
     for led, s in zip(shadow.ledgers, state["ledgers"], strict=True):
@@ -203,11 +212,15 @@ def restore_shadow(
     shadow.used = {k: int(v) for k, v in json.loads(str(state["used"])).items()}
     shadow.buffer.load_state_dict(state["buffer"])
     shadow.sums.load_state_dict(state["sums"])
+    if shadow.sun is not None:
+        shadow.sun.load_state_dict(state["sun"])
     if bool(state["has_fit"]):
         f = state["fit"]
         shadow.fit = CompensationFit(
-            *(np.asarray(f[name], float) for name in _FIT_FIELDS[:-1]),
+            *(np.asarray(f[name], float) for name in _FIT_FIELDS[:-2]),
             int(f["n"]),  # type: ignore[arg-type]
+            np.asarray(f["bbar"], float),
+            shadow.compensation.sun,
         )
     shadow.lam = np.asarray(state["lam"], float).reshape(2)
     shadow.noise.load_state_dict(state["noise"])
@@ -226,7 +239,8 @@ def restore_shadow(
             np.asarray(q["temp"], float).reshape(-1, 2)[i],
             reasons[i],
             np.asarray(q["i0"]).reshape(-1, 2)[i],
-            np.asarray(q["bv"], float).reshape(-1, 2, 4)[i],
+            np.asarray(q["bv"], float).reshape(-1, 2, width)[i],
+            float(np.asarray(q["svar"], float).ravel()[i]),
         )
         w.action = actions[i]
         w.event_end = bool(np.asarray(q["event_end"]).ravel()[i])
@@ -250,7 +264,7 @@ def restore_shadow(
             np.asarray(lw["temp"], float).reshape(2),
             "",
             np.asarray(lw["i0"]).reshape(2),
-            np.asarray(lw["bv"], float).reshape(2, 4),
+            np.asarray(lw["bv"], float).reshape(2, width),
         )
     if shadow.fit is not None:
         shadow._set_range(shadow.fit)
@@ -273,7 +287,7 @@ def restore_shadow(
             np.asarray(r["y"], float).reshape(-1, 2)[i],
             np.asarray(r["t"], float).reshape(-1, 2)[i],
             np.asarray(r["i0"]).reshape(-1, 2)[i],
-            np.asarray(r["bv"], float).reshape(-1, 2, 4)[i],
+            np.asarray(r["bv"], float).reshape(-1, 2, width)[i],
             int(np.asarray(r["seg"]).ravel()[i]),
         )
         for i in range(n_rows)

@@ -1,0 +1,228 @@
+"""The compensation's sun term (``sun_gradient``): batch reference, the causal covariate, the twin.
+
+- The joint fit with a sun column equals a dense constrained penalized least-squares solve built
+  here from scipy's B-splines (levels, curve, sun coefficient), and the sums equal dense ones.
+- ``SunCovariate``: a day whose air follows the half-cosine rise gets the clearness its swing
+  says, in closed form; any chunking with a state round trip gives the same covariate.
+- The twin with a sun-driven vertical temperature difference (4 K at full sun): the term learns
+  the difference from three days of monitoring and removes the bias the sun leaves in the level;
+  without sun it learns none and changes nothing. Chunking and a checkpoint change nothing.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.interpolate import BSpline
+
+from bridge_shadow.effects import plausible_range
+from bridge_shadow.estimate import Shadow, load_config
+from bridge_shadow.estimate.compensation.fit import Compensation
+from bridge_shadow.estimate.compensation.spline import gram_penalty, gram_slope
+from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows
+from bridge_shadow.estimate.compensation.sunlight import (
+    DAY_SD,
+    FIRST_SD,
+    RISE_FROM_H,
+    RISE_TO_H,
+    WANDER_K,
+    SunCovariate,
+    _rise_share,
+)
+from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.sun import CLEAR_SWING_K, LON_DEG, OVERCAST_SWING_K, clear_sky
+
+NS = 10**9
+
+
+def _rows(comp: Compensation, n: int, seed: int) -> tuple[WindowRows, np.ndarray]:
+    """Random windows of two segments: temperatures, a sun covariate, weights, forces."""
+    rng = np.random.default_rng(seed)
+    t = rng.uniform(-5.0, 25.0, n)
+    s = np.clip(np.sin(np.linspace(0, 9 * np.pi, n)), 0.0, None) * rng.uniform(0.3, 1.0, n)
+    seg = (np.arange(n) >= n // 2).astype(np.int64)
+    y = np.c_[40.0 * t - 3000.0 * s + 500.0 * seg, -20.0 * t - 4000.0 * s - 800.0 * seg]
+    y += rng.normal(0.0, 50.0, (n, 2))
+    m = rng.integers(5, 60, (n, 2)).astype(float)
+    i0, bv = comp.basis_rows(np.c_[t, t], s)
+    return WindowRows(np.arange(n, dtype=np.int64), m, y, np.c_[t, t], i0, bv, seg), s
+
+
+def _dense_reference(comp: Compensation, rows: WindowRows, s: np.ndarray, c: int, lam: float, kap: float):
+    """Minimise the fit's objective by a dense KKT solve: levels, spline coefficients, sun coefficient.
+
+    ``sum m (y - l_seg - b'beta - gamma s)^2 + lam beta'Omega beta + kap int (g' - s_fe)^2
+    + ks (gamma - gamma0)^2`` subject to ``sum m b'beta = 0`` (the curve centred, the sun not).
+    """
+    basis = BSpline.design_matrix(np.clip(rows.t[:, c], comp.t_min, comp.t_max), comp.knots, 3).toarray()
+    n_seg = int(rows.seg.max()) + 1
+    q = basis.shape[1]
+    x = np.column_stack([np.eye(n_seg)[rows.seg], basis, s])
+    w = rows.m[:, c]
+    p = n_seg + q + 1
+    pen = np.zeros((p, p))
+    pen[n_seg : n_seg + q, n_seg : n_seg + q] = lam * gram_penalty(comp.knots) + kap * gram_slope(comp.knots)
+    e = np.zeros(p)
+    e[n_seg], e[n_seg + q - 1] = -1.0, 1.0
+    ks, g0 = comp.sun_weight(kap, c)
+    pen[-1, -1] += ks
+    rhs = x.T @ (w * rows.y[:, c]) + kap * comp.slope_fe[c] * e
+    rhs[-1] += ks * g0
+    con = np.zeros(p)
+    con[n_seg : n_seg + q] = w @ basis
+    kkt = np.block([[x.T @ (w[:, None] * x) + pen, con[:, None]], [con[None, :], np.zeros((1, 1))]])
+    sol = np.linalg.solve(kkt, np.r_[rhs, 0.0])
+    return sol[:n_seg], sol[n_seg : n_seg + q], sol[n_seg + q]
+
+
+def test_fit_with_a_sun_term_equals_a_dense_constrained_solve() -> None:
+    slope = np.array([-4000.0, -5000.0])
+    comp = Compensation(-20.0, 45.0, 13, mode="fixed", slope_fe=np.array([10.0, 12.0]), sun_slope=slope)
+    assert comp.q == comp.q_spline + 1 and comp.width == 5
+    rows, s = _rows(comp, 400, 1)
+    sums = FitSums(comp.q, comp.width)
+    sums.add(rows)
+    dense = rows.dense_b(comp.q)
+    for c in range(2):
+        np.testing.assert_allclose(sums.G[c], (rows.m[:, c, None] * dense[:, c]).T @ dense[:, c], rtol=1e-10)
+        late = rows.seg == 1
+        np.testing.assert_allclose(sums.sbs[1, c], rows.m[late, c] @ dense[late, c], rtol=1e-10)
+    kappa = np.array([3e-3, 5e-3])
+    fit = comp.fit(sums, lam=np.array([50.0, 50.0]), kappa=kappa)
+    for c in range(2):
+        levels, beta, gamma = _dense_reference(comp, rows, s, c, 50.0, float(kappa[c]))
+        np.testing.assert_allclose(fit.beta[c, :-1], beta, rtol=1e-7, atol=1e-6 * np.abs(beta).max())
+        assert fit.beta[c, -1] == pytest.approx(gamma, rel=1e-8)
+        np.testing.assert_allclose(fit.level[:, c], levels, rtol=1e-8)
+        # the data's sun (-3000 / -4000 N at s = 1) is found; the prior (mean 0) barely pulls
+        assert fit.beta[c, -1] == pytest.approx((-3000.0, -4000.0)[c], rel=0.05)
+    # with one segment the sun coefficient's uncertainty still reaches the level (it is not centred)
+    one = FitSums(comp.q, comp.width)
+    rows.seg[:] = 0
+    one.add(rows)
+    assert np.all(comp.fit(one, kappa=kappa).beta_variance_factor(one, 0) > 0)
+
+
+def _day(t_min: float, swing: float, day: int = 19_100) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Window mid-times (UTC ns), solar hours and an air temperature on the half-cosine rise of one day."""
+    offset = round(LON_DEG / 15.0 * 3600.0)
+    solar_s = day * 86_400 + 30 + 60 * np.arange(1440)
+    hours = (solar_s % 86_400) / 3600.0
+    rise = np.array([_rise_share(h) for h in hours])
+    # the air falls back after the maximum (the minimum is taken before it, the swing at it)
+    temp = t_min + swing * np.where(hours <= RISE_TO_H, rise, np.exp(-(hours - RISE_TO_H) / 6.0))
+    return (solar_s - offset) * NS, hours, temp
+
+
+def _blend(prior: float, sd: float, own: float) -> float:
+    """The precision-weighted clearness of ``sunlight`` once the whole rise is seen."""
+    w_own = ((CLEAR_SWING_K - OVERCAST_SWING_K) / WANDER_K) ** 2
+    return (prior / sd**2 + w_own * own) / (1.0 / sd**2 + w_own)
+
+
+def test_sun_covariate_reads_the_days_clearness_from_its_warming_causally() -> None:
+    grey = 0.25
+    t1, hours, clear_day = _day(2.0, CLEAR_SWING_K)
+    t2, _, grey_day = _day(4.0, OVERCAST_SWING_K + grey * (CLEAR_SWING_K - OVERCAST_SWING_K), 19_101)
+    cov = SunCovariate()
+    up = clear_sky(t1) > 1e-3  # the clearness shows where the sun is up (both days alike)
+    a = cov.values(t1, clear_day)[0][up] / clear_sky(t1[up])
+    b = cov.values(t2, grey_day)[0][up] / clear_sky(t2[up])
+    night = hours[up] < RISE_FROM_H
+    after = hours[up] >= RISE_TO_H
+    assert night.sum() > 30 and after.sum() > 100
+    # the first day: the middle of the range until the air rises, then (closed form) its own
+    first = float(a[-1])  # where the first day ended: its whole rise seen, on the 60 s grid
+    assert first == pytest.approx(_blend(0.5, FIRST_SD, 1.0), rel=1e-5)
+    assert np.all(a[night] == 0.5) and a[after] == pytest.approx(first, rel=1e-5)
+    # the next: the day before's until the air rises, then its own: a quarter
+    assert np.all(b[night] == pytest.approx(first, rel=1e-12))  # exactly what the day ended with
+    assert b[after] == pytest.approx(_blend(first, DAY_SD, grey), rel=1e-5)
+    # it never jumps within a day (a jump would read as a step of the level): at most 0.01 a minute
+    # while the sun is up
+    assert np.max(np.abs(np.diff(a))) < 0.01 and np.max(np.abs(np.diff(b))) < 0.01
+    # any chunking, with the state carried as plain data, gives the same covariate
+    times, temps = np.r_[t1, t2], np.r_[clear_day, grey_day]
+    whole = np.column_stack(SunCovariate().values(times, temps))
+    for cut in (1, 577, 1440, 2000):
+        first_part = SunCovariate()
+        head = np.column_stack(first_part.values(times[:cut], temps[:cut]))
+        second = SunCovariate()
+        second.load_state_dict(first_part.state_dict())
+        tail = np.column_stack(second.values(times[cut:], temps[cut:]))
+        np.testing.assert_array_equal(np.r_[head, tail], whole)
+    # a record starting after the morning has no clearness of its own: the day before's holds
+    late = SunCovariate()
+    late.values(t1, clear_day)
+    noon = hours >= 11.0
+    cov_late, var_late = late.values(t2[noon], grey_day[noon])
+    np.testing.assert_allclose(cov_late, first * clear_sky(t2[noon]), rtol=1e-12)
+    # ... and its spread is the day-to-day one; a day's own estimate narrows it
+    np.testing.assert_allclose(var_late, DAY_SD**2 * clear_sky(t2[noon]) ** 2, rtol=1e-12)
+    _, var_own = SunCovariate().values(t1, clear_day)
+    assert np.all(var_own[up][after] < 0.01 * FIRST_SD**2 * clear_sky(t1[up][after]) ** 2)
+
+
+def test_the_default_sun_prior_is_half_the_standards_range() -> None:
+    """The prior's sd is the top of ``vertical_gradient``'s plausible range (EN 1991-1-5) over two."""
+    cfg = load_config()
+    assert cfg.sun_gradient is False and cfg.sun_gradient_prior_mean_k == 0.0
+    assert cfg.sun_gradient_prior_sd_k == pytest.approx(plausible_range("vertical_gradient")[1] / 2.0)
+
+
+@pytest.fixture(scope="module")
+def gradient_runs():
+    """Three days of monitoring (0.1 Hz), with the sun (4 K) and without; with and without the term."""
+    from bridge_shadow.twin.simulate import simulate
+
+    sur, cfg = load_surrogate(), load_config()
+    out = {}
+    for g in (4.0, 0.0):
+        data, truth = simulate(3.0, 0.1, 2, {"settlement_offset": 7e-4, "vertical_gradient": g})
+        end = np.array(truth["settlement"]["end_m"])
+        for sun in (False, True):
+            sh = Shadow(cfg.replace(sun_gradient=sun), sur)
+            out[g, sun] = (sh, sh.run(data), end, data)
+    return out
+
+
+def test_the_sun_term_learns_the_gradient_and_removes_the_suns_bias(gradient_runs) -> None:
+    vg = load_surrogate().thermal["vertical_gradient"]
+    sh, res, end, _ = gradient_runs[4.0, True]
+    _, plain, _, _ = gradient_runs[4.0, False]
+    err, err_plain = np.abs(res.mean_m - end), np.abs(plain.mean_m - end)
+    assert np.all(err_plain > 4e-4)  # the sun's mean ends up in the level without the term
+    assert np.all(err < 2e-4) and np.all(err < 0.25 * err_plain)
+    g = sh.fit.beta[:, -1] / vg
+    assert np.all((g > 3.0) & (g < 5.0))  # 4 K at full sun (the covariate's clearness is estimated)
+    assert np.all(np.abs(res.mean_m - end) <= 1.96 * np.sqrt(np.diag(res.covariance_m2)))
+    # without sun the term finds none and the answer stays
+    sh0, res0, end0, _ = gradient_runs[0.0, True]
+    _, plain0, _, _ = gradient_runs[0.0, False]
+    assert np.all(np.abs(sh0.fit.beta[:, -1] / vg) < 0.3)
+    np.testing.assert_allclose(res0.mean_m, plain0.mean_m, atol=5e-5)
+    np.testing.assert_allclose(res0.mean_m, end0, atol=5e-5)
+
+
+def test_sun_term_chunking_and_checkpoint_change_nothing(gradient_runs, tmp_path: Path) -> None:
+    from bridge_shadow.series import MonitoringData
+
+    _, whole, _, data = gradient_runs[4.0, True]
+    cfg = load_config().replace(sun_gradient=True, checkpoint_path=str(tmp_path / "s.npz"))
+    sur = load_surrogate()
+    chunked = Shadow(cfg, sur).run(data, chunk=997)
+    np.testing.assert_allclose(chunked.mean_m, whole.mean_m, rtol=1e-9, atol=1e-12)
+    cut = int(np.median(data.forces["frc_01"].stamp_ns))
+
+    def part(lo: int | None, hi: int | None) -> MonitoringData:
+        return data.select(lambda t: (t >= (lo or 0)) & (t < (hi or 2**62)), by="stamp_ns")
+
+    a = Shadow(cfg, sur)
+    a.run(part(None, cut), flush=False)
+    a.save_checkpoint()
+    b = Shadow.resume(tmp_path / "s.npz", cfg, sur)
+    res = b.run(part(cut, None))
+    np.testing.assert_allclose(res.mean_m, whole.mean_m, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(res.covariance_m2, whole.covariance_m2, rtol=1e-8, atol=1e-18)
