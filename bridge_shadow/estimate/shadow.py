@@ -80,6 +80,11 @@ _RANGE_MARGIN_K = 0.5
 RECENT_REJECTED = 50
 
 
+
+def _sun_sd(w: Window) -> float:
+    """Return the sd of window ``w``'s sun covariate (0 without temperature: no curve, no sun term)."""
+    return w.svar**0.5 if w.i0[0] >= 0 else 0.0
+
 class Shadow:
     """The online shadow of the two central-support settlements (no ROS import).
 
@@ -418,7 +423,7 @@ class Shadow:
         for w, gw, vw in zip(windows, g, gvar, strict=True):
             w.g = (gw[0], gw[1])
             # the sun covariate's own uncertainty moves both channels' predictions together
-            sv = w.svar if w.i0[0] >= 0 else 0.0
+            sv = _sun_sd(w) ** 2
             w.gvar = (vw[0] + s0 * s0 * sv, s0 * s1 * sv, vw[1] + s1 * s1 * sv)
             w.g_fit = self._fit_id
 
@@ -638,7 +643,7 @@ class Shadow:
         if add_rows:
             y = w.force - self.u0
             seg = self.filter.segment
-            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, seg))
+            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, seg, _sun_sd(w)))
             self._n_accepted += 1
             t0, t1 = float(w.temp[0]), float(w.temp[1])
             lo, hi = self._range
@@ -661,7 +666,7 @@ class Shadow:
         self.warm = True
         for w in warm:
             y = w.force - self.u0
-            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, max(w.seg, 0)))
+            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, max(w.seg, 0), _sun_sd(w)))
             self._n_accepted += 1
         self._refit(reselect=True, online=False)
         self._refit(reselect=True, online=False)  # the slope prior, weighed with the noise just learned
@@ -672,7 +677,7 @@ class Shadow:
         """Move the accepted windows' rows into the sums."""
         if not self._rows:
             return
-        k, m, y, t, i0, bv, seg = zip(*self._rows, strict=True)
+        k, m, y, t, i0, bv, seg, sv = zip(*self._rows, strict=True)
         self._rows = []
         self.sums.add(
             WindowRows(
@@ -683,6 +688,7 @@ class Shadow:
                 np.asarray(i0, np.int64),
                 np.asarray(bv, float),
                 np.asarray(seg, np.int64),
+                np.asarray(sv, float),
             )
         )
 

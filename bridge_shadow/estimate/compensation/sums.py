@@ -10,7 +10,8 @@ update costs a few ``np.bincount`` calls per batch of windows, whatever the reco
 ==============================  ====================================================================
 per channel                      ``W = sum m``, ``sy = sum m y``, ``yy = sum m y^2``, ``sb = sum m b``,
                                  ``r = sum m b y``, ``G = sum m b b'``
-per segment and channel          ``Ws, sys, sbs`` (the same over the segment's windows), ``ns``
+per segment and channel          ``Ws, sys, sbs`` (the same over the segment's windows), ``ns``;
+                                 ``Ssv = sum m sv`` (the sun covariate's sd, for its share of a level)
 across channels (``p = sqrt(m0 m1)``)  ``X1s, Xy0s, Xy1s, Xb0s, Xb1s`` per segment; ``Xyy = sum p y0 y1``,
                                  ``Xb0y1 = sum p b0 y1``, ``Xy0b1 = sum p y0 b1``, ``XBB = sum p b0 b1'``
 lag 1 (adjacent windows of one   ``L1s, Lyps, Lycs, Lbps, Lbcs`` per segment (``p = sqrt(m' m)``, ``'`` the
@@ -31,7 +32,7 @@ import numpy as np
 
 __all__ = ["FitSums", "Moments", "WindowRows", "residual_moments", "row_columns"]
 
-_FIELDS = ("k", "m", "y", "t", "i0", "bv", "seg")
+_FIELDS = ("k", "m", "y", "t", "i0", "bv", "seg", "sv")
 
 
 @dataclass
@@ -47,6 +48,7 @@ class WindowRows:
         bv: (n, 2, w) the non-zero basis values: the four B-splines, and the sun covariate when the
             compensation has a sun term (``w = 5``, ``row_columns``).
         seg: (n,) int, settlement segment.
+        sv: (n,) sd of the sun covariate (what it does not know of the sky; 0 without a sun term).
 
     """
 
@@ -57,6 +59,11 @@ class WindowRows:
     i0: np.ndarray
     bv: np.ndarray
     seg: np.ndarray
+    sv: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.sv is None:
+            self.sv = np.zeros(len(self.k))
 
     def __len__(self) -> int:
         return len(self.k)
@@ -142,6 +149,7 @@ class FitSums:
         "Lycs",
         "Lbps",
         "Lbcs",
+        "Ssv",
     )
 
     def __init__(self, q: int, width: int = 4) -> None:
@@ -185,6 +193,7 @@ class FitSums:
             "Lycs": (n_seg, 2),
             "Lbps": (n_seg, 2, q),
             "Lbcs": (n_seg, 2, q),
+            "Ssv": (n_seg, 2),
         }
         for name, shape in shapes.items():
             old = getattr(self, name, None)
@@ -221,6 +230,7 @@ class FitSums:
         for c in range(2):
             self.Ws[:, c] += np.bincount(seg, weights=m[:, c], minlength=n_seg)
             self.sys[:, c] += np.bincount(seg, weights=m[:, c] * y[:, c], minlength=n_seg)
+            self.Ssv[:, c] += np.bincount(seg, weights=m[:, c] * rows.sv, minlength=n_seg)
             ok = rows.i0[:, c] >= 0
             if ok.any():
                 bv, mc, yc = rows.bv[ok, c], m[ok, c], y[ok, c]
@@ -324,6 +334,7 @@ class FitSums:
             np.zeros((1, 2), int),
             np.zeros((1, 2, self.width)),
             np.zeros(1, int),
+            np.zeros(1),
         )
         out["prev"] = {f: getattr(prev, f) for f in _FIELDS}
         return out
@@ -347,6 +358,7 @@ class FitSums:
                 np.asarray(p["i0"], int).reshape(1, 2),  # type: ignore[index]
                 np.asarray(p["bv"], float).reshape(1, 2, -1),  # type: ignore[index]
                 np.asarray(p["seg"], int).reshape(1),  # type: ignore[index]
+                np.asarray(p["sv"], float).reshape(1),  # type: ignore[index]
             )
             if bool(state["has_prev"])
             else None

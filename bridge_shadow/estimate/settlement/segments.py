@@ -418,6 +418,9 @@ class SegmentChain:
             if meas is not None:
                 x_d, lam_inv = meas
                 beta_cov = self.a_inv @ np.diag(sigma2 * fit.beta_variance_factor(sums, s)) @ self.a_inv.T
+                if fit.sun:  # a misread sky moves the segment's level in both channels together
+                    f = fit.beta[:, -1] * sums.Ssv[s] / np.maximum(sums.Ws[s], 1e-300)
+                    beta_cov = beta_cov + self.a_inv @ np.outer(f, f) @ self.a_inv.T
                 d_cov = lam_inv + beta_cov
                 if s == n_seg - 1:
                     self._beta_covf = _sym(beta_cov)

@@ -160,6 +160,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "i0": np.array([r[4] for r in rows], np.int64).reshape(-1, 2),
             "bv": np.array([r[5] for r in rows], float).reshape(-1, 2, width),
             "seg": np.array([r[6] for r in rows], np.int64),
+            "sv": np.array([r[7] for r in rows], float),
         },
         "events": json.dumps(
             [
@@ -289,6 +290,7 @@ def restore_shadow(
             np.asarray(r["i0"]).reshape(-1, 2)[i],
             np.asarray(r["bv"], float).reshape(-1, 2, width)[i],
             int(np.asarray(r["seg"]).ravel()[i]),
+            float(np.asarray(r["sv"], float).ravel()[i]),
         )
         for i in range(n_rows)
     ]
