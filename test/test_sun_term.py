@@ -260,3 +260,20 @@ def test_the_bundled_demo_with_the_sun_term_reads_the_twins_offset(root: Path, t
         sp = js["spline"][ch]
         assert sp["sun_gradient_k"] == pytest.approx(expected[c], abs=0.15)
         assert 0 < sp["sun_gradient_sd_k"] < 0.1
+
+
+def test_diagnostics_show_the_sun_term_only_when_it_is_on(gradient_runs) -> None:
+    """``/diagnostics``' compensation status carries ``g`` and its sd per channel (K), as the JSON does."""
+    pytest.importorskip("diagnostic_msgs")
+    from bridge_shadow.ros.diagnostics import statuses
+
+    ages = {"frc_01": 0.1, "frc_02": 0.1, "air_temperature": 0.1}
+    on, off = gradient_runs[4.0, True][0], gradient_runs[4.0, False][0]
+    comp = statuses(on.diagnostics(), ages)[2]
+    for c, ch in enumerate(("frc_01", "frc_02")):
+        sp = on.spline_info()[ch]
+        assert comp.values[f"{ch} sun term [K]"] == f"{sp['sun_gradient_k']:.2f}"
+        sd = float(comp.values[f"{ch} sun term sd [K]"])
+        assert sd == pytest.approx(sp["sun_gradient_sd_k"], abs=0.006)
+        assert sp["sun_gradient_k"] == pytest.approx(on.fit.beta[c, -1] / on.compensation.sun_slope[c])
+    assert not any("sun" in k for k in statuses(off.diagnostics(), ages)[2].values)

@@ -105,6 +105,9 @@ def _compensation(diag: Mapping[str, Any]) -> Status:
         values[f"{ch} windows"] = str(sp["windows"])
         span = f"{_num(sp['t_min_c'], '.1f')} .. {_num(sp['t_max_c'], '.1f')}"
         values[f"{ch} temperature range [C]"] = span
+        if "sun_gradient_k" in sp:  # the sun term (sun_gradient): its difference at full sun
+            values[f"{ch} sun term [K]"] = _num(sp["sun_gradient_k"], ".2f")
+            values[f"{ch} sun term sd [K]"] = _num(sp["sun_gradient_sd_k"], ".2f")
     noise = diag["noise"]
     values["noise mode"] = str(noise["mode"])
     for ch, phi, sd in zip(CHANNELS, noise["phi"], noise["sigma_n"], strict=True):
