@@ -272,16 +272,22 @@ def test_a_synth_fleet_equals_serial_replay_per_bridge(tmp_path: Path) -> None:
     fleet = tmp_path / "fleet"
     argv = ["synth", "--archive", str(fleet), "--bridges", "2", "--days", "1.5", "--rate", "0.05"]
     assert main([*argv, "--step", "0.8:-0.001:-0.0005"]) == 0
+    # the second bridge runs the sun term: its covariate's state crosses the daily seams too
+    sun = fleet / "bridge_01" / "shadow.yaml"
+    sun.write_text("bridge_shadow:\n  ros__parameters:\n    sun_gradient: true\n")
     plans = plan_bridges(archive_sources(str(fleet)))
     assert [p.source.name for p in plans] == ["bridge_00", "bridge_01"]
     with dask_client(workers=2, processes=False) as client:
         run = run_archive(client, plans, tmp_path / "cache")
     for bridge, plan in zip(run.bridges, plans, strict=True):
         whole = _concatenated(sorted(plan.source.bags), tmp_path / f"whole_{bridge.name}")
-        ref, _ = replay_bag(whole, Shadow(load_config(), load_surrogate()))
+        config = load_config(sun) if bridge.name == "bridge_01" else load_config()
+        assert config.sun_gradient == (bridge.name == "bridge_01")
+        ref, _ = replay_bag(whole, Shadow(config, load_surrogate()))
         assert_same_result(bridge.result, ref.to_json())
         assert len(bridge.result["events"]) >= 1  # the step, through a seam-free day
         assert not bridge.fed_whole
+        assert ("sun_gradient_k" in bridge.result["spline"]["frc_01"]) == config.sun_gradient
 
 
 def test_a_wrong_expected_order_is_caught(
@@ -377,6 +383,9 @@ OTHER_VALUES: dict[str, Any] = {
     "spline_t_max_c": 40.0,
     "spline_segments": 9,
     "thermal_prior_sd_n_per_k": 300.0,
+    "sun_gradient": True,
+    "sun_gradient_prior_mean_k": 2.0,
+    "sun_gradient_prior_sd_k": 5.0,
     "warmup_windows": 4,
     "refit_windows": 30,
     "lambda_reselect_growth": 1.5,
