@@ -223,8 +223,10 @@ def continuous_study(mapper: Callable[..., list[Any]], seeds: int) -> None:
         out = mapper(continuous_day, [(seed, term) for seed in range(seeds)])
         err = 1e3 * np.array([o[0] for o in out])
         sd = 1e3 * np.array([o[1] for o in out])
-        print(f"three sunny days monitored, sun term {'on' if term else 'off'}: {seeds} seeds in "
-              f"{time.perf_counter() - t0:.0f} s")
+        print(
+            f"three sunny days monitored, sun term {'on' if term else 'off'}: {seeds} seeds in "
+            f"{time.perf_counter() - t0:.0f} s"
+        )
         print(f"  days without a false event {np.mean([o[2] == 0 for o in out]):.3f}")
         print(f"  95 % holds                 {np.mean(np.all(np.abs(err) <= 1.96 * sd, axis=1)):.3f}")
         worst = np.round(np.abs(err).max(axis=0), 3)

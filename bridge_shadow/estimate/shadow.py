@@ -80,10 +80,10 @@ _RANGE_MARGIN_K = 0.5
 RECENT_REJECTED = 50
 
 
-
 def _sun_sd(w: Window) -> float:
     """Return the sd of window ``w``'s sun covariate (0 without temperature: no curve, no sun term)."""
     return w.svar**0.5 if w.i0[0] >= 0 else 0.0
+
 
 class Shadow:
     """The online shadow of the two central-support settlements (no ROS import).

@@ -112,7 +112,7 @@ class Compensation:
         slope_fe: (2,) N/K, FE uniform-temperature sensitivity (prior slope and extrapolation).
         slope_sd: N/K, the slope prior's standard deviation over one kelvin.
         omega1: (q, q) slope penalty ``int b' b'^T``; e: (q,) ``int b'`` (``e' beta = g(t_max) - g(t_min)``).
-        sun: a sun term is fitted (one more column, last: ``gamma clear_sky(t)``, see below).
+        sun: a sun term is fitted (one more column, the last: ``gamma s(t)``, see below).
         q_spline: B-spline basis size (``q`` less the sun column); width: basis values per row.
         sun_slope: (2,) N/K, the FE response to 1 K of vertical temperature difference.
         sun_prior_k: (mean, sd) K, the prior of the difference at a covariate of 1.
@@ -329,7 +329,7 @@ class Compensation:
             if not ok.any():
                 continue
             cols = row_columns(i0[ok, c], self.width, self.q)  # (n, width)
-            block = fit.minv[c][cols[:, :, None], cols[:, None, :]]  # (n, 4, 4)
+            block = fit.minv[c][cols[:, :, None], cols[:, None, :]]  # (n, width, width)
             b = bv[ok, c]
             quad = np.einsum("ni,nij,nj->n", b, block, b) - 2.0 * np.sum(b * fit.mbar[c][cols], axis=1)
             out[ok, c] = fit.kappa[c] * self.slope_sd**2 * np.maximum(quad + fit.sbar[c], 0.0)
