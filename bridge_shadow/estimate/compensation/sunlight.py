@@ -25,7 +25,7 @@ A rate limit on the clearness (a tenth per hour, so that the air's minute-to-min
 small share of the rise made early in the morning cannot shake the prediction) was tried: it made
 the twin's load-test days worse (the afternoon records' clearness lagged) and was left out.
 
-The state is six numbers, so the covariate of every window is the same however the data are
+The state is seven numbers, so the covariate of every window is the same however the data are
 chunked, checkpointed or split into archive bags.
 """
 
@@ -111,7 +111,8 @@ class SunCovariate:
 
         Windows come in time order; a NaN temperature leaves the clearness as it is. The variance
         (n,) is the clearness estimate's times ``clear_sky^2``: what the covariate itself does not
-        know, for the detector (a misread sky moves the prediction of a whole run of windows).
+        know (a misread sky moves the prediction of a whole run of windows: the step test and the
+        segment levels take it).
         """
         t_ns = np.asarray(t_ns, np.int64).reshape(-1)
         temp = np.asarray(temp_c, float).reshape(-1)
