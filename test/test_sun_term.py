@@ -277,3 +277,15 @@ def test_diagnostics_show_the_sun_term_only_when_it_is_on(gradient_runs) -> None
         assert sd == pytest.approx(sp["sun_gradient_sd_k"], abs=0.006)
         assert sp["sun_gradient_k"] == pytest.approx(on.fit.beta[c, -1] / on.compensation.sun_slope[c])
     assert not any("sun" in k for k in statuses(off.diagnostics(), ages)[2].values)
+
+
+def test_a_surrogate_without_the_vertical_gradient_case_is_refused_by_name() -> None:
+    """The sun term maps through the FE case: a surrogate without it is a clear error, never a silent off."""
+    from bridge_shadow.errors import ConfigError
+    from bridge_shadow.model.surrogate_file import Surrogate
+
+    sur = load_surrogate()
+    bare = Surrogate(sur.A, sur.u0, {"uniform": sur.thermal["uniform"]})
+    with pytest.raises(ConfigError, match=r"thermal\.vertical_gradient"):
+        Shadow(load_config().replace(sun_gradient=True), bare)
+    Shadow(load_config(), bare)  # without the term the case is not needed

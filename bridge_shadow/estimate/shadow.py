@@ -140,6 +140,15 @@ class Shadow:
             config.traffic_threshold_n,
             config.traffic_margin_s,
         )
+        vertical = np.asarray(surrogate.thermal.get("vertical_gradient", np.zeros(2)), float)
+        if config.sun_gradient and not np.all(np.abs(vertical) > 0):
+            from bridge_shadow.errors import ConfigError
+
+            raise ConfigError(
+                "sun_gradient needs the surrogate's thermal.vertical_gradient (the FE response to a "
+                "vertical temperature difference, N/K, non-zero on both bearings); "
+                f"it has {vertical.tolist()}"
+            )
         self.compensation = Compensation(
             config.spline_t_min_c,
             config.spline_t_max_c,
@@ -148,7 +157,7 @@ class Shadow:
             lam=config.spline_lambda,
             slope_fe=surrogate.thermal.get("uniform", np.zeros(2)),
             slope_sd=config.thermal_prior_sd_n_per_k,
-            sun_slope=surrogate.thermal.get("vertical_gradient") if config.sun_gradient else None,
+            sun_slope=vertical if config.sun_gradient else None,
             sun_prior_k=(config.sun_gradient_prior_mean_k, config.sun_gradient_prior_sd_k),
         )
         self.sums = FitSums(self.compensation.q, self.compensation.width)
