@@ -246,7 +246,8 @@ def spline_info(shadow: Shadow) -> dict[str, dict[str, float]]:
     """Per channel: edf, lambda, level, windows fitted, temperature range (NaN before a fit).
 
     With the sun term (``sun_gradient``) also its vertical temperature difference at a covariate of
-    1 and that estimate's sd, K (``sun_gradient_k``, ``sun_gradient_sd_k``).
+    1 and that estimate's sd from the noise (long-run variance), K (``sun_gradient_k``,
+    ``sun_gradient_sd_k``); what a misread sky adds is not in it.
     """
     info: dict[str, dict[str, float]] = {}
     fit = shadow.fit
@@ -265,7 +266,8 @@ def spline_info(shadow: Shadow) -> dict[str, dict[str, float]]:
         comp = shadow.compensation
         if comp.sun and fit is not None:  # the sun term's difference at a covariate of 1, K
             slope = float(comp.sun_slope[c])
-            var = float(fit.kappa[c]) * comp.slope_sd**2 * float(fit.minv[c, -1, -1])
+            # with the noise's long-run (AR(1)) variance, as the levels' share of the curve takes it
+            var = float(shadow.noise.long_run_cov()[c, c]) * float(fit.minv[c, -1, -1])
             info[ch]["sun_gradient_k"] = float(fit.beta[c, -1]) / slope
             info[ch]["sun_gradient_sd_k"] = float(np.sqrt(max(var, 0.0))) / abs(slope)
     return info
