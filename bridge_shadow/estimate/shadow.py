@@ -712,8 +712,10 @@ class Shadow:
         detected = self._last_judged if self._last_judged >= 0 else (self._last_usable_k or 0)
         while True:
             lam = None if reselect or not np.all(np.isfinite(self.lam)) else self.lam
-            kappa = self.compensation.slope_weight(np.diag(self.noise.r1))
-            fit = self.compensation.fit(self.sums, lam, kappa)
+            per_sample = np.diag(self.noise.r1)
+            kappa = self.compensation.slope_weight(per_sample)
+            long_run = np.diag(self.noise.long_run_cov()) / np.maximum(per_sample, 1e-300)
+            fit = self.compensation.fit(self.sums, lam, kappa, long_run)
             self.fit = fit
             self._fit_id += 1
             self._set_range(fit)

@@ -202,12 +202,20 @@ class Compensation:
         return np.asarray(sigma2, float).reshape(2) / self.slope_sd**2 * 1.0
 
     def fit(
-        self, sums: FitSums, lam: np.ndarray | None = None, kappa: np.ndarray | None = None
+        self,
+        sums: FitSums,
+        lam: np.ndarray | None = None,
+        kappa: np.ndarray | None = None,
+        long_run: np.ndarray | None = None,
     ) -> CompensationFit:
         """Fit both channels.
 
         ``lam`` (2,) reuses smoothing parameters (None: select them by REML/GCV); ``kappa`` (2,) K
         weighs the slope prior (``slope_weight`` of the noise model's variance; None: no prior).
+        ``long_run`` (2,): the noise's long-run over its per-sample variance (the AR(1) factor; None:
+        1). The sun prior is weighed on the long-run scale, the one the levels' share of the fit is
+        read on (``SegmentChain.refresh``): with data that say nothing of the sun, ``g``'s variance
+        there is the prior's, not the prior's times that factor.
         """
         q, n_seg = self.q, sums.n_segments
         beta = np.zeros((2, q))
@@ -233,6 +241,7 @@ class Compensation:
             yyp = yyw + kap * s_fe**2 * self.span
             if self.sun:  # the sun prior, as data (a tiny ridge without the noise model's variance)
                 ks, g0 = self.sun_weight(kap, c) if kap > 0 else (1e-9 * (1.0 + gw[-1, -1]), 0.0)
+                ks *= 1.0 if long_run is None else float(long_run[c])
                 gp[-1, -1] += ks
                 rp[-1] += ks * g0
                 yyp += ks * g0**2
