@@ -80,9 +80,9 @@ _RANGE_MARGIN_K = 0.5
 RECENT_REJECTED = 50
 
 
-def _sun_sd(w: Window) -> float:
-    """Return the sd of window ``w``'s sun covariate (0 without temperature: no curve, no sun term)."""
-    return w.svar**0.5 if w.i0[0] >= 0 else 0.0
+def _sun_var(w: Window) -> float:
+    """Return the variance of window ``w``'s sun covariate (0 without temperature: no curve, no sun term)."""
+    return w.svar if w.i0[0] >= 0 else 0.0
 
 
 class Shadow:
@@ -140,15 +140,8 @@ class Shadow:
             config.traffic_threshold_n,
             config.traffic_margin_s,
         )
-        vertical = np.asarray(surrogate.thermal.get("vertical_gradient", np.zeros(2)), float)
-        if config.sun_gradient and not np.all(np.abs(vertical) > 0):
-            from bridge_shadow.errors import ConfigError
-
-            raise ConfigError(
-                "sun_gradient needs the surrogate's thermal.vertical_gradient (the FE response to a "
-                "vertical temperature difference, N/K, non-zero on both bearings); "
-                f"it has {vertical.tolist()}"
-            )
+        # the FE response to a vertical temperature difference (Compensation refuses a missing one)
+        vertical = surrogate.thermal.get("vertical_gradient", np.zeros(2))
         self.compensation = Compensation(
             config.spline_t_min_c,
             config.spline_t_max_c,
@@ -432,7 +425,7 @@ class Shadow:
         for w, gw, vw in zip(windows, g, gvar, strict=True):
             w.g = (gw[0], gw[1])
             # the sun covariate's own uncertainty moves both channels' predictions together
-            sv = _sun_sd(w) ** 2
+            sv = _sun_var(w)
             w.gvar = (vw[0] + s0 * s0 * sv, s0 * s1 * sv, vw[1] + s1 * s1 * sv)
             w.g_fit = self._fit_id
 
@@ -652,7 +645,7 @@ class Shadow:
         if add_rows:
             y = w.force - self.u0
             seg = self.filter.segment
-            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, seg, _sun_sd(w)))
+            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, seg, _sun_var(w) ** 0.5))
             self._n_accepted += 1
             t0, t1 = float(w.temp[0]), float(w.temp[1])
             lo, hi = self._range
@@ -675,7 +668,7 @@ class Shadow:
         self.warm = True
         for w in warm:
             y = w.force - self.u0
-            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, max(w.seg, 0), _sun_sd(w)))
+            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, max(w.seg, 0), _sun_var(w) ** 0.5))
             self._n_accepted += 1
         self._refit(reselect=True, online=False)
         self._refit(reselect=True, online=False)  # the slope prior, weighed with the noise just learned

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
+from bridge_shadow.errors import ConfigError
 from bridge_shadow.estimate.compensation.spline import (
     basis_nonzero,
     clamped_knots,
@@ -148,8 +149,14 @@ class Compensation:
         self.width = 4 + int(self.sun)
         self.sun_slope = np.zeros(2) if sun_slope is None else np.asarray(sun_slope, float).reshape(2)
         self.sun_prior_k = (float(sun_prior_k[0]), float(sun_prior_k[1]))
-        if self.sun and (self.sun_prior_k[1] <= 0 or not np.all(np.abs(self.sun_slope) > 0)):
-            raise ValueError("a sun term needs a prior sd > 0 and a non-zero FE vertical-gradient response")
+        if self.sun and not np.all(np.abs(self.sun_slope) > 0):
+            raise ConfigError(
+                "sun_gradient needs the surrogate's thermal.vertical_gradient (the FE response to a "
+                "vertical temperature difference, N/K, non-zero on both bearings); "
+                f"it has {self.sun_slope.tolist()}"
+            )
+        if self.sun and self.sun_prior_k[1] <= 0:
+            raise ConfigError(f"sun_gradient_prior_sd_k must be > 0 (now {self.sun_prior_k[1]:g})")
         self.omega = self._pad(gram_penalty(self.knots))
         self.mode = mode
         self.lam_fixed = float(lam)

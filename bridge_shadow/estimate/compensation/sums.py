@@ -227,14 +227,16 @@ class FitSums:
         self.sy += (m * y).sum(axis=0)
         self.yy += (m * y * y).sum(axis=0)
         self.ns += np.bincount(seg, minlength=n_seg)
+        has = rows.i0 >= 0  # (n, 2): the window's temperature is known on that channel
+        cols = [row_columns(np.where(has[:, c], rows.i0[:, c], 0), width, q) for c in range(2)]
         for c in range(2):
             self.Ws[:, c] += np.bincount(seg, weights=m[:, c], minlength=n_seg)
             self.sys[:, c] += np.bincount(seg, weights=m[:, c] * y[:, c], minlength=n_seg)
             self.Ssv[:, c] += np.bincount(seg, weights=m[:, c] * rows.sv, minlength=n_seg)
-            ok = rows.i0[:, c] >= 0
+            ok = has[:, c]
             if ok.any():
                 bv, mc, yc = rows.bv[ok, c], m[ok, c], y[ok, c]
-                ix = row_columns(rows.i0[ok, c], width, q)
+                ix = cols[c][ok]
                 self.sb[c] += _scatter_vec(ix, mc[:, None] * bv, q)
                 self.r[c] += _scatter_vec(ix, (mc * yc)[:, None] * bv, q)
                 self.G[c] += _scatter_outer(ix, bv, ix, bv, mc, q)
@@ -247,8 +249,7 @@ class FitSums:
         self.X1s += np.bincount(seg, weights=p, minlength=n_seg)
         self.Xy0s += np.bincount(seg, weights=p * y[:, 0], minlength=n_seg)
         self.Xy1s += np.bincount(seg, weights=p * y[:, 1], minlength=n_seg)
-        ok0, ok1 = rows.i0[:, 0] >= 0, rows.i0[:, 1] >= 0
-        cols = [row_columns(np.where(rows.i0[:, c] >= 0, rows.i0[:, c], 0), width, q) for c in range(2)]
+        ok0, ok1 = has[:, 0], has[:, 1]
         if ok0.any():
             self.Xb0s += _scatter_seg_vec(seg[ok0], cols[0][ok0], p[ok0, None] * rows.bv[ok0, 0], n_seg, q)
             self.Xb0y1 += _scatter_vec(cols[0][ok0], (p * y[:, 1])[ok0, None] * rows.bv[ok0, 0], q)
