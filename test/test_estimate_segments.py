@@ -6,12 +6,14 @@ refresh; two segments with a jump equal the dense joint Gaussian; the float help
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from bridge_shadow.estimate.compensation.fit import Compensation
 from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import FitSums, Moments, WindowRows
-from bridge_shadow.estimate.settlement.segments import SegmentChain
+from bridge_shadow.estimate.settlement.segments import SegmentChain, SegmentData
 from bridge_shadow.estimate.small import congruence, inv_sym, mat_vec, quad_inv, sym_vec
 from bridge_shadow.model.surrogate_file import placeholder_surrogate
 
@@ -159,3 +161,105 @@ def test_a_provisional_segment_is_the_exact_mixture_of_changed_and_unchanged() -
             assert p < 0.2
         if shift == 2e-3:
             assert p > 0.999
+
+
+def _curve_case(seed: int) -> tuple[list[SegmentData], np.ndarray, np.ndarray, np.ndarray]:
+    """Three segments whose levels share a curve error of about 3 kN: data, curve_cov, H (3, 2, 2q)."""
+    rng = np.random.default_rng(seed)
+    q = 4
+    half = rng.normal(size=(2, q, q))
+    curve_cov = (half @ half.transpose(0, 2, 1) + 0.1 * np.eye(q)) * 1.5e6  # N^2
+    a_inv = np.linalg.inv(SUR.A)
+    data, hs = [], []
+    for _ in range(3):
+        v = rng.normal(size=(2, q))
+        half = rng.normal(size=(2, 2)) * 3e-4
+        lam_inv = half @ half.T + np.eye(2) * 1e-8
+        data.append(SegmentData(40, rng.normal(size=2) * 1e-3, lam_inv, None, v))
+        hs.append(np.hstack([np.outer(a_inv[:, c], v[c]) for c in range(2)]))  # x_d's error H dbeta
+    sigma = np.zeros((2 * q, 2 * q))
+    sigma[:q, :q], sigma[q:, q:] = curve_cov
+    return data, curve_cov, np.array(hs), sigma
+
+
+def _stacked_cov(data: list[SegmentData], hs: np.ndarray, sigma: np.ndarray, jumps: list[np.ndarray]):
+    """Dense covariance of the stacked ``x_d`` (6, 6) and of each ``x_d`` with the last state (6, 2)."""
+    n = len(data)
+    state = [PRIOR + sum(jumps[1 : s + 1], np.zeros((2, 2))) for s in range(n)]  # Var(x_s)
+    cov = np.zeros((2 * n, 2 * n))
+    with_last = np.zeros((2 * n, 2))
+    for s in range(n):
+        for t in range(n):
+            cov[2 * s : 2 * s + 2, 2 * t : 2 * t + 2] = state[min(s, t)] + hs[s] @ sigma @ hs[t].T
+        cov[2 * s : 2 * s + 2, 2 * s : 2 * s + 2] += data[s].lam_inv
+        with_last[2 * s : 2 * s + 2] = state[s]  # Cov(x_s, x_last) = Var(x_s), s <= last
+    return cov, with_last, state[-1]
+
+
+def _weights(chain: SegmentChain, data: list[SegmentData], curve_cov: np.ndarray) -> np.ndarray:
+    """The chain's mean as a linear map of the stacked ``x_d`` (2, 6), column by column."""
+    cols = []
+    for i in range(2 * len(data)):
+        unit = np.zeros(2 * len(data))
+        unit[i] = 1e-3
+        moved = [dataclasses.replace(d, x_d=unit[2 * s : 2 * s + 2]) for s, d in enumerate(data)]
+        chain.run_chain(moved, curve_cov)
+        cols.append(chain.x / 1e-3)
+    return np.array(cols).T
+
+
+def test_a_curve_error_shared_by_the_segments_is_carried_once() -> None:
+    """The levels share one curve error: P is the true error covariance, p the innovation's odds.
+
+    The chain (Schmidt's consider filter) publishes its estimate's true error covariance, and
+    after a gap it weighs the two outcomes by the likelihood of the new level given what the
+    common error already explains.
+
+    Independent reference: the dense joint Gaussian of the three segments' measurements
+    ``x_d,s = x_s + H_s dbeta + w_s``; the chain's mean is linear in them (weights by unit
+    measurements), so its error covariance and its innovation's follow from the dense covariance.
+    """
+    data, curve_cov, hs, sigma = _curve_case(4)
+    jump = np.diag([2e-3, 3e-3]) ** 2
+    chain = SegmentChain(SUR.A, PRIOR, jump)
+    chain.start(0)
+    chain.open_segment(40)
+    chain.open_segment(80)
+    chain.run_chain(data, curve_cov)
+    x, P = chain.x, chain.P
+    W = _weights(chain, data, curve_cov)
+    np.testing.assert_allclose(W @ np.concatenate([d.x_d for d in data]), x, rtol=1e-9)
+    cov, with_last, var_last = _stacked_cov(data, hs, sigma, chain.jumps)
+    err = W @ cov @ W.T - W @ with_last - with_last.T @ W.T + var_last  # Var(W x_d - x_last)
+    np.testing.assert_allclose(P, err, rtol=1e-8)
+    naive = cov.copy()  # the same levels with the curve's error counted independently per segment
+    for s in range(3):
+        for t in range(3):
+            if s != t:
+                naive[2 * s : 2 * s + 2, 2 * t : 2 * t + 2] -= hs[s] @ sigma @ hs[t].T
+    assert not np.allclose(P, W @ naive @ W.T - W @ with_last - with_last.T @ W.T + var_last, rtol=1e-3)
+
+    # the last segment after a gap: p from the innovation x_d,2 - m under both outcomes
+    from scipy.stats import multivariate_normal
+
+    for shift in (0.0, 3e-3):
+        gap = SegmentChain(SUR.A, PRIOR, jump)
+        gap.start(0)
+        gap.open_segment(40)
+        gap.open_segment(80, kind="gap", change_prior=0.3)
+        two = SegmentChain(SUR.A, PRIOR, jump)
+        two.start(0)
+        two.open_segment(40)
+        two.run_chain(data[:2], curve_cov)
+        m = two.x  # the posterior before the gap
+        moved = [*data[:2], dataclasses.replace(data[2], x_d=m + shift)]
+        gap.run_chain(moved, curve_cov)
+        lin = np.hstack([-_weights(two, data[:2], curve_cov), np.eye(2)])  # x_d,2 - m
+        r = moved[2].x_d - m
+        logs = []
+        for jumps in ([np.zeros((2, 2)), jump, np.zeros((2, 2))], [np.zeros((2, 2)), jump, jump]):
+            c, _, _ = _stacked_cov(data, hs, sigma, jumps)
+            logs.append(multivariate_normal(np.zeros(2), lin @ c @ lin.T).logpdf(r))
+        p = 1.0 / (1.0 + (0.7 / 0.3) * np.exp(logs[0] - logs[1]))
+        np.testing.assert_allclose(gap.change_probability, p, rtol=1e-7, atol=1e-12)
+        assert (p > 0.99) if shift else (p < 0.3)

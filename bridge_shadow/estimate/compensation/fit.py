@@ -87,20 +87,24 @@ class CompensationFit:
     bbar: np.ndarray
     sun: bool = False
 
-    def beta_variance_factor(self, sums: FitSums, s: int) -> np.ndarray:
-        """Return (2,) ``v_s' M^-1 v_s``: the curve's share of segment ``s``'s level variance / sigma^2.
+    def level_directions(self, sums: FitSums, s: int) -> np.ndarray:
+        """Return (2, q) ``v_s = sb_s / W_s - bbar`` per channel (level error of segment s: ``-v_s' dbeta``).
 
-        ``v_s = sb_s / W_s - bbar``: zero with one segment unless a sun term (not centred) is fitted.
+        Zero for a channel without windows in the segment (or in the fit), and with one segment
+        unless a sun term (not centred) is fitted.
         """
-        out = np.zeros(2)
+        out = np.zeros((2, self.beta.shape[1]))
         if sums.n_segments < 2 and not self.sun:
             return out
         for c in range(2):
-            if sums.Ws[s, c] <= 0 or sums.W[c] <= 0:
-                continue
-            v = sums.sbs[s, c] / sums.Ws[s, c] - self.bbar[c]
-            out[c] = max(float(v @ self.minv[c] @ v), 0.0)
+            if sums.Ws[s, c] > 0 and sums.W[c] > 0:
+                out[c] = sums.sbs[s, c] / sums.Ws[s, c] - self.bbar[c]
         return out
+
+    def beta_variance_factor(self, sums: FitSums, s: int) -> np.ndarray:
+        """Return (2,) ``v_s' M^-1 v_s``: the curve's share of segment ``s``'s level variance / sigma^2."""
+        v = self.level_directions(sums, s)
+        return np.maximum(np.einsum("ci,cij,cj->c", v, self.minv, v), 0.0)
 
 
 class Compensation:

@@ -21,6 +21,24 @@ The segments form a chain (filterpy ``KalmanFilter``, ``F = I``, ``H = I``):
     x_s = x_{s-1} + j_s,  j_s ~ N(0, J)        an event opens the covariance by J (the prior's)
     x_d,s = x_s + d_s,    d_s ~ N(0, D_s)      the segment's windows
 
+**The curve's error is common to all segments.** ``D_s`` above holds the curve's own
+uncertainty ``var_beta`` (zero with one segment unless a sun term is fitted), but that error is
+the *same* coefficient error ``dbeta_c ~ N(0, sigma_c^2 M_c^-1)`` in every segment: segment ``s``'s
+measurement is ``x_d,s = x_s + H_s dbeta + w_s`` with ``H_s = A^-1 (x) v_s'`` (``v_s`` the
+segment's mean basis row less the centring, ``CompensationFit.level_directions``). Counted
+independently per segment, a step between records at different temperatures or under different
+sun would be tested against the curve's error twice, although most of it cancels in the
+difference (on sunny load-test days, steps stayed "unconfirmed" at change probabilities of
+0.9-0.99). The chain is Schmidt's consider filter: ``dbeta`` is not estimated (the fit has used
+what the data say about it), the posterior's cross-covariance ``C = cov(x - x_hat, dbeta)`` is
+carried, and a segment's update is filterpy's ``update_correlated`` with ``M = C H_s'``:
+
+    S = P + D_s + C H_s' + H_s C',   K = (P + C H_s') S^-1,   P <- P - K (P + C H_s')'
+    C <- C - K (C + H_s Sigma_beta)
+
+``P`` is then the true error covariance of the published estimate, and the change probability
+below uses ``S`` (``test_estimate_segments`` checks both against the dense joint Gaussian).
+
 With one segment this is exactly the paper's closed form
 ``Sigma' = (Sigma_X^-1 + sum_w A' R_w^-1 A)^-1``, ``mu' = Sigma' sum_w A' R_w^-1 (y_w - u0)`` on the
 compensated windows (the centred curve drops out of the sum).
@@ -35,15 +53,15 @@ where the settlement *may* have changed: their jump is ``0`` with probability ``
 (generalized pseudo-Bayes of order 1): with the previous posterior ``N(m, P)`` and the segment's
 measurement ``x_d ~ N(x, D)``,
 
-    L0 = N(x_d; m, P + D),   L1 = N(x_d; m, P + J + D)        the data's likelihood either way
+    L0 = N(x_d; m, S),   L1 = N(x_d; m, S + J)                the data's likelihood either way
     p  = pi L1 / (pi L1 + (1 - pi) L0)                           the change probability
     x_h, P_h = the Kalman update of N(m, P [+ J]) with x_d       h = 0 (no change), 1 (change)
     x = (1 - p) x_0 + p x_1
     P = (1 - p) P_0 + p P_1 + p (1 - p) (x_1 - x_0)(x_1 - x_0)'
 
 so the posterior is honest in both outcomes: a real change of any size pulls ``p`` to 1 and the
-estimate to the new state; no change keeps ``p`` small (the Occam factor ``sqrt(|P+J+D| /
-|P+D|)``) and the estimate pooled, widened by what a change could still be. ``p`` is recomputed
+estimate to the new state; no change keeps ``p`` small (the Occam factor ``sqrt(|S+J| / |S|)``)
+and the estimate pooled, widened by what a change could still be. ``p`` is recomputed
 at every refresh from the current curve and noise model. The shadow reports the change as
 confirmed (an event) while ``p`` is at least ``change_confirm_probability``, and merges the
 segment into the one before it (no change) once ``p`` is at most one minus that (``Shadow``).
@@ -62,9 +80,12 @@ from filterpy.kalman import KalmanFilter
 from bridge_shadow.estimate.compensation.fit import CompensationFit
 from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import FitSums
-from bridge_shadow.estimate.small import Sym, Vec, congruence, inv_sym, mat_vec, quad_inv, sym_vec
+from bridge_shadow.estimate.small import Mat, Sym, Vec, congruence, inv_sym, mat_vec, quad_inv, sym_vec
 
-__all__ = ["SegmentChain", "SegmentSummary", "mixture_update"]
+__all__ = ["SegmentChain", "SegmentData", "SegmentSummary", "mixture_update"]
+
+#: No correlation between a segment curve error and the prior (C_x = 0).
+_NO_CROSS: Mat = (0.0, 0.0, 0.0, 0.0)
 
 
 @dataclass
@@ -97,6 +118,27 @@ class SegmentSummary:
     P_before: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
 
 
+@dataclass(frozen=True)
+class SegmentData:
+    """One segment's measurement of its settlement (m, m^2), before the chain.
+
+    Attributes:
+        n: windows in the segment.
+        x_d: (2,) data-only estimate ``Lambda^-1 eta`` (None without usable windows).
+        lam_inv: (2, 2) its covariance from the windows' noise, ``Lambda^-1``.
+        sky_cov: (2, 2) its further independent error (with a sun term: a misread sky), or None.
+        v: (2, q) the curve coefficients' direction into the level, per channel
+            (``CompensationFit.level_directions``; the curve's error is common to all segments).
+
+    """
+
+    n: int
+    x_d: np.ndarray | None = None
+    lam_inv: np.ndarray | None = None
+    sky_cov: np.ndarray | None = None
+    v: np.ndarray | None = None
+
+
 def _log_normal(r: Vec, s: Sym) -> float:
     """``log N(r; 0, S)`` for a 2-vector ``r`` and a symmetric positive definite ``S`` (floats)."""
     det = s[0] * s[2] - s[1] * s[1]
@@ -104,24 +146,31 @@ def _log_normal(r: Vec, s: Sym) -> float:
 
 
 def mixture_update(
-    m: Vec, p0: Sym, p1: Sym, prior: float, x_d: Vec | None, d: Sym | None
+    m: Vec, p0: Sym, p1: Sym, prior: float, x_d: Vec | None, d: Sym | None, cx: Mat = _NO_CROSS
 ) -> tuple[Vec, Sym, float]:
     """Two-hypothesis update of ``N(m, p0)`` (no change) and ``N(m, p1)`` (change), collapsed.
 
     ``prior`` is the probability of a change before the data; ``x_d ~ N(x, d)`` is the segment's
-    measurement (None: no data yet). Returns the collapsed mean, covariance and the posterior
+    measurement (None: no data yet), whose curve error correlates with the prior's by ``cx``
+    (``C H'``, the module docstring). Returns the collapsed mean, covariance and the posterior
     change probability (the module docstring's formulas, on floats).
     """
+    x, cov, p, _ = _mixture(m, p0, p1, prior, x_d, d, cx)
+    return x, cov, p
+
+
+def _mixture(
+    m: Vec, p0: Sym, p1: Sym, prior: float, x_d: Vec | None, d: Sym | None, cx: Mat
+) -> tuple[Vec, Sym, float, Mat]:
+    """``mixture_update``, and the collapsed gain ``(1 - p) K0 + p K1`` (zero without data)."""
     if x_d is None or d is None:
         widened = tuple(a + prior * (b - a) for a, b in zip(p0, p1, strict=True))
-        return m, (widened[0], widened[1], widened[2]), prior
+        return m, (widened[0], widened[1], widened[2]), prior, _NO_CROSS
+    x0, c0, k0, s0 = _combine_gain(m, p0, cx, x_d, d)
+    x1, c1, k1, s1 = _combine_gain(m, p1, cx, x_d, d)
     r = (x_d[0] - m[0], x_d[1] - m[1])
-    s0 = (p0[0] + d[0], p0[1] + d[1], p0[2] + d[2])
-    s1 = (p1[0] + d[0], p1[1] + d[1], p1[2] + d[2])
     log_odds = math.log(prior / (1.0 - prior)) + _log_normal(r, s1) - _log_normal(r, s0)
     p = 1.0 / (1.0 + math.exp(-log_odds)) if log_odds > -700.0 else 0.0
-    x0, c0 = _combine_f(m, p0, x_d, d)
-    x1, c1 = _combine_f(m, p1, x_d, d)
     q = 1.0 - p
     dx = (x1[0] - x0[0], x1[1] - x0[1])
     w = p * q
@@ -131,7 +180,8 @@ def mixture_update(
         q * c0[1] + p * c1[1] + w * dx[0] * dx[1],
         q * c0[2] + p * c1[2] + w * dx[1] * dx[1],
     )
-    return x, cov, p
+    gain = (q * k0[0] + p * k1[0], q * k0[1] + p * k1[1], q * k0[2] + p * k1[2], q * k0[3] + p * k1[3])
+    return x, cov, p, gain
 
 
 def _segment_measurement(
@@ -175,6 +225,14 @@ def _arr(m: Sym) -> np.ndarray:
     return np.array([[m[0], m[1]], [m[1], m[2]]])
 
 
+def _mat(m: np.ndarray) -> Mat:
+    return (float(m[0, 0]), float(m[0, 1]), float(m[1, 0]), float(m[1, 1]))
+
+
+def _garr(m: Mat) -> np.ndarray:
+    return np.array([[m[0], m[1]], [m[2], m[3]]])
+
+
 class SegmentChain:
     """Posterior of the settlement, segment by segment (no process noise).
 
@@ -210,6 +268,7 @@ class SegmentChain:
         self._pi = 0.0  # prior change probability of the current segment (0: not provisional)
         self._p = float("nan")  # posterior change probability of the current segment
         self._beta_covf: Sym = (0.0, 0.0, 0.0)  # curve term of the current segment (x space)
+        self._cxf: Mat = _NO_CROSS  # its curve error's covariance with the prior's (C H')
         self._before: tuple[Vec, Sym] = ((math.nan, math.nan), (math.nan, math.nan, math.nan))
         self._noise: NoiseModel | None = None
         self._online = _Online()
@@ -285,7 +344,7 @@ class SegmentChain:
         self._p0f = (self._P[0] + j[0], self._P[1] + j[1], self._P[2] + j[2])
         self._p1f = (self._p0f[0] + jj[0], self._p0f[1] + jj[1], self._p0f[2] + jj[2])
         self._pi = self.change_prior[-1]
-        self._beta_covf = (0.0, 0.0, 0.0)
+        self._beta_covf, self._cxf = (0.0, 0.0, 0.0), _NO_CROSS
         self.starts.append(int(k))
         self._online = _Online()
         self._update_current()
@@ -360,11 +419,13 @@ class SegmentChain:
         data = self._current_data()
         if 0.0 < self._pi < 1.0:
             x_d, d = data if data is not None else (None, None)
-            self._x, self._P, self._p = mixture_update(self._m0f, self._p0f, self._p1f, self._pi, x_d, d)
+            self._x, self._P, self._p = mixture_update(
+                self._m0f, self._p0f, self._p1f, self._pi, x_d, d, self._cxf
+            )
         elif data is None:
             self._x, self._P = self._m0f, self._p0f
         else:
-            self._x, self._P = _combine_f(self._m0f, self._p0f, *data)
+            self._x, self._P = _combine_f(self._m0f, self._p0f, *data, self._cxf)
 
     def current_measurement(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Return the current segment's ``x_d`` (2,) m and ``D`` (2, 2) m^2, and the previous posterior.
@@ -387,12 +448,45 @@ class SegmentChain:
     def refresh(self, sums: FitSums, fit: CompensationFit, noise: NoiseModel) -> None:
         """Recompute every segment and the chain from the sums, the curve and the noise model."""
         self._noise = noise
+        sigma2 = np.diag(noise.long_run_cov())
+        data = [self._segment_data(sums, fit, noise, s) for s in range(len(self.starts))]
+        self.run_chain(data, sigma2[:, None, None] * fit.minv)
+        n_seg = len(self.starts)
+        if n_seg:
+            n_last = int(sums.ns[n_seg - 1]) if n_seg - 1 < sums.n_segments else 0
+            self._online = (
+                _Online.from_arrays(*self._sums_mz(sums, fit, n_seg - 1), n_last) if n_last else _Online()
+            )
+        self.n_updates = int(sums.n)
+
+    def _segment_data(self, sums: FitSums, fit: CompensationFit, noise: NoiseModel, s: int) -> SegmentData:
+        """Return what segment ``s``'s windows say, compensated with ``fit`` (``SegmentData``)."""
+        n_s = int(sums.ns[s]) if s < sums.n_segments else 0
+        if not n_s:
+            return SegmentData(0)
+        M, Z = self._sums_mz(sums, fit, s)
+        meas = _segment_measurement(self.A, np.linalg.inv(noise.run_cov(n_s)), M, Z)
+        if meas is None:
+            return SegmentData(n_s)
+        sky = None
+        if fit.sun:  # a misread sky moves the segment's level in both channels together
+            f = fit.beta[:, -1] * sums.Ssv[s] / np.maximum(sums.Ws[s], 1e-300)
+            sky = self.a_inv @ np.outer(f, f) @ self.a_inv.T
+        return SegmentData(n_s, meas[0], meas[1], sky, fit.level_directions(sums, s))
+
+    def run_chain(self, data: list[SegmentData], curve_cov: np.ndarray) -> None:
+        """Run the chain over the segments' ``data`` (one per segment; the module docstring).
+
+        ``curve_cov`` (2, q, q): the covariance of the curve's coefficients per channel,
+        ``sigma_c^2 M_c^-1``. Their error is common to every segment's level: the chain carries
+        the posterior's cross-covariance ``C`` (2, 2, q) with it (Schmidt's consider filter).
+        """
         kf = KalmanFilter(dim_x=2, dim_z=2)
         kf.x = np.zeros((2, 1))
         kf.P = self.prior_cov.copy()
         kf.F = np.eye(2)
         kf.H = np.eye(2)
-        sigma2 = np.diag(noise.long_run_cov())
+        cross = np.zeros((2, curve_cov.shape[0], curve_cov.shape[1]))
         self.summaries = []
         n_seg = len(self.starts)
         for s in range(n_seg):
@@ -405,51 +499,53 @@ class SegmentChain:
             p1 = _sym(kf.P + self.jump_cov) if mixed else p0
             if s == n_seg - 1:
                 self._m0f, self._p0f, self._p1f, self._pi = m0, p0, p1, pi
-                self._beta_covf = (0.0, 0.0, 0.0)
+                self._beta_covf, self._cxf = (0.0, 0.0, 0.0), _NO_CROSS
                 if s > 0:
                     self._before = ((float(x_before[0]), float(x_before[1])), _sym(p_before))
-            n_s = int(sums.ns[s]) if s < sums.n_segments else 0
+            seg = data[s]
             x_d, d_cov = np.full(2, np.nan), np.full((2, 2), np.nan)
-            meas = None
-            if n_s:
-                K = np.linalg.inv(noise.run_cov(n_s))
-                M, Z = self._sums_mz(sums, fit, s)
-                meas = _segment_measurement(self.A, K, M, Z)
-            if meas is not None:
-                x_d, lam_inv = meas
-                beta_cov = self.a_inv @ np.diag(sigma2 * fit.beta_variance_factor(sums, s)) @ self.a_inv.T
-                if fit.sun:  # a misread sky moves the segment's level in both channels together
-                    f = fit.beta[:, -1] * sums.Ssv[s] / np.maximum(sums.Ws[s], 1e-300)
-                    beta_cov = beta_cov + self.a_inv @ np.outer(f, f) @ self.a_inv.T
-                d_cov = lam_inv + beta_cov
+            if seg.x_d is not None:
+                x_d = seg.x_d
+                v = seg.v  # H = A^-1 (x) v: x_d's curve error is H dbeta
+                hsig = self.a_inv[:, :, None] * np.einsum("ci,cij->cj", v, curve_cov)[None]  # H Sigma
+                beta_cov = np.einsum("ick,jck->ij", hsig, self.a_inv[:, :, None] * v[None])  # H Sigma H'
+                cx = np.einsum("ick,ck->ic", cross, v) @ self.a_inv.T  # C H'
+                if seg.sky_cov is not None:
+                    beta_cov = beta_cov + seg.sky_cov
+                d_cov = seg.lam_inv + beta_cov
                 if s == n_seg - 1:
-                    self._beta_covf = _sym(beta_cov)
+                    self._beta_covf, self._cxf = _sym(beta_cov), _mat(cx)
             prob = float("nan") if s == 0 else 1.0
             if mixed:
-                xd = None if meas is None else (float(x_d[0]), float(x_d[1]))
-                x_m, p_m, prob = mixture_update(m0, p0, p1, pi, xd, None if meas is None else _sym(d_cov))
+                xd = None if seg.x_d is None else (float(x_d[0]), float(x_d[1]))
+                dm = None if seg.x_d is None else _sym(d_cov)
+                cxm = _NO_CROSS if seg.x_d is None else _mat(cx)
+                x_m, p_m, prob, gain = _mixture(m0, p0, p1, pi, xd, dm, cxm)
                 kf.x = np.array([[x_m[0]], [x_m[1]]])
                 kf.P = _arr(p_m)
-            elif meas is not None:
-                # update with the segment's measurement (z as a column: filterpy 2.0.0 shape bug)
-                kf.update(x_d.reshape(2, 1), R=d_cov, H=np.eye(2))
+                if seg.x_d is not None:
+                    cross = cross - np.einsum("ij,jck->ick", _garr(gain), cross + hsig)
+            elif seg.x_d is not None:
+                # z as a column (filterpy 2.0.0 shape bug); with a curve error correlated with the
+                # prior's, filterpy's update for correlated noise (M = C H'; its P is not Joseph form)
+                if np.any(cx):
+                    kf.M = cx
+                    kf.update_correlated(x_d.reshape(2, 1), R=d_cov, H=np.eye(2))
+                else:
+                    kf.update(x_d.reshape(2, 1), R=d_cov, H=np.eye(2))
                 kf.P = 0.5 * (kf.P + kf.P.T)
+                cross = cross - np.einsum("ij,jck->ick", kf.K, cross + hsig)
             if s == 0:
                 x_before, p_before = np.full(2, np.nan), np.full((2, 2), np.nan)
             self.summaries.append(
                 SegmentSummary(
-                    self.starts[s], n_s, x_d, d_cov, kf.x[:, 0].copy(), kf.P.copy(),
+                    self.starts[s], seg.n, x_d, d_cov, kf.x[:, 0].copy(), kf.P.copy(),
                     self.kinds[s], prob, x_before, p_before,
                 )
             )
         if n_seg:
-            n_last = int(sums.ns[n_seg - 1]) if n_seg - 1 < sums.n_segments else 0
-            self._online = (
-                _Online.from_arrays(*self._sums_mz(sums, fit, n_seg - 1), n_last) if n_last else _Online()
-            )
             self._x, self._P = (float(kf.x[0, 0]), float(kf.x[1, 0])), _sym(kf.P)
             self._p = self.summaries[-1].change_probability
-        self.n_updates = int(sums.n)
 
     @staticmethod
     def _sums_mz(sums: FitSums, fit: CompensationFit, s: int) -> tuple[np.ndarray, np.ndarray]:
@@ -486,6 +582,7 @@ class SegmentChain:
             "pi": self._pi,
             "p": self._p,
             "beta_cov": _arr(self._beta_covf),
+            "cross": _garr(self._cxf),
             "before_x": np.array(self._before[0]),
             "before_P": _arr(self._before[1]),
             "online_M": self._online.arrays()[0],
@@ -521,6 +618,7 @@ class SegmentChain:
         self._pi = float(state["pi"])
         self._p = float(state["p"])
         self._beta_covf = _sym(np.asarray(state["beta_cov"], float).reshape(2, 2))
+        self._cxf = _mat(np.asarray(state["cross"], float).reshape(2, 2)) if "cross" in state else _NO_CROSS
         bx = np.asarray(state["before_x"], float).reshape(2)
         before_p = _sym(np.asarray(state["before_P"], float).reshape(2, 2))
         self._before = ((float(bx[0]), float(bx[1])), before_p)
@@ -552,26 +650,25 @@ class SegmentChain:
         ]
 
 
-def _combine_f(m0: Vec, p0: Sym, x_d: Vec, d: Sym) -> tuple[Vec, Sym]:
-    """``_combine`` on floats: ``G = P0 S^-1``, ``x = m0 + G (x_d - m0)``, ``P = P0 - P0 S^-1 P0``."""
-    a, b, dd = p0
-    sa, sb, sd = inv_sym((a + d[0], b + d[1], dd + d[2]))
-    g = (a * sa + b * sb, a * sb + b * sd, b * sa + dd * sb, b * sb + dd * sd)
-    r0, r1 = x_d[0] - m0[0], x_d[1] - m0[1]
-    x = (m0[0] + g[0] * r0 + g[1] * r1, m0[1] + g[2] * r0 + g[3] * r1)
-    q = congruence((a, b, b, dd), (sa, sb, sd))
-    return x, (a - q[0], b - q[1], dd - q[2])
+def _combine_f(m0: Vec, p0: Sym, x_d: Vec, d: Sym, cx: Mat = _NO_CROSS) -> tuple[Vec, Sym]:
+    """Kalman update of ``N(m0, p0)`` with ``x_d ~ N(x, d)`` correlated by ``cx`` (floats)."""
+    x, cov, _, _ = _combine_gain(m0, p0, cx, x_d, d)
+    return x, cov
 
 
-def _combine(
-    m0: np.ndarray, p0: np.ndarray, x_d: np.ndarray, d_cov: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Kalman update of the prior ``N(m0, p0)`` with a direct measurement ``x_d ~ N(x, d_cov)``.
+def _combine_gain(m0: Vec, p0: Sym, cx: Mat, x_d: Vec, d: Sym) -> tuple[Vec, Sym, Mat, Sym]:
+    """Return ``x``, ``P``, the gain ``K`` and the innovation covariance ``S`` of one update (floats).
 
-    ``S = P0 + D``; ``G = P0 S^-1``; ``x = m0 + G (x_d - m0)``; ``P = P0 - G P0`` (symmetrized).
+    ``S = P0 + D + C_x + C_x'``, ``G = P0 + C_x``, ``K = G S^-1``, ``x = m0 + K (x_d - m0)``,
+    ``P = P0 - G S^-1 G'`` (filterpy's ``update_correlated`` with ``H = I``, ``M = C_x``).
     """
-    S = p0 + d_cov
-    gain = np.linalg.solve(S.T, p0.T).T  # P0 S^-1 without forming the inverse
-    x = m0 + gain @ (x_d - m0)
-    P = p0 - gain @ p0
-    return x, 0.5 * (P + P.T)
+    a, b, dd = p0
+    c0, c1, c2, c3 = cx
+    s = (a + d[0] + 2.0 * c0, b + d[1] + c1 + c2, dd + d[2] + 2.0 * c3)
+    sa, sb, sd = inv_sym(s)
+    g = (a + c0, b + c1, b + c2, dd + c3)
+    k = (g[0] * sa + g[1] * sb, g[0] * sb + g[1] * sd, g[2] * sa + g[3] * sb, g[2] * sb + g[3] * sd)
+    r0, r1 = x_d[0] - m0[0], x_d[1] - m0[1]
+    x = (m0[0] + k[0] * r0 + k[1] * r1, m0[1] + k[2] * r0 + k[3] * r1)
+    q = congruence(g, (sa, sb, sd))
+    return x, (a - q[0], b - q[1], dd - q[2]), k, s
