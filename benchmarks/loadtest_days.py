@@ -24,7 +24,8 @@ the screen: before the shadow sees a stream, the samples that ``calibrate``'s te
 ``zero: before`` in ``config/calibration.yaml``) by the as-built FE's dead-load reactions (the
 previous stops' ``u0``).
 
-``--sun-term`` runs the shadow with its sun term (``sun_gradient: true``); ``--monitor-days N``
+``--sun-term`` runs the shadow with its sun term (``sun_gradient: true``), ``--sun-prior MEAN SD``
+with another prior of its ``g`` (K; the shipped one is 0 and 6.75); ``--monitor-days N``
 gives the twin's load-test day N days of continuous monitoring (no car, no step) before it.
 ``--only continuous`` is a third study, not run by default: three sunny days of continuous twin
 monitoring (0.1 Hz, a 0.7 mm offset, 4 K at full sun), the sun term off and on: days without a
@@ -34,7 +35,7 @@ Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin|continuous]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term]
-        [--monitor-days N]
+        [--sun-prior MEAN SD] [--monitor-days N]
 
 Streams and seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers``
 processes, default one per core).
@@ -266,6 +267,13 @@ def main() -> None:
         "--sun-term", action="store_true", help="the shadow with its sun term (sun_gradient: true)"
     )
     ap.add_argument(
+        "--sun-prior",
+        nargs=2,
+        type=float,
+        metavar=("MEAN", "SD"),
+        help="with --sun-term: the prior of g in K (default: shipped, 0 and 6.75)",
+    )
+    ap.add_argument(
         "--monitor-days",
         type=float,
         default=0.0,
@@ -278,6 +286,10 @@ def main() -> None:
         over["traffic_hold_s"] = args.hold
     if args.sun_term:
         over["sun_gradient"] = True
+    if args.sun_prior:
+        if not args.sun_term:
+            ap.error("--sun-prior needs --sun-term")
+        over["sun_gradient_prior_mean_k"], over["sun_gradient_prior_sd_k"] = args.sun_prior
     with dask_client(workers=args.workers) as client:
         mapper = client_mapper(client)
         if args.only in (None, "real"):
