@@ -193,10 +193,10 @@ def test_twin_load_test_days_find_every_step_and_keep_every_window(engine) -> No
     sun the final estimate is within 10 % of the truth on every day; with it, the afternoon records
     carry the sun's unmodelled reaction (2-3 mm at -30 mm), which the interval holds but the 10 %
     does not always (``benchmarks/loadtest_days.py`` prints both). The shadow's sun term
-    (``sun_gradient``) learns part of the sun from the day itself: every step an event on every
-    day (the curve's and the sun's error, common to every record's level, is carried once, not
-    counted against each step), nothing lost, within 10 % on at least 90 % of the days (the
-    sun's prior spread leaves some of it in the levels), the interval holding.
+    (``sun_gradient``) learns enough of the sun from the day itself to pass every criterion on
+    every day (the curve's and the sun's error, common to every record's level, is carried once,
+    not counted against each step; the clearness of a day whose data begin after sunrise is read
+    over the rise left; measured worst error 2.4 mm of the 3 mm allowed).
     After two days of monitoring the term knows the sun: 20 such days pass every criterion.
     """
     runs = [(seed, 4.0, False, 0.0) for seed in range(100)] + [(seed, 0.0, False, 0.0) for seed in range(30)]
@@ -205,9 +205,8 @@ def test_twin_load_test_days_find_every_step_and_keep_every_window(engine) -> No
     sunny, clear, term, monitored = days[:100], days[100:130], days[130:230], days[230:]
     bad = [i for i, s in enumerate(monitored) if not (s.passed and s.covered)]
     assert not bad, bad
-    assert all(s.events_right for s in term), [i for i, s in enumerate(term) if not s.events_right]
-    assert not any(s.lost_windows for s in term)
-    assert np.mean([s.within_10pct for s in term]) >= 0.9 > np.mean([s.within_10pct for s in sunny])
+    assert all(s.passed for s in term), [i for i, s in enumerate(term) if not s.passed]
+    assert np.mean([s.within_10pct for s in sunny]) < 0.9  # without the term the sun stays in
     assert np.mean([s.covered for s in term]) >= 0.9
     assert all(s.events_right for s in sunny), [i for i, s in enumerate(sunny) if not s.events_right]
     assert not any(s.lost_windows for s in sunny)

@@ -116,9 +116,9 @@ def _day(t_min: float, swing: float, day: int = 19_100) -> tuple[np.ndarray, np.
     return (solar_s - offset) * NS, hours, temp
 
 
-def _blend(prior: float, sd: float, own: float) -> float:
-    """The precision-weighted clearness of ``sunlight`` once the whole rise is seen."""
-    w_own = ((CLEAR_SWING_K - OVERCAST_SWING_K) / WANDER_K) ** 2
+def _blend(prior: float, sd: float, own: float, seen: float = 1.0) -> float:
+    """The precision-weighted clearness of ``sunlight`` once the rise is seen (``seen`` of it)."""
+    w_own = (seen * (CLEAR_SWING_K - OVERCAST_SWING_K) / WANDER_K) ** 2
     return (prior / sd**2 + w_own * own) / (1.0 / sd**2 + w_own)
 
 
@@ -164,6 +164,30 @@ def test_sun_covariate_reads_the_days_clearness_from_its_warming_causally() -> N
     np.testing.assert_allclose(var_late, DAY_SD**2 * clear_sky(t2[noon]) ** 2, rtol=1e-12)
     _, var_own = SunCovariate().values(t1, clear_day)
     assert np.all(var_own[up][after] < 0.01 * FIRST_SD**2 * clear_sky(t1[up][after]) ** 2)
+
+
+def test_a_day_whose_data_begin_partway_up_the_rise_reads_its_clearness() -> None:
+    """Data from 07:24 solar (a load-test day's first record): the warming is read over the rise left.
+
+    The air's minimum was at sunrise, unseen; the first reading is partway up. Taken as the
+    minimum at sunrise (as before), a clear day read as a grey one (the warming since 07:24 over the
+    whole rise); over the share of the rise made since the first reading, it reads clear (closed
+    form), and the covariate after the rise does not depend on where the day's data began.
+    """
+    t1, hours, clear_day = _day(2.0, CLEAR_SWING_K)
+    for start_h in (6.5, 7.4):
+        keep = hours >= start_h
+        cov, _ = SunCovariate().values(t1[keep], clear_day[keep])
+        after = (hours[keep] >= RISE_TO_H + 0.5) & (clear_sky(t1[keep]) > 1e-3)
+        seen = 1.0 - _rise_share(float(hours[keep][0]))  # the rise left after the first reading
+        expect = _blend(0.5, FIRST_SD, 1.0, seen)
+        np.testing.assert_allclose(cov[after] / clear_sky(t1[keep][after]), expect, rtol=1e-5)  # 60 s grid
+        assert expect > 0.99  # a clear day reads clear, however late its data began
+        # on the way up (the morning records of a load-test day), each reading in closed form
+        h0 = float(hours[keep][0])
+        morning = (hours[keep] > 8.5) & (hours[keep] < 10.0)
+        want = [_blend(0.5, FIRST_SD, 1.0, _rise_share(h) - _rise_share(h0)) for h in hours[keep][morning]]
+        np.testing.assert_allclose(cov[morning] / clear_sky(t1[keep][morning]), want, rtol=1e-9)
 
 
 def test_the_default_sun_prior_is_half_the_standards_range() -> None:

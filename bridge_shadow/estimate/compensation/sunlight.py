@@ -8,8 +8,12 @@ from how much the air has warmed since the morning:
   its maximum in the early afternoon (``RISE_TO_H``) along half a cosine (the daytime part of
   Parton and Logan's 1981 model of the daily air temperature);
 - per solar day the morning minimum is the lowest temperature from 02 h until the maximum; the
-  warming so far over the share of the rise made by then estimates the day's swing (after
-  ``RISE_TO_H``: the day's highest temperature less the minimum), and the swing maps linearly to a
+  warming since it over the share of the rise made since it estimates the day's swing (after
+  ``RISE_TO_H``: the day's highest temperature less the minimum, over the rest of the rise). The
+  minimum is normally read about sunrise, where the rise begins; when the day's data begin later
+  (a load-test day's first record at 08:36), it is the first reading, partway up, and the share
+  made before it is not counted (counted, as first written, a clear day's morning records read
+  as grey and the day's sun term fitted ``g`` at a quarter of the twin's), and the swing maps linearly to a
   clearness 0..1 between an overcast and a clear day (the smallest and largest daily ranges of
   March 2022 at the bridge, ``bridge_shadow.sun``; ``gap.drivers`` uses them too);
 - that estimate is weighed against the day before's clearness by precision: its noise is the air's
@@ -70,7 +74,7 @@ class SunCovariate:
 
     Attributes:
         day: mean-solar day number of the last window seen (-1: none yet).
-        t_min: C, that day's morning minimum so far (inf: none yet).
+        t_min: C, that day's morning minimum so far (inf: none yet); h_min: its solar hour.
         t_max: C, that day's highest temperature since ``RISE_FROM_H`` (-inf: none yet).
         morning: that day's morning was seen (a temperature before ``MORNING_TO_H``).
         today: that day's clearness so far (NaN: none yet).
@@ -82,6 +86,7 @@ class SunCovariate:
     def __init__(self) -> None:
         self.day = -1
         self.t_min = math.inf
+        self.h_min = RISE_FROM_H
         self.t_max = -math.inf
         self.morning = False
         self.today = math.nan
@@ -91,14 +96,17 @@ class SunCovariate:
     def _update(self, h: float, t: float) -> None:
         """Take one temperature ``t`` at solar hour ``h`` of the current day."""
         if h >= MORNING_FROM_H and h < RISE_TO_H:
-            self.t_min = min(self.t_min, t)
+            if t < self.t_min:
+                self.t_min, self.h_min = t, h
             self.morning = self.morning or h < MORNING_TO_H
         if h >= RISE_FROM_H:
             self.t_max = max(self.t_max, t)
-        share = _rise_share(h)
+        # the rise made since the minimum was read: all of it from sunrise, less when the day's
+        # data begin after sunrise (the minimum then is the first reading, partway up)
+        share = _rise_share(h) - _rise_share(self.h_min)
         if not self.morning or share <= 0.0:
             return
-        swing = (t - self.t_min) / share if h < RISE_TO_H else self.t_max - self.t_min
+        swing = (t - self.t_min if h < RISE_TO_H else self.t_max - self.t_min) / share
         own = _clearness(swing)
         w_own = (share * (CLEAR_SWING_K - OVERCAST_SWING_K) / WANDER_K) ** 2
         prior, sd = (self.before, DAY_SD) if math.isfinite(self.before) else (0.5, FIRST_SD)
@@ -126,6 +134,7 @@ class SunCovariate:
                 if self.day >= 0 and math.isfinite(self.today):
                     self.before = self.today
                 self.day, self.t_min, self.t_max, self.morning = d, math.inf, -math.inf, False
+                self.h_min = RISE_FROM_H
                 self.today = self.today_var = math.nan
             if math.isfinite(t):
                 self._update(h, t)
@@ -143,6 +152,7 @@ class SunCovariate:
         return {
             "day": float(self.day),
             "t_min": self.t_min,
+            "h_min": self.h_min,
             "t_max": self.t_max,
             "morning": float(self.morning),
             "today": self.today,
@@ -154,6 +164,7 @@ class SunCovariate:
         """Restore the state."""
         self.day = int(float(state["day"]))  # type: ignore[arg-type]
         self.t_min = float(state["t_min"])  # type: ignore[arg-type]
+        self.h_min = float(state.get("h_min", RISE_FROM_H))  # type: ignore[arg-type]
         self.t_max = float(state["t_max"])  # type: ignore[arg-type]
         self.morning = bool(float(state["morning"]))  # type: ignore[arg-type]
         self.today = float(state["today"])  # type: ignore[arg-type]
