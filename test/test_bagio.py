@@ -139,6 +139,44 @@ def test_decoder_reads_big_endian_cdr_and_rejects_garbage() -> None:
         decode_stamped_floats([bytes(bad)], 2)
 
 
+def test_a_few_messages_decode_one_by_one_as_the_blocks_do() -> None:
+    """Small batches (a live node's drains) go through ``struct``; the same as the numpy blocks.
+
+    Both byte orders, frame_ids of several lengths, both layouts (rosbags serializes them); and
+    every malformation the blocks reject, the one-by-one path rejects too.
+    """
+    from bridge_shadow.bagio.cdr import SMALL_BATCH, CdrFormatError
+
+    ts = get_typestore()
+    Time, Header = ts.types["builtin_interfaces/msg/Time"], ts.types["std_msgs/msg/Header"]
+    rng = np.random.default_rng(3)
+    raws = []
+    for i in range(SMALL_BATCH):
+        header = Header(stamp=Time(sec=int(rng.integers(-5, 2**31 - 1)), nanosec=int(rng.integers(0, 10**9))),
+                        frame_id=["frc_01", "a", "air_temperature", "ü"][i % 4])
+        msg = ts.types[TEMPERATURE_TYPE](header=header, temperature=rng.normal(), variance=rng.random())
+        raws.append(bytes(ts.serialize_cdr(msg, TEMPERATURE_TYPE, little_endian=bool(i % 3))))
+    lengths = np.array([len(r) for r in raws])
+    blocks = decode_buffer(np.frombuffer(b"".join(raws), np.uint8), np.cumsum(lengths) - lengths, lengths, 2)
+    few = decode_stamped_floats(raws, 2)
+    np.testing.assert_array_equal(few[0], blocks[0])
+    assert few[1].dtype == object and list(few[1]) == list(blocks[1])
+    np.testing.assert_array_equal(few[2], blocks[2])
+    good = raws[1]
+    broken = [good[:20], b"\x01" + good[1:], good[:1] + b"\x05" + good[2:]]
+    long_name = bytearray(good)
+    long_name[12] = 200  # string length runs past the floats
+    zero = bytearray(good)
+    zero[12:16] = b"\x00\x00\x00\x00"
+    for bad in [*broken, bytes(long_name), bytes(zero)]:
+        batch = [good, bad]
+        with pytest.raises(CdrFormatError):
+            decode_stamped_floats(batch, 2)
+        ln = np.array([len(r) for r in batch])
+        with pytest.raises(CdrFormatError):
+            decode_buffer(np.frombuffer(b"".join(batch), np.uint8), np.cumsum(ln) - ln, ln, 2)
+
+
 def test_optional_topics_and_missing_topic(tmp_path: Path) -> None:
     data = _data(50)
     with BagOutputWriter(tmp_path / "forces_only") as bag:
