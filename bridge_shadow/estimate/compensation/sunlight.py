@@ -29,7 +29,7 @@ A rate limit on the clearness (a tenth per hour, so that the air's minute-to-min
 small share of the rise made early in the morning cannot shake the prediction) was tried: it made
 the twin's load-test days worse (the afternoon records' clearness lagged) and was left out.
 
-The state is seven numbers, so the covariate of every window is the same however the data are
+The state is eight numbers, so the covariate of every window is the same however the data are
 chunked, checkpointed or split into archive bags.
 """
 
