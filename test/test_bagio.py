@@ -159,6 +159,7 @@ def test_a_few_messages_decode_one_by_one_as_the_blocks_do() -> None:
     lengths = np.array([len(r) for r in raws])
     blocks = decode_buffer(np.frombuffer(b"".join(raws), np.uint8), np.cumsum(lengths) - lengths, lengths, 2)
     few = decode_stamped_floats(raws, 2)
+    # exact: both read the same bytes (integer stamps, float64s copied, no arithmetic)
     np.testing.assert_array_equal(few[0], blocks[0])
     assert few[1].dtype == object and list(few[1]) == list(blocks[1])
     np.testing.assert_array_equal(few[2], blocks[2])

@@ -143,7 +143,7 @@ def test_temperature_files_merged_day_first_and_deduplicated(munich_data: Path, 
     (tmp_path / name).write_bytes(members[name])
     data2, report2 = import_csv([munich_data / APR_TEMP, tmp_path / name])
     assert report2.duplicates_dropped["air_temperature"] == len(_csv_rows(members[name]))
-    np.testing.assert_array_equal(data2.temperature.stamp_ns, t.stamp_ns)
+    np.testing.assert_array_equal(data2.temperature.stamp_ns, t.stamp_ns)  # integer ns
 
 
 def test_rejected_rows_cp1252_crlf_trailing_comma(tmp_path: Path) -> None:
@@ -197,6 +197,7 @@ def test_local_time_to_utc_across_dst() -> None:
         "2022-10-30T00:30",
         "2022-10-30T02:30",
     ]
+    # integer ns and whole-hour offsets: exact
     np.testing.assert_array_equal(utc, np.array(expected, dtype="datetime64[ns]").astype(np.int64))
     np.testing.assert_array_equal(offset_s // 3600, [1, 1, 1, 2, 2, 2, 1])
     assert odd == 2  # the missing spring hour and the doubled autumn hour

@@ -281,25 +281,19 @@ class FitSums:
             self.L1s[:, c] += np.bincount(seg, weights=p, minlength=n_seg)
             self.Lyps[:, c] += np.bincount(seg, weights=p * ya, minlength=n_seg)
             self.Lycs[:, c] += np.bincount(seg, weights=p * yb, minlength=n_seg)
-            oka, okb = full.i0[a, c] >= 0, full.i0[b, c] >= 0
+            ok = full.i0[:, c] >= 0
+            cols = row_columns(np.where(ok, full.i0[:, c], 0), width, q)  # once for both ends of a pair
+            oka, okb = ok[a], ok[b]
+            ca, cb, va, vb = cols[a], cols[b], full.bv[a, c], full.bv[b, c]
             if oka.any():
-                ia, va = row_columns(full.i0[a, c][oka], width, q), full.bv[a, c][oka]
-                self.Lbps[:, c] += _scatter_seg_vec(seg[oka], ia, p[oka, None] * va, n_seg, q)
-                self.Lby[c] += _scatter_vec(ia, (p * yb)[oka, None] * va, q)
+                self.Lbps[:, c] += _scatter_seg_vec(seg[oka], ca[oka], p[oka, None] * va[oka], n_seg, q)
+                self.Lby[c] += _scatter_vec(ca[oka], (p * yb)[oka, None] * va[oka], q)
             if okb.any():
-                ib, vb = row_columns(full.i0[b, c][okb], width, q), full.bv[b, c][okb]
-                self.Lbcs[:, c] += _scatter_seg_vec(seg[okb], ib, p[okb, None] * vb, n_seg, q)
-                self.Lyb[c] += _scatter_vec(ib, (p * ya)[okb, None] * vb, q)
+                self.Lbcs[:, c] += _scatter_seg_vec(seg[okb], cb[okb], p[okb, None] * vb[okb], n_seg, q)
+                self.Lyb[c] += _scatter_vec(cb[okb], (p * ya)[okb, None] * vb[okb], q)
             ab = oka & okb
             if ab.any():
-                self.LBB[c] += _scatter_outer(
-                    row_columns(full.i0[a, c][ab], width, q),
-                    full.bv[a, c][ab],
-                    row_columns(full.i0[b, c][ab], width, q),
-                    full.bv[b, c][ab],
-                    p[ab],
-                    q,
-                )
+                self.LBB[c] += _scatter_outer(ca[ab], va[ab], cb[ab], vb[ab], p[ab], q)
 
     def merge_into_previous(self, s: int) -> None:
         """Make segment ``s`` part of segment ``s - 1`` (later segments move down by one).

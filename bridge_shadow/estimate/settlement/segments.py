@@ -507,8 +507,9 @@ class SegmentChain:
             if seg.x_d is not None:
                 x_d = seg.x_d
                 v = seg.v  # H = A^-1 (x) v: x_d's curve error is H dbeta
-                hsig = self.a_inv[:, :, None] * np.einsum("ci,cij->cj", v, curve_cov)[None]  # H Sigma
-                beta_cov = np.einsum("ick,jck->ij", hsig, self.a_inv[:, :, None] * v[None])  # H Sigma H'
+                v_sig = np.einsum("ci,cij->cj", v, curve_cov)  # (2, q) v_c' Sigma_c
+                hsig = self.a_inv[:, :, None] * v_sig[None]  # H Sigma (2, 2, q)
+                beta_cov = self.a_inv @ np.diag((v_sig * v).sum(axis=1)) @ self.a_inv.T  # H Sigma H'
                 cx = np.einsum("ick,ck->ic", cross, v) @ self.a_inv.T  # C H'
                 if seg.sky_cov is not None:
                     beta_cov = beta_cov + seg.sky_cov
