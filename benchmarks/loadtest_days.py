@@ -29,11 +29,14 @@ with another prior of its ``g`` (K; the shipped one is 0 and 6.75); ``--monitor-
 gives the twin's load-test day N days of continuous monitoring (no car, no step) before it.
 ``--only continuous`` is a third study, not run by default: three sunny days of continuous twin
 monitoring (0.1 Hz, a 0.7 mm offset, 4 K at full sun), the sun term off and on: days without a
-false event, the final error and interval, and the ``g`` the term learns.
+false event, the final error and interval, and the ``g`` the term learns. ``--only minutes`` is a
+fourth: the two real records minutes apart (one record for the traffic hold, a step inside the
+warm-up), cut to their first or last 6 minutes, small, raised and one-sided steps, and the day's
+four states, each in 30 s, 1 min and 2 min windows (``window_s``), scored as the real study.
 
 Usage::
 
-    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin|continuous]
+    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin|continuous|minutes]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term]
         [--sun-prior MEAN SD] [--monitor-days N]
 
@@ -90,6 +93,32 @@ def real_streams():
                     yield f"{base}, old between", [Piece(first, 0.0), Piece(first, 0.45), new]
 
 
+def minutes_streams():
+    """Yield (name, pieces) of the records minutes apart or cut short (the ``minutes`` study)."""
+    low = (-0.01, -0.01)
+    yield "ref, lowered at its own time (44 min)", [Piece("ref", 0.0), Piece("lowered", 0.73)]
+    yield "lowered, ref at 44 min (raised)", [Piece("lowered", 0.0), Piece("ref", 0.73)]
+    yield "ref, lowered 2 min after its end", [Piece("ref", 0.0), Piece("lowered", 0.25)]
+    yield "ref, ref -10 mm 1 min after its end", [Piece("ref", 0.0), Piece("ref", 0.22, low)]
+    yield "ref, ref -3 mm at 1.25 h", [Piece("ref", 0.0), Piece("ref", 1.25, (-0.003, -0.003))]
+    yield "ref, ref +10 mm at 1.25 h", [Piece("ref", 0.0), Piece("ref", 1.25, (0.01, 0.01))]
+    yield "ref, ref south -10 mm at 1.25 h", [Piece("ref", 0.0), Piece("ref", 1.25, (-0.01, 0.0))]
+    yield "the day: ref, lowered, -20 at 5.7 h, -30 at 6.9 h", [
+        Piece("ref", 0.0),
+        Piece("lowered", 0.73),
+        Piece("lowered", 5.7, low),
+        Piece("lowered", 6.9, (-0.02, -0.02)),
+    ]
+    yield "ref, lowered, first 6 min of each", [
+        Piece("ref", 0.0, cut_min=(0, 6)),
+        Piece("lowered", 0.73, cut_min=(0, 6)),
+    ]
+    yield "ref, lowered, last 6 min of each", [
+        Piece("ref", 0.0, cut_min=(6, 13)),
+        Piece("lowered", 0.73, cut_min=(6, 13)),
+    ]
+
+
 def _between(s: ForceSeries, keep: np.ndarray) -> ForceSeries:
     return ForceSeries(s.stamp_ns[keep], s.force_n[keep], s.frame_id[keep])
 
@@ -125,7 +154,7 @@ def real_stream(item: tuple[str, list[Piece], str, dict, str]) -> tuple[str, lis
     if u0 == "as_built":
         sur = dataclasses.replace(sur, u0=load_surrogate(AS_BUILT).u0)
     res = Shadow(_config(over), sur).run(sc.data)
-    s = score_stream(sc, res)
+    s = score_stream(sc, res, float(over.get("window_s", 60.0)))
     lost, err, sd = s.lost_windows, s.error_m, s.sigma_m
     probs = [round(c.change_probability, 3) for c in res.changes if c.kind == "gap"]
     line = (
@@ -162,6 +191,25 @@ def real_study(
         print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
     widths = np.array([w for _, _, _, w in results])
     print(f"  final 95 % half-width, median {np.round(np.median(widths, axis=0), 2)} mm")
+
+
+def minutes_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
+    """Score records minutes apart (one record for the traffic hold) and cut records, 30 s to 2 min windows."""
+    t0 = time.perf_counter()
+    items = [
+        (f"{name} [{w:g} s]", pieces, "recorded", {**over, "window_s": w}, "model")
+        for name, pieces in minutes_streams()
+        for w in (30.0, 60.0, 120.0)
+    ]
+    results = mapper(real_stream, items)
+    for _, _, line, _ in results:
+        print(line)
+    counts = np.sum([r for _, r, _, _ in results], axis=0)
+    n = len(results)
+    print(f"records minutes apart or cut, {over}: {n} streams in {time.perf_counter() - t0:.0f} s")
+    labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
+    for label, c in zip(labels, counts, strict=True):
+        print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
 
 
 def twin_day(item: tuple[int, float, dict, float]) -> Any:
@@ -244,8 +292,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument(
         "--only",
-        choices=("real", "twin", "continuous"),
-        help="one study (continuous: three sunny days of monitoring, sun term off and on; not by default)",
+        choices=("real", "twin", "continuous", "minutes"),
+        help="one study (continuous: three sunny days of monitoring, sun term off and on; minutes: the "
+        "two records minutes apart or cut short, in 30 s, 1 min and 2 min windows; neither by default)",
     )
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
     ap.add_argument(
@@ -298,6 +347,8 @@ def main() -> None:
             twin_study(mapper, args.seeds, args.verbose, over, args.monitor_days)
         if args.only == "continuous":
             continuous_study(mapper, args.seeds)
+        if args.only == "minutes":
+            minutes_study(mapper, over)
 
 
 if __name__ == "__main__":

@@ -206,3 +206,25 @@ def test_a_held_record_without_temperature_stays_uncompensated_when_a_later_one_
         assert all(reason == "" for _, reason, _ in later[1:])
     res = Shadow(load_config(), load_surrogate()).run(data)
     assert res.uncompensated_windows == 20 and res.rejected["stale_temperature"] == 0
+
+
+def test_two_recordings_minutes_apart_are_screened_one_by_one() -> None:
+    """Two 12-min recordings 2 min apart (one record for the hold), -20 kN between, a car in each.
+
+    Screened as one, the step tilts the baseline under both and neither car is cut; screened piece
+    by piece (``PIECE_SILENCE_NS``) both cars are cut and every kept window sits on its own level.
+    """
+    t1, f1 = _record(12.0, seed=1)
+    t2, f2 = _record(12.0, start_h=8.0 + 14.0 / 60.0, seed=2)
+    f1[:, 240:420] += 6000.0  # minutes 4-7 of each recording
+    f2[:, 240:420] += 6000.0
+    f2 -= 20000.0
+    got = _windows(_data(np.r_[t1, t2], np.c_[f1, f2]), 1800.0)
+    k0, k2 = int(t1[0] // W), int(t2[0] // W)
+    cut = sorted(k - k0 for k, (_, _, c) in got.items() if c.sum())
+    assert any(k < 12 for k in cut) and any(k >= k2 - k0 for k in cut)
+    u0 = load_surrogate().u0
+    for k, (mean, _, _) in got.items():
+        if np.all(np.isfinite(mean)):
+            level = u0 - (20000.0 if k >= k2 else 0.0)
+            assert np.all(np.abs(mean - level) < 100.0), (k - k0, mean - level)

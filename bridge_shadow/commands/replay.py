@@ -140,7 +140,11 @@ def _summary(js: dict[str, Any]) -> str:
         )
         if not e.get("size_significant95", True):
             size += " (its 95 % region holds zero: the forces changed, a settlement is not proven)"
-        what = {"gap": "change across a gap", "held_run": "change at the end of a held run"}.get(
+        what = {
+            "gap": "change across a gap",
+            "held_run": "change at the end of a held run",
+            "warmup": "step among the warm-up windows",
+        }.get(
             e.get("kind", "step"), "settlement step"
         )
         lines.append(f"event {i}: {what} at {iso_utc(e['time_ns'])}: {size}")
@@ -152,7 +156,10 @@ def _summary(js: dict[str, Any]) -> str:
         if c["kind"] == "run_in_data":
             how = f"a run of {c['windows']} windows until {c['until']} without a step's jump, used as data"
         else:
-            where = f"after a gap of {c['gap_s'] / 3600.0:.1f} h" if c["kind"] == "gap" else "a held run"
+            where = {
+                "gap": f"after a gap of {c['gap_s'] / 3600.0:.1f} h",
+                "warmup": "a step among the warm-up windows",
+            }.get(c["kind"], "a held run")
             how = f"{where}, change probability {c['change_probability']:.3g}"
         lines.append(f"unconfirmed change {i} at {c['time']} ({how}): {size}")
     state = js["posterior"].get("state", {})

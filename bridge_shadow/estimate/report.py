@@ -181,13 +181,15 @@ def posterior_state(shadow: Shadow) -> dict[str, Any]:
     state = {"kind": kind, "since_ns": since, "since": iso_utc(since), "segment": s}
     if kind == "start":
         state["text"] = f"the state since the first window ({iso_utc(since)})"
-    elif kind in ("gap", "held_run"):
+    elif kind in ("gap", "held_run", "warmup"):
         state["change_probability"] = float(prob)
         how = "confirmed" if _confirmed(shadow, s) else "not confirmed"
         if kind == "gap":
             w_h = shadow.config.window_s / 3600.0
             hours = [(g["to_k"] - g["from_k"] - 1) * w_h for g in shadow.gaps if g["segment"] == s]
             after = f"after a gap of {hours[0]:.1f} h" if hours else "after a gap"
+        elif kind == "warmup":
+            after = "where a step showed among the warm-up windows"
         else:
             after = "where a held run ended without confirming a step"
         state["text"] = (
@@ -224,6 +226,7 @@ def warnings(shadow: Shadow) -> list[str]:
         where = {
             "gap": f"after a gap of {c.gap_s / 3600.0:.1f} h",
             "held_run": "a run of held windows at the end of the data or before a gap",
+            "warmup": "a step among the warm-up windows",
             "run_in_data": "a run that stayed away without a step's jump",
         }[c.kind]
         size = ", ".join(

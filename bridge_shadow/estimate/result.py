@@ -83,8 +83,9 @@ class EventRecord:
         glr: the test statistic at confirmation (chi-square, 2 dof, without a change).
         step_n: (2,) N, the innovation step estimated at confirmation.
         kind: ``step`` (found in the data by the step detector), ``gap`` (a change across a gap
-            in the data, confirmed by the record after it) or ``held_run`` (an unconfirmed change
-            that later data confirmed).
+            in the data, confirmed by the record after it), ``held_run`` (an unconfirmed change
+            that later data confirmed) or ``warmup`` (a step among the warm-up windows, confirmed
+            by the data after it; ``events.warmup``).
 
     """
 
@@ -128,7 +129,7 @@ class ChangeRecord:
 
     Attributes:
         window: first window after the possible change; time_ns: its start, ns (UTC).
-        kind: ``gap``, ``held_run`` (a provisional segment) or ``run_in_data`` (a run that reached
+        kind: ``gap``, ``held_run``, ``warmup`` (a provisional segment) or ``run_in_data`` (a run that reached
             ``event_max_pending`` without a step's jump: used as ordinary data and reported).
         change_probability: posterior probability that the settlement changed there (NaN for a
             ``run_in_data``, which is not weighed).

@@ -53,6 +53,7 @@ from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows, residual_moments
 from bridge_shadow.estimate.compensation.sunlight import SunCovariate
 from bridge_shadow.estimate.events.detector import ChangeDetector, Decision
+from bridge_shadow.estimate.events.warmup import warmup_step
 from bridge_shadow.estimate.inputs.closed_window import Window
 from bridge_shadow.estimate.inputs.gate import REASONS, TopicGate
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS, TopicLedger
@@ -448,6 +449,8 @@ class Shadow:
         if self.warm:
             outputs.extend(self._apply(self.detector.close_run()))
             outputs.extend(self._drain())
+        else:
+            self._split_warm_segment()
         gap = {"from_k": int(self._last_usable_k or w.k), "to_k": w.k, "segment": self.filter.segment + 1}
         self.gaps.append(gap)
         self.filter.open_segment(
@@ -664,6 +667,7 @@ class Shadow:
 
     def _finish_warmup(self) -> None:
         """Fit on the warm-up windows, then apply them in order (outputs from the warm fit)."""
+        self._split_warm_segment()
         warm, self._warm = self._warm, []
         self.warm = True
         for w in warm:
@@ -674,6 +678,29 @@ class Shadow:
         self._refit(reselect=True, online=False)  # the slope prior, weighed with the noise just learned
         for w in warm:
             w.action = "warm"
+
+    def _split_warm_segment(self) -> None:
+        """Open a provisional segment where a step shows among the current segment's warm-up windows.
+
+        ``events.warmup``: the windows are held before any noise model exists, and would be
+        fitted as one state; a step among them (its scale from their own differences) starts a
+        segment whose change the data after it decide, as after a gap.
+        """
+        seg = self.filter.segment
+        run = [w for w in self._warm if w.seg == seg]
+        i = warmup_step(
+            np.array([w.force for w in run]).reshape(-1, 2),
+            np.array([w.k for w in run], np.int64),
+            1.0 - self.config.event_trigger_probability,
+        )
+        if i is None:
+            return
+        k = run[i].k
+        self.filter.open_segment(
+            k, self._drift_jump(k), kind="warmup", change_prior=self.config.change_prior_probability
+        )
+        for w in run[i:]:
+            w.seg = self.filter.segment
 
     def _flush_rows(self) -> None:
         """Move the accepted windows' rows into the sums."""

@@ -24,15 +24,22 @@ limit is released unscreened (continuous monitoring: the detector's transients h
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from bridge_shadow.traffic import flag_car, runs
 from bridge_shadow.windowing import window_stats
 
-__all__ = ["BIN_NS", "screen_record"]
+__all__ = ["BIN_NS", "PIECE_SILENCE_NS", "screen_record"]
 
 #: Bin width of the screen, ns: the calibration's 1 s bins (a car crossing takes seconds).
 BIN_NS = 1_000_000_000
+#: A silence of both channels this long splits a record into pieces screened one by one, ns: a
+#: minute without a sample of a 100 Hz (or 1 Hz) recording is a recording that stopped, not a
+#: dropout; a car's run cut in two by it touches each piece's edge and stays data (the screen's
+#: rule for a run that does not come back).
+PIECE_SILENCE_NS = 60 * BIN_NS
 
 
 def screen_record(
@@ -43,8 +50,39 @@ def screen_record(
 ) -> list[np.ndarray]:
     """Screen the samples of one record (per channel, sorted stamps in ns and forces in N).
 
-    Returns, per channel, a (n_c,) bool mask over the record's samples: True where kept.
+    Returns, per channel, a (n_c,) bool mask over the record's samples: True where kept. Where
+    both channels fall silent for ``PIECE_SILENCE_NS`` inside the record (two recordings minutes
+    apart, shorter than ``gap_s``), each piece is screened on its own: a settlement between them
+    would otherwise tilt the baseline under both, and neither car would be cut.
     """
+    if any(not len(s) for s in stamps):
+        return [np.ones(len(s), bool) for s in stamps]
+    both = np.unique(np.concatenate(stamps))
+    cuts = both[1:][np.diff(both) >= PIECE_SILENCE_NS]
+    if not len(cuts):
+        return _screen_piece(stamps, values, threshold_n, margin_s)
+    keep = [np.ones(len(s), bool) for s in stamps]
+    bounds = [int(both[0]), *map(int, cuts), int(both[-1]) + 1]
+    for a, b in itertools.pairwise(bounds):
+        sel = [(s >= a) & (s < b) for s in stamps]
+        piece = _screen_piece(
+            [s[m] for s, m in zip(stamps, sel, strict=True)],
+            [v[m] for v, m in zip(values, sel, strict=True)],
+            threshold_n,
+            margin_s,
+        )
+        for c, m in enumerate(sel):
+            keep[c][m] = piece[c]
+    return keep
+
+
+def _screen_piece(
+    stamps: list[np.ndarray],
+    values: list[np.ndarray],
+    threshold_n: float,
+    margin_s: float,
+) -> list[np.ndarray]:
+    """Screen one continuous piece of a record (``screen_record``)."""
     if any(not len(s) for s in stamps):
         return [np.ones(len(s), bool) for s in stamps]
     t0 = min(int(s[0]) for s in stamps)

@@ -98,7 +98,7 @@ class SegmentSummary:
         x_data: (2,) data-only estimate ``x_d`` (NaN without windows).
         d_cov: (2, 2) its covariance ``D``.
         x: (2,) chained posterior mean; P: (2, 2) its covariance.
-        kind: ``start``, ``event``, ``gap``, ``held_run`` (an unconfirmed change) or ``drift``.
+        kind: ``start``, ``event``, ``gap``, ``held_run`` (an unconfirmed change), ``warmup`` or ``drift``.
         change_probability: probability that the settlement changed at the segment's start (1 for
             events and drift blocks, ``p`` for a provisional segment, NaN for the first segment).
         x_before: (2,) the chained posterior of the previous segment (NaN for the first);
@@ -239,7 +239,7 @@ class SegmentChain:
     Attributes:
         A: (2, 2) N/m; prior_cov: (2, 2) m^2 (``Sigma_X``); jump_cov: (2, 2) m^2 (``J``).
         starts: first window index of every segment (``starts[0]`` is the first window seen).
-        kinds: per segment, ``start``, ``event``, ``gap``, ``held_run`` or ``drift``.
+        kinds: per segment, ``start``, ``event``, ``gap``, ``held_run``, ``warmup`` or ``drift``.
         jumps: per segment, the covariance it certainly opens (m^2): ``J`` for an event, ``Q dt``
             for a drift block, 0 (or ``Q dt``) for a provisional segment.
         change_prior: per segment, the prior probability ``pi`` of its uncertain jump ``J`` (0 for
@@ -326,7 +326,7 @@ class SegmentChain:
         """Open a new segment from window ``k``.
 
         Its prior is the last posterior plus ``J`` (an event), plus ``jump_cov`` (a random-walk
-        block), or, with ``0 < change_prior < 1`` (a provisional segment: ``gap``, ``held_run``),
+        block), or, with ``0 < change_prior < 1`` (a provisional segment: ``gap``, ``held_run``, ``warmup``),
         plus ``jump_cov`` (default 0) for certain and ``J`` with probability ``change_prior``.
         """
         provisional = 0.0 < change_prior < 1.0
