@@ -194,7 +194,7 @@ def real_study(
 
 
 def minutes_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
-    """Score records minutes apart (one record for the traffic hold) and cut records, 30 s to 2 min windows."""
+    """Score records minutes apart (one record for the hold) and cut records, 30 s to 2 min windows."""
     t0 = time.perf_counter()
     items = [
         (f"{name} [{w:g} s]", pieces, "recorded", {**over, "window_s": w}, "model")
