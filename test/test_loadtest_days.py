@@ -18,6 +18,7 @@ import pytest
 from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.estimate.result import ReplayResult
 from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.series import MonitoringData
 from bridge_shadow.twin.loadtest_score import score_stream
 from bridge_shadow.twin.real_records import Piece, Scenario, build
 
@@ -274,3 +275,22 @@ def test_live_replay_of_records_hours_apart_follows_the_new_state_as_direct(
     assert live["unconfirmed_changes"] == direct["unconfirmed_changes"]
     assert live["posterior"]["state"] == direct["posterior"]["state"]
     assert live["rejected"] == direct["rejected"] and live["rejected"]["outlier"] == 0
+
+
+@pytest.mark.realdata
+def test_a_one_hertz_logger_dates_the_step_at_the_records_first_used_window(folder: Path, surrogate) -> None:
+    """The pair 1.25 h apart, one sample per second: the new record's first minute is screened out.
+
+    At 1 Hz its first window holds 35 samples and loses some to the screen's margin, too few to
+    use; the change is an event at the record's next window, the first the shadow used (what
+    ``score_stream`` calls its record: the issue's "at the right record").
+    """
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0), Piece("lowered", 1.25)])
+    thin = sc.data.select(lambda t: t % 10**9 < 10**7)  # the first force sample of every second
+    sc.data = MonitoringData(thin.forces, sc.data.temperature)
+    res = Shadow(load_config(), surrogate).run(sc.data)
+    first = sc.starts_ns[1] // W
+    assert [o.reason for o in res.outputs if o.end_ns // W - 1 == first] == ["traffic"]
+    assert [e.window for e in res.events] == [first + 1]
+    s = score_stream(sc, res)
+    assert s.events_right and s.lost_windows == 0 and s.within and s.covered, s

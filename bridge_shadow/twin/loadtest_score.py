@@ -86,7 +86,9 @@ class StreamScore:
     """One real-record stream's result (``twin.real_records.Scenario``).
 
     Attributes:
-        events_right: the events are exactly one at the first window of each changed record.
+        events_right: the events are exactly one at each changed record, at its first window the
+            shadow used (a record's first minutes can be screened out: the test car, a window too
+            sparse to use).
         spurious: event windows where no record's state changed.
         unreported: changed records with neither an event nor a likely unconfirmed change.
         lost_windows: windows of a changed record rejected as outliers.
@@ -109,7 +111,15 @@ class StreamScore:
 def score_stream(sc: Any, res: ReplayResult, window_s: float = 60.0) -> StreamScore:
     """Score ``res`` (a replay of ``sc.data``) against the scenario's truth (scoring only)."""
     w = round(window_s * 1e9)
-    want = [sc.starts_ns[i] // w for i in sc.changes()]
+    used = sorted(o.end_ns // w - 1 for o in res.outputs if not o.reason)
+    bounds_k = [t // w for t in sc.starts_ns] + [2**62]
+
+    def first_used(i: int) -> int:
+        """Return the record's first window that the shadow used (its first window if none was)."""
+        k = [u for u in used if bounds_k[i] <= u < bounds_k[i + 1]]
+        return k[0] if k else bounds_k[i]
+
+    want = [first_used(i) for i in sc.changes()]
     events = [e.window for e in res.events]
     likely = {c.window for c in res.changes if c.likely}
     bounds = [*sc.starts_ns, 2**62]
