@@ -179,14 +179,15 @@ def test_every_bad_input_is_dropped_and_counted() -> None:
     }
     for reason, count in expected.items():
         assert rej[reason] == count, (reason, rej)
-    # windows 18, 19 have samples > 120 s from any reading; window 20 waits (up to the 120 s
-    # temperature horizon) for the reading at 21.5 min, 30-90 s from its forces: not stale
-    assert rej["stale_temperature"] == 2
+    # windows 18, 19 have samples > 120 s from any reading: used, stale (their compensation widened,
+    # not skipped); window 20 waits (up to the 120 s temperature horizon) for the reading at
+    # 21.5 min, 30-90 s from its forces: not stale
+    assert rej["stale_temperature"] == 0 and res.stale_temperature_windows == 2
+    assert res.to_json()["windows"]["stale_temperature"] == 2
+    assert any(w.startswith("stale air temperature: 2 windows") for w in res.warnings)
     reasons = {o.index - res.outputs[0].index: o.reason for o in res.outputs if o.reason}
     assert reasons == {
         15: "outlier",
-        18: "stale_temperature",
-        19: "stale_temperature",
         22: "sparse_window",
         **dict.fromkeys(range(26, 31), "missing_topic"),
     }

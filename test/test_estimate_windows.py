@@ -40,11 +40,12 @@ def test_batched_windows_equal_a_direct_per_window_computation() -> None:
             vis = ts < (k + 1) * W + 120 * 10**9
             matched = np.interp((stamps[c][sel] - T0).astype(float), (ts[vis] - T0).astype(float), tv[vis])
             np.testing.assert_allclose(batch.temp_c[j, c], matched.mean(), rtol=1e-12)
-            gap = np.minimum(
-                np.abs(stamps[c][sel][:, None] - ts[None, :]).min(axis=1), np.iinfo(np.int64).max
-            )
-            if np.any(gap > 120 * 10**9):
-                assert batch.reason[j] == "stale_temperature"
+            # the age: the largest distance from a sample to the reading its match rests on (the
+            # nearer of the two visible brackets)
+            near = np.abs(stamps[c][sel][:, None] - ts[vis][None, :]).min(axis=1)
+            assert batch.temp_age_s[j] >= near.max() / 1e9 - 1e-9
+            if np.any(near > 120 * 10**9):
+                assert batch.reason[j] == "" and batch.temp_age_s[j] > 120.0
     # a window closes once, and later samples of it are late
     assert buf.add_forces(0, np.array([int(batch.k[0]) * W + 5]), np.array([2e5])) == 1
 

@@ -294,3 +294,22 @@ def test_a_one_hertz_logger_dates_the_step_at_the_records_first_used_window(fold
     assert [e.window for e in res.events] == [first + 1]
     s = score_stream(sc, res)
     assert s.events_right and s.lost_windows == 0 and s.within and s.covered, s
+
+
+@pytest.mark.realdata
+def test_a_record_taken_while_the_air_logger_paused_is_a_state_not_a_gap(folder: Path, surrogate) -> None:
+    """The day's third record at 13:10 local, -20 mm, when the public air temperature pauses.
+
+    Its windows were skipped as ``stale_temperature``: a stream ending with it ended at the -10 mm
+    state, its interval 10 mm off the truth, without a warning. Now they are used with the held or
+    interpolated temperature, their compensation widened by what the air can do since the last
+    reading (``inputs.windows.stale_variance``), and the state is an event at its record.
+    """
+    pieces = [Piece("ref", 0.0), Piece("lowered", 0.73), Piece("lowered", 4.56, (-0.01, -0.01))]
+    sc = build(folder, surrogate.A, pieces, require_temperature=False)
+    shadow = Shadow(load_config(), surrogate)
+    res = shadow.run(sc.data)
+    s = score_stream(sc, res)
+    assert s.events_right and s.lost_windows == 0 and s.within and s.covered, s
+    assert res.stale_temperature_windows >= 3 and res.rejected["stale_temperature"] == 0
+    assert any(w.startswith("stale air temperature") for w in res.warnings)

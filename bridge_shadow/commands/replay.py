@@ -316,6 +316,7 @@ def _counts(shadow: Any) -> dict[str, Any]:
         "windows": int(shadow.n_windows),
         "updates": int(shadow.n_updates),
         "uncompensated": int(shadow.uncompensated),
+        "stale_temperature": int(shadow.stale_temperature),
     }
 
 
@@ -345,7 +346,9 @@ def _this_run(js: dict[str, Any], before: dict[str, Any]) -> None:
     for reason, n in before["rejected"].items():
         js["rejected"][reason] = js["rejected"].get(reason, 0) - n
     msgs["rejected"] = int(sum(v for k, v in js["rejected"].items() if k in MESSAGE_REASONS))
-    for key, name in (("closed", "windows"), ("updates", "updates"), ("uncompensated", "uncompensated")):
+    for key in ("uncompensated", "stale_temperature"):
+        js["windows"][key] = js["windows"].get(key, 0) - before.get(key, 0)
+    for key, name in (("closed", "windows"), ("updates", "updates")):
         js["windows"][key] -= before[name]
     js["resumed"] = {
         "windows": before["windows"],

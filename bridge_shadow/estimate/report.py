@@ -214,6 +214,12 @@ def warnings(shadow: Shadow) -> list[str]:
                 else f"(topic {shadow.config.topic_air_temperature} delivered no accepted reading)"
             )
         )
+    if shadow.stale_temperature:
+        out.append(
+            f"stale air temperature: {shadow.stale_temperature} windows used with a temperature interpolated "
+            f"or held from a reading more than {shadow.config.temperature_stale_s:g} s away (their "
+            "compensation widened by what the air can do in that time)"
+        )
     for ledger in shadow.ledgers:
         line = ledger.all_rejected_message()
         if line:
@@ -362,6 +368,7 @@ def diagnostics(shadow: Shadow, now_ns: int | None = None) -> dict[str, Any]:
             "held": len(shadow._queue),
             "updates": shadow.n_updates,
             "uncompensated": shadow.uncompensated,
+            "stale_temperature": shadow.stale_temperature,
             "warm": shadow.warm,
         },
         "clock_ns": clock,
@@ -408,6 +415,7 @@ def replay_result(shadow: Shadow, outputs: list[WindowOutput], messages: int, se
         warnings=warnings(shadow),
         prior=prior_info(shadow),
         uncompensated_windows=shadow.uncompensated,
+        stale_temperature_windows=shadow.stale_temperature,
         changes=unconfirmed_changes(shadow),
         state=posterior_state(shadow),
         gaps=gaps(shadow),

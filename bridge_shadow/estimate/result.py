@@ -217,6 +217,7 @@ class ReplayResult:
     warnings: list[str] = field(default_factory=list)
     prior: dict[str, Any] = field(default_factory=dict)
     uncompensated_windows: int = 0
+    stale_temperature_windows: int = 0
     changes: list[ChangeRecord] = field(default_factory=list)
     state: dict[str, Any] = field(default_factory=dict)
     gaps: list[dict[str, Any]] = field(default_factory=list)
@@ -268,6 +269,7 @@ class ReplayResult:
                 "closed": self.windows,
                 "updates": self.updates,
                 "uncompensated": self.uncompensated_windows,
+                "stale_temperature": self.stale_temperature_windows,
             },
             "events": [e.to_json() for e in self.events],
             "unconfirmed_changes": [c.to_json() for c in self.changes],

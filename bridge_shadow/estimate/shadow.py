@@ -57,7 +57,7 @@ from bridge_shadow.estimate.events.warmup import warmup_step
 from bridge_shadow.estimate.inputs.closed_window import Window
 from bridge_shadow.estimate.inputs.gate import REASONS, TopicGate
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS, TopicLedger
-from bridge_shadow.estimate.inputs.windows import WindowBatch, WindowBuffer
+from bridge_shadow.estimate.inputs.windows import WindowBatch, WindowBuffer, stale_variance
 from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.estimate.report import NOISE_FULL_DAY_S
 from bridge_shadow.estimate.result import ChangeRecord, EventRecord, ReplayResult, WindowOutput
@@ -99,7 +99,8 @@ class Shadow:
         compensation, noise, detector: the parts (see the module docstring).
         filter: the settlement estimator (``SegmentChain``).
         events: detected events (window, detected_window, glr, step_n).
-        n_windows: windows closed with data; uncompensated: windows used without temperature.
+        n_windows: windows closed with data; uncompensated: windows used without temperature;
+            stale_temperature: windows used with a stale one (``inputs.windows.stale_variance``).
 
     """
 
@@ -197,6 +198,8 @@ class Shadow:
         self._last_usable_k: int | None = None
         self.n_windows = 0
         self.uncompensated = 0
+        self.stale_temperature = 0  # windows used with a stale air temperature (widened, see windows)
+        self._stale_s = float(config.temperature_stale_s)
         # windows the traffic screen cut samples from: [k, cut south, cut north, kept south, kept north]
         self.traffic_windows: list[list[int]] = []
         self.warm = False
@@ -378,6 +381,7 @@ class Shadow:
                 i0[j],
                 bv[j],
                 float(svar[j]),
+                stale_variance(float(batch.temp_age_s[j]), self._stale_s),
             )
             for j in range(n)
         ]
@@ -388,6 +392,8 @@ class Shadow:
                 self.counts[w.reason] += 1
             elif not np.isfinite(w.temp[0]):
                 self.uncompensated += 1
+            elif w.tvar > 0:
+                self.stale_temperature += 1
             self._queue.append(w)
             if w.reason:
                 continue
@@ -423,11 +429,18 @@ class Shadow:
         gvar = self.compensation.curve_variance(self.fit, i0, bv).tolist()
         sun = self.fit.beta[:, -1] if self.compensation.sun else np.zeros(2)
         s0, s1 = float(sun[0]), float(sun[1])
+        t0, t1 = (float(x) for x in self.compensation.slope_fe)
         for w, gw, vw in zip(windows, g, gvar, strict=True):
             w.g = (gw[0], gw[1])
             # the sun covariate's own uncertainty moves both channels' predictions together
             sv = _sun_var(w)
-            w.gvar = (vw[0] + s0 * s0 * sv, s0 * s1 * sv, vw[1] + s1 * s1 * sv)
+            # a stale air temperature (``stale_variance``) likewise, through the curve's FE slope
+            tv = w.tvar if w.i0[0] >= 0 else 0.0
+            w.gvar = (
+                vw[0] + s0 * s0 * sv + t0 * t0 * tv,
+                s0 * s1 * sv + t0 * t1 * tv,
+                vw[1] + s1 * s1 * sv + t1 * t1 * tv,
+            )
             w.g_fit = self._fit_id
 
     # -- gaps and provisional segments ---------------------------------------------------------

@@ -114,10 +114,14 @@ def _compensation(diag: Mapping[str, Any]) -> Status:
         values[f"{ch} noise phi"] = _num(phi, ".3f")
         values[f"{ch} noise sigma [kN]"] = _num(1e-3 * sd, ".4f")
     values["uncompensated windows"] = str(diag["windows"].get("uncompensated", 0))
+    values["stale temperature windows"] = str(diag["windows"].get("stale_temperature", 0))
     warm = bool(diag["windows"]["warm"])
     uncompensated = int(diag["windows"].get("uncompensated", 0))
+    stale = int(diag["windows"].get("stale_temperature", 0))
     if uncompensated:
         level, message = LEVELS["WARN"], f"no air temperature: {uncompensated} windows used uncompensated"
+    elif stale:
+        level, message = LEVELS["WARN"], f"stale air temperature: {stale} windows used, compensation widened"
     elif warm:
         level, message = LEVELS["OK"], "warm"
     else:

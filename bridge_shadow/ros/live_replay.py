@@ -494,6 +494,7 @@ def run_live(
             "closed": report["windows"]["closed"],
             "updates": report["windows"]["updates"],
             "uncompensated": report["windows"]["uncompensated"],
+            "stale_temperature": report["windows"].get("stale_temperature", 0),
         },
         "events": report["events"],
         "unconfirmed_changes": report["unconfirmed_changes"],

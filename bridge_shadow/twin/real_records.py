@@ -100,10 +100,14 @@ def load_records(folder: Path) -> tuple[dict[str, MonitoringData], TemperatureSe
     return recs, temp
 
 
-def build(folder: Path, A: np.ndarray, pieces: tuple[Piece, ...] | list[Piece]) -> Scenario:
+def build(
+    folder: Path, A: np.ndarray, pieces: tuple[Piece, ...] | list[Piece], require_temperature: bool = True
+) -> Scenario:
     """Build the stream of ``pieces`` (in the given order, which must be increasing in ``at_h``).
 
-    ``A`` (2, 2) N/m maps each piece's added step to forces.
+    ``A`` (2, 2) N/m maps each piece's added step to forces. ``require_temperature`` False lets a
+    piece keep the air readings its own hour has, however few (the public file pauses for half an
+    hour at a time): the stream then has stale temperature there, as a real one would.
     """
     recs, temp = load_records(Path(folder))
     t_ref = int(recs["ref"].forces[CHANNELS[0]].stamp_ns[0])
@@ -127,7 +131,8 @@ def build(folder: Path, A: np.ndarray, pieces: tuple[Piece, ...] | list[Piece]) 
         # the air temperature over the copy (plus a minute either side): its own hour's, or another's
         src = 0 if p.temp_at_h is None else t_ref + round(p.temp_at_h * HOUR_NS) - first
         sel = (temp.stamp_ns >= first - 60 * NS + src) & (temp.stamp_ns <= last + 60 * NS + src)
-        if not np.any(sel) or np.max(np.diff(temp.stamp_ns[sel]), initial=0) > 120 * NS:
+        broken = not np.any(sel) or np.max(np.diff(temp.stamp_ns[sel]), initial=0) > 120 * NS
+        if require_temperature and broken:
             raise ValueError(f"no continuous air temperature for {p}: give temp_at_h, an hour that has it")
         t_parts.append((temp.stamp_ns[sel] - src, temp.temp_c[sel]))
     merged = {ch: _concat(forces[ch]) for ch in CHANNELS}

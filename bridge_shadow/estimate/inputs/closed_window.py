@@ -30,6 +30,7 @@ class Window:
         "seg",
         "svar",
         "temp",
+        "tvar",
     )
 
     def __init__(
@@ -42,6 +43,7 @@ class Window:
         i0: np.ndarray,
         bv: np.ndarray,
         svar: float = 0.0,
+        tvar: float = 0.0,
     ) -> None:
         self.k = k
         self.samples = samples
@@ -51,6 +53,7 @@ class Window:
         self.i0 = i0
         self.bv = bv
         self.svar = svar  # variance of the sun covariate (the sun term's; 0 without it)
+        self.tvar = tvar  # variance of a stale window's air temperature, K^2 (0 when fresh)
         self.action: str | None = "invalid" if reason else None
         self.event_end = False  # the last window of an event's confirmation run
         self.g = (0.0, 0.0)  # the centred curve at this window's temperature, N

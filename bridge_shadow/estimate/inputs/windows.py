@@ -13,7 +13,11 @@ it closes.
 
 Temperature at each force stamp is ``linear`` (interpolated between the bracketing readings) or
 ``hold`` (the last reading); a sample is stale when the reading it relies on is further than
-``temperature_stale_s`` away. Window ``k`` only sees readings stamped before its end plus the
+``temperature_stale_s`` away. A window with stale samples is *used*, not skipped (a record taken
+while the air logger paused is still a state of the supports; on 2022-04-11 the public air
+temperature pauses from 13:05 to 13:40, when a later record of the lowering would have been taken):
+its temperature is the interpolated or held one, and ``stale_variance`` adds what the air can have
+done in the meantime. Window ``k`` only sees readings stamped before its end plus the
 horizon, so a window's result does not depend on how much later data had been ingested when it
 closed (chunking). A window that cannot see the first temperature reading ever accepted (none
 yet, or it lies past the window's end plus the horizon) is not stale but *uncompensated*
@@ -30,9 +34,35 @@ import numpy as np
 from bridge_shadow.estimate.inputs.traffic import screen_record
 from bridge_shadow.windowing import window_index, window_stats
 
-__all__ = ["SampleBuffer", "WindowBatch", "WindowBuffer"]
+__all__ = [
+    "AIR_DRIFT_K_PER_S",
+    "AIR_RANGE_K",
+    "SampleBuffer",
+    "WindowBatch",
+    "WindowBuffer",
+    "stale_variance",
+]
 
 _NEVER = np.iinfo(np.int64).max
+#: The largest daily range of the air at the bridge, K, and the fastest it changes, K/s: the
+#: bridge's own March 2022 record (``Weather/TemperatureComparisonMUC.csv``: -3.9 to 19.7 C on
+#: 2022-03-23, 23.6 K) and that range as a half-cosine rise over the 9 h from sunrise to the
+#: afternoon maximum, whose steepest rate is ``pi / 2 x 23.6 K / 9 h = 4.1 K/h``.
+AIR_RANGE_K = 23.6
+AIR_DRIFT_K_PER_S = 0.5 * np.pi * AIR_RANGE_K / (9.0 * 3600.0)
+
+
+def stale_variance(age_s: float, stale_s: float) -> float:
+    """Return the variance (K^2) of a window's air temperature that rests on a reading ``age_s`` away.
+
+    0 within ``stale_s`` (``temperature_stale_s``: the reading is the temperature); beyond it the
+    air may have moved by up to ``AIR_DRIFT_K_PER_S x age`` since, in either direction, and by no
+    more than a day's range (``AIR_RANGE_K``) however long ago: taken as the standard deviation (a
+    held reading on the steepest rise is off by that much, an interpolated one by less).
+    """
+    if not age_s > stale_s:
+        return 0.0
+    return float(min(AIR_DRIFT_K_PER_S * age_s, AIR_RANGE_K) ** 2)
 _NONE = -(2**62)
 _SEEN = _NONE + 1  # the first temperature reading is visible to every window still open
 
@@ -159,8 +189,12 @@ class WindowBatch:
         force_n: (n, 2) N, mean force per channel (NaN where a channel is empty).
         temp_c: (n, 2) C, mean matched air temperature per channel (NaN when unknown).
         reason: (n,) object, ``""`` (usable) or ``missing_topic`` / ``sparse_window`` /
-            ``stale_temperature`` / ``traffic``.
+            ``traffic``.
         cut: (n, 2) int64, samples per channel the traffic screen cut (``estimate.inputs.traffic``).
+        temp_age_s: (n,) s, the largest distance from a force sample of the window to the air
+            reading its matched temperature rests on (0 without a matched temperature); beyond
+            ``temperature_stale_s`` the window's temperature is *stale* (``Shadow`` widens its
+            compensation by what the air can do in that time).
 
     """
 
@@ -170,6 +204,7 @@ class WindowBatch:
     temp_c: np.ndarray
     reason: np.ndarray
     cut: np.ndarray
+    temp_age_s: np.ndarray
 
     def __len__(self) -> int:
         return len(self.k)
@@ -184,6 +219,7 @@ class WindowBatch:
             np.empty((0, 2)),
             np.empty(0, object),
             np.empty((0, 2), np.int64),
+            np.empty(0),
         )
 
     def select(self, rows: np.ndarray) -> WindowBatch:
@@ -195,6 +231,7 @@ class WindowBatch:
             self.temp_c[rows],
             self.reason[rows],
             self.cut[rows],
+            self.temp_age_s[rows],
         )
 
     @classmethod
@@ -205,7 +242,7 @@ class WindowBatch:
         return cls(*(np.concatenate([getattr(b, f) for b in batches]) for f in _FIELDS))
 
 
-_FIELDS = ("k", "samples", "force_n", "temp_c", "reason", "cut")
+_FIELDS = ("k", "samples", "force_n", "temp_c", "reason", "cut", "temp_age_s")
 
 
 class WindowBuffer:
@@ -425,7 +462,7 @@ class WindowBuffer:
         samples = np.zeros((n, 2), np.int64)
         force = np.full((n, 2), np.nan)
         temp = np.full((n, 2), np.nan)
-        stale = np.zeros(n, bool)
+        age = np.zeros(n)
         ts, tv = self.temp.arrays()
         for c, ((stamps, values), k) in enumerate(zip(taken, ks, strict=True)):
             if not len(stamps):
@@ -437,28 +474,27 @@ class WindowBuffer:
             force[has, c] = forces.mean[has]
             if self.temp_first_ns is None:
                 continue
-            matched, flag = self._match(stamps, k, ts, tv)
+            matched, dist = self._match(stamps, k, ts, tv)
             blind = (k + 1) * w + self.horizon_ns <= self.temp_first_ns  # no reading visible yet
-            matched[blind], flag[blind] = np.nan, 0.0
+            matched[blind], dist[blind] = np.nan, 0.0
             temp[has, c] = window_stats(row, matched, n).mean[has]
-            stale |= np.bincount(row, weights=flag, minlength=n) > 0
+            np.maximum.at(age, row, dist / 1e9)
         sparse = np.any(samples < self.min_samples, axis=1)
         reason = np.full(n, "", dtype=object)
-        reason[stale] = "stale_temperature"
         reason[sparse] = "sparse_window"
         reason[np.any(samples == 0, axis=1)] = "missing_topic"
         reason[sparse & np.any(n_cut > 0, axis=1)] = "traffic"
-        return WindowBatch(k_all.astype(np.int64), samples, force, temp, reason, n_cut)
+        return WindowBatch(k_all.astype(np.int64), samples, force, temp, reason, n_cut, age)
 
     def _match(
         self, t: np.ndarray, k: np.ndarray, ts: np.ndarray, tv: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Temperature at force stamps ``t`` of windows ``k``: ((n,) C, (n,) stale flag as float).
+        """Temperature at force stamps ``t`` of windows ``k``: ((n,) C, (n,) ns to the reading it rests on).
 
         Readings at or past ``(k + 1) W + horizon`` are invisible to window ``k``.
         """
         if not len(ts):
-            return np.full(len(t), np.nan), np.ones(len(t))
+            return np.full(len(t), np.nan), np.zeros(len(t))
         right = np.searchsorted(ts, t, side="right")
         left = right - 1
         limit = np.searchsorted(ts, (k + 1) * self.w_ns + self.horizon_ns, side="left")
@@ -469,13 +505,13 @@ class WindowBuffer:
         d_left = np.where(has_l, t - ts[li], _NEVER)
         if self.match == "hold":
             temp = np.where(has_l, tv[li], tv[0])
-            return temp, (d_left > self.stale_ns).astype(float)
+            return temp, np.where(has_l, d_left, ts[0] - t).astype(float)
         d_right = np.where(has_r, ts[ri] - t, _NEVER)
         both = has_l & has_r
         span = np.where(both, ts[ri] - ts[li], 1).astype(float)
         frac = np.where(both, d_left, 0).astype(float) / span
         temp = np.where(has_l, tv[li], tv[ri]) + np.where(both, frac * (tv[ri] - tv[li]), 0.0)
-        return temp, (np.minimum(d_left, d_right) > self.stale_ns).astype(float)
+        return temp, np.minimum(d_left, d_right).astype(float)
 
     # -- state ----------------------------------------------------------------------------------
     def state_dict(self) -> dict[str, object]:

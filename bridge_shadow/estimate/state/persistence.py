@@ -148,6 +148,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "i0": np.array([w.i0 for w in queue], np.int64).reshape(-1, 2),
             "bv": np.array([w.bv for w in queue], float).reshape(-1, 2, width),
             "svar": np.array([w.svar for w in queue], float),
+            "tvar": np.array([w.tvar for w in queue], float),
             "event_end": np.array([w.event_end for w in queue], bool),
             "seg": np.array([w.seg for w in queue], np.int64),
             "warm": np.array([index[id(w)] for w in shadow._warm], np.int64),
@@ -177,6 +178,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "last_usable_k": _opt(shadow._last_usable_k),
             "n_windows": shadow.n_windows,
             "uncompensated": shadow.uncompensated,
+            "stale_temperature": shadow.stale_temperature,
             "warm": int(shadow.warm),
             "n_accepted": shadow._n_accepted,
             "refit_at": shadow._refit_at,
@@ -242,6 +244,7 @@ def restore_shadow(
             np.asarray(q["i0"]).reshape(-1, 2)[i],
             np.asarray(q["bv"], float).reshape(-1, 2, width)[i],
             float(np.asarray(q["svar"], float).ravel()[i]),
+            float(np.asarray(q["tvar"], float).ravel()[i]) if "tvar" in q else 0.0,
         )
         w.action = actions[i]
         w.event_end = bool(np.asarray(q["event_end"]).ravel()[i])
@@ -306,6 +309,7 @@ def restore_shadow(
     shadow._last_usable_k = _unopt(sc["last_usable_k"])
     shadow.n_windows = int(sc["n_windows"])
     shadow.uncompensated = int(sc["uncompensated"])
+    shadow.stale_temperature = int(sc["stale_temperature"]) if "stale_temperature" in sc else 0
     shadow.warm = bool(int(sc["warm"]))
     shadow._n_accepted = int(sc["n_accepted"])
     shadow._refit_at = int(sc["refit_at"])
