@@ -42,6 +42,9 @@ they are not on the package index), --watch prints the node's latest outputs onc
 """
 
 
+#: Window counts the text summary names when non-zero: JSON key, words.
+WINDOW_NOTES = (("uncompensated", "uncompensated"), ("stale_temperature", "with stale temperature"))
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add BAG, --params, --live, --rate, --out, --plots, --checkpoint, --watch, --json."""
     parser.add_argument("bag", metavar="BAG", help="rosbag2 directory (sqlite3 or MCAP)")
@@ -108,7 +111,12 @@ def _summary(js: dict[str, Any]) -> str:
         f"  correlation {rho:+.3f}",
         f"messages: {msgs['total']} in, {msgs['used']} used, {msgs['rejected']} rejected; "
         f"{js['messages_per_s']:.0f} msg/s",
-        f"windows: {js['windows']['closed']} closed, {js['windows']['updates']} updates",
+        f"windows: {js['windows']['closed']} closed, {js['windows']['updates']} updates"
+        + "".join(
+            f", {n} {what}"
+            for key, what in WINDOW_NOTES
+            if (n := js["windows"].get(key, 0))
+        ),
     ]
     from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
 
