@@ -24,7 +24,9 @@ channel, and the rates: messages_per_s and seconds end to end (from the command'
 imports, model, bag read and decode, shadow, --out; not --plots), pipeline_messages_per_s and
 pipeline_seconds for the shadow alone (live: publishing to the node's flush).
 
-Nothing fails silently: a missing air-temperature topic runs uncompensated, a topic whose every
+Nothing fails silently: a missing air-temperature topic runs uncompensated, windows whose air
+reading is more than temperature_stale_s away are used with their compensation widened, a change
+across a gap or among the warm-up windows is weighed by the data and reported, a topic whose every
 message is rejected is named with the reason and the expected value (WARN lines on stderr and
 "warnings" in the JSON), and a replay in which no window updated the estimate exits with 1.
 
