@@ -199,7 +199,6 @@ class Shadow:
         self.n_windows = 0
         self.uncompensated = 0
         self.stale_temperature = 0  # windows used with a stale air temperature (widened, see windows)
-        self._stale_s = float(config.temperature_stale_s)
         # windows the traffic screen cut samples from: [k, cut south, cut north, kept south, kept north]
         self.traffic_windows: list[list[int]] = []
         self.warm = False
@@ -381,7 +380,7 @@ class Shadow:
                 i0[j],
                 bv[j],
                 float(svar[j]),
-                stale_variance(float(batch.temp_age_s[j]), self._stale_s),
+                stale_variance(float(batch.temp_age_s[j]), self.config.temperature_stale_s),
             )
             for j in range(n)
         ]

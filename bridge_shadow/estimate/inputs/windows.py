@@ -251,7 +251,6 @@ class WindowBuffer:
     Attributes:
         w_ns: window length, ns.
         timeout_ns: ``topic_timeout_s`` in ns; horizon_ns: temperature horizon in ns.
-        stale_ns: largest distance to the reading a matched temperature relies on, ns.
         match: ``linear`` or ``hold``.
         min_samples: fewer accepted samples in a channel make the window ``sparse_window``.
         force: one ``SampleBuffer`` per channel; temp: the air-temperature readings.
@@ -285,7 +284,6 @@ class WindowBuffer:
         self.traffic_margin_s = float(traffic_margin_s)
         self.record = _Record()
         self.timeout_ns = round(timeout_s * ns)
-        self.stale_ns = round(stale_s * ns)
         self.horizon_ns = round(max(timeout_s, stale_s) * ns)
         self.match = match
         self.min_samples = int(min_samples)
