@@ -70,6 +70,7 @@ def flag_car(
     max_iter: int = 20,
     empty_is_car: bool = True,
     parts: int = 1,
+    start: np.ndarray | None = None,
 ) -> CarFlags:
     """Flag the bins of the reaction sum ``s_n`` (N, NaN without data) that a vehicle affects.
 
@@ -78,14 +79,18 @@ def flag_car(
     ``parts``: the first baseline starts from the lowest fifth of each of this many equal parts
     of the record (2: both ends, so that a drift of the baseline through the record, ~1 N/s on
     the real records, does not put the whole start on one end and flag the other end as a car).
+    ``start``: (n,) bool, the first car-free bins instead (``parts`` is then not used).
     """
     valid = np.isfinite(s_n)
     if not valid.any():
         return CarFlags(np.ones(len(s_n), bool), np.full(len(s_n), np.nan), 0)
     free = np.zeros(len(s_n), bool)
-    for part in np.array_split(np.flatnonzero(valid), max(1, parts)):
-        if len(part):
-            free[part[s_n[part] <= np.quantile(s_n[part], 0.2)]] = True
+    if start is not None:
+        free = valid & np.asarray(start, bool)
+    else:
+        for part in np.array_split(np.flatnonzero(valid), max(1, parts)):
+            if len(part):
+                free[part[s_n[part] <= np.quantile(s_n[part], 0.2)]] = True
     resid = np.full(len(s_n), np.nan)
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007 - the count is reported

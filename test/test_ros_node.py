@@ -342,7 +342,11 @@ def test_live_replay_of_a_bag_without_temperature_runs_uncompensated(
 def test_live_replay_of_the_real_lowering_ends_at_the_direct_posterior(
     munich_data: Path, tmp_path: Path
 ) -> None:
-    """Every window closes before the end here, so the final refit must reach the topics on its own."""
+    """The final posterior reaches the topics, with the last windows or on its own.
+
+    The lowered record's windows are held after the 44-min gap until the end
+    (``Shadow._release_fresh``); the flush's refit then lands on the last of them.
+    """
     from bridge_shadow.bagio import write_monitoring
     from bridge_shadow.importers import import_csv
 
@@ -363,9 +367,10 @@ def test_live_replay_of_the_real_lowering_ends_at_the_direct_posterior(
     assert len(direct.events) == 1 and live["events"][0]["window"] == direct.events[0].window
     np.testing.assert_allclose(live["posterior"]["mean_m"], direct.mean_m, rtol=1e-12, atol=0)
     np.testing.assert_allclose(live["posterior"]["covariance_m2"], direct.covariance_m2, rtol=1e-12, atol=0)
-    # what a subscriber saw last is that final posterior: one message more than the windows
+    # what a subscriber saw last is that final posterior (one message per window, and one more
+    # when the flush's refit came after the last window)
     raw = read_raw_topics(tmp_path / "out", {MEAN_TOPIC: FLOAT_ARRAY_TYPE})[MEAN_TOPIC][1]
-    assert len(raw) == live["live"]["windows_published"] + 1
+    assert live["live"]["windows_published"] <= len(raw) <= live["live"]["windows_published"] + 1
     from std_msgs.msg import Float64MultiArray
 
     last, _ = array_from_msg(deserialize_message(raw[-1], Float64MultiArray))

@@ -228,3 +228,45 @@ def test_two_recordings_minutes_apart_are_screened_one_by_one() -> None:
         if np.all(np.isfinite(mean)):
             level = u0 - (20000.0 if k >= k2 else 0.0)
             assert np.all(np.abs(mean - level) < 100.0), (k - k0, mean - level)
+
+
+def test_a_settlement_under_a_parked_car_splits_the_record_and_cuts_the_car_on_both_sides() -> None:
+    """A 20-min record, -20 kN from minute 10 on, a car of +6 kN parked over minutes 7-13.
+
+    With one straight baseline the level tilted under the car, every bin was flagged as one run
+    touching both ends, and nothing was cut: the car's load sat in the windows of both states.
+    Split where the car-free level drops (``split_bin``), each side's car is cut and every kept
+    window is on its own level.
+    """
+    from bridge_shadow.estimate.inputs.traffic import split_bin
+
+    t, f = _record(20.0)
+    f[:, 420:780] += 6000.0
+    f[:, 600:] -= 20000.0
+    assert abs(split_bin(f.sum(axis=0), 300.0) - 600) <= 1
+    got = _windows(_data(t, f), 1800.0)
+    k0 = int(t[0] // W)
+    cut = sorted(k - k0 for k, (_, _, c) in got.items() if c.sum())
+    assert cut and min(cut) >= 6 and max(cut) <= 13 and any(k < 10 for k in cut) and any(k >= 10 for k in cut)
+    u0 = load_surrogate().u0
+    for k, (mean, _, _) in got.items():
+        if np.all(np.isfinite(mean)):
+            level = u0 - (20000.0 if k - k0 >= 10 else 0.0)
+            assert np.all(np.abs(mean - level) < 100.0), (k - k0, mean - level)
+
+
+def test_noise_above_the_threshold_is_not_split_and_nothing_is_cut() -> None:
+    """Bins that scatter more than the car rule's threshold flag every bin: no side is car-free.
+
+    Two drops of 3 kN (at minutes 6.7 and 13.3) make ``split_bin`` find splits, but no side has a
+    bin the rule could call car-free. Split anyway, the middle piece (both its ends splits) is one
+    flagged run above its baseline and was cut whole as a vehicle; now the record is screened
+    whole and nothing is cut.
+    """
+    t, f = _record(20.0)
+    rng = np.random.default_rng(3)
+    f += rng.normal(0.0, 283.0, f.shape)  # 1 s bins (one sample each) scatter by 400 N in the sum
+    f[:, 400:] -= 1500.0
+    f[:, 800:] -= 1500.0
+    got = _windows(_data(t, f), 1800.0)
+    assert not any(c.sum() for _, _, c in got.values())

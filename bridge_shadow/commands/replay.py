@@ -26,9 +26,10 @@ pipeline_seconds for the shadow alone (live: publishing to the node's flush).
 
 Nothing fails silently: a missing air-temperature topic runs uncompensated, windows whose air
 reading is more than temperature_stale_s away are used with their compensation widened, a change
-across a gap or among the warm-up windows is weighed by the data and reported, a topic whose every
-message is rejected is named with the reason and the expected value (WARN lines on stderr and
-"warnings" in the JSON), and a replay in which no window updated the estimate exits with 1.
+across a gap or among the first windows (of the data or after a gap) is weighed by the data and
+reported, a topic whose every message is rejected is named with the reason and the expected
+value (WARN lines on stderr and "warnings" in the JSON), and a replay in which no window updated
+the estimate exits with 1.
 
 --out and --plots work in both modes (live: drawn from the node's history service and final
 checkpoint); --out never replaces an existing bag without --force. The text output's first line
@@ -153,7 +154,7 @@ def _summary(js: dict[str, Any]) -> str:
         what = {
             "gap": "change across a gap",
             "held_run": "change at the end of a held run",
-            "warmup": "step among the warm-up windows",
+            "warmup": "step among the first windows (warm-up or after a gap)",
         }.get(
             e.get("kind", "step"), "settlement step"
         )
@@ -168,7 +169,7 @@ def _summary(js: dict[str, Any]) -> str:
         else:
             where = {
                 "gap": f"after a gap of {c['gap_s'] / 3600.0:.1f} h",
-                "warmup": "a step among the warm-up windows",
+                "warmup": "a step among the first windows (the warm-up, or those after a gap)",
             }.get(c["kind"], "a held run")
             how = f"{where}, change probability {c['change_probability']:.3g}"
         lines.append(f"unconfirmed change {i} at {c['time']} ({how}): {size}")

@@ -189,7 +189,7 @@ def posterior_state(shadow: Shadow) -> dict[str, Any]:
             hours = [(g["to_k"] - g["from_k"] - 1) * w_h for g in shadow.gaps if g["segment"] == s]
             after = f"after a gap of {hours[0]:.1f} h" if hours else "after a gap"
         elif kind == "warmup":
-            after = "where a step showed among the warm-up windows"
+            after = "where a step showed among its first windows (the warm-up, or those after a gap)"
         else:
             after = "where a held run ended without confirming a step"
         state["text"] = (
@@ -232,7 +232,7 @@ def warnings(shadow: Shadow) -> list[str]:
         where = {
             "gap": f"after a gap of {c.gap_s / 3600.0:.1f} h",
             "held_run": "a run of held windows at the end of the data or before a gap",
-            "warmup": "a step among the warm-up windows",
+            "warmup": "a step among the first windows (the warm-up, or those after a gap)",
             "run_in_data": "a run that stayed away without a step's jump",
         }[c.kind]
         size = ", ".join(

@@ -84,8 +84,8 @@ class EventRecord:
         step_n: (2,) N, the innovation step estimated at confirmation.
         kind: ``step`` (found in the data by the step detector), ``gap`` (a change across a gap
             in the data, confirmed by the record after it), ``held_run`` (an unconfirmed change
-            that later data confirmed) or ``warmup`` (a step among the warm-up windows, confirmed
-            by the data after it; ``events.warmup``).
+            that later data confirmed) or ``warmup`` (a step among the first windows of the data or
+            after a gap, confirmed by the data after it; ``events.warmup``).
 
     """
 

@@ -53,7 +53,7 @@ from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows, residual_moments
 from bridge_shadow.estimate.compensation.sunlight import SunCovariate
 from bridge_shadow.estimate.events.detector import ChangeDetector, Decision
-from bridge_shadow.estimate.events.warmup import warmup_step
+from bridge_shadow.estimate.events.warmup import MIN_DIFFERENCES, warmup_step
 from bridge_shadow.estimate.inputs.closed_window import Window
 from bridge_shadow.estimate.inputs.gate import REASONS, TopicGate
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS, TopicLedger
@@ -204,6 +204,10 @@ class Shadow:
         self.warm = False
         self._queue: deque[Window] = deque()
         self._warm: list[Window] = []
+        #: the first windows after a gap, held until ``warmup_windows`` of them (or the next gap, or
+        #: the end of the data) so that a step among them is searched for like the warm-up's
+        self._fresh: list[Window] = []
+        self._fresh_open = False
         self._rows: list[tuple[Any, ...]] = []
         self._n_accepted = 0
         self._refit_at = 0
@@ -344,10 +348,13 @@ class Shadow:
                 none = np.empty(0, np.int64), np.empty(0)
                 self.ingest_forces(c, *none) if c < 2 else self.ingest_temperature(*none)
         outputs = self._process(self.buffer.flush([g.last_ns for g in self.gates[:2]]))
+        outputs.extend(self._release_fresh())
         outputs.extend(self._apply(self.detector.flush()))
         if not self.warm and self._warm:
             self._finish_warmup()
             outputs.extend(self._drain())
+            outputs.extend(self._release_fresh())  # the windows after a gap it left held
+            outputs.extend(self._apply(self.detector.flush()))
         outputs.extend(self._drain())
         if self.warm and self.sums.n + len(self._rows) > 0:
             self._refit(reselect=True)
@@ -410,6 +417,11 @@ class Shadow:
                     # it, whether that window comes in the same batch or later (chunking-exact)
                     outputs.extend(self._drain())
                 continue
+            if self._fresh_open:
+                self._fresh.append(w)
+                if len(self._fresh) >= self.config.warmup_windows:
+                    outputs.extend(self._release_fresh())
+                continue
             if w.g_fit != self._fit_id:
                 stop = j + _CURVE_BLOCK
                 self._precompute_curve(windows[j:stop], batch.temp_c[j:stop], i0[j:stop], bv[j:stop])
@@ -459,6 +471,7 @@ class Shadow:
         """
         outputs: list[WindowOutput] = []
         if self.warm:
+            outputs.extend(self._release_fresh())
             outputs.extend(self._apply(self.detector.close_run()))
             outputs.extend(self._drain())
         else:
@@ -469,6 +482,47 @@ class Shadow:
             w.k, self._drift_jump(w.k), kind="gap", change_prior=self.config.change_prior_probability
         )
         self.detector.prev = None  # innovations after the gap refer to a new estimate
+        self._fresh_open = self.warm  # (during the warm-up its own search covers the segment)
+        return outputs
+
+    def _release_fresh(self) -> list[WindowOutput]:
+        """Judge the windows held after a gap, in order; a step among them opens a provisional segment.
+
+        Right after a gap the provisional segment's level rests on its first few windows, so the
+        step detector, which judges a window against it, cannot see a step among them: a
+        settlement minutes into the first record after hours (the test car cut leaves a window
+        or two of the old state) was taken into that level, half of it lost, no event, and an
+        interval that excluded the truth. The held windows are searched as the warm-up's are
+        (``events.warmup``: on their own scale, compensated by the current curve); a step found
+        opens a provisional segment (``kind: warmup``) at its first window, which the data after
+        it decide like the gap's. The first window of either segment is taken as its data, not
+        judged against it: a level beyond the jump prior's reach (50 mm here) made the detector
+        hold the gap's first window and all after it, and the change ended an unconfirmed held run
+        instead of the gap's event (an odd first window is the search's to find: it makes a step
+        between the first and the second).
+        """
+        if not self._fresh_open:
+            return []
+        fresh, self._fresh, self._fresh_open = self._fresh, [], False
+        i = None
+        if len(fresh) > MIN_DIFFERENCES:
+            y = np.array([w.force - np.array(self._curve(w)) for w in fresh])
+            ks = np.array([w.k for w in fresh], np.int64)
+            i = warmup_step(y, ks, 1.0 - self.config.event_trigger_probability)
+        outputs: list[WindowOutput] = []
+        for j, w in enumerate(fresh):
+            self.settle()
+            if j == i:
+                outputs.extend(self._apply(self.detector.close_run()))
+                outputs.extend(self._drain())
+                prior = self.config.change_prior_probability
+                self.filter.open_segment(w.k, self._drift_jump(w.k), kind="warmup", change_prior=prior)
+                self.detector.prev = None
+            if j in (0, i):
+                w.action = "accept"  # a provisional segment's first window is its data, not judged by it
+            else:
+                self._judge(w)
+            outputs.extend(self._drain())
         return outputs
 
     def _settle_provisional(self, now_k: int, merge: bool = False) -> bool:
@@ -478,11 +532,14 @@ class Shadow:
         ``change_confirm_probability`` confirms the change (it is reported as an event from then
         on, with ``now_k`` as the window that confirmed it; the posterior stays the mixture, which
         by then is the new state's). With ``merge`` (at refits), one of at most
-        ``1 - change_confirm_probability`` joins the segment before it: unchanged, its windows are
-        that state's, one level and one measurement, as if there had been no gap. By the same
-        likelihood-ratio bound, a true change drawn from the jump prior is merged at most that
-        often. Only a merge is final: a confirmation that later data (a noise model that has seen
-        more) no longer support is reported as unconfirmed again.
+        ``1 - change_confirm_probability`` joins the segment before it, however few its windows:
+        unchanged, its windows are that state's, one level and one measurement, as if there had
+        been no gap. By the same likelihood-ratio bound, whatever the number of windows, a true
+        change drawn from the jump prior is merged at most that often. (Merges once waited for
+        ``event_confirm_windows`` too: a false step among a record's last few windows then stayed
+        a segment and took them from the change before it, which was never confirmed.) Only a
+        merge is final: a confirmation that later data (a noise model that has seen more) no
+        longer support is reported as unconfirmed again.
         """
         f = self.filter
         cfg = self.config
@@ -490,9 +547,7 @@ class Shadow:
             if not 0.0 < f.change_prior[s] < 1.0:
                 continue
             p, n = f.segment_probability(s)
-            if n < cfg.event_confirm_windows:
-                continue
-            if p >= cfg.change_confirm_probability:
+            if p >= cfg.change_confirm_probability and n >= cfg.event_confirm_windows:
                 self.confirmed_at.setdefault(f.starts[s], int(now_k))
             elif merge and p <= 1.0 - cfg.change_confirm_probability:
                 self._merge_segment(s)
@@ -678,7 +733,23 @@ class Shadow:
             self._refit(reselect=reselect)
 
     def _finish_warmup(self) -> None:
-        """Fit on the warm-up windows, then apply them in order (outputs from the warm fit)."""
+        """Fit on the warm-up windows, then apply them in order (outputs from the warm fit).
+
+        When the warm-up ends a few windows after a gap (a record the test car cut down to a few
+        windows, then the next one hours later), those windows are held on as the first windows
+        after a gap (``_release_fresh``) if at least ``MIN_DIFFERENCES + 1`` windows before the
+        gap remain for the fit: searched with the few the warm-up's count left them, a step among
+        them could not be seen.
+        """
+        f = self.filter
+        if f.kinds[-1] == "gap":
+            tail = [w for w in self._warm if w.seg == f.segment]
+            keep = len(self._warm) - len(tail)
+            if tail and keep > MIN_DIFFERENCES:
+                self._warm = self._warm[:keep]
+                for w in tail:
+                    w.seg = -1  # judged later, in the segment current then
+                self._fresh, self._fresh_open = tail, True
         self._split_warm_segment()
         warm, self._warm = self._warm, []
         self.warm = True

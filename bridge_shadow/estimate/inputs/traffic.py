@@ -25,13 +25,22 @@ limit is released unscreened (continuous monitoring: the detector's transients h
 from __future__ import annotations
 
 import itertools
+from typing import NamedTuple
 
 import numpy as np
 
 from bridge_shadow.traffic import flag_car, runs
 from bridge_shadow.windowing import window_stats
 
-__all__ = ["BIN_NS", "PIECE_SILENCE_NS", "screen_record"]
+__all__ = [
+    "BIN_NS",
+    "MAX_SPLITS",
+    "MIN_SIDE_BINS",
+    "PIECE_SILENCE_NS",
+    "screen_record",
+    "split_bin",
+    "support_start",
+]
 
 #: Bin width of the screen, ns: the calibration's 1 s bins (a car crossing takes seconds).
 BIN_NS = 1_000_000_000
@@ -40,6 +49,10 @@ BIN_NS = 1_000_000_000
 #: dropout; a car's run cut in two by it touches each piece's edge and stays data (the screen's
 #: rule for a run that does not come back).
 PIECE_SILENCE_NS = 60 * BIN_NS
+#: A state change inside a record is looked for only with a minute on either side of it (a shorter
+#: state has no window of its own: the detector reads it), and at most this many times per piece.
+MIN_SIDE_BINS = 60
+MAX_SPLITS = 3
 
 
 def screen_record(
@@ -89,15 +102,105 @@ def _screen_piece(
     n = (max(int(s[-1]) for s in stamps) - t0) // BIN_NS + 1
     idx = [(s - t0) // BIN_NS for s in stamps]
     total = sum(window_stats(i, v, n).mean for i, v in zip(idx, values, strict=True))  # NaN: a channel empty
-    flags = flag_car(
-        np.arange(n) + 0.5, total, threshold_n, round(margin_s * 1e9 / BIN_NS), empty_is_car=False, parts=2
-    )
+    cut = _screen_bins(total, threshold_n, round(margin_s * 1e9 / BIN_NS), 0).cut
+    return [~cut[i] for i in idx]
+
+
+class _Screened(NamedTuple):
+    """The screen of a stretch of bins: bins cut, its baseline at its first and last bin (N), bins free."""
+
+    cut: np.ndarray
+    first_n: float
+    last_n: float
+    free: int
+
+
+def _screen_bins(
+    total: np.ndarray,
+    threshold_n: float,
+    margin: int,
+    depth: int = 0,
+    ends: tuple[bool, bool] = (True, True),
+) -> _Screened:
+    """Screen the 1 s bin sums ``total`` (NaN: a bin without both channels); see the module docstring.
+
+    ``ends``: whether the stretch's first and last bins are ends of the record (True) or a split
+    made here (False). A flagged run that touches an end of the record does not come back: a
+    state change, or a vehicle still on the bridge there. With one (and ``depth < MAX_SPLITS``),
+    the stretch is split where the car-free level changes (``split_bin``) and each side screened
+    on its own, its first baseline through its lowest bins (``support_start``: a vehicle parked
+    for most of a side leaves too few car-free bins for its lowest fifth); a run above the baseline
+    that touches the
+    split is a vehicle on the bridge while the state changed. The split stands when the two
+    sides' baselines differ at it by more than ``threshold_n`` (one straight baseline could not
+    carry both: a state change inside the record, whose vehicles the tilted baseline would
+    otherwise hide) and each side shows car-free bins, at least the margin's worth (noise
+    larger than the threshold flags every bin, and the rule has nothing to stand on); a split
+    inside a vehicle's excursion leaves baselines that agree (the car-free level on both sides),
+    and the stretch is screened whole.
+    """
+    n = len(total)
     valid = np.flatnonzero(np.isfinite(total))  # bins with both channels (sparse data leaves gaps)
+    t = np.arange(n) + 0.5
+    start = None if all(ends) else support_start(total, threshold_n)
+    flags = flag_car(t, total, threshold_n, margin, empty_is_car=False, parts=2, start=start)
+    baseline = total - flags.residual_n
     cut = np.zeros(n, bool)
+    open_run = False
     for a, b in runs(flags.car[valid]):
-        if a == 0 or b == len(valid):
-            continue  # it does not come back within the record: a change of state
+        if (a == 0 and ends[0]) or (b == len(valid) and ends[1]):
+            open_run = True
+            continue  # it does not come back within the record: a change of state (or see above)
         if np.mean(flags.residual_n[valid[a:b]]) <= 0:
             continue  # below the baseline: not a vehicle
         cut[valid[a] : valid[b - 1] + 1] = True
-    return [~cut[i] for i in idx]
+    free = int(np.sum(~flags.car[valid]))
+    whole = _Screened(cut, float(baseline[valid[0]]), float(baseline[valid[-1]]), free)
+    if not open_run or depth >= MAX_SPLITS or len(valid) < 2 * MIN_SIDE_BINS:
+        return whole
+    at = split_bin(total[valid], threshold_n)
+    if at is None:
+        return whole
+    k = int(valid[at])
+    left = _screen_bins(total[:k], threshold_n, margin, depth + 1, (ends[0], False))
+    right = _screen_bins(total[k:], threshold_n, margin, depth + 1, (False, ends[1]))
+    if abs(right.first_n - left.last_n) <= threshold_n or min(left.free, right.free) < margin:
+        return whole
+    both = np.concatenate([left.cut, right.cut])
+    return _Screened(both, left.first_n, right.last_n, left.free + right.free)
+
+
+def support_start(s: np.ndarray, threshold_n: float) -> np.ndarray:
+    """Return the bins within ``threshold_n`` of the lowest bin of ``s`` (NaN: none).
+
+    A vehicle only adds load, so the lowest bin is car-free and so are those near it: they start
+    ``flag_car``'s fit of a split side, however few of its bins are car-free (a vehicle parked
+    across the split fills most of a side: its lowest fifth would be the vehicle's).
+    """
+    ok = np.isfinite(s)
+    out = np.zeros(len(s), bool)
+    if ok.any():
+        out[ok] = s[ok] <= np.min(s[ok]) + threshold_n
+    return out
+
+
+def split_bin(s: np.ndarray, threshold_n: float) -> int | None:
+    """Return ``k`` (``MIN_SIDE_BINS <= k <= len(s) - MIN_SIDE_BINS``) where the car-free level drops.
+
+    A vehicle only adds load, so the lowest bin before ``k`` and the lowest from ``k`` on are
+    car-free levels of the two sides (as long as each side has a car-free bin). Their difference
+    ``D(k)`` is the whole drop, for a drop of the level at ``k0``, from the first car-free bin up
+    to ``k0``, and falls once the new state enters the left side: the split is the last ``k``
+    within ``threshold_n`` of the largest ``D``. None when no drop exceeds ``threshold_n``, or a
+    rise is larger: a level that rises and stays to the end of a record is what a vehicle parked
+    at its end looks like (the 2022-03-07 record ends so, the 2022-04-11 ones cut after six
+    minutes too), and the screen keeps it as data, as before; a drop that stays is not a vehicle
+    (one parked at the start that leaves splits off with its own baseline, kept as data too).
+    """
+    n = len(s)
+    before = np.minimum.accumulate(s)[MIN_SIDE_BINS - 1 : n - MIN_SIDE_BINS]  # min of s[:k]
+    after = np.minimum.accumulate(s[::-1])[::-1][MIN_SIDE_BINS : n - MIN_SIDE_BINS + 1]  # min of s[k:]
+    drop = before - after
+    if not len(drop) or drop.max() <= max(threshold_n, -drop.min()):
+        return None
+    return int(np.flatnonzero(drop >= drop.max() - threshold_n)[-1]) + MIN_SIDE_BINS

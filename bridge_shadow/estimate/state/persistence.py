@@ -152,6 +152,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "event_end": np.array([w.event_end for w in queue], bool),
             "seg": np.array([w.seg for w in queue], np.int64),
             "warm": np.array([index[id(w)] for w in shadow._warm], np.int64),
+            "fresh": np.array([index[id(w)] for w in shadow._fresh], np.int64),
         },
         "rows": {
             "k": np.array([r[0] for r in rows], np.int64),
@@ -180,6 +181,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "uncompensated": shadow.uncompensated,
             "stale_temperature": shadow.stale_temperature,
             "warm": int(shadow.warm),
+            "fresh_open": int(shadow._fresh_open),
             "n_accepted": shadow._n_accepted,
             "refit_at": shadow._refit_at,
             "lambda_at": shadow._lambda_at,
@@ -252,6 +254,7 @@ def restore_shadow(
         queue.append(w)
     shadow._queue.extend(queue)
     shadow._warm = [queue[int(i)] for i in np.asarray(q["warm"]).ravel()]
+    shadow._fresh = [queue[int(i)] for i in np.asarray(q["fresh"]).ravel()] if "fresh" in q else []
     d = state["detector"]
     det = shadow.detector
     det.n_events = int(d["n_events"])
@@ -311,6 +314,7 @@ def restore_shadow(
     shadow.uncompensated = int(sc["uncompensated"])
     shadow.stale_temperature = int(sc["stale_temperature"]) if "stale_temperature" in sc else 0
     shadow.warm = bool(int(sc["warm"]))
+    shadow._fresh_open = bool(int(sc["fresh_open"])) if "fresh_open" in sc else False
     shadow._n_accepted = int(sc["n_accepted"])
     shadow._refit_at = int(sc["refit_at"])
     shadow._lambda_at = int(sc["lambda_at"])
