@@ -18,7 +18,9 @@ cost per bag (reduce) and per window (join), and from those the plan for 16 to 6
 Cases: ``1hz-30d`` (30 daily bags at 1 Hz, 5.2 M messages) and ``100hz-1d`` (24 hourly bags at
 100 Hz, 17 M messages) by default; the issue's ``1hz-365d`` (365 daily bags, 63 M messages, a
 7 GB archive) and ``100hz-30d`` (30 daily bags, 518 M messages, about 58 GB in sqlite3) run only
-when named: their generation alone takes about 16 min and 2.2 h here. Usage::
+when named: their generation alone takes about 16 min and 2.2 h here. ``100hz-4d`` (4 daily bags
+at 100 Hz, 69 M messages) is the daily 100 Hz bag at a size this machine's disk and a session
+hold: two rounds of bags on two workers. Usage::
 
     .venv/bin/python benchmarks/archive_scale.py [--cases 1hz-30d,100hz-1d] [--workers 2]
 """
@@ -42,6 +44,7 @@ CASES: dict[str, tuple[float, float, float]] = {
     "100hz-1d": (1.0, 100.0, 1.0 / 24.0),
     "1hz-365d": (365.0, 1.0, 1.0),
     "100hz-30d": (30.0, 100.0, 1.0),
+    "100hz-4d": (4.0, 100.0, 1.0),
 }
 DEFAULT_CASES = "1hz-30d,100hz-1d"
 
