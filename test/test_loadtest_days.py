@@ -316,6 +316,37 @@ def test_a_settlement_inside_a_record_is_followed_whole(folder: Path, surrogate,
 
 
 @pytest.mark.realdata
+@pytest.mark.parametrize("minutes", [(3, 9), (2, 10)])
+def test_two_settlements_inside_a_record_are_each_a_state(
+    folder: Path, surrogate, minutes: tuple[int, int]
+) -> None:
+    """The reference record again 1.25 h later, lowered 10 mm through ``A`` twice within it.
+
+    The screen cut the state between the two steps as a vehicle (its baseline ran through the last
+    state, below it) and the shadow saw one change: the final state right, the one between lost.
+    Kept, it then hid the second step from the one-step search after the gap (two steps of one
+    size) and the stream ended 13 mm short, the interval missing the truth. Now the screen keeps
+    every state (a run at a split that the other side does not carry is no vehicle parked across
+    it) and the windows after the gap are searched for two steps (``events.warmup.warmup_steps``).
+    """
+    a, b = minutes
+    pieces = [
+        Piece("ref", 0.0),
+        Piece("ref", 1.25, (0.0, 0.0), cut_min=(0, a)),
+        Piece("ref", 1.25, (-0.01, -0.01), cut_min=(a, b)),
+        Piece("ref", 1.25, (-0.02, -0.02), cut_min=(b, 13)),
+    ]
+    sc = build(folder, surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    got = check(sc, res)  # nothing spurious, every change reported, nothing lost, covered
+    assert got["within"]
+    assert res.rejected["outlier"] == 0
+    used = [o.end_ns // W - 1 for o in res.outputs if not o.reason]
+    for start, end in zip(sc.starts_ns[1:], [*sc.starts_ns[2:], 2**62], strict=True):
+        assert any(start // W <= k < end // W for k in used), "a state without a window"
+
+
+@pytest.mark.realdata
 def test_a_one_hertz_logger_dates_the_step_at_the_records_first_used_window(folder: Path, surrogate) -> None:
     """The pair 1.25 h apart, one sample per second: the new record's first minute is screened out.
 

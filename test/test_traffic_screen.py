@@ -270,3 +270,43 @@ def test_noise_above_the_threshold_is_not_split_and_nothing_is_cut() -> None:
     f[:, 800:] -= 1500.0
     got = _windows(_data(t, f), 1800.0)
     assert not any(c.sum() for _, _, c in got.values())
+
+
+def test_two_settlements_in_one_record_are_two_states_not_a_vehicle() -> None:
+    """A 24-min record lowered by 10 kN at minute 8 and again at minute 16; no vehicle at all.
+
+    Split at the first drop, the right side's baseline ran through its lowest bins (the last
+    state), and the state between the drops, above it, was one run touching the split: cut as a
+    vehicle parked across it, eight windows of a real state thrown away as ``traffic``. A run cut
+    at a split on one side only (or heavier there than the other side's) is no vehicle parked
+    across it: that side is screened again, split at the second drop, and nothing is cut.
+    """
+    t, f = _record(24.0)
+    f[:, 480:] -= 10000.0
+    f[:, 960:] -= 10000.0
+    got = _windows(_data(t, f), 1800.0)
+    k0 = int(t[0] // W)
+    u0 = load_surrogate().u0
+    assert not any(c.sum() for _, _, c in got.values())
+    for k, (mean, _, _) in got.items():
+        level = u0 - 10000.0 * ((k - k0 >= 8) + (k - k0 >= 16))
+        assert np.all(np.abs(mean - level) < 100.0), (k - k0, mean - level)
+
+
+def test_a_vehicle_across_the_first_of_two_settlements_is_cut_and_both_states_kept() -> None:
+    """The same record with a 6 kN vehicle parked over minutes 6-10, across the first drop."""
+    t, f = _record(24.0)
+    f[:, 360:600] += 6000.0
+    f[:, 480:] -= 10000.0
+    f[:, 960:] -= 10000.0
+    got = _windows(_data(t, f), 1800.0)
+    k0 = int(t[0] // W)
+    u0 = load_surrogate().u0
+    kept = {k - k0 for k, (mean, _, _) in got.items() if np.all(np.isfinite(mean))}
+    assert {0, 1, 2, 3, 4}.issubset(kept) and set(range(10, 24)).issubset(kept)  # every state kept
+    assert not kept & {6, 7}  # the vehicle before the drop is cut
+    for k in kept:
+        mean = got[k + k0][0]
+        level = u0 - 10000.0 * ((k >= 8) + (k >= 16))
+        car = 6000.0 if 6 <= k < 10 else 0.0  # after the drop it is kept: a run heavier than the
+        assert np.all(np.abs(mean - level - car) < 150.0), (k, mean - level)  # vehicle's (see above)

@@ -15,7 +15,14 @@ import numpy as np
 import pytest
 
 from bridge_shadow.estimate import Shadow, load_config
-from bridge_shadow.estimate.events.warmup import false_step_probability, step_ratio, warmup_step
+from bridge_shadow.estimate.events.warmup import (
+    false_step_probability,
+    false_two_step_probability,
+    step_ratio,
+    two_step_ratio,
+    warmup_step,
+    warmup_steps,
+)
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.twin.loadtest_score import score_stream
 from bridge_shadow.twin.real_records import Piece, build
@@ -85,6 +92,56 @@ def test_a_step_is_dated_where_it_happened_and_an_odd_window_is_no_step() -> Non
     assert warmup_step(moved, lagged, 1e-3) is None
     assert warmup_step(between, lagged, 1e-3) == 6
     assert warmup_step(between[:3], k[:3], 1e-3) is None  # two differences: no scale of their own
+
+
+def test_the_two_step_bound_holds_for_exchangeable_exponentials() -> None:
+    """Its first part (second largest > f x third) against simulation; the whole is a bound on the rule."""
+    from bridge_shadow.estimate.events.warmup import _second_over
+
+    n = 9
+    rng = np.random.default_rng(4)
+    x = np.sort(rng.exponential(2.0, (400_000, n)), axis=1)
+    for g, m in ((5.0, 3), (3.0, 4), (3.0, 5)):
+        assert _second_over(g, m, n) == pytest.approx(np.mean(x[:, -2] > g * x[:, -m]), rel=0.1)
+    f = two_step_ratio(n, 1e-3)
+    assert false_two_step_probability(f, n) == pytest.approx(1e-3, rel=1e-6)
+    assert two_step_ratio(5, 1e-3) > f > two_step_ratio(12, 1e-3)  # fewer windows, more proof
+    # the rule on exchangeable differences (a random walk's window means), twice the allowance
+    k = np.arange(n + 1)
+    walks = np.cumsum(rng.standard_normal((2000, n + 1, 2)), axis=1)
+    hits = sum(bool(warmup_steps(w, k, 1e-2)) and warmup_step(w, k, 1e-2) is None for w in walks)
+    assert hits <= 40
+
+
+def test_two_comparable_steps_are_both_found_and_an_excursion_is_not() -> None:
+    """Two lowerings of one size hide each other from the one-step rule (neither is f times the other).
+
+    Found on a real record lowered twice within minutes, which the traffic screen keeps in three
+    states: the one-step rule found nothing, the windows of both new states were judged against a
+    provisional level made of the old one, and the stream ended 13 mm short with an interval that
+    missed the truth.
+    """
+    rng = np.random.default_rng(5)
+    k = np.arange(10)
+    base = _ar1(rng, 10, 0.3, 0.6)
+    step = np.array([-20.0, -40.0])
+    two = base.copy()
+    two[3:] += step
+    two[7:] += step
+    assert warmup_step(two, k, 1e-3) is None
+    assert warmup_steps(two, k, 1e-3) == [3, 7]
+    inside = base.copy()  # the second inside window 7: 40 % of it in the new state
+    inside[3:] += step
+    inside[7] += 0.4 * step
+    inside[8:] += step
+    assert warmup_steps(inside, k, 1e-3) == [3, 8]
+    one = base.copy()
+    one[6:] += step
+    assert warmup_steps(one, k, 1e-3) == [warmup_step(one, k, 1e-3)] == [6]
+    excursion = base.copy()  # a vehicle on for four windows, then gone: it comes back
+    excursion[3:7] -= step
+    assert warmup_steps(excursion, k, 1e-3) == []
+    assert warmup_steps(base, k, 1e-3) == []
 
 
 @pytest.fixture(scope="module")

@@ -53,7 +53,7 @@ from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows, residual_moments
 from bridge_shadow.estimate.compensation.sunlight import SunCovariate
 from bridge_shadow.estimate.events.detector import ChangeDetector, Decision
-from bridge_shadow.estimate.events.warmup import MIN_DIFFERENCES, warmup_step
+from bridge_shadow.estimate.events.warmup import MIN_DIFFERENCES, warmup_steps
 from bridge_shadow.estimate.inputs.closed_window import Window
 from bridge_shadow.estimate.inputs.gate import REASONS, TopicGate
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS, TopicLedger
@@ -493,9 +493,10 @@ class Shadow:
         settlement minutes into the first record after hours (the test car cut leaves a window
         or two of the old state) was taken into that level, half of it lost, no event, and an
         interval that excluded the truth. The held windows are searched as the warm-up's are
-        (``events.warmup``: on their own scale, compensated by the current curve); a step found
-        opens a provisional segment (``kind: warmup``) at its first window, which the data after
-        it decide like the gap's. The first window of either segment is taken as its data, not
+        (``events.warmup.warmup_steps``: on their own scale, compensated by the current curve; one
+        step, or two of a size, as when a support is lowered twice within a record); each step
+        found opens a provisional segment (``kind: warmup``) at its first window, which the data
+        after it decide like the gap's. The first window of either segment is taken as its data, not
         judged against it: a level beyond the jump prior's reach (50 mm here) made the detector
         hold the gap's first window and all after it, and the change ended an unconfirmed held run
         instead of the gap's event (an odd first window is the search's to find: it makes a step
@@ -504,21 +505,21 @@ class Shadow:
         if not self._fresh_open:
             return []
         fresh, self._fresh, self._fresh_open = self._fresh, [], False
-        i = None
+        steps: set[int] = set()
         if len(fresh) > MIN_DIFFERENCES:
             y = np.array([w.force - np.array(self._curve(w)) for w in fresh])
             ks = np.array([w.k for w in fresh], np.int64)
-            i = warmup_step(y, ks, 1.0 - self.config.event_trigger_probability)
+            steps = set(warmup_steps(y, ks, 1.0 - self.config.event_trigger_probability))
         outputs: list[WindowOutput] = []
         for j, w in enumerate(fresh):
             self.settle()
-            if j == i:
+            if j in steps:
                 outputs.extend(self._apply(self.detector.close_run()))
                 outputs.extend(self._drain())
                 prior = self.config.change_prior_probability
                 self.filter.open_segment(w.k, self._drift_jump(w.k), kind="warmup", change_prior=prior)
                 self.detector.prev = None
-            if j in (0, i):
+            if j == 0 or j in steps:
                 w.action = "accept"  # a provisional segment's first window is its data, not judged by it
             else:
                 self._judge(w)
@@ -771,19 +772,18 @@ class Shadow:
         """
         seg = self.filter.segment
         run = [w for w in self._warm if w.seg == seg]
-        i = warmup_step(
+        steps = warmup_steps(
             np.array([w.force for w in run]).reshape(-1, 2),
             np.array([w.k for w in run], np.int64),
             1.0 - self.config.event_trigger_probability,
         )
-        if i is None:
-            return
-        k = run[i].k
-        self.filter.open_segment(
-            k, self._drift_jump(k), kind="warmup", change_prior=self.config.change_prior_probability
-        )
-        for w in run[i:]:
-            w.seg = self.filter.segment
+        for i in steps:
+            k = run[i].k
+            self.filter.open_segment(
+                k, self._drift_jump(k), kind="warmup", change_prior=self.config.change_prior_probability
+            )
+            for w in run[i:]:
+                w.seg = self.filter.segment
 
     def _flush_rows(self) -> None:
         """Move the accepted windows' rows into the sums."""
