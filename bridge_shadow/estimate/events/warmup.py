@@ -49,6 +49,7 @@ an unconfirmed change of low probability, never a window.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 from functools import lru_cache
 
 import numpy as np
@@ -100,15 +101,22 @@ def false_step_probability(f: float, n: int) -> float:
     return float(min(p1 + p2, 1.0))
 
 
-@lru_cache(maxsize=256)
-def step_ratio(n: int, probability: float) -> float:
-    """Return the ratio ``f`` whose false-step probability over ``n`` differences is ``probability``."""
-    lo, hi = 2.0, 4.0
-    while false_step_probability(hi, n) > probability:
+def _ratio_for(
+    false_probability: Callable[[float, int], float], n: int, probability: float, lo: float
+) -> float:
+    """Return the ratio ``f`` (above ``lo``) at which ``false_probability(f, n)`` is ``probability``."""
+    hi = 2.0 * lo
+    while false_probability(hi, n) > probability:
         lo, hi = hi, hi * 2.0
         if hi > 1e7:
             return float("inf")
-    return float(optimize.brentq(lambda f: false_step_probability(f, n) - probability, lo, hi, xtol=1e-6))
+    return float(optimize.brentq(lambda f: false_probability(f, n) - probability, lo, hi, xtol=1e-6))
+
+
+@lru_cache(maxsize=256)
+def step_ratio(n: int, probability: float) -> float:
+    """Return the ratio ``f`` whose false-step probability over ``n`` differences is ``probability``."""
+    return _ratio_for(false_step_probability, n, probability, 2.0)
 
 
 def _second_over(g: float, m: int, n: int) -> float:
@@ -158,12 +166,7 @@ def two_step_ratio(n: int, probability: float) -> float:
     """Return the ratio ``f`` whose two-step false probability over ``n`` differences is ``probability``."""
     if n < 3:
         return float("inf")
-    lo, hi = 1.5, 4.0
-    while false_two_step_probability(hi, n) > probability:
-        lo, hi = hi, hi * 2.0
-        if hi > 1e7:
-            return float("inf")
-    return float(optimize.brentq(lambda f: false_two_step_probability(f, n) - probability, lo, hi, xtol=1e-6))
+    return _ratio_for(false_two_step_probability, n, probability, 2.0)
 
 
 def warmup_steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[int]:
