@@ -1,0 +1,78 @@
+"""A later record of the lowering day, as the withheld ones will come: its own zip, through the CLI.
+
+The records after 20 and 30 mm are withheld from the project; they will arrive packaged as the
+public ones are (a zip holding a CSV named ``....csv.zip`` in ``Settlements/``, stamps with month
+and day swapped, cp1252 header) and be read the way a user reads them: ``import-csv`` of every zip
+of the day, then ``replay``. Here such a record is made from the public 10 mm record: moved to
+13:10 local (inside the public air temperature's pause, 13:05-13:40) and lowered by another 10 mm
+through the calibrated ``A``, in a zip of its own named ``..._support_load_02...``. The stream of
+the three records must end at the -20 mm state with an event at each lowering, its interval
+holding the truth, nothing lost, and the stale air temperature said.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import io
+import json
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bridge_shadow.cli import main
+from bridge_shadow.model.surrogate_file import load_surrogate
+
+pytestmark = pytest.mark.realdata
+
+REF = "UniBw_2022-04-11_ref_support_load_01ForceAt100Hz.csv.zip"
+LOWERED = "UniBw_2022-04-11_support_load_01ForceAt100Hz.csv.zip"
+TEMPERATURE = "TemperatureData2022-04-11.zip"
+LATER = "UniBw_2022-04-11_support_load_02ForceAt100Hz.csv.zip"
+
+
+def _later_record(src: Path, out: Path, shift: dt.timedelta, step_m: np.ndarray) -> None:
+    """Write ``out``: the record of zip ``src`` moved by ``shift``, its forces plus ``A step_m``."""
+    d_kn = load_surrogate().A @ step_m / 1e3
+    with zipfile.ZipFile(src) as z:
+        (inner,) = z.namelist()
+        text = z.read(inner).decode("cp1252")
+    rows = csv.reader(io.StringIO(text))
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(next(rows))
+    for stamp, south, north in rows:
+        t = dt.datetime.strptime(stamp, "%Y-%m-%d %H:%M:%S.%f") + shift
+        w.writerow([t.strftime("%Y-%m-%d %H:%M:%S.%f")[:-3], float(south) + d_kn[0], float(north) + d_kn[1]])
+    name = inner.replace("_01ForceAt", "_02ForceAt")
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr(name, buf.getvalue().encode("cp1252"))
+
+
+def test_a_later_record_in_its_own_zip_is_a_new_state_through_import_and_replay(
+    munich_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = munich_data / "Settlements"
+    later = tmp_path / LATER
+    _later_record(folder / LOWERED, later, dt.timedelta(minutes=230), np.array([-0.01, -0.01]))
+    bag = tmp_path / "day"
+    args = ["import-csv", str(folder / REF), str(folder / LOWERED), str(later), str(folder / TEMPERATURE)]
+    assert main([*args, "--out", str(bag)]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(bag), "--json"]) == 0
+    js = json.loads(capsys.readouterr().out)
+    truth = np.array([-0.02, -0.02])  # the 10 mm lowering, and 10 mm more through A
+    mean = np.array(js["posterior"]["mean_m"])
+    sd = np.array(js["posterior"]["sigma_m"])
+    assert np.all(np.abs(mean - truth) <= 0.1 * np.abs(truth)), mean
+    assert np.all(np.abs(mean - truth) < 1.96 * sd)
+    events = js["events"]
+    assert [e["kind"] for e in events] == ["gap", "gap"], events
+    sizes = np.array([e["size_m"] for e in events])
+    np.testing.assert_allclose(sizes, -0.01, rtol=0.15)
+    assert js["rejected"]["outlier"] == 0 and not js["unconfirmed_changes"]
+    assert js["windows"]["stale_temperature"] > 0  # the record falls in the air logger's pause
+    assert any("stale air temperature" in w for w in js["warnings"])
+    assert js["posterior"]["state"]["kind"] == "gap"
