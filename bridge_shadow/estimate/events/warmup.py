@@ -73,6 +73,15 @@ MAX_CORRELATION = 0.9
 MAD_NORMAL = 0.6744897501960817
 
 
+def _log_order_density(x: float, m: int, n: int) -> float:
+    """Log density at ``x > 0`` of the ``m``-th largest of ``n`` unit exponentials.
+
+    ``n! / ((m-1)! (n-m)!) (1 - e^-x)^(n-m) e^(-m x)``.
+    """
+    log_norm = special.gammaln(n + 1.0) - special.gammaln(float(m)) - special.gammaln(n - m + 1.0)
+    return float(log_norm + (n - m) * np.log(-np.expm1(-x)) - m * x)
+
+
 def false_step_probability(f: float, n: int) -> float:
     """Return the false-step probability of the rule with ratio ``f`` over ``n`` differences (a bound).
 
@@ -89,13 +98,10 @@ def false_step_probability(f: float, n: int) -> float:
     c = f - 2.0
     if c <= 0:
         return 1.0
-    log_norm = special.gammaln(n + 1.0) - special.gammaln(3.0) - special.gammaln(n - 2.0)
-
     def integrand(x: float) -> float:
         if x <= 0:
             return 0.0
-        log_dens = log_norm + (n - 3) * np.log(-np.expm1(-x)) - 3.0 * x
-        return (1.0 + c * x) * np.exp(log_dens - c * x)
+        return (1.0 + c * x) * np.exp(_log_order_density(x, 3, n) - c * x)
 
     p2, _ = integrate.quad(integrand, 0.0, np.inf, limit=200)
     return float(min(p1 + p2, 1.0))
@@ -125,20 +131,18 @@ def _second_over(g: float, m: int, n: int) -> float:
     Given the ``m``-th largest ``x``, the ``m - 1`` above it are ``x`` plus independent unit
     exponentials (memoryless); at least two of them exceed ``g x`` with probability
     ``1 - (1 - q)^(m-1) - (m - 1) q (1 - q)^(m-2)``, ``q = exp(-(g - 1) x)``, averaged over the
-    density of the ``m``-th largest, ``n! / ((m-1)! (n-m)!) (1 - e^-x)^(n-m) e^(-m x)``.
+    density of the ``m``-th largest (``_log_order_density``).
     """
     if n < m:
         return 0.0
     if g <= 1.0:
         return 1.0
-    log_norm = special.gammaln(n + 1.0) - special.gammaln(float(m)) - special.gammaln(n - m + 1.0)
-
     def integrand(x: float) -> float:
         if x <= 0:
             return 0.0
         q = np.exp(-(g - 1.0) * x)
         two = 1.0 - (1.0 - q) ** (m - 1) - (m - 1) * q * (1.0 - q) ** (m - 2)
-        return float(two * np.exp(log_norm + (n - m) * np.log(-np.expm1(-x)) - m * x))
+        return float(two * np.exp(_log_order_density(x, m, n)))
 
     p, _ = integrate.quad(integrand, 0.0, np.inf, limit=200)
     return float(min(max(p, 0.0), 1.0))
@@ -183,26 +187,18 @@ def warmup_steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[int]:
     jumps that cancel: an excursion, not two steps). A false split costs an unconfirmed change the
     data merge back (see the module docstring).
     """
-    y = np.asarray(y, float).reshape(-1, 2)
-    k = np.asarray(k, np.int64).reshape(-1)
     i = warmup_step(y, k, probability)
     if i is not None:
         return [i]
-    lag = np.diff(k).astype(float)
-    if len(y) - 1 < MIN_DIFFERENCES + 1 or not np.all(np.isfinite(y)) or not np.all(lag > 0):
+    diffs = _differences(y, k, MIN_DIFFERENCES + 1)
+    if diffs is None:
         return []
-    raw = np.diff(y, axis=0)
-    prec = _robust_precision(raw / np.sqrt(lag)[:, None])
-    if prec is None:
-        return []
+    raw, lag, _, prec, single = diffs
     m = len(raw)
 
-    def score(a: int, b: int) -> float:  # J of the jump over differences a..b (inclusive)
-        d = raw[a : b + 1].sum(axis=0) / np.sqrt(lag[a : b + 1].sum())
+    def score(idx: list[int]) -> float:  # J of one jump over the differences idx
+        d = raw[idx].sum(axis=0) / np.sqrt(lag[idx].sum())
         return float(d @ prec @ d)
-
-    d = raw / np.sqrt(lag)[:, None]
-    single = np.einsum("mi,ij,mj->m", d, prec, d)
     # a jump's J is at most twice its largest difference's, and must beat f (> 2) times every
     # difference left out: each jump holds one of the four largest (at most four are left out),
     # and the second largest beats f / 2 times the fifth
@@ -216,24 +212,51 @@ def warmup_steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[int]:
         if a in top:
             jumps.append((a, a, single[a], a + 1))
         if a + 1 < m and top & {a, a + 1} and float(raw[a] @ prec @ raw[a + 1]) > 0.0:
-            total = raw[a] + raw[a + 1]
-            share = float(raw[a] @ total) / float(total @ total)  # the mixed window joins its nearer side
-            jumps.append((a, a + 1, score(a, a + 1), a + 1 if share >= 0.5 else a + 2))
+            jumps.append((a, a + 1, score([a, a + 1]), _mixed_start(raw, a)))
     best, found = 0.0, []
     for p, q in itertools.combinations(jumps, 2):
         if p[1] + 1 >= q[0]:
             continue  # overlapping or adjacent: one step, or an odd window
-        rest = np.delete(single, [*range(p[0], p[1] + 1), *range(q[0], q[1] + 1)])
+        both = [*range(p[0], p[1] + 1), *range(q[0], q[1] + 1)]
+        rest = np.delete(single, both)
         if not len(rest):
             continue
-        ratio = min(p[2], q[2]) / max(float(np.max(rest)), 1e-300)
-        d_sum = (raw[p[0] : p[1] + 1].sum(axis=0) + raw[q[0] : q[1] + 1].sum(axis=0)) / np.sqrt(
-            lag[p[0] : p[1] + 1].sum() + lag[q[0] : q[1] + 1].sum()
-        )
-        ratio = min(ratio, float(d_sum @ prec @ d_sum) / max(float(np.max(rest)), 1e-300))
+        ratio = min(p[2], q[2], score(both)) / max(float(np.max(rest)), 1e-300)
         if ratio > f and ratio > best:
             best, found = ratio, [p[3], q[3]]
     return found
+
+
+def _differences(
+    y: np.ndarray, k: np.ndarray, at_least: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Successive differences of window means ``y`` (n, 2) at indices ``k``, on their own scale.
+
+    Returns ``raw`` (n-1, 2), ``lag`` (n-1,), ``d = raw / sqrt(lag)``, the robust precision of
+    ``d`` and ``J = d' P d`` (n-1,); None with fewer than ``at_least`` differences, a non-finite
+    mean, indices not increasing, or no spread.
+    """
+    y = np.asarray(y, float).reshape(-1, 2)
+    lag = np.diff(np.asarray(k, np.int64).reshape(-1)).astype(float)
+    if len(y) - 1 < at_least or not np.all(np.isfinite(y)) or not np.all(lag > 0):
+        return None
+    raw = np.diff(y, axis=0)
+    d = raw / np.sqrt(lag)[:, None]
+    prec = _robust_precision(d)
+    if prec is None:
+        return None
+    return raw, lag, d, prec, np.einsum("mi,ij,mj->m", d, prec, d)
+
+
+def _mixed_start(raw: np.ndarray, a: int) -> int:
+    """Return the first window of the new state for a step inside window ``a + 1`` (differences a, a+1).
+
+    The mixed window joins the side it is nearer, by its share of the new state along the step
+    (which dwarfs the noise), so that it biases the level it joins least.
+    """
+    total = raw[a] + raw[a + 1]
+    share = float(raw[a] @ total) / float(total @ total)
+    return a + 1 if share >= 0.5 else a + 2
 
 
 def _robust_sd(x: np.ndarray) -> float:
@@ -267,16 +290,10 @@ def warmup_step(y: np.ndarray, k: np.ndarray, probability: float) -> int | None:
     happened in, holding both states) joins the side it is nearer, so that it biases the level it
     joins least; a single odd window makes two differences of opposite signs, no step.
     """
-    y = np.asarray(y, float).reshape(-1, 2)
-    lag = np.diff(np.asarray(k, np.int64).reshape(-1)).astype(float)
-    if len(y) - 1 < MIN_DIFFERENCES or not np.all(np.isfinite(y)) or not np.all(lag > 0):
+    diffs = _differences(y, k, MIN_DIFFERENCES)
+    if diffs is None:
         return None
-    raw = np.diff(y, axis=0)
-    d = raw / np.sqrt(lag)[:, None]
-    prec = _robust_precision(d)
-    if prec is None:
-        return None
-    j = np.einsum("mi,ij,mj->m", d, prec, d)
+    raw, lag, d, prec, j = diffs
     order = np.argsort(j)
     i, second = int(order[-1]), int(order[-2])
     if abs(i - second) == 1 and float(d[i] @ prec @ d[second]) > 0.0:
@@ -284,10 +301,7 @@ def warmup_step(y: np.ndarray, k: np.ndarray, probability: float) -> int | None:
         both = (raw[a] + raw[a + 1]) / np.sqrt(lag[a] + lag[a + 1])
         rest = np.delete(j, [a, a + 1])
         if len(rest) and float(both @ prec @ both) > step_ratio(len(j), probability) * float(np.max(rest)):
-            # the mixed window's share of the new state, along the step (which dwarfs the noise)
-            total = raw[a] + raw[a + 1]
-            share = float(raw[a] @ total) / float(total @ total)
-            return a + 1 if share >= 0.5 else a + 2
+            return _mixed_start(raw, a)
     if float(j[i]) > step_ratio(len(j), probability) * float(j[second]):
         return i + 1
     return None

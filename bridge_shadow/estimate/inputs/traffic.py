@@ -163,6 +163,7 @@ def _screen_bins(
     cut = np.zeros(n, bool)
     open_run = False
     head_n = tail_n = np.nan
+    near = MIN_SIDE_BINS // 2  # bins next to a split whose median is a run's load there
     for a, b in runs(flags.car[valid]):
         if (a == 0 and ends[0]) or (b == len(valid) and ends[1]):
             open_run = True
@@ -172,7 +173,6 @@ def _screen_bins(
         cut[valid[a] : valid[b - 1] + 1] = True
         # the load next to a split: a vehicle parked across it carries the same load on both sides
         # (crossings and moves elsewhere in the run do not count)
-        near = MIN_SIDE_BINS // 2
         if a == 0:
             head_n = float(np.median(flags.residual_n[valid[a : min(b, a + near)]]))
         if b == len(valid):
