@@ -199,7 +199,58 @@ def posterior_state(shadow: Shadow) -> dict[str, Any]:
     else:
         what = {"event": "the settlement step", "drift": "the drift block starting"}.get(kind, kind)
         state["text"] = f"the state since {what} at {iso_utc(since)}"
+    last = shadow._last_usable_k
+    blind = [
+        (a, key)
+        for c, key in enumerate(CHANNELS)
+        for a, _ in shadow.silence.stretches(c)
+        if last is not None and a > last
+    ]
+    if blind:  # the data after the last used window were there, one channel was not
+        a, key = min(blind)
+        state["unseen_from"] = iso_utc(a * shadow._w_ns)
+        state["text"] += (
+            f"; from {iso_utc(a * shadow._w_ns)} on {key} delivered nothing usable and the state there "
+            "is not known"
+        )
     return state
+
+
+def silent_channel_lines(shadow: Shadow) -> list[str]:
+    """One line per force channel that missed stretches of windows while the other delivered.
+
+    What its messages there were rejected for comes from the topic's ledger (``out_of_range``
+    with the last such value: at or below zero, a bearing that lifted off or a dead cell). A
+    topic whose every message was rejected has its own line (``all_rejected_message``).
+    """
+    out = []
+    w = shadow._w_ns
+    for c, key in enumerate(CHANNELS):
+        ledger = shadow.ledgers[c]
+        stretches = shadow.silence.stretches(c)
+        if not stretches or ledger.all_rejected_message():
+            continue
+        n = sum(b - a + 1 for a, b in stretches)
+        spans = ", ".join(f"{iso_utc(a * w)} .. {iso_utc((b + 1) * w)}" for a, b in stretches[:3])
+        if len(stretches) > 3:
+            spans += f" and {len(stretches) - 3} more"
+        why = [f"{r} {m}" for r, m in ledger.rejected.most_common() if m]
+        if ledger.rejected.get("out_of_range") and ledger.last_value is not None:
+            lo, hi, unit = ledger.value_range
+            value = f"{ledger.last_value:g} {unit}"
+            why.append(f"last out-of-range value {value}, accepted {lo:g} .. {hi:g} {unit}")
+        said = f"its rejected messages: {', '.join(why)}" if why else "no message of it arrived there"
+        lift = (
+            "; a load cell at or below zero is a bearing that lifted off its support, or a dead cell"
+            if ledger.last_value is not None and ledger.last_value <= 0
+            else ""
+        )
+        out.append(
+            f"topic {key}: nothing usable in {n} windows while the other force channel delivered "
+            f"({spans}; {said}): those windows were not used (missing_topic), and the estimate does "
+            f"not know the state there{lift}"
+        )
+    return out
 
 
 def warnings(shadow: Shadow) -> list[str]:
@@ -224,6 +275,7 @@ def warnings(shadow: Shadow) -> list[str]:
         line = ledger.all_rejected_message()
         if line:
             out.append(line)
+    out.extend(silent_channel_lines(shadow))
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")
     for c in unconfirmed_changes(shadow):

@@ -57,6 +57,7 @@ from bridge_shadow.estimate.events.warmup import MIN_DIFFERENCES, warmup_steps
 from bridge_shadow.estimate.inputs.closed_window import Window
 from bridge_shadow.estimate.inputs.gate import REASONS, TopicGate
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS, TopicLedger
+from bridge_shadow.estimate.inputs.silence import ChannelSilence
 from bridge_shadow.estimate.inputs.windows import WindowBatch, WindowBuffer, stale_variance
 from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.estimate.report import NOISE_FULL_DAY_S
@@ -201,6 +202,7 @@ class Shadow:
         self.stale_temperature = 0  # windows used with a stale air temperature (widened, see windows)
         # windows the traffic screen cut samples from: [k, cut south, cut north, kept south, kept north]
         self.traffic_windows: list[list[int]] = []
+        self.silence = ChannelSilence()  # stretches of windows one force channel missed alone
         self.warm = False
         self._queue: deque[Window] = deque()
         self._warm: list[Window] = []
@@ -394,6 +396,7 @@ class Shadow:
         outputs: list[WindowOutput] = []
         for j, w in enumerate(windows):
             self.settle()  # the state this window is judged against
+            self.silence.note(w.k, w.samples)
             if w.reason:
                 self.counts[w.reason] += 1
             elif not np.isfinite(w.temp[0]):

@@ -175,6 +175,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "unconfirmed_runs": json.dumps(shadow.unconfirmed_runs),
         "recent_rejected": json.dumps(list(shadow.recent_rejected)),
         "traffic_windows": json.dumps(shadow.traffic_windows),
+        "silence": json.dumps(shadow.silence.state_dict()),
         "scalars": {
             "last_usable_k": _opt(shadow._last_usable_k),
             "n_windows": shadow.n_windows,
@@ -308,6 +309,8 @@ def restore_shadow(
     shadow.unconfirmed_runs = list(json.loads(str(state["unconfirmed_runs"])))
     shadow.recent_rejected.extend((int(k), str(r)) for k, r in json.loads(str(state["recent_rejected"])))
     shadow.traffic_windows = [[int(v) for v in row] for row in json.loads(str(state["traffic_windows"]))]
+    if "silence" in state:  # checkpoints written before the silence was followed have none
+        shadow.silence.load_state_dict(json.loads(str(state["silence"])))
     sc = state["scalars"]
     shadow._last_usable_k = _unopt(sc["last_usable_k"])
     shadow.n_windows = int(sc["n_windows"])
