@@ -316,6 +316,32 @@ def test_a_settlement_inside_a_record_is_followed_whole(folder: Path, surrogate,
 
 
 @pytest.mark.realdata
+@pytest.mark.parametrize("minute", [5, 9])
+def test_a_raise_inside_a_record_after_the_test_car_is_followed_and_the_car_cut(
+    folder: Path, surrogate, minute: int
+) -> None:
+    """The 10 mm record again 1.25 h later, raised back by 10 mm through ``A`` from its ``minute``.
+
+    A rise that stays to a record's end was kept whole (a vehicle may have come to stay), and one
+    baseline through both levels left the test car parked before the raise as data: at minute 9
+    six of its windows were rejected as outliers and the stream ended 1.1 mm off at the 0 mm
+    state, at minute 5 1.1 mm off. A rise heavier than any vehicle (``traffic_vehicle_max_n``;
+    10 mm is ~67 kN on the sum) splits the record where its last level is reached and the car
+    before it is cut against the old level.
+    """
+    pieces = [
+        Piece("ref", 0.0),
+        Piece("lowered", 1.25, (0.0, 0.0), cut_min=(0, minute)),
+        Piece("lowered", 1.25, (0.01, 0.01), cut_min=(minute, 13)),
+    ]
+    sc = build(folder, surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    got = check(sc, res)  # nothing spurious, every change reported, nothing lost, covered
+    assert got["within"]
+    assert res.rejected["outlier"] == 0 and res.rejected["traffic"] > 0
+
+
+@pytest.mark.realdata
 @pytest.mark.parametrize("minutes", [(3, 9), (2, 10)])
 def test_two_settlements_inside_a_record_are_each_a_state(
     folder: Path, surrogate, minutes: tuple[int, int]

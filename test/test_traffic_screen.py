@@ -310,3 +310,50 @@ def test_a_vehicle_across_the_first_of_two_settlements_is_cut_and_both_states_ke
         level = u0 - 10000.0 * ((k >= 8) + (k >= 16))
         car = 6000.0 if 6 <= k < 10 else 0.0  # after the drop it is kept: a run heavier than the
         assert np.all(np.abs(mean - level - car) < 150.0), (k, mean - level)  # vehicle's (see above)
+
+
+def test_a_raise_heavier_than_any_vehicle_splits_the_record_and_the_car_before_it_is_cut() -> None:
+    """A 20-min record, a 6 kN car parked over minutes 3-8, the support raised by 60 kN at minute 12.
+
+    A rise that stays to a record's end was kept whole (it may be a vehicle that came to stay),
+    and one straight baseline through both levels tilted under the car: the car's minutes stayed
+    data (on the real records: windows of a test car before a 10 mm raise rejected as outliers).
+    A rise heavier than ``traffic_vehicle_max_n`` splits where the last level is reached; the car
+    before it is cut against the old level, every kept window is on its own level.
+    """
+    from bridge_shadow.estimate.inputs.traffic import split_bin
+
+    t, f = _record(20.0)
+    f[:, 180:480] += 3000.0
+    f[:, 720:] += 30000.0
+    total = f.sum(axis=0)
+    assert split_bin(total, 300.0) is None  # without a vehicle limit: a rise is kept whole
+    assert abs(split_bin(total, 300.0, 30000.0) - 720) <= 1
+    got = _windows(_data(t, f), 1800.0)
+    k0 = int(t[0] // W)
+    cut = sorted(k - k0 for k, (_, _, c) in got.items() if c.sum())
+    assert cut and min(cut) >= 2 and max(cut) <= 8
+    u0 = load_surrogate().u0
+    for k, (mean, _, _) in got.items():
+        if np.all(np.isfinite(mean)):
+            level = u0 + (30000.0 if k - k0 >= 12 else 0.0)
+            assert np.all(np.abs(mean - level) < 100.0), (k - k0, mean - level)
+
+
+def test_a_vehicle_that_comes_to_stay_is_no_raise_and_stays_data() -> None:
+    """The same record with a 21 kN rise at minute 12 (two test cars parked to the end).
+
+    No heavier than ``traffic_vehicle_max_n``, the rise stays one stretch with the rest of the
+    record, as before the limit: the parked vehicles are kept as data (a run that does not come
+    back), the car over minutes 3-8 cut against the record's baseline.
+    """
+    t, f = _record(20.0)
+    f[:, 180:480] += 3000.0
+    f[:, 720:] += 10500.0
+    assert load_config().traffic_vehicle_max_n == pytest.approx(30000.0)
+    got = _windows(_data(t, f), 1800.0)
+    k0 = int(t[0] // W)
+    assert not any(c.sum() for k, (_, _, c) in got.items() if k - k0 >= 12)
+    late = [mean for k, (mean, _, _) in got.items() if k - k0 >= 13]
+    u0 = load_surrogate().u0
+    assert late and all(np.all(np.abs(m - u0 - 10500.0) < 100.0) for m in late)

@@ -142,6 +142,7 @@ class Shadow:
             config.traffic_hold_s,
             config.traffic_threshold_n,
             config.traffic_margin_s,
+            config.traffic_vehicle_max_n,
         )
         # the FE response to a vertical temperature difference (Compensation refuses a missing one)
         vertical = surrogate.thermal.get("vertical_gradient", np.zeros(2))

@@ -16,6 +16,10 @@ it is at most ``traffic_hold_s`` long, screens it here before its windows close:
 3. a flagged run is *traffic* when it lies above the baseline (a vehicle only adds load) and
    comes back inside the record: it touches neither the first nor the last bin with data. A run
    that does not come back is a change of state and stays data; so does one below the baseline.
+   A run that touches the record's end is looked at again: the record is split where its
+   car-free level drops (a settlement inside the record), or rises by more than the heaviest
+   vehicle (``traffic_vehicle_max_n``: a support raised inside it), and each side is screened
+   against its own baseline (``split_bin``).
 
 The samples of the traffic bins are cut; the windows are built from the rest (a window left
 with fewer than ``window_min_samples`` is rejected as ``traffic``). A record longer than the hold
@@ -67,6 +71,7 @@ def screen_record(
     values: list[np.ndarray],
     threshold_n: float,
     margin_s: float,
+    vehicle_max_n: float = np.inf,
 ) -> list[np.ndarray]:
     """Screen the samples of one record (per channel, sorted stamps in ns and forces in N).
 
@@ -80,7 +85,7 @@ def screen_record(
     both = np.unique(np.concatenate(stamps))
     cuts = both[1:][np.diff(both) >= PIECE_SILENCE_NS]
     if not len(cuts):
-        return _screen_piece(stamps, values, threshold_n, margin_s)
+        return _screen_piece(stamps, values, threshold_n, margin_s, vehicle_max_n)
     keep = [np.ones(len(s), bool) for s in stamps]
     bounds = [int(both[0]), *map(int, cuts), int(both[-1]) + 1]
     for a, b in itertools.pairwise(bounds):
@@ -90,6 +95,7 @@ def screen_record(
             [v[m] for v, m in zip(values, sel, strict=True)],
             threshold_n,
             margin_s,
+            vehicle_max_n,
         )
         for c, m in enumerate(sel):
             keep[c][m] = piece[c]
@@ -101,6 +107,7 @@ def _screen_piece(
     values: list[np.ndarray],
     threshold_n: float,
     margin_s: float,
+    vehicle_max_n: float = np.inf,
 ) -> list[np.ndarray]:
     """Screen one continuous piece of a record (``screen_record``)."""
     if any(not len(s) for s in stamps):
@@ -109,7 +116,7 @@ def _screen_piece(
     n = (max(int(s[-1]) for s in stamps) - t0) // BIN_NS + 1
     idx = [(s - t0) // BIN_NS for s in stamps]
     total = sum(window_stats(i, v, n).mean for i, v in zip(idx, values, strict=True))  # NaN: a channel empty
-    cut = _screen_bins(total, threshold_n, round(margin_s * 1e9 / BIN_NS), 0).cut
+    cut = _screen_bins(total, threshold_n, round(margin_s * 1e9 / BIN_NS), 0, vehicle_max_n=vehicle_max_n).cut
     return [~cut[i] for i in idx]
 
 
@@ -135,6 +142,7 @@ def _screen_bins(
     margin: int,
     depth: int = 0,
     ends: tuple[bool, bool] = (True, True),
+    vehicle_max_n: float = np.inf,
 ) -> _Screened:
     """Screen the 1 s bin sums ``total`` (NaN: a bin without both channels); see the module docstring.
 
@@ -181,16 +189,19 @@ def _screen_bins(
     whole = _Screened(cut, float(baseline[valid[0]]), float(baseline[valid[-1]]), free, head_n, tail_n)
     if not open_run or depth >= MAX_SPLITS or len(valid) < 2 * MIN_SIDE_BINS:
         return whole
-    at = split_bin(total[valid], threshold_n)
+    at = split_bin(total[valid], threshold_n, vehicle_max_n)
     if at is None:
         return whole
     k = int(valid[at])
-    left = _screen_bins(total[:k], threshold_n, margin, depth + 1, (ends[0], False))
-    right = _screen_bins(total[k:], threshold_n, margin, depth + 1, (False, ends[1]))
+    more = (threshold_n, margin, depth + 1)
+    left = _screen_bins(total[:k], *more, (ends[0], False), vehicle_max_n)
+    right = _screen_bins(total[k:], *more, (False, ends[1]), vehicle_max_n)
     if abs(right.first_n - left.last_n) <= threshold_n or min(left.free, right.free) < margin:
         return whole
+    if right.first_n - left.last_n > threshold_n and right.first_n - left.last_n <= vehicle_max_n:
+        return whole  # a rise no heavier than a vehicle that came to stay: one stretch, as before
     if _holds_a_further_state(left.tail_n, right.head_n, threshold_n):
-        right = _screen_bins(total[k:], threshold_n, margin, depth + 1, (True, ends[1]))
+        right = _screen_bins(total[k:], *more, (True, ends[1]), vehicle_max_n)
     both = np.concatenate([left.cut, right.cut])
     return _Screened(both, left.first_n, right.last_n, left.free + right.free, left.head_n, right.tail_n)
 
@@ -230,23 +241,38 @@ def support_start(s: np.ndarray, threshold_n: float) -> np.ndarray:
     return out
 
 
-def split_bin(s: np.ndarray, threshold_n: float) -> int | None:
-    """Return ``k`` (``MIN_SIDE_BINS <= k <= len(s) - MIN_SIDE_BINS``) where the car-free level drops.
+def split_bin(s: np.ndarray, threshold_n: float, vehicle_max_n: float = np.inf) -> int | None:
+    """Return ``k`` (``MIN_SIDE_BINS <= k <= len(s) - MIN_SIDE_BINS``) where the car-free level changes.
 
     A vehicle only adds load, so the lowest bin before ``k`` and the lowest from ``k`` on are
     car-free levels of the two sides (as long as each side has a car-free bin). Their difference
     ``D(k)`` is the whole drop, for a drop of the level at ``k0``, from the first car-free bin up
     to ``k0``, and falls once the new state enters the left side: the split is the last ``k``
     within ``threshold_n`` of the largest ``D``. None when no drop exceeds ``threshold_n``, or a
-    rise is larger: a level that rises and stays to the end of a record is what a vehicle parked
-    at its end looks like (the 2022-03-07 record ends so, the 2022-04-11 ones cut after six
-    minutes too), and the screen keeps it as data, as before; a drop that stays is not a vehicle
-    (one parked at the start that leaves splits off with its own baseline, kept as data too).
+    rise is larger and no heavier than ``vehicle_max_n``: a level that rises and stays to the end
+    of a record is what a vehicle parked at its end looks like (the 2022-03-07 record ends so, the
+    2022-04-11 ones cut after six minutes too), and the screen keeps it as data, as before; a drop
+    that stays is not a vehicle (one parked at the start that leaves splits off with its own
+    baseline, kept as data too).
+
+    A rise heavier than ``vehicle_max_n`` (the heaviest load the bridge's traffic puts on the
+    support) is no vehicle that came to stay but a support raised inside the record. It splits at
+    the first ``k`` within ``threshold_n`` of the largest rise ``min(s[k:]) - min(s[:k])``, where
+    the record's last level is reached: the vehicles before it are screened against the old
+    level's baseline (one baseline through both levels left a test car parked before a 10 mm raise
+    as data, its windows rejected as outliers), the last level stays data. A level between two
+    raises is cut with the vehicles before the split (a vehicle only adds load, so under a parked
+    vehicle no car-free bin tells a raised state from the vehicle on the old one).
     """
     n = len(s)
     before = np.minimum.accumulate(s)[MIN_SIDE_BINS - 1 : n - MIN_SIDE_BINS]  # min of s[:k]
     after = np.minimum.accumulate(s[::-1])[::-1][MIN_SIDE_BINS : n - MIN_SIDE_BINS + 1]  # min of s[k:]
     drop = before - after
-    if not len(drop) or drop.max() <= max(threshold_n, -drop.min()):
+    if not len(drop):
         return None
-    return int(np.flatnonzero(drop >= drop.max() - threshold_n)[-1]) + MIN_SIDE_BINS
+    rise = -drop.min()
+    if drop.max() > max(threshold_n, rise):
+        return int(np.flatnonzero(drop >= drop.max() - threshold_n)[-1]) + MIN_SIDE_BINS
+    if rise > max(threshold_n, vehicle_max_n, drop.max()):
+        return int(np.flatnonzero(-drop >= rise - threshold_n)[0]) + MIN_SIDE_BINS
+    return None

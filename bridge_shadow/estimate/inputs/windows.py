@@ -275,6 +275,7 @@ class WindowBuffer:
         hold_s: float = 0.0,
         traffic_threshold_n: float = 300.0,
         traffic_margin_s: float = 10.0,
+        traffic_vehicle_max_n: float = float("inf"),
     ) -> None:
         ns = 1_000_000_000
         self.w_ns = round(window_s * ns)
@@ -282,6 +283,7 @@ class WindowBuffer:
         self.hold_ns = round(hold_s * ns)
         self.traffic_threshold_n = float(traffic_threshold_n)
         self.traffic_margin_s = float(traffic_margin_s)
+        self.traffic_vehicle_max_n = float(traffic_vehicle_max_n)
         self.record = _Record()
         self.timeout_ns = round(timeout_s * ns)
         self.horizon_ns = round(max(timeout_s, stale_s) * ns)
@@ -423,6 +425,7 @@ class WindowBuffer:
             [v[a:b] for (_, v), a, b in zip(taken, lo, hi, strict=True)],
             self.traffic_threshold_n,
             self.traffic_margin_s,
+            self.traffic_vehicle_max_n,
         )
         out, gone = [], []
         for (s, v), a, b, keep, c in zip(taken, lo, hi, keeps, cut, strict=True):

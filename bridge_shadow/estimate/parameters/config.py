@@ -86,6 +86,7 @@ class ShadowConfig:
     traffic_hold_s: float = 1800.0
     traffic_threshold_n: float = 300.0
     traffic_margin_s: float = 10.0
+    traffic_vehicle_max_n: float = 30000.0
     # temperature compensation (fitted jointly with the settlement levels)
     smoothing: str = "reml"
     spline_lambda: float = 10.0

@@ -126,6 +126,8 @@ SPECS: dict[str, ParamSpec] = {
     # a vehicle adds at least the 1 s noise (~20 N); more than the whole dead load is not a vehicle
     "traffic_threshold_n": _gt0("N", 1.0e6),
     "traffic_margin_s": _ge(0.0, 600.0, "s"),
+    # a rise of the car-free level above this is no vehicle (at least the screen's threshold)
+    "traffic_vehicle_max_n": _gt0("N", 1.0e7),
     # temperature compensation (fitted jointly with the settlement levels)
     "smoothing": ParamSpec(choices=("reml", "gcv", "fixed", "none")),
     # lambda is in C^3 (the penalty integrates g''^2 over C). At 1e12 the fitted curve is a straight
