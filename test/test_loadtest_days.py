@@ -373,6 +373,39 @@ def test_two_settlements_inside_a_record_are_each_a_state(
 
 
 @pytest.mark.realdata
+@pytest.mark.parametrize("minutes", [(4, 8), (5, 8)])
+def test_the_window_a_step_happened_in_is_no_state_and_raises_no_second_event(
+    folder: Path, surrogate, minutes: tuple[int, int]
+) -> None:
+    """The reference record 1.25 h later, lowered 10 mm through ``A`` at two minutes inside it.
+
+    The second step falls inside a window (the record starts 26 s past the minute) while the test
+    car leaves. The two-step search dated it there and that window, half in each state, became the
+    first window of the new segment: its level; the next window jumped from it by the rest of the
+    step and the detector reported a second event of about half the step (-5.2 mm), the final
+    state right. The window is now left out as ``step_window`` and the new segment starts after
+    it: one change per step, every state keeping windows.
+    """
+    a, b = minutes
+    pieces = [
+        Piece("ref", 0.0),
+        Piece("ref", 1.25, (0.0, 0.0), cut_min=(0, a)),
+        Piece("ref", 1.25, (-0.01, -0.01), cut_min=(a, b)),
+        Piece("ref", 1.25, (-0.02, -0.02), cut_min=(b, 13)),
+    ]
+    sc = build(folder, surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    got = check(sc, res)  # nothing spurious (no second event), every change reported, covered
+    assert got["within"]
+    assert res.rejected["step_window"] >= 1 and res.rejected["outlier"] == 0
+    mixed = [o.end_ns // W - 1 for o in res.outputs if o.reason == "step_window"]
+    assert all(sc.starts_ns[3] // W == k for k in mixed)  # the window the second step fell in
+    used = [o.end_ns // W - 1 for o in res.outputs if not o.reason]
+    for start, end in zip(sc.starts_ns[1:], [*sc.starts_ns[2:], 2**62], strict=True):
+        assert any(start // W <= k < end // W for k in used), "a state without a window"
+
+
+@pytest.mark.realdata
 def test_a_one_hertz_logger_dates_the_step_at_the_records_first_used_window(folder: Path, surrogate) -> None:
     """The pair 1.25 h apart, one sample per second: the new record's first minute is screened out.
 

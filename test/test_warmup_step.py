@@ -19,6 +19,7 @@ from bridge_shadow.estimate.events.warmup import (
     false_step_probability,
     false_two_step_probability,
     step_ratio,
+    step_windows,
     two_step_ratio,
     warmup_step,
     warmup_steps,
@@ -135,6 +136,12 @@ def test_two_comparable_steps_are_both_found_and_an_excursion_is_not() -> None:
     inside[7] += 0.4 * step
     inside[8:] += step
     assert warmup_steps(inside, k, 1e-3) == [3, 8]
+    # the window the second step happened in is named with it; a step between windows has none
+    assert step_windows(inside, k, 1e-3) == [(3, None), (8, 7)]
+    straddled = base.copy()  # one step inside window 5, 70 % of it in the new state
+    straddled[5] += 0.7 * step
+    straddled[6:] += step
+    assert step_windows(straddled, k, 1e-3) == [(5, 5)]  # nearer the new state: its first window
     one = base.copy()
     one[6:] += step
     assert warmup_steps(one, k, 1e-3) == [warmup_step(one, k, 1e-3)] == [6]

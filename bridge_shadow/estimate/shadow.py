@@ -53,7 +53,7 @@ from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows, residual_moments
 from bridge_shadow.estimate.compensation.sunlight import SunCovariate
 from bridge_shadow.estimate.events.detector import ChangeDetector, Decision
-from bridge_shadow.estimate.events.warmup import MIN_DIFFERENCES, warmup_steps
+from bridge_shadow.estimate.events.warmup import MIN_DIFFERENCES, step_windows, warmup_steps
 from bridge_shadow.estimate.inputs.closed_window import Window
 from bridge_shadow.estimate.inputs.gate import REASONS, TopicGate
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS, TopicLedger
@@ -504,19 +504,44 @@ class Shadow:
         judged against it: a level beyond the jump prior's reach (50 mm here) made the detector
         hold the gap's first window and all after it, and the change ended an unconfirmed held run
         instead of the gap's event (an odd first window is the search's to find: it makes a step
-        between the first and the second).
+        between the first and the second). The window a step happened in holds both states: taken
+        as the first window of the new segment (the side it was nearer), it made that segment's
+        level, the next window jumped from it by the rest of the step, and the detector reported a
+        second event of about half the step (10 of 56 streams with two steps inside a record); it
+        is left out as ``step_window`` where each side keeps a window of its own, and the new
+        segment starts at the window after it.
         """
         if not self._fresh_open:
             return []
         fresh, self._fresh, self._fresh_open = self._fresh, [], False
         steps: set[int] = set()
+        both: set[int] = set()  # windows a step happened in, left out
         if len(fresh) > MIN_DIFFERENCES:
             y = np.array([w.force - np.array(self._curve(w)) for w in fresh])
             ks = np.array([w.k for w in fresh], np.int64)
-            steps = set(warmup_steps(y, ks, 1.0 - self.config.event_trigger_probability))
+            found = sorted(step_windows(y, ks, 1.0 - self.config.event_trigger_probability))
+            since = 0  # first window of the state before the step
+            for start, mixed in found:
+                # left out where each side keeps a window of its own and both its neighbours
+                # are next to it (with windows cut around it, it may be a short state of its own)
+                if (
+                    mixed is not None
+                    and since < mixed
+                    and mixed + 1 < len(fresh)
+                    and ks[mixed + 1] - ks[mixed - 1] == 2
+                ):
+                    both.add(mixed)
+                    start = mixed + 1
+                steps.add(start)
+                since = start
         outputs: list[WindowOutput] = []
         for j, w in enumerate(fresh):
             self.settle()
+            if j in both:  # it holds both states: the level of neither (see the docstring)
+                w.reason, w.action = "step_window", "invalid"
+                self.counts["step_window"] += 1
+                outputs.extend(self._drain())
+                continue
             if j in steps:
                 outputs.extend(self._apply(self.detector.close_run()))
                 outputs.extend(self._drain())

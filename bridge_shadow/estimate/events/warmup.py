@@ -60,6 +60,7 @@ __all__ = [
     "false_step_probability",
     "false_two_step_probability",
     "step_ratio",
+    "step_windows",
     "two_step_ratio",
     "warmup_step",
     "warmup_steps",
@@ -176,6 +177,14 @@ def two_step_ratio(n: int, probability: float) -> float:
 def warmup_steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[int]:
     """Return the indices of the first windows after every step in window means ``y`` (n, 2) N.
 
+    ``step_windows`` without the windows the steps happened in.
+    """
+    return [start for start, _ in step_windows(y, k, probability)]
+
+
+def step_windows(y: np.ndarray, k: np.ndarray, probability: float) -> list[tuple[int, int | None]]:
+    """Return ``(first window of the new state, window the step happened in or None)`` per step.
+
     A settlement may come in stages (a support lowered twice within minutes: a record the traffic
     screen keeps in three states). ``warmup_step`` finds one step that dwarfs every other
     difference. Two steps of comparable size hide each other from that rule (the largest is not
@@ -185,11 +194,13 @@ def warmup_steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[int]:
     of one sign, counted as one jump as in ``warmup_step``), with at least one window between
     them, and their sum beats it too (a vehicle that stayed a few windows and left makes two large
     jumps that cancel: an excursion, not two steps). A false split costs an unconfirmed change the
-    data merge back (see the module docstring).
+    data merge back (see the module docstring). The window a step happened in (two neighbouring
+    differences of one sign) holds both states: returned with the step (``_mixed_start`` gives
+    which side it is nearer, the first window of the new state or the last of the old).
     """
-    i = warmup_step(y, k, probability)
-    if i is not None:
-        return [i]
+    one = _one_step(y, k, probability)
+    if one is not None:
+        return [one]
     diffs = _differences(y, k, MIN_DIFFERENCES + 1)
     if diffs is None:
         return []
@@ -207,12 +218,12 @@ def warmup_steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[int]:
     if m >= 5 and ranked[-2] <= 0.5 * f * ranked[-5]:
         return []
     top = set(np.argsort(single)[-4:].tolist())
-    jumps = []  # (first difference, last difference, J, first window of the new state)
+    jumps = []  # (first difference, last difference, J, first window of the new state, mixed window)
     for a in range(m):
         if a in top:
-            jumps.append((a, a, single[a], a + 1))
+            jumps.append((a, a, single[a], a + 1, None))
         if a + 1 < m and top & {a, a + 1} and float(raw[a] @ prec @ raw[a + 1]) > 0.0:
-            jumps.append((a, a + 1, score([a, a + 1]), _mixed_start(raw, a)))
+            jumps.append((a, a + 1, score([a, a + 1]), _mixed_start(raw, a), a + 1))
     best, found = 0.0, []
     for p, q in itertools.combinations(jumps, 2):
         if p[1] + 1 >= q[0]:
@@ -223,7 +234,7 @@ def warmup_steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[int]:
             continue
         ratio = min(p[2], q[2], score(both)) / max(float(np.max(rest)), 1e-300)
         if ratio > f and ratio > best:
-            best, found = ratio, [p[3], q[3]]
+            best, found = ratio, [(p[3], p[4]), (q[3], q[4])]
     return found
 
 
@@ -290,6 +301,12 @@ def warmup_step(y: np.ndarray, k: np.ndarray, probability: float) -> int | None:
     happened in, holding both states) joins the side it is nearer, so that it biases the level it
     joins least; a single odd window makes two differences of opposite signs, no step.
     """
+    one = _one_step(y, k, probability)
+    return None if one is None else one[0]
+
+
+def _one_step(y: np.ndarray, k: np.ndarray, probability: float) -> tuple[int, int | None] | None:
+    """``warmup_step``'s step as (first window of the new state, the window it happened in or None)."""
     diffs = _differences(y, k, MIN_DIFFERENCES)
     if diffs is None:
         return None
@@ -301,7 +318,7 @@ def warmup_step(y: np.ndarray, k: np.ndarray, probability: float) -> int | None:
         both = (raw[a] + raw[a + 1]) / np.sqrt(lag[a] + lag[a + 1])
         rest = np.delete(j, [a, a + 1])
         if len(rest) and float(both @ prec @ both) > step_ratio(len(j), probability) * float(np.max(rest)):
-            return _mixed_start(raw, a)
+            return _mixed_start(raw, a), a + 1
     if float(j[i]) > step_ratio(len(j), probability) * float(j[second]):
-        return i + 1
+        return i + 1, None
     return None

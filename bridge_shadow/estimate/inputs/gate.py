@@ -60,6 +60,7 @@ REASONS: tuple[str, ...] = (
     "missing_topic",
     "sparse_window",
     "traffic",
+    "step_window",
     "outlier",
 )
 
