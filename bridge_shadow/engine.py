@@ -107,8 +107,12 @@ def client_mapper(client: Any) -> Mapper:
     """Return a mapper that runs ``fn`` on the items as Dask tasks of ``client`` (results in order)."""
 
     def mapper(fn: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
-        # the items go to the workers once, as data, not inside the task graph
-        return client.gather(client.map(fn, client.scatter(list(items)), pure=False))
+        # the items go to the workers once, as data, not inside the task graph; under keys of their
+        # own (hash=False): with content keys, equal items scattered by the previous call (fold 0,
+        # 1, 2 of every candidate) share its keys, and its release can drop them under this call's
+        # tasks, cancelled for "lost dependencies" (seen once in `gap --scheduler`; dask/distributed
+        # issue 4612)
+        return client.gather(client.map(fn, client.scatter(list(items), hash=False), pure=False))
 
     return mapper
 
