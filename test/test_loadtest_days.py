@@ -316,6 +316,32 @@ def test_a_settlement_inside_a_record_is_followed_whole(folder: Path, surrogate,
 
 
 @pytest.mark.realdata
+def test_a_second_test_car_arriving_just_before_a_step_is_cut_with_the_first(folder: Path, surrogate) -> None:
+    """The 10 mm record 1.25 h later, lowered 10 mm more through ``A`` from its minute 4.
+
+    A second test car drives on 20 s before the step while the first is parked: at the split the
+    load reads 10.6 kN on the left and 19.9 kN on the right, which the screen took for a further
+    state (one vehicle's load matches across a split), so both cars stayed in the new state's
+    level: 2.1 / 1.5 mm off. A run no heavier than any vehicle with a vehicle on the left at the
+    split is vehicles (``traffic_vehicle_max_n``); cut, the stream ends on the state, the step an
+    event at the first window after the cars (the 10 mm state before it, two windows before the
+    cars, a likely unconfirmed change across the gap).
+    """
+    pieces = [
+        Piece("ref", 0.0),
+        Piece("lowered", 1.25, (0.0, 0.0), cut_min=(0, 4)),
+        Piece("lowered", 1.25, (-0.01, -0.01), cut_min=(4, 13)),
+    ]
+    sc = build(folder, surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    got = check(sc, res)  # nothing spurious, every change reported, nothing lost, covered
+    assert got["within"]
+    first_after = min(o.end_ns // W - 1 for o in res.outputs if not o.reason and o.end_ns > sc.starts_ns[2])
+    assert [e.window for e in res.events] == [first_after]
+    assert res.rejected["outlier"] == 0
+
+
+@pytest.mark.realdata
 @pytest.mark.parametrize("minute", [5, 9])
 def test_a_raise_inside_a_record_after_the_test_car_is_followed_and_the_car_cut(
     folder: Path, surrogate, minute: int

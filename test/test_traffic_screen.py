@@ -357,3 +357,27 @@ def test_a_vehicle_that_comes_to_stay_is_no_raise_and_stays_data() -> None:
     late = [mean for k, (mean, _, _) in got.items() if k - k0 >= 13]
     u0 = load_surrogate().u0
     assert late and all(np.all(np.abs(m - u0 - 10500.0) < 100.0) for m in late)
+
+
+def test_a_second_vehicle_arriving_just_before_a_drop_is_cut_with_the_first() -> None:
+    """A 16-min record, a car of +5 kN over minutes 2-9, a second one from 15 s before a drop.
+
+    The drop (-20 kN at minute 6) splits the record; the load at the split is 5 kN on the left
+    (the half minute before it, mostly one car) and 10 kN on the right. Read as a further state
+    (the loads of one vehicle across a split match), the right side was kept with both cars, and
+    their load stayed in the new state's windows (on the real 10 mm record 1.25 h on, lowered 10 mm
+    more at minute 4 as the second test car arrived: 2.1 / 1.5 mm off). No heavier than a vehicle
+    (``traffic_vehicle_max_n``) and with a vehicle on the left, it is vehicles: cut.
+    """
+    t, f = _record(16.0)
+    f[:, 120:540] += 2500.0
+    f[:, 345:420] += 2500.0
+    f[:, 360:] -= 10000.0
+    got = _windows(_data(t, f), 1800.0)
+    k0 = int(t[0] // W)
+    u0 = load_surrogate().u0
+    for k, (mean, _, _) in got.items():
+        if np.all(np.isfinite(mean)):
+            level = u0 - (10000.0 if k - k0 >= 6 else 0.0)
+            assert np.all(np.abs(mean - level) < 100.0), (k - k0, mean - level)
+    assert any(c.sum() for k, (_, _, c) in got.items() if 6 <= k - k0 <= 8)

@@ -62,7 +62,8 @@ MAX_SPLITS = 3
 #: of its load (each side's baseline fitted to its own car-free bins and extrapolated to the split;
 #: people getting in or out): 10.1 and 10.4 kN on the 2022-04-11 reference record. A settlement of
 #: 1 mm moves the reaction sum by ~6.7 kN, so a run holding a vehicle and a further state exceeds
-#: the vehicle's load by far more (chosen after seeing that record; see the README).
+#: the vehicle's load by far more (chosen after seeing that record; see the README). Used only by a
+#: screen without a vehicle limit (``_holds_a_further_state``).
 VEHICLE_SPREAD = 0.25
 
 
@@ -200,30 +201,39 @@ def _screen_bins(
         return whole
     if right.first_n - left.last_n > threshold_n and right.first_n - left.last_n <= vehicle_max_n:
         return whole  # a rise no heavier than a vehicle that came to stay: one stretch, as before
-    if _holds_a_further_state(left.tail_n, right.head_n, threshold_n):
+    if _holds_a_further_state(left.tail_n, right.head_n, threshold_n, vehicle_max_n):
         right = _screen_bins(total[k:], *more, (True, ends[1]), vehicle_max_n)
     both = np.concatenate([left.cut, right.cut])
     return _Screened(both, left.first_n, right.last_n, left.free + right.free, left.head_n, right.tail_n)
 
 
-def _holds_a_further_state(tail_n: float, head_n: float, threshold_n: float) -> bool:
+def _holds_a_further_state(
+    tail_n: float, head_n: float, threshold_n: float, vehicle_max_n: float = np.inf
+) -> bool:
     """Whether the run cut where the right side of a split begins holds more than a vehicle.
 
     ``tail_n`` / ``head_n``: the loads (N; NaN: none) of the runs cut where the left side ends and
     the right side begins, at the split. Each side's baseline runs through its lowest bins, so a
     further state inside the right side (a second settlement in the record, the level between the
-    two steps above the final one) is read as load on top of whatever vehicle is there: a run at
-    the split on the right side alone, or heavier there than on the left by more than
-    ``threshold_n`` and ``VEHICLE_SPREAD`` of its load (a vehicle parked across the split carries
-    one load on both sides: its load on the central support does not depend on the support's
-    level). Such a side is screened again with the split as an end that does not come back: split
-    further, or kept as data, never cut as a vehicle. A heavier run on the left is a vehicle that
-    moved at the split (a state further back on the left is below its baseline, not above it).
+    two steps above the final one) is read as load on top of whatever vehicle is there. It is one
+    when the run is heavier than any vehicle (``vehicle_max_n``), or when the left side carries no
+    run at the split (nothing on the bridge there to continue). A run no heavier than a vehicle
+    with a vehicle on the left at the split is vehicles: their number may change at the split (a
+    second test car arriving 20 s before a step was read as a further state, kept, and the cars'
+    load stayed in the new state's level, 1.1 to 2.1 mm). Without a vehicle limit (``inf``) the
+    two loads must match instead: a vehicle parked across the split carries one load on both sides
+    (its load on the central support does not depend on the support's level), within
+    ``threshold_n`` and ``VEHICLE_SPREAD`` of it. Such a side is screened again with the split as an
+    end that does not come back: split further, or kept as data, never cut as a vehicle. A heavier
+    run on the left is a vehicle that moved at the split (a state further back on the left is below
+    its baseline, not above it).
     """
     if np.isnan(head_n):
         return False
-    if np.isnan(tail_n):
+    if np.isnan(tail_n) or head_n > vehicle_max_n:
         return True
+    if np.isfinite(vehicle_max_n):
+        return False
     return bool(head_n - tail_n > max(threshold_n, VEHICLE_SPREAD * head_n))
 
 
