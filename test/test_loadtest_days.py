@@ -367,6 +367,25 @@ def test_a_raise_inside_a_record_after_the_test_car_is_followed_and_the_car_cut(
     assert res.rejected["outlier"] == 0 and res.rejected["traffic"] > 0
 
 
+def _lowered_twice(folder: Path, surrogate, minutes: tuple[int, int]) -> tuple[Scenario, ReplayResult]:
+    """The reference record 1.25 h later, lowered 10 mm through ``A`` at each of ``minutes``."""
+    a, b = minutes
+    pieces = [
+        Piece("ref", 0.0),
+        Piece("ref", 1.25, (0.0, 0.0), cut_min=(0, a)),
+        Piece("ref", 1.25, (-0.01, -0.01), cut_min=(a, b)),
+        Piece("ref", 1.25, (-0.02, -0.02), cut_min=(b, 13)),
+    ]
+    sc = build(folder, surrogate.A, pieces)
+    return sc, replay(sc, surrogate)[1]
+
+
+def _every_state_keeps_a_window(sc: Scenario, res: ReplayResult) -> None:
+    used = [o.end_ns // W - 1 for o in res.outputs if not o.reason]
+    for start, end in zip(sc.starts_ns[1:], [*sc.starts_ns[2:], 2**62], strict=True):
+        assert any(start // W <= k < end // W for k in used), "a state without a window"
+
+
 @pytest.mark.realdata
 @pytest.mark.parametrize("minutes", [(3, 9), (2, 10)])
 def test_two_settlements_inside_a_record_are_each_a_state(
@@ -381,21 +400,11 @@ def test_two_settlements_inside_a_record_are_each_a_state(
     every state (a run at a split that the other side does not carry is no vehicle parked across
     it) and the windows after the gap are searched for two steps (``events.warmup.warmup_steps``).
     """
-    a, b = minutes
-    pieces = [
-        Piece("ref", 0.0),
-        Piece("ref", 1.25, (0.0, 0.0), cut_min=(0, a)),
-        Piece("ref", 1.25, (-0.01, -0.01), cut_min=(a, b)),
-        Piece("ref", 1.25, (-0.02, -0.02), cut_min=(b, 13)),
-    ]
-    sc = build(folder, surrogate.A, pieces)
-    _, res = replay(sc, surrogate)
+    sc, res = _lowered_twice(folder, surrogate, minutes)
     got = check(sc, res)  # nothing spurious, every change reported, nothing lost, covered
     assert got["within"]
     assert res.rejected["outlier"] == 0
-    used = [o.end_ns // W - 1 for o in res.outputs if not o.reason]
-    for start, end in zip(sc.starts_ns[1:], [*sc.starts_ns[2:], 2**62], strict=True):
-        assert any(start // W <= k < end // W for k in used), "a state without a window"
+    _every_state_keeps_a_window(sc, res)
 
 
 @pytest.mark.realdata
@@ -412,23 +421,13 @@ def test_the_window_a_step_happened_in_is_no_state_and_raises_no_second_event(
     state right. The window is now left out as ``step_window`` and the new segment starts after
     it: one change per step, every state keeping windows.
     """
-    a, b = minutes
-    pieces = [
-        Piece("ref", 0.0),
-        Piece("ref", 1.25, (0.0, 0.0), cut_min=(0, a)),
-        Piece("ref", 1.25, (-0.01, -0.01), cut_min=(a, b)),
-        Piece("ref", 1.25, (-0.02, -0.02), cut_min=(b, 13)),
-    ]
-    sc = build(folder, surrogate.A, pieces)
-    _, res = replay(sc, surrogate)
+    sc, res = _lowered_twice(folder, surrogate, minutes)
     got = check(sc, res)  # nothing spurious (no second event), every change reported, covered
     assert got["within"]
     assert res.rejected["step_window"] >= 1 and res.rejected["outlier"] == 0
     mixed = [o.end_ns // W - 1 for o in res.outputs if o.reason == "step_window"]
     assert all(sc.starts_ns[3] // W == k for k in mixed)  # the window the second step fell in
-    used = [o.end_ns // W - 1 for o in res.outputs if not o.reason]
-    for start, end in zip(sc.starts_ns[1:], [*sc.starts_ns[2:], 2**62], strict=True):
-        assert any(start // W <= k < end // W for k in used), "a state without a window"
+    _every_state_keeps_a_window(sc, res)
 
 
 @pytest.mark.realdata
