@@ -508,8 +508,8 @@ class Shadow:
         as the first window of the new segment (the side it was nearer), it made that segment's
         level, the next window jumped from it by the rest of the step, and the detector reported a
         second event of about half the step (10 of 56 streams with two steps inside a record); it
-        is left out as ``step_window`` where each side keeps a window of its own, and the new
-        segment starts at the window after it.
+        is left out as ``step_window`` (where ``step_windows`` names it: its neighbours next to it)
+        and the new segment starts at the window after it.
         """
         if not self._fresh_open:
             return []
@@ -519,21 +519,11 @@ class Shadow:
         if len(fresh) > MIN_DIFFERENCES:
             y = np.array([w.force - np.array(self._curve(w)) for w in fresh])
             ks = np.array([w.k for w in fresh], np.int64)
-            found = sorted(step_windows(y, ks, 1.0 - self.config.event_trigger_probability))
-            since = 0  # first window of the state before the step
-            for start, mixed in found:
-                # left out where each side keeps a window of its own and both its neighbours
-                # are next to it (with windows cut around it, it may be a short state of its own)
-                if (
-                    mixed is not None
-                    and since < mixed
-                    and mixed + 1 < len(fresh)
-                    and ks[mixed + 1] - ks[mixed - 1] == 2
-                ):
+            for start, mixed in step_windows(y, ks, 1.0 - self.config.event_trigger_probability):
+                if mixed is not None:  # each side keeps a window: its neighbours are its states'
                     both.add(mixed)
                     start = mixed + 1
                 steps.add(start)
-                since = start
         outputs: list[WindowOutput] = []
         for j, w in enumerate(fresh):
             self.settle()

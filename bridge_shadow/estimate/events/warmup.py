@@ -196,8 +196,17 @@ def step_windows(y: np.ndarray, k: np.ndarray, probability: float) -> list[tuple
     jumps that cancel: an excursion, not two steps). A false split costs an unconfirmed change the
     data merge back (see the module docstring). The window a step happened in (two neighbouring
     differences of one sign) holds both states: returned with the step (``_mixed_start`` gives
-    which side it is nearer, the first window of the new state or the last of the old).
+    which side it is nearer, the first window of the new state or the last of the old) when both
+    its neighbours are next to it; with windows missing around it (cut by the traffic screen) it
+    may be a short state of its own, and None is returned for it.
     """
+    k = np.asarray(k, np.int64).reshape(-1)
+    found = _steps(y, k, probability)
+    return [(s, m if m is not None and k[m + 1] - k[m - 1] == 2 else None) for s, m in found]
+
+
+def _steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[tuple[int, int | None]]:
+    """``step_windows`` before the check of the mixed windows' neighbours."""
     one = _one_step(y, k, probability)
     if one is not None:
         return [one]

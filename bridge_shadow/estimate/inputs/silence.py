@@ -36,29 +36,25 @@ class ChannelSilence:
     """Per force channel, the stretches ``[first_k, last_k]`` of windows it was silent in alone.
 
     Attributes:
-        runs: per channel, every stretch so far as ``[first_k, last_k]`` (the last one may still be
-            open: it grows while the channel stays silent in consecutive windows).
-        open: per channel, whether its last stretch is still open.
+        runs: per channel, every stretch so far as ``[first_k, last_k]`` (the last one grows while
+            the channel stays silent in the windows right after it).
 
     """
 
     runs: list[list[list[int]]] = field(default_factory=lambda: [[], []])
-    open: list[bool] = field(default_factory=lambda: [False, False])
 
     def note(self, k: int, samples: np.ndarray) -> None:
         """Follow window ``k`` with its accepted ``samples`` per channel (windows in order)."""
         for c in (0, 1):
-            alone = samples[c] == 0 and samples[1 - c] > 0
+            if not (samples[c] == 0 and samples[1 - c] > 0):
+                continue  # the channel delivered (or neither did): no stretch of it here
             runs = self.runs[c]
-            if alone and self.open[c] and runs[-1][1] == k - 1:
+            if runs and runs[-1][1] == k - 1:
                 runs[-1][1] = k
-            elif alone:
-                if runs and runs[-1][1] - runs[-1][0] + 1 < MIN_SILENT_WINDOWS:
-                    runs.pop()  # a window at a record's edge: not a stretch
-                runs.append([k, k])
-                self.open[c] = True
-            else:
-                self.open[c] = False
+                continue
+            if runs and runs[-1][1] - runs[-1][0] + 1 < MIN_SILENT_WINDOWS:
+                runs.pop()  # a window at a record's edge: not a stretch
+            runs.append([k, k])
 
     def stretches(self, c: int) -> list[tuple[int, int]]:
         """Return channel ``c``'s stretches of at least ``MIN_SILENT_WINDOWS`` windows (first, last k)."""
@@ -66,9 +62,8 @@ class ChannelSilence:
 
     def state_dict(self) -> dict[str, object]:
         """Plain-data state (checkpoints)."""
-        return {"runs": [[list(r) for r in rs] for rs in self.runs], "open": list(self.open)}
+        return {"runs": [[list(r) for r in rs] for rs in self.runs]}
 
     def load_state_dict(self, state: dict[str, object]) -> None:
         """Restore ``state_dict`` output."""
         self.runs = [[[int(a), int(b)] for a, b in rs] for rs in state["runs"]]  # type: ignore[union-attr]
-        self.open = [bool(o) for o in state["open"]]  # type: ignore[union-attr]

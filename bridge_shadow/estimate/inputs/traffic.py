@@ -41,7 +41,6 @@ __all__ = [
     "MAX_SPLITS",
     "MIN_SIDE_BINS",
     "PIECE_SILENCE_NS",
-    "VEHICLE_SPREAD",
     "screen_record",
     "split_bin",
     "support_start",
@@ -58,13 +57,6 @@ PIECE_SILENCE_NS = 60 * BIN_NS
 #: state has no window of its own: the detector reads it), and at most this many times per piece.
 MIN_SIDE_BINS = 60
 MAX_SPLITS = 3
-#: One vehicle parked across a split is read on its two sides with loads that differ by this share
-#: of its load (each side's baseline fitted to its own car-free bins and extrapolated to the split;
-#: people getting in or out): 10.1 and 10.4 kN on the 2022-04-11 reference record. A settlement of
-#: 1 mm moves the reaction sum by ~6.7 kN, so a run holding a vehicle and a further state exceeds
-#: the vehicle's load by far more (chosen after seeing that record; see the README). Used only by a
-#: screen without a vehicle limit (``_holds_a_further_state``).
-VEHICLE_SPREAD = 0.25
 
 
 def screen_record(
@@ -72,7 +64,7 @@ def screen_record(
     values: list[np.ndarray],
     threshold_n: float,
     margin_s: float,
-    vehicle_max_n: float = np.inf,
+    vehicle_max_n: float,
 ) -> list[np.ndarray]:
     """Screen the samples of one record (per channel, sorted stamps in ns and forces in N).
 
@@ -108,7 +100,7 @@ def _screen_piece(
     values: list[np.ndarray],
     threshold_n: float,
     margin_s: float,
-    vehicle_max_n: float = np.inf,
+    vehicle_max_n: float,
 ) -> list[np.ndarray]:
     """Screen one continuous piece of a record (``screen_record``)."""
     if any(not len(s) for s in stamps):
@@ -117,7 +109,7 @@ def _screen_piece(
     n = (max(int(s[-1]) for s in stamps) - t0) // BIN_NS + 1
     idx = [(s - t0) // BIN_NS for s in stamps]
     total = sum(window_stats(i, v, n).mean for i, v in zip(idx, values, strict=True))  # NaN: a channel empty
-    cut = _screen_bins(total, threshold_n, round(margin_s * 1e9 / BIN_NS), 0, vehicle_max_n=vehicle_max_n).cut
+    cut = _screen_bins(total, threshold_n, round(margin_s * 1e9 / BIN_NS), vehicle_max_n).cut
     return [~cut[i] for i in idx]
 
 
@@ -141,9 +133,9 @@ def _screen_bins(
     total: np.ndarray,
     threshold_n: float,
     margin: int,
+    vehicle_max_n: float,
     depth: int = 0,
     ends: tuple[bool, bool] = (True, True),
-    vehicle_max_n: float = np.inf,
 ) -> _Screened:
     """Screen the 1 s bin sums ``total`` (NaN: a bin without both channels); see the module docstring.
 
@@ -194,22 +186,21 @@ def _screen_bins(
     if at is None:
         return whole
     k = int(valid[at])
-    more = (threshold_n, margin, depth + 1)
-    left = _screen_bins(total[:k], *more, (ends[0], False), vehicle_max_n)
-    right = _screen_bins(total[k:], *more, (False, ends[1]), vehicle_max_n)
-    if abs(right.first_n - left.last_n) <= threshold_n or min(left.free, right.free) < margin:
+    more = (threshold_n, margin, vehicle_max_n, depth + 1)
+    left = _screen_bins(total[:k], *more, (ends[0], False))
+    right = _screen_bins(total[k:], *more, (False, ends[1]))
+    step = right.first_n - left.last_n
+    if abs(step) <= threshold_n or min(left.free, right.free) < margin:
         return whole
-    if right.first_n - left.last_n > threshold_n and right.first_n - left.last_n <= vehicle_max_n:
+    if 0 < step <= vehicle_max_n:
         return whole  # a rise no heavier than a vehicle that came to stay: one stretch, as before
-    if _holds_a_further_state(left.tail_n, right.head_n, threshold_n, vehicle_max_n):
-        right = _screen_bins(total[k:], *more, (True, ends[1]), vehicle_max_n)
+    if _holds_a_further_state(left.tail_n, right.head_n, vehicle_max_n):
+        right = _screen_bins(total[k:], *more, (True, ends[1]))
     both = np.concatenate([left.cut, right.cut])
     return _Screened(both, left.first_n, right.last_n, left.free + right.free, left.head_n, right.tail_n)
 
 
-def _holds_a_further_state(
-    tail_n: float, head_n: float, threshold_n: float, vehicle_max_n: float = np.inf
-) -> bool:
+def _holds_a_further_state(tail_n: float, head_n: float, vehicle_max_n: float) -> bool:
     """Whether the run cut where the right side of a split begins holds more than a vehicle.
 
     ``tail_n`` / ``head_n``: the loads (N; NaN: none) of the runs cut where the left side ends and
@@ -217,24 +208,16 @@ def _holds_a_further_state(
     further state inside the right side (a second settlement in the record, the level between the
     two steps above the final one) is read as load on top of whatever vehicle is there. It is one
     when the run is heavier than any vehicle (``vehicle_max_n``), or when the left side carries no
-    run at the split (nothing on the bridge there to continue). A run no heavier than a vehicle
-    with a vehicle on the left at the split is vehicles: their number may change at the split (a
-    second test car arriving 20 s before a step was read as a further state, kept, and the cars'
-    load stayed in the new state's level, 1.1 to 2.1 mm). Without a vehicle limit (``inf``) the
-    two loads must match instead: a vehicle parked across the split carries one load on both sides
-    (its load on the central support does not depend on the support's level), within
-    ``threshold_n`` and ``VEHICLE_SPREAD`` of it. Such a side is screened again with the split as an
-    end that does not come back: split further, or kept as data, never cut as a vehicle. A heavier
-    run on the left is a vehicle that moved at the split (a state further back on the left is below
-    its baseline, not above it).
+    run at the split (nothing on the bridge there to continue); such a side is screened again with
+    the split as an end that does not come back: split further, or kept as data, never cut as a
+    vehicle. A run no heavier than a vehicle, with a vehicle on the left at the split, is vehicles:
+    their number may change there (a second test car arriving 20 s before a step, read as a
+    further state by the loads' mismatch that the rule first asked for, kept both cars in the new
+    state's level, 1.1 to 2.1 mm).
     """
     if np.isnan(head_n):
         return False
-    if np.isnan(tail_n) or head_n > vehicle_max_n:
-        return True
-    if np.isfinite(vehicle_max_n):
-        return False
-    return bool(head_n - tail_n > max(threshold_n, VEHICLE_SPREAD * head_n))
+    return bool(np.isnan(tail_n) or head_n > vehicle_max_n)
 
 
 def support_start(s: np.ndarray, threshold_n: float) -> np.ndarray:
