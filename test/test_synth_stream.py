@@ -88,3 +88,61 @@ def test_synth_archive_command(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert day0.forces["frc_01"].stamp_ns[-1] < day1.forces["frc_01"].stamp_ns[0]
     assert main(argv) == 2  # exists: one line, nothing touched
     assert "exists already" in capsys.readouterr().err
+
+
+def _messages(bag: Path) -> list[tuple[str, int, bytes]]:
+    from rosbags.rosbag2 import Reader
+
+    with Reader(bag) as reader:
+        return [(c.topic, t, bytes(raw)) for c, t, raw in reader.messages()]
+
+
+def test_the_bulk_insert_writes_what_rosbags_writes_message_by_message(tmp_path: Path) -> None:
+    """``write_merged`` into sqlite3 (one executemany) reads back as rosbags' own ``write`` per message."""
+    from bridge_shadow.bagio import write_monitoring
+    from bridge_shadow.bagio.writer import BagOutputWriter
+
+    data, _ = simulate(0.02, 1.0, seed=4)
+    bulk = write_monitoring(tmp_path / "bulk", data)
+    got = _messages(bulk)
+    types = {c.topic: c.msgtype for c in _connections(bulk)}
+    with BagOutputWriter(tmp_path / "one", "sqlite3") as bag:  # the reference: rosbags' write
+        for topic, t, raw in got:
+            bag.write_raw(topic, types[topic], t, raw)
+    assert len(got) == sum(len(s) for s in data.forces.values()) + len(data.temperature)
+    assert _messages(tmp_path / "one") == got
+    from rosbags.rosbag2 import Reader
+
+    with Reader(bulk) as a, Reader(tmp_path / "one") as b:  # the metadata's counts and time range
+        assert (a.message_count, a.start_time, a.end_time) == (b.message_count, b.start_time, b.end_time)
+        assert sorted((c.topic, c.msgcount) for c in a.connections) == sorted(
+            (c.topic, c.msgcount) for c in b.connections
+        )
+
+
+def _connections(bag: Path) -> list:
+    from rosbags.rosbag2 import Reader
+
+    with Reader(bag) as reader:
+        return list(reader.connections)
+
+
+def test_an_archive_written_on_dask_workers_equals_the_serial_one(tmp_path: Path, engine) -> None:
+    """``write_archive`` on the engine's mapper: every bag's messages and truth as written serially."""
+    from bridge_shadow.twin.stream import BAGS_PER_CALL, write_archive
+
+    args = {"bridges": 2, "days": 0.5, "rate_hz": 0.5, "seed": 5, "bag_days": 0.05}
+    assert 2 * 10 > BAGS_PER_CALL  # more than one call of the mapper
+    seen: list[float] = []
+    serial = write_archive(tmp_path / "serial", **args)
+    parallel = write_archive(tmp_path / "dask", mapper=engine, progress=seen.append, **args)
+    assert parallel == serial
+    assert seen[-1] == 1.0 and seen == sorted(seen) and len(seen) == -(-20 // BAGS_PER_CALL)
+    bags = sorted(p.relative_to(tmp_path / "serial") for p in (tmp_path / "serial").glob("bridge_*/day_*"))
+    assert len(bags) == 20
+    for rel in bags:
+        assert _messages(tmp_path / "dask" / rel) == _messages(tmp_path / "serial" / rel)
+    for b in ("bridge_00", "bridge_01"):
+        assert (tmp_path / "dask" / b / "truth.yaml").read_text() == (
+            tmp_path / "serial" / b / "truth.yaml"
+        ).read_text()

@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from bridge_shadow.effects import EFFECTS
+from bridge_shadow.engine import add_engine_options
 
 HELP = "write a synthetic monitoring bag from the truth twin (and BAG/truth.yaml)"
 
@@ -132,6 +133,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--force", "--overwrite", dest="force", action="store_true", help="replace an existing bag at --out"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object with the summary")
+    add_engine_options(parser, "with --archive: write the bags")
 
 
 def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
@@ -200,6 +202,10 @@ def run(args: argparse.Namespace) -> int:
     }
     if args.archive:
         return _archive(args, world)
+    if args.workers is not None or args.scheduler:
+        raise InputError(
+            "--workers and --scheduler write the bags of an --archive; one --out bag is one task"
+        )
     check_bag_target(args.out, args.force)  # before the simulation
     world.update(_reality(args))
     if record_samples(args.days, args.rate) <= SEGMENT_SAMPLES:
@@ -265,6 +271,7 @@ def _archive(args: argparse.Namespace, world: dict[str, Any]) -> int:
     from pathlib import Path
 
     from bridge_shadow.commands.output import emit_json, progress
+    from bridge_shadow.engine import optional_mapper
     from bridge_shadow.errors import InputError
     from bridge_shadow.fileio import check_output_dir
     from bridge_shadow.twin.simulate import simulate
@@ -288,17 +295,19 @@ def _archive(args: argparse.Namespace, world: dict[str, Any]) -> int:
     world.update(_reality(args))
     simulate(min(args.days, args.bag_days), args.rate, span=(0, 1), **world)  # bad arguments fail now
     show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "synth"))
-    bridges = write_archive(
-        folder,
-        bridges=args.bridges,
-        days=args.days,
-        rate_hz=args.rate,
-        bag_days=args.bag_days,
-        storage=args.storage,
-        compress=args.compress,
-        progress=show,
-        **world,
-    )
+    with optional_mapper(args.scheduler, args.workers) as mapper:
+        bridges = write_archive(
+            folder,
+            bridges=args.bridges,
+            days=args.days,
+            rate_hz=args.rate,
+            bag_days=args.bag_days,
+            storage=args.storage,
+            compress=args.compress,
+            progress=show,
+            mapper=mapper,
+            **world,
+        )
     summary = {
         "archive": str(folder),
         "bridges": bridges,

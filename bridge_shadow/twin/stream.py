@@ -26,7 +26,14 @@ import numpy as np
 from bridge_shadow.series import MonitoringData
 from bridge_shadow.twin.simulate import DAY_S, simulate
 
-__all__ = ["SEGMENT_SAMPLES", "merge_truths", "record_segments", "write_archive", "write_stream_bag"]
+__all__ = [
+    "BAGS_PER_CALL",
+    "SEGMENT_SAMPLES",
+    "merge_truths",
+    "record_segments",
+    "write_archive",
+    "write_stream_bag",
+]
 
 SEGMENT_SAMPLES = 250_000
 
@@ -124,9 +131,13 @@ class _StreamWriter:
         pos = np.concatenate([np.arange(len(x)) for x in logs])
         log = np.concatenate(logs)
         order = np.argsort(log, kind="stable")  # ties: frc_01, frc_02, temperature (write_monitoring's)
-        write = self.bag._writer.write
-        for k, i, ti in zip(topic[order].tolist(), pos[order].tolist(), log[order].tolist(), strict=True):
-            write(self.conns[k], ti, raws[k][i])
+        which, at = topic[order], pos[order]
+        self.bag.write_merged(
+            self.conns,
+            which,
+            log[order],
+            [raws[k][i] for k, i in zip(which.tolist(), at.tolist(), strict=True)],
+        )
         for k, x in enumerate(logs):
             self.counts[k] += len(x)
 
@@ -166,6 +177,22 @@ def write_stream_bag(
     return path, merged
 
 
+#: Bags per call of the mapper in ``write_archive``: progress is reported after each call.
+BAGS_PER_CALL = 8
+
+
+def _write_archive_bag(
+    job: tuple[Path, tuple[int, int], int, int, str, bool, dict[str, Any]],
+) -> dict[str, Any]:
+    """Write one bag of an archive (a mapper's task); return its truth (without the series)."""
+    bag, span, first, seed, storage, compress, world = job
+    kwargs = dict(world)
+    days, rate_hz = kwargs.pop("days"), kwargs.pop("rate_hz")
+    segs = record_segments(days, rate_hz, span=span, first_segment=first, seed=seed, **kwargs)
+    _, truth = write_stream_bag(bag, segs, storage=storage, compress=compress, truth_file=False)
+    return truth
+
+
 def write_archive(
     folder: str | Path,
     *,
@@ -177,37 +204,45 @@ def write_archive(
     storage: str = "sqlite3",
     compress: bool = False,
     progress: Any = None,
+    mapper: Any = None,
     **kwargs: Any,
 ) -> list[dict[str, Any]]:
     """Write an archive: ``folder/bridge_NN/day_DDDD`` bags of ``bag_days`` each, per bridge a record.
 
     Bridge ``b`` is the twin record of seed ``seed + b`` (its own weather, sensors and crossings;
     the same effects and steps), cut at every ``bag_days`` into bags; its truth (the whole
-    record's) goes to ``folder/bridge_NN/truth.yaml``, for scoring only. ``progress`` is called
-    with the fraction of bags written. Returns one summary per bridge.
+    record's) goes to ``folder/bridge_NN/truth.yaml``, for scoring only. Every bag is written on
+    its own (its samples' span of the record), so ``mapper`` (``engine.client_mapper``: Dask
+    workers; default: one after the other here) writes them in parallel, ``BAGS_PER_CALL`` at a
+    time; the bytes do not depend on it. ``progress`` is called with the fraction of bags written.
+    Returns one summary per bridge.
     """
     from bridge_shadow.fileio import atomic_write_text
     from bridge_shadow.twin.truth import truth_text
 
+    mapper = mapper or (lambda fn, items: [fn(x) for x in items])
     root = Path(folder)
     n = record_samples(days, rate_hz)
     per_bag = max(record_samples(bag_days, rate_hz), 1)
     n_bags = -(-n // per_bag)
-    out = []
+    jobs = []
     for b in range(bridges):
-        bridge = root / f"bridge_{b:02d}"
-        truths = []
         for d in range(n_bags):
             span = (d * per_bag, min((d + 1) * per_bag, n))
             first = d * (-(-per_bag // SEGMENT_SAMPLES))
-            segs = record_segments(days, rate_hz, span=span, first_segment=first, seed=seed + b, **kwargs)
-            _, truth = write_stream_bag(
-                bridge / f"day_{d:04d}", segs, storage=storage, compress=compress, truth_file=False
+            world = {**kwargs, "days": days, "rate_hz": rate_hz}
+            jobs.append(
+                (root / f"bridge_{b:02d}" / f"day_{d:04d}", span, first, seed + b, storage, compress, world)
             )
-            truths.append(truth)
-            if progress is not None:
-                progress((b * n_bags + d + 1) / (bridges * n_bags))
-        merged = merge_truths(truths)
+    truths: list[dict[str, Any]] = []
+    for i in range(0, len(jobs), BAGS_PER_CALL):
+        truths += mapper(_write_archive_bag, jobs[i : i + BAGS_PER_CALL])
+        if progress is not None:
+            progress(len(truths) / len(jobs))
+    out = []
+    for b in range(bridges):
+        bridge = root / f"bridge_{b:02d}"
+        merged = merge_truths(truths[b * n_bags : (b + 1) * n_bags])
         atomic_write_text(bridge / "truth.yaml", truth_text(merged), "truth file")
         out.append({"bridge": bridge.name, "bags": n_bags, "seed": seed + b, "counts": merged["counts"]})
     return out
