@@ -53,7 +53,14 @@ from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows, residual_moments
 from bridge_shadow.estimate.compensation.sunlight import SunCovariate
 from bridge_shadow.estimate.events.detector import ChangeDetector, Decision
-from bridge_shadow.estimate.events.warmup import MIN_DIFFERENCES, step_windows, warmup_steps
+from bridge_shadow.estimate.events.warmup import (
+    MIN_DIFFERENCES,
+    RAMP_HOLD_FACTOR,
+    ramp_in_progress,
+    ramp_windows,
+    step_windows,
+    warmup_steps,
+)
 from bridge_shadow.estimate.inputs.closed_window import Window
 from bridge_shadow.estimate.inputs.gate import REASONS, TopicGate
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS, TopicLedger
@@ -423,7 +430,7 @@ class Shadow:
                 continue
             if self._fresh_open:
                 self._fresh.append(w)
-                if len(self._fresh) >= self.config.warmup_windows:
+                if len(self._fresh) >= self.config.warmup_windows and not self._ramp_going_on():
                     outputs.extend(self._release_fresh())
                 continue
             if w.g_fit != self._fit_id:
@@ -489,6 +496,20 @@ class Shadow:
         self._fresh_open = self.warm  # (during the warm-up its own search covers the segment)
         return outputs
 
+    def _ramp_going_on(self) -> bool:
+        """Whether the windows held after a gap end in a ramp still in progress (hold them on).
+
+        ``events.warmup.ramp_in_progress``, up to ``RAMP_HOLD_FACTOR`` times ``warmup_windows``:
+        a support lowered over minutes keeps moving past the tenth window, and the state after it
+        needs windows among the held ones for ``_release_fresh`` to see where the ramp ends.
+        """
+        fresh = self._fresh
+        if len(fresh) >= RAMP_HOLD_FACTOR * self.config.warmup_windows:
+            return False
+        y = np.array([w.force - np.array(self._curve(w)) for w in fresh])
+        ks = np.array([w.k for w in fresh], np.int64)
+        return ramp_in_progress(y, ks, 1.0 - self.config.event_trigger_probability)
+
     def _release_fresh(self) -> list[WindowOutput]:
         """Judge the windows held after a gap, in order; a step among them opens a provisional segment.
 
@@ -519,11 +540,16 @@ class Shadow:
         if len(fresh) > MIN_DIFFERENCES:
             y = np.array([w.force - np.array(self._curve(w)) for w in fresh])
             ks = np.array([w.k for w in fresh], np.int64)
-            for start, mixed in step_windows(y, ks, 1.0 - self.config.event_trigger_probability):
+            probability = 1.0 - self.config.event_trigger_probability
+            for start, mixed in step_windows(y, ks, probability):
                 if mixed is not None:  # each side keeps a window: its neighbours are its states'
                     both.add(mixed)
                     start = mixed + 1
                 steps.add(start)
+            ramp = None if steps else ramp_windows(y, ks, probability)
+            if ramp is not None:  # a gradual change: its moving windows hold neither state
+                both.update(range(*ramp))
+                steps.add(ramp[1])
         outputs: list[WindowOutput] = []
         for j, w in enumerate(fresh):
             self.settle()

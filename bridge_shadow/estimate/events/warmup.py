@@ -57,8 +57,13 @@ from scipy import integrate, optimize, special
 
 __all__ = [
     "MIN_DIFFERENCES",
+    "RAMP_HOLD_FACTOR",
+    "false_ramp_probability",
     "false_step_probability",
     "false_two_step_probability",
+    "ramp_in_progress",
+    "ramp_ratio",
+    "ramp_windows",
     "step_ratio",
     "step_windows",
     "two_step_ratio",
@@ -70,6 +75,19 @@ __all__ = [
 MIN_DIFFERENCES = 3
 #: Cap on the robust correlation of the two channels' differences (see ``_robust_precision``).
 MAX_CORRELATION = 0.9
+#: A ramp spans at least this many differences (two or fewer are the step rules'), and leaves at
+#: least this many outside it (the states before and after, and the scale it is measured against).
+RAMP_MIN_LENGTH = 3
+RAMP_MIN_REST = 2
+#: A ramp's inner windows each move at least this share of its mean speed (``_moves_throughout``):
+#: a jack lowering a support moves it in every minute, at a speed that varies (a quarter: a
+#: choice, set after the two-step streams of the real records showed a state kept for minutes
+#: between two steps, its car drifting 1 kN a minute, read as a ramp at a tenth of the mean).
+RAMP_MIN_SPEED = 0.25
+#: Windows after a gap are held on while a ramp is in progress, up to this many times
+#: ``warmup_windows`` (a lowering record of 2022-04-11 lasts 18 to 30 minutes by the day's
+#: temperature files; 30 one-minute windows; a drift that never ends is released then, as before).
+RAMP_HOLD_FACTOR = 3
 #: Median of |N(0, 1)|: a robust standard deviation is ``median |x| / MAD_NORMAL``.
 MAD_NORMAL = 0.6744897501960817
 
@@ -99,6 +117,7 @@ def false_step_probability(f: float, n: int) -> float:
     c = f - 2.0
     if c <= 0:
         return 1.0
+
     def integrand(x: float) -> float:
         if x <= 0:
             return 0.0
@@ -138,6 +157,7 @@ def _second_over(g: float, m: int, n: int) -> float:
         return 0.0
     if g <= 1.0:
         return 1.0
+
     def integrand(x: float) -> float:
         if x <= 0:
             return 0.0
@@ -219,6 +239,7 @@ def _steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[tuple[int, 
     def score(idx: list[int]) -> float:  # J of one jump over the differences idx
         d = raw[idx].sum(axis=0) / np.sqrt(lag[idx].sum())
         return float(d @ prec @ d)
+
     # a jump's J is at most twice its largest difference's, and must beat f (> 2) times every
     # difference left out: each jump holds one of the four largest (at most four are left out),
     # and the second largest beats f / 2 times the fifth
@@ -245,6 +266,144 @@ def _steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[tuple[int, 
         if ratio > f and ratio > best:
             best, found = ratio, [(p[3], p[4]), (q[3], q[4])]
     return found
+
+
+def false_ramp_probability(f: float, n: int, length: int, blocks: int | None = None) -> float:
+    """Return a bound of the false probability of the ramp rule for blocks of ``length`` of ``n`` differences.
+
+    Without a change the differences are increments of the noise, each ``J_i`` an exponential up
+    to one scale (as for the step rules), symmetric about zero. The block's sum over its lag has
+    ``J`` at most the sum of the block's ``J_i`` (Cauchy-Schwarz, lag-weighted), so beating ``f``
+    times the largest ``M_r`` of the ``r = n - length`` others needs ``sum J_i > f M_r``: a
+    Gamma(``length``) against ``f`` times the largest of ``r`` unit exponentials. The one-sign
+    condition (each ``d_i' P s > 0``, ``s`` the sum) is a sign pattern of the ``d_i``, independent
+    of their magnitudes by symmetry; as ``s`` turns once round, the pattern ``sign(d_i' P s)``
+    changes at ``2 length`` directions, so at most ``2 length`` of the ``2^length`` patterns can
+    hold it. Per block the bound is the product, or, without the signs, the block's own ``J``
+    (exponential itself for a random walk) beating ``f M_r``: ``Gamma(f + 1) r! / Gamma(r + f + 1)``,
+    whichever is smaller; summed over the ``blocks`` tried (default all
+    ``n - length + 1``; one for a block ending at the last difference, ``ramp_in_progress``), a
+    union bound. The independence of a block from the rest is a random walk's (AR(1) with ``phi``
+    near 1); for smaller ``phi`` the increments cancel in the sum and the rule fires less.
+    """
+    r = n - length
+    if r < 1 or length < 1:
+        return 1.0
+    count = n - length + 1 if blocks is None else blocks
+
+    def integrand(x: float) -> float:  # P(Gamma(length) > f x) times the density of M_r at x
+        if x <= 0:
+            return 0.0
+        return float(special.gammaincc(length, f * x) * np.exp(_log_order_density(x, 1, r)))
+
+    tail, _ = integrate.quad(integrand, 0.0, np.inf, limit=200)
+    signs = min(2.0 * length * 0.5**length, 1.0)
+    # the block's own J against the rest (an exponential itself for a random walk), without the signs
+    alone = np.exp(special.gammaln(f + 1.0) + special.gammaln(r + 1.0) - special.gammaln(r + f + 1.0))
+    return float(min(count * min(signs * tail, alone), 1.0))
+
+
+@lru_cache(maxsize=1024)
+def ramp_ratio(n: int, length: int, probability: float, open_end: bool = False) -> float:
+    """Return the ratio ``f`` whose ramp false probability (``length`` of ``n``) is ``probability``.
+
+    ``ramp_windows`` tries every block length from ``RAMP_MIN_LENGTH`` to ``n - RAMP_MIN_REST``
+    (``open_end``: only the block ending at the last difference, ``ramp_in_progress``); the
+    probability allowed is shared equally among the lengths.
+    """
+    lengths = max(n - RAMP_MIN_REST - RAMP_MIN_LENGTH + 1, 1)
+    share = probability / lengths
+    blocks = 1 if open_end else None
+    return _ratio_for(lambda f, m: false_ramp_probability(f, m, length, blocks), n, share, 2.0)
+
+
+def _moves_throughout(
+    block: np.ndarray, prec: np.ndarray, total: np.ndarray, inner: np.ndarray, top: float
+) -> bool:
+    """Whether a block of differences (its first and last may be partial) moved in every inner window.
+
+    Each inner difference larger in ``J`` than every difference outside the block (``top``), and
+    along the block's sum at least ``RAMP_MIN_SPEED`` of the block's mean: a support lowered
+    over minutes moves in every window; one that stood still between two steps (a state kept
+    for minutes, however its test car drifted in it) is states, which the step rules and the
+    detector read, not a ramp whose windows are left out.
+    """
+    if not len(inner):
+        return True
+    along = block @ prec @ total
+    return bool(np.min(inner) > top and np.min(along[1:-1]) >= RAMP_MIN_SPEED * float(np.mean(along)))
+
+
+def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
+    """Whether the last windows of ``y`` (n, 2) N are a ramp that has not ended (``ramp_windows``).
+
+    The test of ``ramp_windows`` for the blocks that end at the last difference, their states
+    before them only: the windows held after a gap are then held on (``Shadow``) until the
+    ramp ends, so that the state after it has windows of its own.
+    """
+    diffs = _differences(y, k, RAMP_MIN_LENGTH + RAMP_MIN_REST)
+    if diffs is None:
+        return False
+    raw, lag, _, prec, single = diffs
+    m = len(raw)
+    for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1):
+        a = m - length
+        total = raw[a:].sum(axis=0)
+        top = float(np.max(single[:a]))
+        if not np.all(raw[a:] @ prec @ total > 0.0):
+            continue
+        if not _moves_throughout(np.vstack([raw[a:], raw[-1:]]), prec, total, single[a + 1 :], top):
+            continue
+        j = float(total @ prec @ total) / float(lag[a:].sum())
+        if j > ramp_ratio(m, length, probability, True) * max(top, 1e-300):
+            return True
+    return False
+
+
+def ramp_windows(y: np.ndarray, k: np.ndarray, probability: float) -> tuple[int, int] | None:
+    """Return ``(first window moving, first window of the new state)`` of a gradual change, or None.
+
+    A support lowered by jacks over minutes (a load-test day's lowering records), or settling over
+    minutes, moves the window means a little in every window for a while: no one difference
+    dwarfs the others, so neither step rule sees it, and taken as one state the moving windows
+    read as noise (the noise model's scale grew 300-fold on a 20 mm lowering over eight minutes of
+    a record after a gap, and the day's earlier 10 mm event fell to an unconfirmed change of
+    probability 0.12). A *ramp* is a block of at least ``RAMP_MIN_LENGTH`` successive differences
+    of one sign along their sum (each ``d_i' P s > 0``), each but its first and last (which may
+    hold the ramp's start and end within a window) larger in ``J`` than every difference outside
+    it (a support that stood still between two steps is states, not a ramp: the step rules and
+    the detector read them), and whose sum, over the block's lag, beats
+    ``ramp_ratio`` times every difference outside it (at least ``RAMP_MIN_REST`` of them: the
+    states on either side); the block with the largest ratio is taken. Its inner windows hold
+    neither state; the new state begins after it. Derivation: ``false_ramp_probability``.
+    """
+    k = np.asarray(k, np.int64).reshape(-1)
+    diffs = _differences(y, k, RAMP_MIN_LENGTH + RAMP_MIN_REST)
+    if diffs is None:
+        return None
+    raw, lag, _, prec, single = diffs
+    m = len(raw)
+    csum = np.vstack([np.zeros((1, 2)), np.cumsum(raw, axis=0)])
+    clag = np.concatenate([[0.0], np.cumsum(lag)])
+    best, found = 0.0, None
+    for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1):
+        f = ramp_ratio(m, length, probability)
+        for a in range(m - length + 1):
+            b = a + length
+            total = csum[b] - csum[a]
+            if not np.all(raw[a:b] @ prec @ total > 0.0):
+                continue  # not of one sign: an excursion, a car, or noise
+            top = float(np.max(np.concatenate([single[:a], single[b:]])))
+            if not _moves_throughout(raw[a:b], prec, total, single[a + 1 : b - 1], top):
+                continue  # it stood still inside: states between steps, not a ramp
+            j = float(total @ prec @ total) / (clag[b] - clag[a])
+            ratio = j / max(top, 1e-300)
+            if ratio > f and ratio / f > best:
+                best, found = ratio / f, (a + 1, b)
+    if found is None:
+        return None
+    first, new = found
+    return first, new
 
 
 def _differences(
