@@ -58,3 +58,30 @@ def test_without_any_temperature_windows_are_uncompensated_not_stale() -> None:
     batch = buf.flush([int(s[-1]) for s in stamps])
     assert len(batch) == 30 and not buf.temp_seen
     assert np.all(np.isnan(batch.temp_c)) and set(batch.reason) == {""}
+
+
+def test_a_held_record_too_long_only_for_a_recording_started_again_is_split_at_the_silence() -> None:
+    """``_Record``: past the hold, the part before the last piece silence ends (to screen), the rest is held.
+
+    A record that is too long without such a silence, or whose piece after it is itself too
+    long, is released unscreened as before.
+    """
+    from bridge_shadow.estimate.inputs.windows import _Record
+
+    m = 60 * 10**9
+    rec = _Record()
+    rec.begin(0)
+    assert rec.extend(12 * m, 30 * m) == []
+    rec.resume(20 * m)  # eight minutes of silence, then the next recording
+    assert rec.extend(25 * m, 30 * m) == []  # 25 min: inside the hold, held whole
+    assert rec.extend(32 * m, 30 * m) == [(0, 12 * m)]  # past it: the first recording ends
+    assert rec.holding and rec.start_ns == 20 * m
+    assert _Record.from_state_dict(rec.state_dict()).state_dict() == rec.state_dict()
+    assert rec.end() == [(20 * m, 32 * m)]
+    one = _Record()
+    one.begin(0)
+    assert one.extend(31 * m, 30 * m) == [] and one.open and not one.holding  # no silence: released
+    two = _Record()
+    two.begin(0)
+    two.resume(m)
+    assert two.extend(40 * m, 30 * m) == [] and not two.holding  # the piece after it is too long

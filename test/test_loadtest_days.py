@@ -466,3 +466,25 @@ def test_a_record_taken_while_the_air_logger_paused_is_a_state_not_a_gap(folder:
     assert s.events_right and s.lost_windows == 0 and s.within and s.covered, s
     assert res.stale_temperature_windows >= 3 and res.rejected["stale_temperature"] == 0
     assert any(w.startswith("stale air temperature") for w in res.warnings)
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("first", ["ref", "lowered"])
+def test_two_records_minutes_apart_longer_together_than_the_hold_are_each_screened(
+    folder: Path, surrogate, first: str
+) -> None:
+    """The pair with the later record 20 min after the first's start: 8 minutes apart, inside ``gap_s``.
+
+    Held as one record (no silence of ``gap_s``), the two grew longer than ``traffic_hold_s``
+    (32 min against 30) and were released unscreened: the test car's plateaus stayed data and the
+    new state read 1.2 / 1.1 mm (raise) and 1.8 / 1.2 mm (lowering) off, outside 1 mm (19 to 21
+    min apart; 13 to 18 and 22 to 70 were right). Now the part before the silence is a recording
+    of its own, screened, and the later one is held on.
+    """
+    later = "lowered" if first == "ref" else "ref"
+    sc = build(folder, surrogate.A, [Piece(first, 0.0), Piece(later, 20 / 60)])
+    _, res = replay(sc, surrogate)
+    got = check(sc, res)
+    assert got["event"] and got["within"]
+    cut = [o.end_ns for o in res.outputs if o.reason == "traffic"]
+    assert any(t < sc.starts_ns[1] for t in cut) and any(t > sc.starts_ns[1] for t in cut)  # both screened
