@@ -103,6 +103,7 @@ NOT_RUN = {
     ".venv/bin/python benchmarks/archive_scale.py": "a benchmark: about 15 minutes with generation",
     ".venv/bin/python benchmarks/archive_scale.py --cases 1hz-365d": "a benchmark: hours",
     ".venv/bin/python benchmarks/archive_scale.py --cases 100hz-4d": "a benchmark: 8 GB of bags, 15 min",
+    ".venv/bin/python benchmarks/archive_scale.py --cases 100hz-30d": "a benchmark: 58 GB of bags, an hour",
 }
 #: Examples that run here, for real (test_help_and_the_demo_replay_run).
 RUN = {".venv/bin/bridge-shadow --help", "$B replay bags/demo_3d"}
