@@ -318,9 +318,11 @@ def ramp_ratio(n: int, length: int, probability: float, open_end: bool = False) 
 
 
 def _moves_throughout(
-    block: np.ndarray, prec: np.ndarray, total: np.ndarray, inner: np.ndarray, top: float
+    block: np.ndarray, prec: np.ndarray, total: np.ndarray, top: float, open_end: bool = False
 ) -> bool:
     """Whether a block of differences (its first and last may be partial) moved in every inner window.
+
+    ``open_end``: the block ends at the last difference, a ramp still going on: its last is inner.
 
     Each inner difference larger in ``J`` than every difference outside the block (``top``), and
     along the block's sum at least ``RAMP_MIN_SPEED`` of the block's mean: a support lowered
@@ -328,10 +330,13 @@ def _moves_throughout(
     for minutes, however its test car drifted in it) is states, which the step rules and the
     detector read, not a ramp whose windows are left out.
     """
+    inner = block[1:] if open_end else block[1:-1]
     if not len(inner):
         return True
-    along = block @ prec @ total
-    return bool(np.min(inner) > top and np.min(along[1:-1]) >= RAMP_MIN_SPEED * float(np.mean(along)))
+    j = np.einsum("mi,ij,mj->m", inner, prec, inner)
+    along = inner @ prec @ total
+    mean = float(np.mean(block @ prec @ total))
+    return bool(np.min(j) > top and np.min(along) >= RAMP_MIN_SPEED * mean)
 
 
 def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
@@ -352,7 +357,7 @@ def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
         top = float(np.max(single[:a]))
         if not np.all(raw[a:] @ prec @ total > 0.0):
             continue
-        if not _moves_throughout(np.vstack([raw[a:], raw[-1:]]), prec, total, single[a + 1 :], top):
+        if not _moves_throughout(raw[a:], prec, total, top, open_end=True):
             continue
         j = float(total @ prec @ total) / float(lag[a:].sum())
         if j > ramp_ratio(m, length, probability, True) * max(top, 1e-300):
@@ -394,16 +399,13 @@ def ramp_windows(y: np.ndarray, k: np.ndarray, probability: float) -> tuple[int,
             if not np.all(raw[a:b] @ prec @ total > 0.0):
                 continue  # not of one sign: an excursion, a car, or noise
             top = float(np.max(np.concatenate([single[:a], single[b:]])))
-            if not _moves_throughout(raw[a:b], prec, total, single[a + 1 : b - 1], top):
+            if not _moves_throughout(raw[a:b], prec, total, top):
                 continue  # it stood still inside: states between steps, not a ramp
             j = float(total @ prec @ total) / (clag[b] - clag[a])
             ratio = j / max(top, 1e-300)
             if ratio > f and ratio / f > best:
                 best, found = ratio / f, (a + 1, b)
-    if found is None:
-        return None
-    first, new = found
-    return first, new
+    return found
 
 
 def _differences(
