@@ -33,7 +33,8 @@ def run(
     index in ``gaps`` follows a gap in the data: the held run is closed before it (``close_run``).
     Verdicts: ``accept``, ``reject`` (an outlier), ``event`` (its windows), ``change`` (the windows
     of an unconfirmed change that starts a provisional segment), ``unconfirmed`` (the windows of a
-    run that reached ``event_max_pending``: used as data and reported).
+    run that reached ``event_max_pending``: used as data and reported), ``moving`` (a ramp's
+    windows, between the old state and the new).
     """
     det = det or ChangeDetector()
     det.set_noise(np.array([PHI, PHI]), 1e6)
@@ -46,6 +47,8 @@ def run(
             verdict[k] = "unconfirmed"  # used as data (also in accept_before), and reported
         for k in d.reject:
             verdict[k] = "reject"
+        for k in d.moving:
+            verdict[k] = "moving"  # a ramp's window: neither state
         for k in d.accept_before:
             verdict.setdefault(k, "accept")
             segment.append(k)
@@ -181,3 +184,24 @@ def test_the_jump_test_looks_ahead_over_a_two_window_change(monkeypatch) -> None
     # the whole step three windows on (AR(1) wander 1 - phi^3) against its first third (1 - phi)
     np.testing.assert_allclose(full / partial, 9.0 * (1 - PHI) / (1 - PHI**3), rtol=1e-9)
     assert partial < det.h_jump < full
+
+
+def test_a_ramp_in_continuous_data_is_one_event_after_it_and_its_windows_no_state() -> None:
+    """A change over five windows (``ChangeDetector._ramp_split``): the event begins where it ended.
+
+    Taken as one step, the change time fell inside the ramp and the ramp's later windows went into
+    the new state's level; found as a ramp, they are ``moving`` (neither state) and the event starts
+    after them (seed 7). Over ten seeds the detector alone finds it as a ramp in 2, as one step in
+    3 and leaves it an unconfirmed run (data, reported) in 5, as before: whatever it does, no
+    window outside the ramp is ever ``moving`` and none is an outlier (on real records, where the
+    noise model is wider, ``test_ramp.py`` follows the ramp whole).
+    """
+    for seed in range(1, 11):
+        v = ar1(800, seed)
+        v += np.outer(np.clip((np.arange(800) - 399) / 5.0, 0.0, 1.0), [-12.0, -8.4])  # 400-404
+        verdict, events = run(v)
+        assert all(400 <= k <= 403 for k, x in verdict.items() if x == "moving"), seed
+        assert not any(x == "reject" for x in verdict.values()), seed
+        if seed == 7:
+            assert [k for k, _ in events] == [404], events
+            assert [verdict[k] for k in range(400, 405)] == ["accept", "moving", "moving", "moving", "event"]

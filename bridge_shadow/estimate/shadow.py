@@ -657,6 +657,9 @@ class Shadow:
         """Mark held windows with the detector's verdict (outputs follow in ``_drain``)."""
         for w in decision.reject:
             w.action = "reject"
+        for w in decision.moving:  # a ramp's windows: neither state (``ChangeDetector._ramp_split``)
+            w.reason, w.action = "step_window", "invalid"
+            self.counts["step_window"] += 1
         for w in decision.accept_before:
             w.action = "accept"
         if decision.event:

@@ -48,6 +48,7 @@ too small, scale, ordinary jumps look as large as a false event's).
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
@@ -56,9 +57,18 @@ import numpy as np
 from scipy import special, stats
 
 from bridge_shadow.estimate.compensation.noise import ar1_factor
+from bridge_shadow.estimate.events.warmup import ramp_in_progress, ramp_windows
 from bridge_shadow.estimate.small import Sym, Vec, quad_inv
 
-__all__ = ["JUMP_LOOKAHEAD", "JUMP_MEMORY", "JUMP_OVER_SEEN", "ChangeDetector", "Decision", "Pending"]
+__all__ = [
+    "JUMP_LOOKAHEAD",
+    "JUMP_MEMORY",
+    "JUMP_OVER_SEEN",
+    "RAMP_HISTORY",
+    "ChangeDetector",
+    "Decision",
+    "Pending",
+]
 
 #: An event's jump must exceed this many times the largest jump seen between ordinary windows.
 #:
@@ -83,6 +93,9 @@ JUMP_MEMORY = 0.99
 #: support with jacks, a minute or two) shows fully in ``v_{j+2}``. Three windows cover both; the
 #: test ``test_a_two_window_ramp_needs_the_look_ahead`` pins it.
 JUMP_LOOKAHEAD = 3
+#: Ordinary windows remembered before a run (the old state's differences, which the ramp rule of
+#: ``events.warmup`` measures a ramp in the run against: at least ``RAMP_MIN_REST`` and a few more).
+RAMP_HISTORY = 4
 
 
 @lru_cache(maxsize=8)
@@ -130,6 +143,8 @@ class Decision:
         step_cov_n2: (2, 2) N^2, its covariance (an unconfirmed change only).
         glr: the test statistic of the event or change (NaN otherwise).
         accept: payloads that are ordinary windows after the event (or without one).
+        moving: payloads of a run's windows that moved from the old state to the new one over
+            several windows (a ramp, ``ChangeDetector._ramp_split``): neither state.
 
     """
 
@@ -142,6 +157,7 @@ class Decision:
     step_cov_n2: np.ndarray | None = None
     glr: float = float("nan")
     accept: list[Any] = field(default_factory=list)
+    moving: list[Any] = field(default_factory=list)
 
 
 @dataclass
@@ -175,6 +191,7 @@ class ChangeDetector:
         max_pending: int = 15,
         consistency_probability: float = 0.999,
     ) -> None:
+        self.false_trigger = 1.0 - float(trigger_probability)
         self.h_trigger = float(stats.chi2.ppf(trigger_probability, 2))
         self.h_event = float(stats.chi2.ppf(event_probability, 2))
         self.h_jump = self.h_event
@@ -190,6 +207,7 @@ class ChangeDetector:
         self.n_events = 0
         self.phi = np.zeros(2)
         self.inflation = 1.0
+        self.history: deque[tuple[int, float, float]] = deque(maxlen=RAMP_HISTORY)
 
     def set_noise(self, phi: np.ndarray, dof: float) -> None:
         """Use the noise model's autocorrelation; inflate its variance while it rests on few windows.
@@ -226,6 +244,7 @@ class ChangeDetector:
             total = (r_window[0] * infl + apa[0], r_window[1] * infl + apa[1], r_window[2] * infl + apa[2])
             if quad_inv(total, v) <= self.h_trigger:  # the common case, on floats
                 self._note_jump(k, v, r_window)
+                self._remember(k, v)
                 self.prev = Pending(k, v, r_window, apa, None)  # kept lazily as floats
                 return Decision(accept=[payload])
         item = Pending(k, np.array(v), _arr(r_window) * infl, _arr(apa), payload)
@@ -238,7 +257,13 @@ class ChangeDetector:
             return self._transient()  # back to where the run started from: it was passing by
         best = self._best(cands)
         if best is not None:
-            return self._event(best)
+            split = self._ramp_split()
+            waiting = len(self.pending) < self.max_pending
+            if split is not None and waiting and len(self.pending) - split[1] < self.confirm:
+                return Decision()  # a ramp ended: its new state needs its own windows first
+            if split is None and waiting and self._ramp_going():
+                return Decision()  # still moving: the new state is not reached yet
+            return self._event(best, split)
         if len(self.pending) >= self.max_pending:
             return self._unconfirmed(cands, provisional=False)  # stayed away unqualified: data, reported
         return Decision()
@@ -254,9 +279,10 @@ class ChangeDetector:
             return Decision()
         cands = self._candidates()
         best = self._best(cands)
+        split = self._ramp_split()
         if best is not None:
-            return self._event(best)
-        return self._unconfirmed(cands, provisional=True)
+            return self._event(best, split)
+        return self._unconfirmed(cands, provisional=True, split=split)
 
     def flush(self) -> Decision:
         """End of data: decide on what is held (``close_run``)."""
@@ -367,6 +393,7 @@ class ChangeDetector:
                 reject.append(p.payload)
             else:
                 ordinary.append(p.payload)
+                self._remember(p.k, p.v)
                 self.prev = p
         return reject, ordinary
 
@@ -379,17 +406,67 @@ class ChangeDetector:
         )
         return Decision(reject=reject + again.reject, accept_before=ordinary, accept=again.accept)
 
-    def _event(self, c: _Candidate) -> Decision:
-        before, after = self.pending[: c.j], self.pending[c.j :]
+    def _event(self, c: _Candidate, split: tuple[int, int] | None = None) -> Decision:
+        """Decide an event at ``c``'s change time, or after the ramp ``split`` (its windows moving)."""
+        if split is None:
+            before, moving, after, step = self.pending[: c.j], [], self.pending[c.j :], c.step
+        else:
+            before, moving, after = (
+                self.pending[: split[0]],
+                self.pending[split[0] : split[1]],
+                self.pending[split[1] :],
+            )
+            step = np.mean([p.v for p in after], axis=0)
         self.pending = []
         self.n_events += 1
         reject, ordinary = self._split_ordinary(before)
         self.prev = None  # innovations after the event refer to a new estimate
         return Decision(
-            reject=reject, accept_before=ordinary, event=[p.payload for p in after], step_n=c.step, glr=c.glr
+            reject=reject,
+            accept_before=ordinary,
+            event=[p.payload for p in after],
+            step_n=step,
+            glr=c.glr,
+            moving=[p.payload for p in moving],
         )
 
-    def _unconfirmed(self, cands: list[_Candidate], provisional: bool) -> Decision:
+    def _remember(self, k: int, v: Vec) -> None:
+        """Keep an ordinary window's innovation for the ramp rule (the history restarts with ``prev``)."""
+        if self.prev is None:
+            self.history.clear()
+        self.history.append((int(k), float(v[0]), float(v[1])))
+
+    def _run_series(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """Return the remembered windows and the held run: innovations (n, 2), indices, count remembered."""
+        h = len(self.history)
+        y = np.array([x[1:] for x in self.history] + [p.v for p in self.pending], float).reshape(-1, 2)
+        ks = np.array([x[0] for x in self.history] + [p.k for p in self.pending], np.int64)
+        return y, ks, h
+
+    def _ramp_split(self) -> tuple[int, int] | None:
+        """Return ``(first moving, first of the new state)`` in the held run when it holds a ramp.
+
+        ``events.warmup.ramp_windows`` on the remembered ordinary windows and the held run (its
+        false probability the trigger's). A support lowered over minutes moves the innovations
+        a little in every window: the change time the run is most likely under falls inside
+        the ramp, and the ramp's later windows, taken as the new state's, pulled its level (a
+        20 mm lowering over eight minutes of continuous data read 15-17 mm). The ramp's
+        windows are neither state; the new state begins after it.
+        """
+        y, ks, h = self._run_series()
+        found = ramp_windows(y, ks, self.false_trigger)
+        if found is None or found[1] <= h:
+            return None
+        return max(found[0] - h, 0), found[1] - h
+
+    def _ramp_going(self) -> bool:
+        """Whether the held run ends in a ramp still in progress (``events.warmup.ramp_in_progress``)."""
+        y, ks, _ = self._run_series()
+        return ramp_in_progress(y, ks, self.false_trigger)
+
+    def _unconfirmed(
+        self, cands: list[_Candidate], provisional: bool, split: tuple[int, int] | None = None
+    ) -> Decision:
         """Decide a run that stayed away without qualifying: an unconfirmed change at its likeliest start.
 
         ``provisional`` (the run ends at the end of the data or at a gap): its windows start a
@@ -399,6 +476,14 @@ class ChangeDetector:
         """
         c = min(cands, key=lambda c: c.cost)
         common = {"step_n": c.step, "glr": c.glr, "step_cov_n2": self._step_cov(c)}
+        if provisional and split is not None:  # a ramp: its windows neither state (``_ramp_split``)
+            moving = [p.payload for p in self.pending[split[0] : split[1]]]
+            ordinary = [p.payload for p in self.pending[: split[0]]]
+            run = [p.payload for p in self.pending[split[1] :]]
+            common["step_n"] = np.mean([p.v for p in self.pending[split[1] :]], axis=0)
+            self.pending = []
+            self.prev = None
+            return Decision(accept_before=ordinary, change=run, moving=moving, **common)
         before, after = self.pending[: c.j], self.pending[c.j :]
         self.pending = []
         ordinary = [p.payload for p in before]  # a run that stayed away loses no window

@@ -339,6 +339,26 @@ def _moves_throughout(
     return bool(np.min(j) > top and np.min(along) >= RAMP_MIN_SPEED * mean)
 
 
+def _more_than_one_step(
+    block: np.ndarray, lag: np.ndarray, prec: np.ndarray, top: float, n: int, probability: float
+) -> bool:
+    """Whether a block still beats the ramp rule without its largest difference (``ramp_windows``).
+
+    A step with a neighbouring difference of noise on either side of its sign makes a block of
+    three that moved in its one inner window: a step, not a ramp (taken for one, the new state's
+    first window was left out on every confirmed step in the detector's tests). Without its
+    largest difference, a ramp's block still moved (every window did); a step's is noise, which
+    beats ``ramp_ratio`` times the largest difference outside the block no more often than the
+    rule's derived false probability.
+    """
+    j = np.einsum("mi,ij,mj->m", block, prec, block) / lag
+    keep = np.arange(len(block)) != int(np.argmax(j))
+    rest = block[keep].sum(axis=0)
+    return bool(
+        float(rest @ prec @ rest) / float(lag[keep].sum()) > ramp_ratio(n, int(keep.sum()), probability) * top
+    )
+
+
 def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
     """Whether the last windows of ``y`` (n, 2) N are a ramp that has not ended (``ramp_windows``).
 
@@ -358,6 +378,8 @@ def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
         if not np.all(raw[a:] @ prec @ total > 0.0):
             continue
         if not _moves_throughout(raw[a:], prec, total, top, open_end=True):
+            continue
+        if not _more_than_one_step(raw[a:], lag[a:], prec, top, m, probability):
             continue
         j = float(total @ prec @ total) / float(lag[a:].sum())
         if j > ramp_ratio(m, length, probability, True) * max(top, 1e-300):
@@ -401,6 +423,8 @@ def ramp_windows(y: np.ndarray, k: np.ndarray, probability: float) -> tuple[int,
             top = float(np.max(np.concatenate([single[:a], single[b:]])))
             if not _moves_throughout(raw[a:b], prec, total, top):
                 continue  # it stood still inside: states between steps, not a ramp
+            if not _more_than_one_step(raw[a:b], lag[a:b], prec, top, m, probability):
+                continue  # one step and its neighbours' noise
             j = float(total @ prec @ total) / (clag[b] - clag[a])
             ratio = j / max(top, 1e-300)
             if ratio > f and ratio / f > best:

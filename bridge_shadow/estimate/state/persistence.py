@@ -136,6 +136,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "pending_r": np.array([p.r_window for p in det.pending]).reshape(-1, 2, 2),
             "pending_apa": np.array([p.apa for p in det.pending]).reshape(-1, 2, 2),
             "prev": _prev_state(det.prev),
+            "history": np.array(list(det.history), float).reshape(-1, 3),
         },
         "last_ok": _window_state(shadow._last_ok),
         "queue": {
@@ -263,6 +264,9 @@ def restore_shadow(
     det.inflation = float(d["inflation"])
     det.max_jump = float(d["max_jump"])
     det.prev = _restore_prev(d["prev"])
+    det.history.clear()
+    for k, v0, v1 in np.asarray(d.get("history", np.zeros((0, 3))), float).reshape(-1, 3):
+        det.history.append((int(k), float(v0), float(v1)))
     lw = state["last_ok"]
     if bool(lw["has"]):
         shadow._last_ok = Window(
