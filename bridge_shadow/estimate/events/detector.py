@@ -259,9 +259,11 @@ class ChangeDetector:
         if best is not None:
             split = self._ramp_split()
             waiting = len(self.pending) < self.max_pending
-            if split is not None and waiting and len(self.pending) - split[1] < self.confirm:
-                return Decision()  # a ramp ended: its new state needs its own windows first
-            if split is None and waiting and self._ramp_going():
+            if split is not None and len(self.pending) - split[1] < self.confirm:
+                if waiting:
+                    return Decision()  # a ramp ended: its new state needs its own windows first
+                split = None  # forced: the event as the one step dates it
+            elif split is None and waiting and self._ramp_going():
                 return Decision()  # still moving: the new state is not reached yet
             return self._event(best, split)
         if len(self.pending) >= self.max_pending:
@@ -280,8 +282,8 @@ class ChangeDetector:
         cands = self._candidates()
         best = self._best(cands)
         split = self._ramp_split()
-        if best is not None:
-            return self._event(best, split)
+        if best is not None and (split is None or len(self.pending) - split[1] >= self.confirm):
+            return self._event(best, split)  # (a ramp's new state too short to confirm: a change)
         return self._unconfirmed(cands, provisional=True, split=split)
 
     def flush(self) -> Decision:
