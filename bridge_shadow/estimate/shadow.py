@@ -503,12 +503,19 @@ class Shadow:
         a support lowered over minutes keeps moving past the tenth window, and the state after it
         needs windows among the held ones for ``_release_fresh`` to see where the ramp ends.
         """
-        fresh = self._fresh
-        if len(fresh) >= RAMP_HOLD_FACTOR * self.config.warmup_windows:
+        if len(self._fresh) >= RAMP_HOLD_FACTOR * self.config.warmup_windows:
             return False
-        y = np.array([w.force - np.array(self._curve(w)) for w in fresh])
-        ks = np.array([w.k for w in fresh], np.int64)
-        return ramp_in_progress(y, ks, 1.0 - self.config.event_trigger_probability)
+        return ramp_in_progress(*self._compensated(self._fresh), 1.0 - self.config.event_trigger_probability)
+
+    def _compensated(self, windows: list[Window]) -> tuple[np.ndarray, np.ndarray]:
+        """Return the windows' forces less the current curve (n, 2) N and their indices (n,)."""
+        y = np.array([w.force - np.array(self._curve(w)) for w in windows]).reshape(-1, 2)
+        return y, np.array([w.k for w in windows], np.int64)
+
+    def _leave_out(self, w: Window) -> None:
+        """Leave out a window that holds neither state (a step or a ramp went on in it)."""
+        w.reason, w.action = "step_window", "invalid"
+        self.counts["step_window"] += 1
 
     def _release_fresh(self) -> list[WindowOutput]:
         """Judge the windows held after a gap, in order; a step among them opens a provisional segment.
@@ -538,8 +545,7 @@ class Shadow:
         steps: set[int] = set()
         both: set[int] = set()  # windows a step happened in, left out
         if len(fresh) > MIN_DIFFERENCES:
-            y = np.array([w.force - np.array(self._curve(w)) for w in fresh])
-            ks = np.array([w.k for w in fresh], np.int64)
+            y, ks = self._compensated(fresh)
             probability = 1.0 - self.config.event_trigger_probability
             for start, mixed in step_windows(y, ks, probability):
                 if mixed is not None:  # each side keeps a window: its neighbours are its states'
@@ -554,8 +560,7 @@ class Shadow:
         for j, w in enumerate(fresh):
             self.settle()
             if j in both:  # it holds both states: the level of neither (see the docstring)
-                w.reason, w.action = "step_window", "invalid"
-                self.counts["step_window"] += 1
+                self._leave_out(w)
                 outputs.extend(self._drain())
                 continue
             if j in steps:
@@ -658,8 +663,7 @@ class Shadow:
         for w in decision.reject:
             w.action = "reject"
         for w in decision.moving:  # a ramp's windows: neither state (``ChangeDetector._ramp_split``)
-            w.reason, w.action = "step_window", "invalid"
-            self.counts["step_window"] += 1
+            self._leave_out(w)
         for w in decision.accept_before:
             w.action = "accept"
         if decision.event:

@@ -257,13 +257,14 @@ class ChangeDetector:
             return self._transient()  # back to where the run started from: it was passing by
         best = self._best(cands)
         if best is not None:
-            split = self._ramp_split()
+            series = self._run_series()
+            split = self._ramp_split(series)
             waiting = len(self.pending) < self.max_pending
             if split is not None and len(self.pending) - split[1] < self.confirm:
                 if waiting:
                     return Decision()  # a ramp ended: its new state needs its own windows first
                 split = None  # forced: the event as the one step dates it
-            elif split is None and waiting and self._ramp_going():
+            elif split is None and waiting and ramp_in_progress(series[0], series[1], self.false_trigger):
                 return Decision()  # still moving: the new state is not reached yet
             return self._event(best, split)
         if len(self.pending) >= self.max_pending:
@@ -281,7 +282,7 @@ class ChangeDetector:
             return Decision()
         cands = self._candidates()
         best = self._best(cands)
-        split = self._ramp_split()
+        split = self._ramp_split(self._run_series())
         if best is not None and (split is None or len(self.pending) - split[1] >= self.confirm):
             return self._event(best, split)  # (a ramp's new state too short to confirm: a change)
         return self._unconfirmed(cands, provisional=True, split=split)
@@ -413,12 +414,7 @@ class ChangeDetector:
         if split is None:
             before, moving, after, step = self.pending[: c.j], [], self.pending[c.j :], c.step
         else:
-            before, moving, after = (
-                self.pending[: split[0]],
-                self.pending[split[0] : split[1]],
-                self.pending[split[1] :],
-            )
-            step = np.mean([p.v for p in after], axis=0)
+            before, moving, after, step = self._split_run(split)
         self.pending = []
         self.n_events += 1
         reject, ordinary = self._split_ordinary(before)
@@ -445,7 +441,19 @@ class ChangeDetector:
         ks = np.array([x[0] for x in self.history] + [p.k for p in self.pending], np.int64)
         return y, ks, h
 
-    def _ramp_split(self) -> tuple[int, int] | None:
+    def _split_run(
+        self, split: tuple[int, int]
+    ) -> tuple[list[Pending], list[Pending], list[Pending], np.ndarray]:
+        """Return the held run around a ramp ``split``: before it, moving, the new state, its step."""
+        after = self.pending[split[1] :]
+        return (
+            self.pending[: split[0]],
+            self.pending[split[0] : split[1]],
+            after,
+            np.mean([p.v for p in after], axis=0),
+        )
+
+    def _ramp_split(self, series: tuple[np.ndarray, np.ndarray, int]) -> tuple[int, int] | None:
         """Return ``(first moving, first of the new state)`` in the held run when it holds a ramp.
 
         ``events.warmup.ramp_windows`` on the remembered ordinary windows and the held run (its
@@ -455,16 +463,11 @@ class ChangeDetector:
         20 mm lowering over eight minutes of continuous data read 15-17 mm). The ramp's
         windows are neither state; the new state begins after it.
         """
-        y, ks, h = self._run_series()
+        y, ks, h = series
         found = ramp_windows(y, ks, self.false_trigger)
         if found is None or found[1] <= h:
             return None
         return max(found[0] - h, 0), found[1] - h
-
-    def _ramp_going(self) -> bool:
-        """Whether the held run ends in a ramp still in progress (``events.warmup.ramp_in_progress``)."""
-        y, ks, _ = self._run_series()
-        return ramp_in_progress(y, ks, self.false_trigger)
 
     def _unconfirmed(
         self, cands: list[_Candidate], provisional: bool, split: tuple[int, int] | None = None
@@ -479,13 +482,12 @@ class ChangeDetector:
         c = min(cands, key=lambda c: c.cost)
         common = {"step_n": c.step, "glr": c.glr, "step_cov_n2": self._step_cov(c)}
         if provisional and split is not None:  # a ramp: its windows neither state (``_ramp_split``)
-            moving = [p.payload for p in self.pending[split[0] : split[1]]]
-            ordinary = [p.payload for p in self.pending[: split[0]]]
-            run = [p.payload for p in self.pending[split[1] :]]
-            common["step_n"] = np.mean([p.v for p in self.pending[split[1] :]], axis=0)
+            before, moving, after, common["step_n"] = self._split_run(split)
             self.pending = []
             self.prev = None
-            return Decision(accept_before=ordinary, change=run, moving=moving, **common)
+            payloads = ([p.payload for p in x] for x in (before, after, moving))
+            ordinary, run, moved = payloads
+            return Decision(accept_before=ordinary, change=run, moving=moved, **common)
         before, after = self.pending[: c.j], self.pending[c.j :]
         self.pending = []
         ordinary = [p.payload for p in before]  # a run that stayed away loses no window

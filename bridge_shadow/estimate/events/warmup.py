@@ -79,7 +79,7 @@ MAX_CORRELATION = 0.9
 #: least this many outside it (the states before and after, and the scale it is measured against).
 RAMP_MIN_LENGTH = 3
 RAMP_MIN_REST = 2
-#: A ramp's inner windows each move at least this share of its mean speed (``_moves_throughout``):
+#: A ramp's inner windows each move at least this share of its mean speed (``_ramp_score``):
 #: a jack lowering a support moves it in every minute, at a speed that varies (a quarter: a
 #: choice, set after the two-step streams of the real records showed a state kept for minutes
 #: between two steps, its car drifting 1 kN a minute, read as a ramp at a tenth of the mean).
@@ -317,46 +317,56 @@ def ramp_ratio(n: int, length: int, probability: float, open_end: bool = False) 
     return _ratio_for(lambda f, m: false_ramp_probability(f, m, length, blocks), n, share, 2.0)
 
 
-def _moves_throughout(
-    block: np.ndarray, prec: np.ndarray, total: np.ndarray, top: float, open_end: bool = False
-) -> bool:
-    """Whether a block of differences (its first and last may be partial) moved in every inner window.
+def _ramp_score(
+    raw: np.ndarray,
+    lag: np.ndarray,
+    prec: np.ndarray,
+    single: np.ndarray,
+    block: tuple[int, int],
+    probability: float,
+    open_end: bool = False,
+) -> float:
+    """Return how many times its ``ramp_ratio`` the block of differences ``block = (a, b)`` beats, or 0.
 
-    ``open_end``: the block ends at the last difference, a ramp still going on: its last is inner.
+    The block ``raw[a:b]`` (its first and last may be partial windows of the ramp; with
+    ``open_end`` it ends at the last difference, a ramp still going on, and its last is inner) is a
+    ramp when (``ramp_windows``):
 
-    Each inner difference larger in ``J`` than every difference outside the block (``top``), and
-    along the block's sum at least ``RAMP_MIN_SPEED`` of the block's mean: a support lowered
-    over minutes moves in every window; one that stood still between two steps (a state kept
-    for minutes, however its test car drifted in it) is states, which the step rules and the
-    detector read, not a ramp whose windows are left out.
+    - every difference lies on one side along the block's sum ``s`` (``d_i' P s > 0``): an
+      excursion, a car or noise has both;
+    - it moved in every inner window: each inner difference larger in ``J`` than every difference
+      outside the block, and along ``s`` at least ``RAMP_MIN_SPEED`` of the block's mean (one that
+      stood still between two steps is states, which the step rules and the detector read);
+    - it is more than one step: without its largest difference it still beats the ratio (a step
+      with a noise difference of its sign on either side moved in its one inner window; taken for a
+      ramp, the new state's first window was left out on every confirmed step in the detector's
+      tests); a ramp's rest still moved, a step's is noise, which beats it no more often than the
+      rule's derived false probability;
+    - its sum over its lag beats ``ramp_ratio`` times the largest difference outside it.
     """
-    inner = block[1:] if open_end else block[1:-1]
-    if not len(inner):
-        return True
-    j = np.einsum("mi,ij,mj->m", inner, prec, inner)
-    along = inner @ prec @ total
-    mean = float(np.mean(block @ prec @ total))
-    return bool(np.min(j) > top and np.min(along) >= RAMP_MIN_SPEED * mean)
-
-
-def _more_than_one_step(
-    block: np.ndarray, lag: np.ndarray, prec: np.ndarray, top: float, n: int, probability: float
-) -> bool:
-    """Whether a block still beats the ramp rule without its largest difference (``ramp_windows``).
-
-    A step with a neighbouring difference of noise on either side of its sign makes a block of
-    three that moved in its one inner window: a step, not a ramp (taken for one, the new state's
-    first window was left out on every confirmed step in the detector's tests). Without its
-    largest difference, a ramp's block still moved (every window did); a step's is noise, which
-    beats ``ramp_ratio`` times the largest difference outside the block no more often than the
-    rule's derived false probability.
-    """
-    j = np.einsum("mi,ij,mj->m", block, prec, block) / lag
-    keep = np.arange(len(block)) != int(np.argmax(j))
-    rest = block[keep].sum(axis=0)
-    return bool(
-        float(rest @ prec @ rest) / float(lag[keep].sum()) > ramp_ratio(n, int(keep.sum()), probability) * top
-    )
+    a, b = block
+    m = len(raw)
+    d, lags, j = raw[a:b], lag[a:b], single[a:b]
+    total = d.sum(axis=0)
+    along = d @ prec @ total
+    if not np.all(along > 0.0):
+        return 0.0
+    top = max(float(np.max(np.concatenate([single[:a], single[b:]]))), 1e-300)
+    inner = slice(1, None) if open_end else slice(1, -1)
+    if len(j[inner]) and (
+        np.min(j[inner]) <= top or np.min(along[inner]) < RAMP_MIN_SPEED * float(np.mean(along))
+    ):
+        return 0.0
+    keep = np.arange(len(d)) != int(np.argmax(j))
+    rest = d[keep].sum(axis=0)
+    if (
+        float(rest @ prec @ rest) / float(lags[keep].sum())
+        <= ramp_ratio(m, int(keep.sum()), probability) * top
+    ):
+        return 0.0
+    f = ramp_ratio(m, b - a, probability, open_end)
+    ratio = float(total @ prec @ total) / float(lags.sum()) / top
+    return ratio / f if ratio > f else 0.0
 
 
 def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
@@ -371,20 +381,10 @@ def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
         return False
     raw, lag, _, prec, single = diffs
     m = len(raw)
-    for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1):
-        a = m - length
-        total = raw[a:].sum(axis=0)
-        top = float(np.max(single[:a]))
-        if not np.all(raw[a:] @ prec @ total > 0.0):
-            continue
-        if not _moves_throughout(raw[a:], prec, total, top, open_end=True):
-            continue
-        if not _more_than_one_step(raw[a:], lag[a:], prec, top, m, probability):
-            continue
-        j = float(total @ prec @ total) / float(lag[a:].sum())
-        if j > ramp_ratio(m, length, probability, True) * max(top, 1e-300):
-            return True
-    return False
+    return any(
+        _ramp_score(raw, lag, prec, single, (m - length, m), probability, open_end=True) > 0.0
+        for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1)
+    )
 
 
 def ramp_windows(y: np.ndarray, k: np.ndarray, probability: float) -> tuple[int, int] | None:
@@ -404,31 +404,17 @@ def ramp_windows(y: np.ndarray, k: np.ndarray, probability: float) -> tuple[int,
     states on either side); the block with the largest ratio is taken. Its inner windows hold
     neither state; the new state begins after it. Derivation: ``false_ramp_probability``.
     """
-    k = np.asarray(k, np.int64).reshape(-1)
     diffs = _differences(y, k, RAMP_MIN_LENGTH + RAMP_MIN_REST)
     if diffs is None:
         return None
     raw, lag, _, prec, single = diffs
     m = len(raw)
-    csum = np.vstack([np.zeros((1, 2)), np.cumsum(raw, axis=0)])
-    clag = np.concatenate([[0.0], np.cumsum(lag)])
     best, found = 0.0, None
     for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1):
-        f = ramp_ratio(m, length, probability)
         for a in range(m - length + 1):
-            b = a + length
-            total = csum[b] - csum[a]
-            if not np.all(raw[a:b] @ prec @ total > 0.0):
-                continue  # not of one sign: an excursion, a car, or noise
-            top = float(np.max(np.concatenate([single[:a], single[b:]])))
-            if not _moves_throughout(raw[a:b], prec, total, top):
-                continue  # it stood still inside: states between steps, not a ramp
-            if not _more_than_one_step(raw[a:b], lag[a:b], prec, top, m, probability):
-                continue  # one step and its neighbours' noise
-            j = float(total @ prec @ total) / (clag[b] - clag[a])
-            ratio = j / max(top, 1e-300)
-            if ratio > f and ratio / f > best:
-                best, found = ratio / f, (a + 1, b)
+            score = _ramp_score(raw, lag, prec, single, (a, a + length), probability)
+            if score > best:
+                best, found = score, (a + 1, a + length)
     return found
 
 
