@@ -40,6 +40,7 @@ test: $(STAMP)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check bridge_shadow test benchmarks tools
+	$(VENV)/bin/ruff format --check bridge_shadow test benchmarks tools
 
 # Regenerate the generated model files after config/bridge.yaml, config/calibration.yaml or the FE
 # code change: the uncalibrated FE surrogate, the calibrated default surrogate (with the README's

@@ -43,9 +43,7 @@ PARAMS = [
 ]
 
 
-def messages(
-    n_ticks: int, seed: int, tick_ns: int = TICK_NS
-) -> tuple[list[bytes], list[bytes], list[bytes]]:
+def messages(n_ticks: int, seed: int, tick_ns: int = TICK_NS) -> tuple[list[bytes], list[bytes], list[bytes]]:
     """Return serialized messages of ``n_ticks + 1`` ticks: two force channels (60 N noise), the air."""
     stamps = T0_NS + np.arange(n_ticks + 1, dtype=np.int64) * tick_ns
     rng = np.random.default_rng(seed)

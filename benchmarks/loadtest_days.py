@@ -103,20 +103,29 @@ def minutes_streams():
     yield "ref, ref -3 mm at 1.25 h", [Piece("ref", 0.0), Piece("ref", 1.25, (-0.003, -0.003))]
     yield "ref, ref +10 mm at 1.25 h", [Piece("ref", 0.0), Piece("ref", 1.25, (0.01, 0.01))]
     yield "ref, ref south -10 mm at 1.25 h", [Piece("ref", 0.0), Piece("ref", 1.25, (-0.01, 0.0))]
-    yield "the day: ref, lowered, -20 at 5.7 h, -30 at 6.9 h", [
-        Piece("ref", 0.0),
-        Piece("lowered", 0.73),
-        Piece("lowered", 5.7, low),
-        Piece("lowered", 6.9, (-0.02, -0.02)),
-    ]
-    yield "ref, lowered, first 6 min of each", [
-        Piece("ref", 0.0, cut_min=(0, 6)),
-        Piece("lowered", 0.73, cut_min=(0, 6)),
-    ]
-    yield "ref, lowered, last 6 min of each", [
-        Piece("ref", 0.0, cut_min=(6, 13)),
-        Piece("lowered", 0.73, cut_min=(6, 13)),
-    ]
+    yield (
+        "the day: ref, lowered, -20 at 5.7 h, -30 at 6.9 h",
+        [
+            Piece("ref", 0.0),
+            Piece("lowered", 0.73),
+            Piece("lowered", 5.7, low),
+            Piece("lowered", 6.9, (-0.02, -0.02)),
+        ],
+    )
+    yield (
+        "ref, lowered, first 6 min of each",
+        [
+            Piece("ref", 0.0, cut_min=(0, 6)),
+            Piece("lowered", 0.73, cut_min=(0, 6)),
+        ],
+    )
+    yield (
+        "ref, lowered, last 6 min of each",
+        [
+            Piece("ref", 0.0, cut_min=(6, 13)),
+            Piece("lowered", 0.73, cut_min=(6, 13)),
+        ],
+    )
 
 
 def _between(s: ForceSeries, keep: np.ndarray) -> ForceSeries:

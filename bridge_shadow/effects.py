@@ -71,7 +71,11 @@ EFFECTS: dict[str, Effect] = {
     e.name: e
     for e in (
         Effect(
-            "settlement_offset", "m", 7e-4, 5e-5, "structural",
+            "settlement_offset",
+            "m",
+            7e-4,
+            5e-5,
+            "structural",
             "constant differential settlement x = [+v, -v] (south up, north down), as the paper "
             "found (+0.7 / -0.7 mm); reactions change by A x",
             (-0.05, 0.05),
@@ -79,7 +83,11 @@ EFFECTS: dict[str, Effect] = {
             "and double at +42 mm; the temporary bearings are adjusted over that order",
         ),
         Effect(
-            "settlement_drift", "m/day", 2e-4, 1.5e-5, "structural",
+            "settlement_drift",
+            "m/day",
+            2e-4,
+            1.5e-5,
+            "structural",
             "the south central support sinks linearly, x_south(t) = -v t (t in days from the start), "
             "as under scour; reactions change by A x(t)",
             (-0.01, 0.01),
@@ -87,7 +95,11 @@ EFFECTS: dict[str, Effect] = {
             "are steps",
         ),
         Effect(
-            "settlement_step", "m", -1e-3, -5e-5, "structural",
+            "settlement_step",
+            "m",
+            -1e-3,
+            -5e-5,
+            "structural",
             "both central supports move by v (positive upward) at the middle of the record, as when the "
             "supports are lowered; reactions change by A [v, v] from then on (the diagnosis fits any "
             "step [v_s, v_n] at a record gap or a change point it finds)",
@@ -95,7 +107,11 @@ EFFECTS: dict[str, Effect] = {
             "+-50 mm per bearing, as settlement_offset",
         ),
         Effect(
-            "uniform_temperature", "N/K", 300.0, 15.0, "thermal",
+            "uniform_temperature",
+            "N/K",
+            300.0,
+            15.0,
+            "thermal",
             "partially restrained longitudinal movement (bearing friction): both central reactions "
             "change by c (T_struct - T_ref), T_struct the uniform structure temperature (follows the "
             "air with the thermal lag, if on), T_ref the mean air temperature",
@@ -104,7 +120,11 @@ EFFECTS: dict[str, Effect] = {
             "only a fully restrained longitudinal movement would reach; friction gives hundreds",
         ),
         Effect(
-            "vertical_gradient", "K", 4.0, 0.3, "thermal",
+            "vertical_gradient",
+            "K",
+            4.0,
+            0.3,
+            "thermal",
             "sun-driven top-warmer gradient over the girder depth: dT_v(t) = g * sun(t) * clearness(day), "
             "sun the clear-sky irradiance at Neubiberg normalized to its peak (0..1); reactions change "
             "by thermal['vertical_gradient'] * dT_v",
@@ -115,7 +135,11 @@ EFFECTS: dict[str, Effect] = {
             "top-warmer part, a top cooler in the sun only as noise (-3 K)",
         ),
         Effect(
-            "transverse_gradient", "K", 3.0, 0.3, "thermal",
+            "transverse_gradient",
+            "K",
+            3.0,
+            0.3,
+            "thermal",
             "sun-driven south-north difference (south girder warmer): dT_t(t) = g * sun(t) * "
             "clearness(day); reactions change by thermal['transverse_gradient'] * dT_t",
             (-3.0, 15.0),
@@ -123,7 +147,11 @@ EFFECTS: dict[str, Effect] = {
             "between them; a warmer north girder in sunshine only as noise (-3 K)",
         ),
         Effect(
-            "thermal_lag", "h", 3.0, 0.5, "thermal",
+            "thermal_lag",
+            "h",
+            3.0,
+            0.5,
+            "thermal",
             "the structure's bulk temperature lags the air (first order, time constant tau hours); the "
             "deck surface follows the air, so a vertical gradient dT_v = T_air - T_bulk appears and the "
             "reactions change by thermal['vertical_gradient'] * dT_v",
@@ -133,7 +161,11 @@ EFFECTS: dict[str, Effect] = {
             "tau lies on the 0.25-8 h grid",
         ),
         Effect(
-            "bearing_stiffness", "1", -0.5, -0.1, "structural",
+            "bearing_stiffness",
+            "1",
+            -0.5,
+            -0.1,
+            "structural",
             "relative change r of the central bearings' vertical stiffness (k -> (1 + r) k): changes A, "
             "u0 and the thermal and traffic responses by the FE sensitivities, first order in r "
             "(surrogate 'sensitivities' block, or the closed-form placeholder)",
@@ -141,14 +173,22 @@ EFFECTS: dict[str, Effect] = {
             "plausible range of the FE parameter bearing_stiffness (model.parameters), as r",
         ),
         Effect(
-            "connector_stiffness", "1", -0.5, -0.1, "structural",
+            "connector_stiffness",
+            "1",
+            -0.5,
+            -0.1,
+            "structural",
             "relative change r of the girder-slab connector (composite action) stiffness: changes A, u0 "
             "and the thermal and traffic responses by the FE sensitivities, first order in r",
             None,
             "plausible range of the FE parameter connector_stiffness (model.parameters), as r",
         ),
         Effect(
-            "support_spring", "N/m", 2.0e7, 1.0e9, "structural",
+            "support_spring",
+            "N/m",
+            2.0e7,
+            1.0e9,
+            "structural",
             "a support system (trestle, jack, foundation) of stiffness k in series with each central "
             "bearing (a number: both bearings; 'south:K' or 'north:K': one; 'KS,KN': each its own). "
             "Exact closed form: A' = (A^-1 + diag(1/k_s, 1/k_n))^-1, and u0, the thermal cases and "
@@ -160,7 +200,11 @@ EFFECTS: dict[str, Effect] = {
             "the as-built model",
         ),
         Effect(
-            "slab_joint_opening", "1", 0.1, 0.7, "structural",
+            "slab_joint_opening",
+            "1",
+            0.1,
+            0.7,
+            "structural",
             "fraction f of the slab-joint stiffness kept over the hogging zone near the central support "
             "(1 = closed, as built): changes A, u0 and the thermal and traffic responses by the "
             "sensitivity per unit relative change (surrogate block, or the closed-form placeholder: "
@@ -169,14 +213,22 @@ EFFECTS: dict[str, Effect] = {
             "plausible range of the FE parameter slab_joint_opening (model.parameters), as r = f - 1",
         ),
         Effect(
-            "sensor_drift", "N/day", 300.0, 20.0, "sensor",
+            "sensor_drift",
+            "N/day",
+            300.0,
+            20.0,
+            "sensor",
             "the north load cell (FRC-02) drifts linearly by d N per day from the start of the record; "
             "the south one does not",
             (-5000.0, 5000.0),
             "+-5 kN a day (2 % of the reading): a cell drifting faster has failed outright",
         ),
         Effect(
-            "traffic", "N", 2.5e4, 3.0e3, "load",
+            "traffic",
+            "N",
+            2.5e4,
+            3.0e3,
+            "load",
             "test-car crossings of weight W (N) during daytime (about 6 per hour, 08-18 local time), "
             "each lasting about 10 s, loading both central bearings by the two-span influence line",
             (-0.5, 2.0),

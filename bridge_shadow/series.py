@@ -115,9 +115,7 @@ class MonitoringData:
     ) -> MonitoringData:
         """Build from a common force time base ``(n,)``, forces ``(n, 2)`` and a temperature series."""
         force_n = np.asarray(force_n, float)
-        forces = {
-            ch: ForceSeries(stamp_ns, force_n[:, i], FORCE_FRAMES[ch]) for i, ch in enumerate(CHANNELS)
-        }
+        forces = {ch: ForceSeries(stamp_ns, force_n[:, i], FORCE_FRAMES[ch]) for i, ch in enumerate(CHANNELS)}
         return MonitoringData(forces, TemperatureSeries(temp_stamp_ns, temp_c))
 
     def select(self, keep: Callable[[np.ndarray], np.ndarray], by: str = "stamp_ns") -> MonitoringData:

@@ -152,8 +152,10 @@ def test_a_few_messages_decode_one_by_one_as_the_blocks_do() -> None:
     rng = np.random.default_rng(3)
     raws = []
     for i in range(SMALL_BATCH):
-        header = Header(stamp=Time(sec=int(rng.integers(-5, 2**31 - 1)), nanosec=int(rng.integers(0, 10**9))),
-                        frame_id=["frc_01", "a", "air_temperature", "ü"][i % 4])
+        header = Header(
+            stamp=Time(sec=int(rng.integers(-5, 2**31 - 1)), nanosec=int(rng.integers(0, 10**9))),
+            frame_id=["frc_01", "a", "air_temperature", "ü"][i % 4],
+        )
         msg = ts.types[TEMPERATURE_TYPE](header=header, temperature=rng.normal(), variance=rng.random())
         raws.append(bytes(ts.serialize_cdr(msg, TEMPERATURE_TYPE, little_endian=bool(i % 3))))
     lengths = np.array([len(r) for r in raws])

@@ -1,16 +1,20 @@
-"""Lint as a test: ruff (pycodestyle, pyflakes, import order, pep257 docstrings) must be clean."""
+"""Lint as a test: ruff (pycodestyle, pyflakes, import order, pep257 docstrings) and its formatter."""
 
 import subprocess
 import sys
 
+import pytest
+
 from bridge_shadow.paths import repo_root
 
+PATHS = ["bridge_shadow", "test", "benchmarks", "tools"]
 
-def test_ruff_clean() -> None:
-    root = repo_root()
+
+@pytest.mark.parametrize("command", [["check"], ["format", "--check"]], ids=["check", "format"])
+def test_ruff_clean(command: list[str]) -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", "ruff", "check", "bridge_shadow", "test", "benchmarks", "tools"],
-        cwd=root,
+        [sys.executable, "-m", "ruff", *command, *PATHS],
+        cwd=repo_root(),
         capture_output=True,
         text=True,
         check=False,

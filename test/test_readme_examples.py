@@ -210,5 +210,3 @@ def test_help_and_the_demo_replay_run(root: Path) -> None:
         assert main(["replay", "bags/demo_3d"]) == 0
     text = out.getvalue()
     assert text.startswith("replay bags/demo_3d: surrogate ") and "posterior settlement" in text
-
-

@@ -129,9 +129,7 @@ class CalibrationProblem:
 
     def values(self, u: np.ndarray) -> dict[str, float]:
         """Parameter values (SI) at whitened ``u``."""
-        return {
-            n: float(v) for n, v in zip(self.names, np.exp(self.log_values(u)), strict=True)
-        }
+        return {n: float(v) for n, v in zip(self.names, np.exp(self.log_values(u)), strict=True)}
 
     def jack_errors(self, u: np.ndarray) -> np.ndarray:
         """(pairs, 2) m, imposed-settlement errors at whitened ``u``."""

@@ -443,8 +443,10 @@ def _provenance(result: CalibrationResult, cfg: BridgeConfig) -> None:
         "model_average": result.extra.get("model_average"),
         "prior_sensitivity": [
             {k: v for k, v in row.items() if k != "model_average"}
-            | {"common_stiffness_n_per_m": row["model_average"]["common_stiffness_n_per_m"],
-               "differential_stiffness_n_per_m": row["model_average"]["differential_stiffness_n_per_m"]}
+            | {
+                "common_stiffness_n_per_m": row["model_average"]["common_stiffness_n_per_m"],
+                "differential_stiffness_n_per_m": row["model_average"]["differential_stiffness_n_per_m"],
+            }
             for row in result.extra.get("prior_sensitivity") or []
         ]
         or None,

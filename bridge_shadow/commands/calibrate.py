@@ -205,8 +205,18 @@ def _check(args: argparse.Namespace, spec: object) -> int:
     from bridge_shadow.model.surrogate_file import load_surrogate
 
     options = (
-        "out", "force", "report", "only", "choose", "model", "mesh",
-        "priors", "prior_sensitivity", "no_sweeps", "workers", "scheduler",
+        "out",
+        "force",
+        "report",
+        "only",
+        "choose",
+        "model",
+        "mesh",
+        "priors",
+        "prior_sensitivity",
+        "no_sweeps",
+        "workers",
+        "scheduler",
     )
     calibrating = [n for n in options if getattr(args, n)]
     if calibrating or args.overrides:

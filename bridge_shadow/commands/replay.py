@@ -48,6 +48,7 @@ they are not on the package index), --watch prints the node's latest outputs onc
 #: Window counts the text summary names when non-zero: JSON key, words.
 WINDOW_NOTES = (("uncompensated", "uncompensated"), ("stale_temperature", "with stale temperature"))
 
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add BAG, --params, --live, --rate, --out, --plots, --checkpoint, --watch, --json."""
     parser.add_argument("bag", metavar="BAG", help="rosbag2 directory (sqlite3 or MCAP)")
@@ -115,11 +116,7 @@ def _summary(js: dict[str, Any]) -> str:
         f"messages: {msgs['total']} in, {msgs['used']} used, {msgs['rejected']} rejected; "
         f"{js['messages_per_s']:.0f} msg/s",
         f"windows: {js['windows']['closed']} closed, {js['windows']['updates']} updates"
-        + "".join(
-            f", {n} {what}"
-            for key, what in WINDOW_NOTES
-            if (n := js["windows"].get(key, 0))
-        ),
+        + "".join(f", {n} {what}" for key, what in WINDOW_NOTES if (n := js["windows"].get(key, 0))),
     ]
     from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
 
@@ -155,9 +152,7 @@ def _summary(js: dict[str, Any]) -> str:
             "gap": "change across a gap",
             "held_run": "change at the end of a held run",
             "warmup": "step among the first windows (warm-up or after a gap)",
-        }.get(
-            e.get("kind", "step"), "settlement step"
-        )
+        }.get(e.get("kind", "step"), "settlement step")
         lines.append(f"event {i}: {what} at {iso_utc(e['time_ns'])}: {size}")
     for i, c in enumerate(js.get("unconfirmed_changes", []), 1):
         size = ", ".join(
@@ -215,6 +210,8 @@ def _loud(js: dict[str, Any]) -> int:
         )
         return 1
     return 0
+
+
 def _end_to_end_rate(js: dict[str, Any], started: float) -> None:
     """Make ``messages_per_s``/``seconds`` end to end; keep the pipeline's own under ``pipeline_*``."""
     import time

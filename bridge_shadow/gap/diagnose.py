@@ -11,7 +11,6 @@ posterior settlements before and after adding the named effects to the model. It
 truth twin's ground-truth file.
 """
 
-
 from __future__ import annotations
 
 import time

@@ -22,6 +22,7 @@ from bridge_shadow.model.surrogate_file import Surrogate
 
 __all__ = ["level_statement", "model_change", "settlement_if_softer", "stand_in_changes", "statement"]
 
+
 def model_change(entries: list[Named]) -> ModelChange:
     """Return what the named effects add to the model (not settlements: the shadow estimates them)."""
     change = ModelChange()

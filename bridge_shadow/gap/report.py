@@ -149,9 +149,11 @@ def _markdown(summary: dict[str, Any], source: str) -> str:
     if also:
         lines += ["", "Also present (forward selection, each given the ones before):", ""]
         for a in also:
-            group = f"; cannot be told apart from {', '.join(a['indistinguishable_from'])}" if a[
-                "indistinguishable_from"
-            ] else ""
+            group = (
+                f"; cannot be told apart from {', '.join(a['indistinguishable_from'])}"
+                if a["indistinguishable_from"]
+                else ""
+            )
             if "cumulative_heldout_reduction" not in a:  # named by the levels of a day of records
                 lines.append(f"- `{a['effect']}` ({a['part']}): {a.get('evidence', '')}{group}")
                 continue

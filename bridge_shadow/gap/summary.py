@@ -26,6 +26,7 @@ from bridge_shadow.model.surrogate_file import Surrogate
 
 __all__ = ["candidate_json", "gap_summary", "level_named", "named_json", "per_support"]
 
+
 def per_support(x: np.ndarray, total: float | None = None) -> dict[str, float]:
     """Return ``x`` (2,) by support name, with ``total`` when given."""
     out = {SUPPORTS[0]: float(x[0]), SUPPORTS[1]: float(x[1])}
@@ -226,9 +227,7 @@ def gap_summary(
         "levels": lv.to_dict() if lv is not None else None,
         "baseline": {
             "model": "u0 + A x_imposed + thermal['uniform'] * (T_air - mean T_air)",
-            "imposed": [
-                {"t_ns": int(t), "settlement_m": [float(a), float(b)]} for t, a, b in imposed
-            ],
+            "imposed": [{"t_ns": int(t), "settlement_m": [float(a), float(b)]} for t, a, b in imposed],
             "imposed_sd_m": imposed_sd_m,
             "air_temperature": "present" if d.has_temperature else "missing: temperature drivers are zero",
             "surrogate": str(s.provenance.get("solver", "")),

@@ -330,7 +330,11 @@ PARAMETERS: dict[str, Parameter] = {
         # laminated_bearing_stiffness(0.3, 0.3, 0.012, 5) = 2.4e8, is the low end, a stiff cell
         # on steel plates (1e10) the high end, a cell with a thin pad (~2e9) the centre.
         _p(
-            "bearing_stiffness", "N/m", 2.0e9, 3.0e8, 1.0e10,
+            "bearing_stiffness",
+            "N/m",
+            2.0e9,
+            3.0e8,
+            1.0e10,
             "load cell (strain-gauge column, ~0.1-0.2 mm at 500 kN) in series with the bearing: "
             "EN 1337-3 laminated pad 0.3 x 0.4 m, 3 x 8 mm (2.0e9); range: a 5 x 12 mm pad (2.4e8) "
             "to a stiff cell on steel plates (1e10)",
@@ -338,26 +342,42 @@ PARAMETERS: dict[str, Parameter] = {
         # The support system below the bearing: the series of SUPPORT_COMPONENTS, Monte Carlo of
         # independent log-normal components (series_prior): median 4.2e7, 95 % 6.5e6-2.1e8 N/m.
         _p(
-            "support_spring_south", "N/m", 4.2e7, 6.5e6, 2.1e8,
+            "support_spring_south",
+            "N/m",
+            4.2e7,
+            6.5e6,
+            2.1e8,
             "support system under FRC-01 in series with the bearing (paper: 'a flexible central "
             "support system'; no stiffness published): jack (3e8 [3e7, 5e9]), packing or trestle "
             "(5e8 [5e7, 5e9]) and pad foundation (8e7 [7e6, 8e8]) in series (series_prior). "
             "Absent (rigid, .inf) in the as-built FE model",
         ),
         _p(
-            "support_spring_north", "N/m", 4.2e7, 6.5e6, 2.1e8,
+            "support_spring_north",
+            "N/m",
+            4.2e7,
+            6.5e6,
+            2.1e8,
             "support system under FRC-02 in series with the bearing; as support_spring_south",
         ),
         # EN 1337-3 laminated elastomeric end bearing ~200 x 300 mm: 4 x 10 mm layers give
         # laminated_bearing_stiffness(0.2, 0.3, 0.010, 4) = 2.3e8 (the low end); thin layers or a
         # pot bearing 1.5e9 (bridge.yaml); a steel bearing 1e10.
         _p(
-            "end_bearing_stiffness", "N/m", 1.5e9, 2.0e8, 1.0e10,
+            "end_bearing_stiffness",
+            "N/m",
+            1.5e9,
+            2.0e8,
+            1.0e10,
             "elastomeric end bearing ~200 x 300 mm (bridge.yaml); EN 1337-3 with 4 x 10 mm layers "
             "(2.3e8) to a steel bearing (1e10)",
         ),
         _p(
-            "fixed_bearing_stiffness", "N/m", 1.0e9, 1.0e8, 1.0e10,
+            "fixed_bearing_stiffness",
+            "N/m",
+            1.0e9,
+            1.0e8,
+            1.0e10,
             "horizontal restraint of a held bearing direction (bridge.yaml); one decade each way: a "
             "dowelled elastomer (EN 1337-3 shear stiffness G A / T ~ 1e6-1e7 plus the dowel) to "
             "steel stops",
@@ -367,7 +387,11 @@ PARAMETERS: dict[str, Parameter] = {
         # in series 1.8e8 per bolt; 8 bolts per metre (2 every 0.25 m) -> 1.45e9 ~ 1.6e9 N/m/m.
         # Before bearing, a bolt in a normal 2 mm clearance hole slips: down to 1e7 (two decades).
         _p(
-            "connector_stiffness", "N/m/m", 1.6e9, 1.0e7, 1.0e10,
+            "connector_stiffness",
+            "N/m/m",
+            1.6e9,
+            1.0e7,
+            1.0e10,
             "bolted girder-connector joint, EN 1993-1-8 Table 6.11 (M20 10.9, 8 per metre: 1.45e9); "
             "range down to bolts slipping in clearance holes (1e7)",
         ),
@@ -375,35 +399,60 @@ PARAMETERS: dict[str, Parameter] = {
         # dowel strips (puzzle/clothoid) are 5-20x stiffer per connector (1e9-2e9 N/m per dowel at
         # 0.25 m: 5e9 N/m/m, bridge.yaml); range: studs at 0.5 m (2e8) to very stiff dowels.
         _p(
-            "dowel_stiffness", "N/m/m", 5.0e9, 2.0e8, 2.0e10,
+            "dowel_stiffness",
+            "N/m/m",
+            5.0e9,
+            2.0e8,
+            2.0e10,
             "composite-dowel slip modulus per metre (bridge.yaml); EN 1994-1-1 A.3 headed studs "
             "(100 kN/mm each) at 0.5 m (2e8) to stiff dowel strips (2e10)",
         ),
         _p(
-            "composite_action", "1", 1.0, 0.05, 1.0,
+            "composite_action",
+            "1",
+            1.0,
+            0.05,
+            1.0,
             "degree of composite action (multiplies the longitudinal dowel stiffness); 1 = as "
             "built (EN 1994-1-1 full shear connection), range down to a slab nearly sliding on the "
             "girders",
-            kind="fraction", upper=1.0,
+            kind="fraction",
+            upper=1.0,
         ),
         _p(
-            "dowel_rotational_stiffness", "N m/rad/m", 1.0e8, 1.0e6, 1.0e10,
+            "dowel_rotational_stiffness",
+            "N m/rad/m",
+            1.0e8,
+            1.0e6,
+            1.0e10,
             "rotational embedding of the connector web in the slab (bridge.yaml); no standard "
             "value: two decades each way",
         ),
         # Mortar joint 20 mm wide over t = 0.25 m: E t / w with E_mortar 10 GPa (EN 1504-3 class
         # R3 structural mortar >= 15 GPa, R2 lower); range down to an open, unbonded joint.
         _p(
-            "slab_joint_normal_stiffness", "N/m/m", 1.25e11, 1.0e8, 2.0e11,
+            "slab_joint_normal_stiffness",
+            "N/m/m",
+            1.25e11,
+            1.0e8,
+            2.0e11,
             "mortar-filled joint 20 mm wide, E 10 GPa (EN 1504-3 R2-R3), t 0.25 m (bridge.yaml); "
             "range down to an open, unbonded joint (1e8)",
         ),
         _p(
-            "slab_joint_shear_stiffness", "N/m/m", 5.0e10, 1.0e8, 1.0e11,
+            "slab_joint_shear_stiffness",
+            "N/m/m",
+            5.0e10,
+            1.0e8,
+            1.0e11,
             "G t / w of the mortar joint (bridge.yaml); range down to a joint held by friction",
         ),
         _p(
-            "slab_joint_rotational_stiffness", "N m/rad/m", 6.5e8, 1.0e5, 1.0e9,
+            "slab_joint_rotational_stiffness",
+            "N m/rad/m",
+            6.5e8,
+            1.0e5,
+            1.0e9,
             "E t^3 / (12 w) of the mortar joint (bridge.yaml); range down to an open joint",
         ),
         # EN 1994-1-1 5.4.2.3(3): global analysis may take the slab as cracked over 15 % of the
@@ -411,16 +460,25 @@ PARAMETERS: dict[str, Parameter] = {
         # precast slab is laid on the steel girders, which carry its weight unpropped); the range
         # reaches the standard's cracked hogging zone.
         _p(
-            "slab_joint_opening", "1", 1.0, 1.0e-4, 1.0,
+            "slab_joint_opening",
+            "1",
+            1.0,
+            1.0e-4,
+            1.0,
             "fraction of the slab-joint normal and rotational stiffness kept by the joints over "
             "the hogging zone near the central support; 1 = closed as built, range down to the "
             "cracked zone of EN 1994-1-1 5.4.2.3",
-            kind="fraction", upper=1.0,
+            kind="fraction",
+            upper=1.0,
         ),
         # EN 1992-1-1 Table 3.1: E_cm 33 GPa (C30/37) to 37 GPa (C50/60), C35/45 34 GPa; 3.1.3(2):
         # x 0.7 for sandstone, x 1.2 for basalt aggregate -> 23-44 GPa.
         _p(
-            "E_concrete", "Pa", 3.4e10, 2.3e10, 4.4e10,
+            "E_concrete",
+            "Pa",
+            3.4e10,
+            2.3e10,
+            4.4e10,
             "C35/45 short-term modulus, EN 1992-1-1 Table 3.1 (bridge.yaml); range C30/37 to "
             "C50/60 with the aggregate factors 0.7-1.2 of 3.1.3(2)",
         ),

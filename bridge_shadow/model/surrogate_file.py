@@ -60,7 +60,14 @@ __all__ = [
 THERMAL_CASES: tuple[str, str, str] = ("uniform", "vertical_gradient", "transverse_gradient")
 #: The top-level keys of a surrogate file (DESIGN 4; ``sensitivities`` from ``model.surrogate``).
 FILE_KEYS: tuple[str, ...] = (
-    "A", "u0", "thermal", "provenance", "model_uncertainty", "discrepancy", "sensitivities", "sweeps"
+    "A",
+    "u0",
+    "thermal",
+    "provenance",
+    "model_uncertainty",
+    "discrepancy",
+    "sensitivities",
+    "sweeps",
 )
 #: Largest relative asymmetry ``|A12 - A21| / max|A_ij|`` taken as symmetric. ``A`` is a Schur
 #: complement of a symmetric stiffness matrix; the FE solves give it symmetric to 3e-13 (the

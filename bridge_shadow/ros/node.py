@@ -125,6 +125,7 @@ MIN_DRAIN_GAP_S = 0.002
 REORDER_HOLD_S = 5.0
 _NS = 1_000_000_000
 
+
 def input_qos(depth: int) -> QoSProfile:
     """RELIABLE QoS of the given history depth; ``depth <= 0`` means KEEP_ALL (lossless)."""
     reliable = ReliabilityPolicy.RELIABLE
@@ -487,4 +488,3 @@ def outputs_from_history(windows: list[dict[str, Any]]) -> list[WindowOutput]:
         )
         for w in windows
     ]
-

@@ -141,7 +141,6 @@ def _solve(lhs: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(lhs, rhs, rcond=1e-13)[0]
 
 
-
 def _eigen(G: np.ndarray, omega: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Simultaneous diagonalization of ``(G, Omega)``: (g, d, v~ = V^T L^-1 r)."""
     q = len(r)

@@ -419,4 +419,3 @@ def residual_moments(sums: FitSums, beta: np.ndarray, level: np.ndarray) -> Mome
         + (l0 * l1) @ sums.X1s
     )
     return Moments(s2, lag, sums.n, sums.n_pairs)
-

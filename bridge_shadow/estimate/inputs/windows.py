@@ -63,6 +63,8 @@ def stale_variance(age_s: float, stale_s: float) -> float:
     if not age_s > stale_s:
         return 0.0
     return float(min(AIR_DRIFT_K_PER_S * age_s, AIR_RANGE_K) ** 2)
+
+
 _NONE = -(2**62)
 _SEEN = _NONE + 1  # the first temperature reading is visible to every window still open
 

@@ -540,8 +540,16 @@ class SegmentChain:
                 x_before, p_before = np.full(2, np.nan), np.full((2, 2), np.nan)
             self.summaries.append(
                 SegmentSummary(
-                    self.starts[s], seg.n, x_d, d_cov, kf.x[:, 0].copy(), kf.P.copy(),
-                    self.kinds[s], prob, x_before, p_before,
+                    self.starts[s],
+                    seg.n,
+                    x_d,
+                    d_cov,
+                    kf.x[:, 0].copy(),
+                    kf.P.copy(),
+                    self.kinds[s],
+                    prob,
+                    x_before,
+                    p_before,
                 )
             )
         if n_seg:

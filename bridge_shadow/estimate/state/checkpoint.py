@@ -197,9 +197,7 @@ def check_compatible(state: dict[str, Any], config: Any, surrogate: Any, path: s
         if not (_same(a, surrogate.A) and _same(u0, surrogate.u0)):
             problems.append("the surrogate's A and u0 (another surrogate file, or it was rebuilt)")
     if problems:
-        raise CheckpointError(
-            f"{path}: saved under other parameters, not resumed: {'; '.join(problems)}"
-        )
+        raise CheckpointError(f"{path}: saved under other parameters, not resumed: {'; '.join(problems)}")
 
 
 def restore(
