@@ -33,10 +33,13 @@ false event, the final error and interval, and the ``g`` the term learns. ``--on
 fourth: the two real records minutes apart (one record for the traffic hold, a step inside the
 warm-up), cut to their first or last 6 minutes, small, raised and one-sided steps, and the day's
 four states, each in 30 s, 1 min and 2 min windows (``window_s``), scored as the real study.
+``--only creep`` is a fifth: the new state's reactions creeping after a lowering (``with_creep``:
+the 10 mm record's own rise of 0.05 / 0.1 kN a minute, added again up to three times) in the pair,
+the pair after a second quiet record of the old state, and the day's four records.
 
 Usage::
 
-    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin|continuous|minutes]
+    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin|continuous|minutes|creep]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term]
         [--sun-prior MEAN SD] [--monitor-days N]
 
@@ -49,7 +52,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -153,11 +156,38 @@ def without_car(data: MonitoringData, starts_ns: list[int]) -> MonitoringData:
 AS_BUILT = config_file("surrogate_fe.yaml")
 
 
-def real_stream(item: tuple[str, list[Piece], str, dict, str]) -> tuple[str, list[bool], str, list[float]]:
-    """Score one stream (a task): events right, nothing lost, within 10 % (or 1 mm), covered."""
-    name, pieces, car, over, u0 = item
+#: The 10 mm record's own creep over its minutes, south / north (N/s): its car-free windows rise
+#: by about 0.05 / 0.1 kN a minute (0.6 / 1.2 kN over the record); the reference record's north
+#: stays within 0.1 kN.
+CREEP_N_PER_S = np.array([50.0, 100.0]) / 60.0
+
+
+def with_creep(
+    data: MonitoringData, starts_ns: list[int], changed: list[int], factor: float
+) -> MonitoringData:
+    """Add ``factor`` times ``CREEP_N_PER_S`` from the first sample of each changed record to its end."""
+    forces = {}
+    for c, (ch, s) in enumerate(data.forces.items()):
+        add = np.zeros(len(s.stamp_ns))
+        for i in changed:
+            end = starts_ns[i + 1] if i + 1 < len(starts_ns) else np.iinfo(np.int64).max
+            inside = (s.stamp_ns >= starts_ns[i]) & (s.stamp_ns < end)
+            add[inside] = factor * CREEP_N_PER_S[c] * (s.stamp_ns[inside] - starts_ns[i]) / 1e9
+        forces[ch] = ForceSeries(s.stamp_ns, s.force_n + add, s.frame_id)
+    return MonitoringData(forces, data.temperature)
+
+
+def real_stream(item: tuple[Any, ...]) -> tuple[str, list[bool], str, list[float]]:
+    """Score one stream (a task): events right, nothing lost, within 10 % (or 1 mm), covered.
+
+    ``item``: name, pieces, car, parameter overrides, u0, and optionally a creep factor
+    (``with_creep`` on every record whose state changed).
+    """
+    name, pieces, car, over, u0, *rest = item
     sur = load_surrogate()
     sc = build(shared_data_dir() / "Settlements", sur.A, pieces)
+    if rest and rest[0]:
+        sc.data = with_creep(sc.data, sc.starts_ns, sc.changes(), rest[0])
     if car == "cut":
         sc.data = without_car(sc.data, sc.starts_ns)
     if u0 == "as_built":
@@ -216,6 +246,43 @@ def minutes_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> Non
     counts = np.sum([r for _, r, _, _ in results], axis=0)
     n = len(results)
     print(f"records minutes apart or cut, {over}: {n} streams in {time.perf_counter() - t0:.0f} s")
+    labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
+    for label, c in zip(labels, counts, strict=True):
+        print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
+
+
+def creep_streams() -> Iterator[tuple[str, list[Piece]]]:
+    """Yield (name, pieces) of the creep study: the pair, the pair after a quiet record, the day."""
+    yield "ref, lowered at its own time", [Piece("ref", 0.0), Piece("lowered", 0.73)]
+    yield (
+        "ref, ref 1.25 h on, lowered -10 mm at 2.5 h",
+        [Piece("ref", 0.0), Piece("ref", 1.25), Piece("lowered", 2.5, (-0.01, -0.01))],
+    )
+    yield (
+        "the day: ref, lowered, -20 at 5.07 h, -30 at 9.03 h",
+        [
+            Piece("ref", 0.0),
+            Piece("lowered", 0.73),
+            Piece("lowered", 5.07, (-0.01, -0.01), 5.5),
+            Piece("lowered", 9.03, (-0.02, -0.02), 7.5),
+        ],
+    )
+
+
+def creep_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
+    """Score the creep streams with the new states' creep 1 to 4 times the 10 mm record's own."""
+    t0 = time.perf_counter()
+    items = [
+        (f"{name} [creep x{1 + extra:g}]", pieces, "recorded", over, "model", extra)
+        for name, pieces in creep_streams()
+        for extra in (0.0, 0.5, 1.0, 2.0, 3.0)
+    ]
+    results = mapper(real_stream, items)
+    for _, _, line, _ in results:
+        print(line)
+    counts = np.sum([r for _, r, _, _ in results], axis=0)
+    n = len(results)
+    print(f"new states creeping, {over}: {n} streams in {time.perf_counter() - t0:.0f} s")
     labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
     for label, c in zip(labels, counts, strict=True):
         print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
@@ -301,9 +368,11 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument(
         "--only",
-        choices=("real", "twin", "continuous", "minutes"),
+        choices=("real", "twin", "continuous", "minutes", "creep"),
         help="one study (continuous: three sunny days of monitoring, sun term off and on; minutes: the "
-        "two records minutes apart or cut short, in 30 s, 1 min and 2 min windows; neither by default)",
+        "two records minutes apart or cut short, in 30 s, 1 min and 2 min windows; creep: the new "
+        "states' reactions creeping after the lowering, 1 to 4 times the 10 mm record's own; none of "
+        "these by default)",
     )
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
     ap.add_argument(
@@ -358,6 +427,8 @@ def main() -> None:
             continuous_study(mapper, args.seeds)
         if args.only == "minutes":
             minutes_study(mapper, over)
+        if args.only == "creep":
+            creep_study(mapper, over)
 
 
 if __name__ == "__main__":
