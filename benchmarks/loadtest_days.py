@@ -209,6 +209,19 @@ def _config(over: dict[str, Any]) -> Any:
     return load_config().replace(**over)
 
 
+def print_streams(results: list[Any], title: str, t0: float, verbose: bool = True) -> None:
+    """Print ``real_stream`` results (each line, or only the failed ones) and the four rates."""
+    for _, r, line, _ in results:
+        if verbose or not all(r):
+            print(line)
+    counts = np.sum([r for _, r, _, _ in results], axis=0)
+    n = len(results)
+    print(f"{title}: {n} streams in {time.perf_counter() - t0:.0f} s")
+    labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
+    for label, c in zip(labels, counts, strict=True):
+        print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
+
+
 def real_study(
     mapper: Callable[..., list[Any]],
     verbose: bool,
@@ -219,15 +232,7 @@ def real_study(
     t0 = time.perf_counter()
     over = over or {}
     results = mapper(real_stream, [(name, pieces, car, over, u0) for name, pieces in real_streams()])
-    counts = np.sum([r for _, r, _, _ in results], axis=0)
-    n = len(results)
-    for _, r, line, _ in results:
-        if verbose or not all(r):
-            print(line)
-    print(f"real records, test car {car}, u0 {u0}, {over}: {n} streams in {time.perf_counter() - t0:.0f} s")
-    labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
-    for label, c in zip(labels, counts, strict=True):
-        print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
+    print_streams(results, f"real records, test car {car}, u0 {u0}, {over}", t0, verbose)
     widths = np.array([w for _, _, _, w in results])
     print(f"  final 95 % half-width, median {np.round(np.median(widths, axis=0), 2)} mm")
 
@@ -240,15 +245,7 @@ def minutes_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> Non
         for name, pieces in minutes_streams()
         for w in (30.0, 60.0, 120.0)
     ]
-    results = mapper(real_stream, items)
-    for _, _, line, _ in results:
-        print(line)
-    counts = np.sum([r for _, r, _, _ in results], axis=0)
-    n = len(results)
-    print(f"records minutes apart or cut, {over}: {n} streams in {time.perf_counter() - t0:.0f} s")
-    labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
-    for label, c in zip(labels, counts, strict=True):
-        print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
+    print_streams(mapper(real_stream, items), f"records minutes apart or cut, {over}", t0)
 
 
 def creep_streams() -> Iterator[tuple[str, list[Piece]]]:
@@ -277,15 +274,7 @@ def creep_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
         for name, pieces in creep_streams()
         for extra in (0.0, 0.5, 1.0, 2.0, 3.0)
     ]
-    results = mapper(real_stream, items)
-    for _, _, line, _ in results:
-        print(line)
-    counts = np.sum([r for _, r, _, _ in results], axis=0)
-    n = len(results)
-    print(f"new states creeping, {over}: {n} streams in {time.perf_counter() - t0:.0f} s")
-    labels = ("events right", "no window lost", "within 10 % (or 1 mm)", "95 % holds")
-    for label, c in zip(labels, counts, strict=True):
-        print(f"  {label:24s} {c}/{n} = {c / n:.3f}")
+    print_streams(mapper(real_stream, items), f"new states creeping, {over}", t0)
 
 
 def twin_day(item: tuple[int, float, dict, float]) -> Any:
