@@ -159,6 +159,33 @@ def test_a_new_state_too_short_to_confirm_is_an_unconfirmed_change(folder: Path,
 
 
 @pytest.mark.realdata
+def test_a_change_the_data_left_for_another_state_says_when(folder: Path, surrogate) -> None:
+    """An unconfirmed change followed by another state names it: its few windows are not the data's end.
+
+    The known case (README, load-test days: a new state whose reactions creep): the reference
+    record twice, then the 10 mm record 10 mm lower; the creep after the car's minutes is raised as
+    a +0.2 mm event and the lowering before it keeps two windows, unconfirmed at probability 1.
+    """
+    pieces = [Piece("ref", 0.0), Piece("ref", 1.25), Piece("lowered", 2.5, (-0.01, -0.01))]
+    sc = build(folder, surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    js = res.to_json()
+    (change,) = js["unconfirmed_changes"]
+    (event,) = js["events"]
+    assert change["kind"] == "gap" and change["change_probability"] > 0.99
+    assert change["next_state_ns"] == event["time_ns"] > change["time_ns"]
+    assert abs(event["size_m"][0]) < 1e-3  # the creep, small beside the 20 mm change
+    (line,) = [w for w in js["warnings"] if w.startswith("unconfirmed settlement change")]
+    assert f"windows before the next state from {event['time']}" in line
+    # a change the data end in says "since"
+    short = Piece("ref", 4.0, (-0.02, -0.02), 6.5, cut_min=(0.0, 2.5))
+    _, res = replay(build(folder, surrogate.A, [Piece("ref", 0.0), short]), surrogate)
+    (change,) = res.to_json()["unconfirmed_changes"]
+    assert "next_state_ns" not in change
+    assert any("windows since;" in w for w in res.warnings)
+
+
+@pytest.mark.realdata
 def test_every_rejected_window_is_listed_with_its_time_and_reason(folder: Path, surrogate) -> None:
     sc = build(folder, surrogate.A, [Piece("ref", 0.0, cut_min=(0.0, 6.0)), Piece("ref", 0.15)])
     _, res = replay(sc, surrogate)

@@ -7,6 +7,7 @@ Plain functions of a ``Shadow`` (SI units; text for people only in the messages)
 
 from __future__ import annotations
 
+import dataclasses
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -130,7 +131,9 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         size, cov, prob, n = change
         k = f.starts[s]
         gap = gap_s.get(s, 0.0)
-        out.append(ChangeRecord(k, k * shadow._w_ns, f.kinds[s], float(prob), int(n), size, cov, gap))
+        nxt = f.starts[s + 1] * shadow._w_ns if s + 1 < len(f.starts) else None
+        record = ChangeRecord(k, k * shadow._w_ns, f.kinds[s], float(prob), int(n), size, cov, gap)
+        out.append(dataclasses.replace(record, next_ns=nxt))
     a_inv = np.linalg.inv(shadow.A)
     for r in shadow.unconfirmed_runs:  # runs used as data: their change read through A
         size = a_inv @ np.asarray(r["step_n"], float)
@@ -295,8 +298,9 @@ def warnings(shadow: Shadow) -> list[str]:
             until = iso_utc(c.until_ns or c.time_ns)
             how = f"{c.windows} windows until {until}, used as data of the current state"
         else:
+            since = "since" if c.next_ns is None else f"before the next state from {iso_utc(c.next_ns)}"
             how = (
-                f"probability {c.change_probability:.3g}, {c.windows} windows since; "
+                f"probability {c.change_probability:.3g}, {c.windows} windows {since}; "
                 "the posterior weighs it by that probability"
             )
         out.append(f"unconfirmed settlement change at {iso_utc(c.time_ns)} ({where}): {size} ({how})")

@@ -139,6 +139,10 @@ class ChangeRecord:
         gap_s: length of the gap before it, s (0 for a held run).
         significant: for a ``run_in_data``: its GLR passed the event threshold (None otherwise).
         until_ns: for a ``run_in_data``: the end of its last window, ns (None otherwise).
+        next_ns: for a provisional segment the data left for another state (an event or a further
+            possible change after it): that state's start, ns (None when the data end in it).
+            ``windows`` are those before it: a change followed minutes later by a small event has
+            few windows of its own and yet the data after it stayed changed.
 
     """
 
@@ -152,6 +156,7 @@ class ChangeRecord:
     gap_s: float = 0.0
     significant: bool | None = None
     until_ns: int | None = None
+    next_ns: int | None = None
 
     @property
     def likely(self) -> bool:
@@ -181,6 +186,7 @@ class ChangeRecord:
             "windows": int(self.windows),
             "gap_s": float(self.gap_s),
             **({} if (u := self.until_ns) is None else {"until_ns": int(u), "until": iso_utc(u)}),
+            **({} if (t := self.next_ns) is None else {"next_state_ns": int(t), "next_state": iso_utc(t)}),
             **_size_json(self.size_m, self.covariance_m2),
             "size_chi2": _chi2(self.size_m, self.covariance_m2),
         }
