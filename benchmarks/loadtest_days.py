@@ -36,11 +36,13 @@ four states, each in 30 s, 1 min and 2 min windows (``window_s``), scored as the
 ``--only creep`` is a fifth: the new state's reactions creeping after a lowering (``with_creep``:
 the 10 mm record's own rise of 0.05 / 0.1 kN a minute, added again up to three times) in the pair,
 the pair after a second quiet record of the old state, and the day's four records (every new
-state creeping more, or only the two after the 10 mm record).
+state creeping more, or only the two after the 10 mm record). ``--only pauses`` is a sixth: the
+later record's logger silent for 1 to 8 minutes while the test car stands (``pause_streams``).
 
 Usage::
 
-    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200] [--only real|twin|continuous|minutes|creep]
+    .venv/bin/python benchmarks/loadtest_days.py [--seeds 200]
+        [--only real|twin|continuous|minutes|creep|pauses]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term]
         [--sun-prior MEAN SD] [--monitor-days N]
 
@@ -52,6 +54,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -273,6 +276,44 @@ def creep_streams() -> Iterator[tuple[str, list[Piece], int]]:
     yield "the day, only -20 and -30 creeping more", day, 2
 
 
+def pause_streams() -> Iterator[tuple[str, list[Piece]]]:
+    """Yield (name, pieces) of the pause study: a logger pause inside the later record.
+
+    The reference or the 10 mm record 1.25 h or 4 h on (10 mm more through ``A``), silent for 1, 2,
+    4 or 8 minutes from minute 2, 4 or 6 (the test car stands over about minutes 2-9): the same
+    state on both sides of the pause, or the first part still the old state (the change in it).
+    """
+    for later, (place, (at, temp_at)), pause, start, in_pause in itertools.product(
+        ("ref", "lowered"),
+        {"1.25 h": (1.25, None), "4 h": (4.0, 6.5)}.items(),
+        (1, 2, 4, 8),
+        (2, 4, 6),
+        (False, True),
+    ):
+        if start + pause > 11:
+            continue
+        low = (-0.01, -0.01)
+        before = (0.0, 0.0) if in_pause else low
+        name = f"ref, {later} at {place}, pause {start}-{start + pause} min" + (
+            ", the step in it" if in_pause else ""
+        )
+        yield (
+            name,
+            [
+                Piece("ref", 0.0),
+                Piece(later, at, before, temp_at, cut_min=(0, start)),
+                Piece(later, at, low, temp_at, cut_min=(start + pause, 13)),
+            ],
+        )
+
+
+def pause_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
+    """Score the pause streams (``pause_streams``)."""
+    t0 = time.perf_counter()
+    items = [(name, pieces, "recorded", over, "model") for name, pieces in pause_streams()]
+    print_streams(mapper(real_stream, items), f"a logger pause inside the later record, {over}", t0, False)
+
+
 def creep_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
     """Score the creep streams with the new states' creep 1 to 4 times the 10 mm record's own."""
     t0 = time.perf_counter()
@@ -364,11 +405,11 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument(
         "--only",
-        choices=("real", "twin", "continuous", "minutes", "creep"),
+        choices=("real", "twin", "continuous", "minutes", "creep", "pauses"),
         help="one study (continuous: three sunny days of monitoring, sun term off and on; minutes: the "
         "two records minutes apart or cut short, in 30 s, 1 min and 2 min windows; creep: the new "
-        "states' reactions creeping after the lowering, 1 to 4 times the 10 mm record's own; none of "
-        "these by default)",
+        "states' reactions creeping after the lowering, 1 to 4 times the 10 mm record's own; pauses: a "
+        "logger pause of minutes inside the later record; none of these by default)",
     )
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
     ap.add_argument(
@@ -425,6 +466,8 @@ def main() -> None:
             minutes_study(mapper, over)
         if args.only == "creep":
             creep_study(mapper, over)
+        if args.only == "pauses":
+            pause_study(mapper, over)
 
 
 if __name__ == "__main__":

@@ -230,6 +230,50 @@ def test_two_recordings_minutes_apart_are_screened_one_by_one() -> None:
             assert np.all(np.abs(mean - level) < 100.0), (k - k0, mean - level)
 
 
+@pytest.mark.parametrize("rise_n", [0.0, 1500.0])
+def test_a_car_parked_across_a_logger_pause_is_cut_on_both_sides(rise_n: float) -> None:
+    """A 13-min record whose logger paused over minutes 5-8 while a +6 kN car stood over minutes 3-10.
+
+    Screened piece by piece, the car's run touched each piece's edge at the pause and stayed data
+    (the windows of minutes 3-5 and 8-10 on the car). The car-free level is the same on both sides
+    (or 1.5 kN higher, the real 10 mm record's creep): one stretch with the pause empty, the car
+    comes back after it and is cut on both sides.
+    """
+    t, f = _record(13.0)
+    f[:, 180:600] += 6000.0
+    f[:, 480:] += rise_n / 2.0
+    keep = (t < t[0] + 300 * NS) | (t >= t[0] + 480 * NS)
+    got = _windows(_data(t[keep], f[:, keep]), 1800.0)
+    k0 = int(t[0] // W)
+    for k, (mean, reason, cut) in got.items():
+        m = k - k0
+        if 3 <= m < 5 or 8 <= m < 10:
+            assert reason == "traffic" or cut.sum(), (m, mean)
+        if np.all(np.isfinite(mean)):
+            level = load_surrogate().u0 + (rise_n / 2.0 if m >= 8 else 0.0)
+            assert np.all(np.abs(mean - level) < 100.0), (m, mean - level)
+
+
+def test_a_drop_across_a_logger_pause_keeps_the_pieces_apart() -> None:
+    """The same pause with the level 20 kN lower after it: two states, screened one by one as before.
+
+    Nothing of the lower state is read against the higher one: every window that holds no car is
+    on its own level.
+    """
+    t, f = _record(13.0)
+    f[:, 180:600] += 6000.0
+    f[:, 480:] -= 20000.0
+    keep = (t < t[0] + 300 * NS) | (t >= t[0] + 480 * NS)
+    got = _windows(_data(t[keep], f[:, keep]), 1800.0)
+    k0 = int(t[0] // W)
+    u0 = load_surrogate().u0
+    for k, (mean, _, _) in got.items():
+        m = k - k0
+        if np.all(np.isfinite(mean)) and not (3 <= m < 10):
+            level = u0 - (20000.0 if m >= 8 else 0.0)
+            assert np.all(np.abs(mean - level) < 100.0), (m, mean - level)
+
+
 def test_a_settlement_under_a_parked_car_splits_the_record_and_cuts_the_car_on_both_sides() -> None:
     """A 20-min record, -20 kN from minute 10 on, a car of +6 kN parked over minutes 7-13.
 

@@ -21,6 +21,10 @@ it is at most ``traffic_hold_s`` long, screens it here before its windows close:
    vehicle (``traffic_vehicle_max_n``: a support raised inside it), and each side is screened
    against its own baseline (``split_bin``).
 
+A record whose recording stopped and started again inside it (a silence of ``PIECE_SILENCE_NS``)
+is screened in pieces where the car-free level changes across a silence, and as one stretch with
+the silence's bins empty where it does not (``_state_bounds``).
+
 The samples of the traffic bins are cut; the windows are built from the rest (a window left
 with fewer than ``window_min_samples`` is rejected as ``traffic``). A record longer than the hold
 limit is released unscreened (continuous monitoring: the detector's transients handle it).
@@ -48,10 +52,11 @@ __all__ = [
 
 #: Bin width of the screen, ns: the calibration's 1 s bins (a car crossing takes seconds).
 BIN_NS = 1_000_000_000
-#: A silence of both channels this long splits a record into pieces screened one by one, ns: a
+#: A silence of both channels this long may split a record into pieces screened one by one, ns: a
 #: minute without a sample of a 100 Hz (or 1 Hz) recording is a recording that stopped, not a
-#: dropout; a car's run cut in two by it touches each piece's edge and stays data (the screen's
-#: rule for a run that does not come back).
+#: dropout. The pieces stay apart where the car-free level changes across the silence
+#: (``_state_bounds``); a pause without a change is one stretch, so that a car parked across it
+#: comes back on its far side and is cut.
 PIECE_SILENCE_NS = 60 * BIN_NS
 #: A state change inside a record is looked for only with a minute on either side of it (a shorter
 #: state has no window of its own: the detector reads it), and at most this many times per piece.
@@ -70,8 +75,9 @@ def screen_record(
 
     Returns, per channel, a (n_c,) bool mask over the record's samples: True where kept. Where
     both channels fall silent for ``PIECE_SILENCE_NS`` inside the record (two recordings minutes
-    apart, shorter than ``gap_s``), each piece is screened on its own: a settlement between them
-    would otherwise tilt the baseline under both, and neither car would be cut.
+    apart, shorter than ``gap_s``) and the car-free level changes across the silence, each piece is
+    screened on its own: a settlement between them would otherwise tilt the baseline under both,
+    and neither car would be cut. Pieces on one level are screened together (``_state_bounds``).
     """
     if any(not len(s) for s in stamps):
         return [np.ones(len(s), bool) for s in stamps]
@@ -80,7 +86,9 @@ def screen_record(
     if not len(cuts):
         return _screen_piece(stamps, values, threshold_n, margin_s, vehicle_max_n)
     keep = [np.ones(len(s), bool) for s in stamps]
-    bounds = [int(both[0]), *map(int, cuts), int(both[-1]) + 1]
+    bounds = _state_bounds(
+        stamps, values, [int(both[0]), *map(int, cuts), int(both[-1]) + 1], threshold_n, vehicle_max_n
+    )
     for a, b in itertools.pairwise(bounds):
         sel = [(s >= a) & (s < b) for s in stamps]
         piece = _screen_piece(
@@ -95,6 +103,51 @@ def screen_record(
     return keep
 
 
+def _state_bounds(
+    stamps: list[np.ndarray],
+    values: list[np.ndarray],
+    bounds: list[int],
+    threshold_n: float,
+    vehicle_max_n: float,
+) -> list[int]:
+    """Keep the silences across which the car-free level changes as piece bounds; join the others.
+
+    A vehicle only adds load, so each piece's lowest 1 s bin sum is its car-free level. Across a
+    silence where that level drops by more than ``threshold_n``, or rises by more than
+    ``vehicle_max_n`` (``split_bin``'s rule for a state change inside a record), the pieces are
+    two states and are screened one by one. Otherwise the recording only paused (a logger that
+    stopped for minutes inside a record, maybe while the test car was parked): the pieces are one
+    stretch with empty bins in the silence, and a vehicle on the bridge across it comes back on
+    its far side and is cut (screened piece by piece, its run touched each piece's edge and stayed
+    data: the car's windows went into the level or were rejected as outliers, the noise model
+    grew, and a real 10 mm change after a gap fell to probability 0.11, unreported).
+    """
+    levels = []
+    for a, b in itertools.pairwise(bounds):
+        sel = [(s >= a) & (s < b) for s in stamps]
+        total = _bin_total(
+            [s[m] for s, m in zip(stamps, sel, strict=True)], [v[m] for v, m in zip(values, sel, strict=True)]
+        )[2]
+        levels.append(float(np.nanmin(total)) if np.any(np.isfinite(total)) else np.nan)
+    kept = [bounds[0]]
+    for i in range(1, len(bounds) - 1):
+        step = levels[i] - levels[i - 1]  # NaN (a piece without both channels): a new piece
+        if not (-threshold_n <= step <= vehicle_max_n):
+            kept.append(bounds[i])
+    return [*kept, bounds[-1]]
+
+
+def _bin_total(
+    stamps: list[np.ndarray], values: list[np.ndarray]
+) -> tuple[int, list[np.ndarray], np.ndarray]:
+    """1 s bins from the first stamp: (first stamp, bin index per sample, sum of the channels' bin means)."""
+    t0 = min(int(s[0]) for s in stamps)
+    n = (max(int(s[-1]) for s in stamps) - t0) // BIN_NS + 1
+    idx = [(s - t0) // BIN_NS for s in stamps]
+    total = sum(window_stats(i, v, n).mean for i, v in zip(idx, values, strict=True))  # NaN: a channel empty
+    return t0, idx, total
+
+
 def _screen_piece(
     stamps: list[np.ndarray],
     values: list[np.ndarray],
@@ -105,10 +158,7 @@ def _screen_piece(
     """Screen one continuous piece of a record (``screen_record``)."""
     if any(not len(s) for s in stamps):
         return [np.ones(len(s), bool) for s in stamps]
-    t0 = min(int(s[0]) for s in stamps)
-    n = (max(int(s[-1]) for s in stamps) - t0) // BIN_NS + 1
-    idx = [(s - t0) // BIN_NS for s in stamps]
-    total = sum(window_stats(i, v, n).mean for i, v in zip(idx, values, strict=True))  # NaN: a channel empty
+    _, idx, total = _bin_total(stamps, values)
     cut = _screen_bins(total, threshold_n, round(margin_s * 1e9 / BIN_NS), vehicle_max_n).cut
     return [~cut[i] for i in idx]
 
