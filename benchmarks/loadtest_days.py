@@ -37,7 +37,8 @@ four states, each in 30 s, 1 min and 2 min windows (``window_s``), scored as the
 the 10 mm record's own rise of 0.05 / 0.1 kN a minute, added again up to three times) in the pair,
 the pair after a second quiet record of the old state, and the day's four records (every new
 state creeping more, or only the two after the 10 mm record). ``--only pauses`` is a sixth: the
-later record's logger silent for 1 to 8 minutes while the test car stands (``pause_streams``).
+later record's logger silent for 1 to 8 minutes while the test car stands (``pause_streams``),
+then the reference record paused too, or the later record twice (``more_pause_streams``).
 
 Usage::
 
@@ -307,11 +308,46 @@ def pause_streams() -> Iterator[tuple[str, list[Piece]]]:
         )
 
 
+def more_pause_streams() -> Iterator[tuple[str, list[Piece]]]:
+    """Yield the pause study's second set: the reference record paused, both paused, two pauses."""
+    low = (-0.01, -0.01)
+    for later, (place, (at, temp_at)), (p1, p2) in itertools.product(
+        ("ref", "lowered"),
+        {"1.25 h": (1.25, None), "4 h": (4.0, 6.5)}.items(),
+        (((2, 4), (7, 9)), ((3, 5), (6, 8)), ((4, 6), (8, 10))),
+    ):
+        ref_paused = [Piece("ref", 0.0, cut_min=(0, p1[0])), Piece("ref", 0.0, cut_min=(p1[1], 13))]
+        name = f"{later} at {place}, pauses {p1} / {p2}"
+        yield f"ref paused, {name}", [*ref_paused, Piece(later, at, low, temp_at)]
+        yield (
+            f"both paused, {name}",
+            [
+                *ref_paused,
+                Piece(later, at, low, temp_at, cut_min=(0, p2[0])),
+                Piece(later, at, low, temp_at, cut_min=(p2[1], 13)),
+            ],
+        )
+        yield (
+            f"two pauses in the later record, {name}",
+            [
+                Piece("ref", 0.0),
+                Piece(later, at, low, temp_at, cut_min=(0, p1[0])),
+                Piece(later, at, low, temp_at, cut_min=(p1[1], p2[0])),
+                Piece(later, at, low, temp_at, cut_min=(p2[1], 13)),
+            ],
+        )
+
+
 def pause_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
     """Score the pause streams (``pause_streams``)."""
     t0 = time.perf_counter()
     items = [(name, pieces, "recorded", over, "model") for name, pieces in pause_streams()]
     print_streams(mapper(real_stream, items), f"a logger pause inside the later record, {over}", t0, False)
+    t0 = time.perf_counter()
+    items = [(name, pieces, "recorded", over, "model") for name, pieces in more_pause_streams()]
+    print_streams(
+        mapper(real_stream, items), f"the reference record paused too, or two pauses, {over}", t0, False
+    )
 
 
 def creep_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:

@@ -254,6 +254,27 @@ def test_a_car_parked_across_a_logger_pause_is_cut_on_both_sides(rise_n: float) 
             assert np.all(np.abs(mean - level) < 100.0), (m, mean - level)
 
 
+def test_a_car_over_a_whole_piece_between_two_pauses_is_cut() -> None:
+    """Two pauses (minutes 3-5 and 6-8) around a minute the car covers whole (car over minutes 2-10).
+
+    That piece's lowest bin is the car's, not the car-free level: compared with its neighbour it
+    looked like a drop after it, the last piece stayed apart, and the car's run at its edge stayed
+    data. The level a piece is compared with is the stretch's lowest so far.
+    """
+    t, f = _record(13.0)
+    f[:, 120:600] += 6000.0
+    keep = (t < t[0] + 180 * NS) | ((t >= t[0] + 300 * NS) & (t < t[0] + 360 * NS)) | (t >= t[0] + 480 * NS)
+    got = _windows(_data(t[keep], f[:, keep]), 1800.0)
+    k0 = int(t[0] // W)
+    u0 = load_surrogate().u0
+    for k, (mean, reason, cut) in got.items():
+        m = k - k0
+        if 2 <= m < 10:
+            assert reason == "traffic" or cut.sum(), (m, mean)
+        if np.all(np.isfinite(mean)):
+            assert np.all(np.abs(mean - u0) < 100.0), (m, mean - u0)
+
+
 def test_a_drop_across_a_logger_pause_keeps_the_pieces_apart() -> None:
     """The same pause with the level 20 kN lower after it: two states, screened one by one as before.
 

@@ -112,10 +112,11 @@ def _state_bounds(
 ) -> list[int]:
     """Keep the silences across which the car-free level changes as piece bounds; join the others.
 
-    A vehicle only adds load, so each piece's lowest 1 s bin sum is its car-free level. Across a
-    silence where that level drops by more than ``threshold_n``, or rises by more than
-    ``vehicle_max_n`` (``split_bin``'s rule for a state change inside a record), the pieces are
-    two states and are screened one by one. Otherwise the recording only paused (a logger that
+    A vehicle only adds load, so each piece's lowest 1 s bin sum is its car-free level (or, for a
+    piece the car covers, above it). Across a silence where the next piece's level lies more than
+    ``threshold_n`` below the lowest level of the stretch so far, or more than ``vehicle_max_n``
+    above it (``split_bin``'s rule for a state change inside a record), the pieces are two states
+    and are screened one by one. Otherwise the recording only paused (a logger that
     stopped for minutes inside a record, maybe while the test car was parked): the pieces are one
     stretch with empty bins in the silence, and a vehicle on the bridge across it comes back on
     its far side and is cut (screened piece by piece, its run touched each piece's edge and stayed
@@ -130,10 +131,14 @@ def _state_bounds(
         )[2]
         levels.append(float(np.nanmin(total)) if np.any(np.isfinite(total)) else np.nan)
     kept = [bounds[0]]
+    level = levels[0]  # the stretch's car-free level so far: its lowest piece (a piece may be all car)
     for i in range(1, len(bounds) - 1):
-        step = levels[i] - levels[i - 1]  # NaN (a piece without both channels): a new piece
-        if not (-threshold_n <= step <= vehicle_max_n):
+        step = levels[i] - level  # NaN (a piece without both channels): a new piece
+        if -threshold_n <= step <= vehicle_max_n:
+            level = min(level, levels[i])
+        else:
             kept.append(bounds[i])
+            level = levels[i]
     return [*kept, bounds[-1]]
 
 
