@@ -12,7 +12,8 @@ it is at most ``traffic_hold_s`` long, screens it here before its windows close:
    holding both channels carry the sum (a record sampled every few seconds leaves the rest empty);
 2. the calibration's car rule (``bridge_shadow.traffic.flag_car``) on that sum, its first
    baseline from the lowest fifth of each half of the record (a drift of ~1 kN through a record
-   must not put the whole start at one end);
+   must not put the whole start at one end), no bin of it more than the threshold above its
+   half's lowest (``first_free``);
 3. a flagged run is *traffic* when it lies above the baseline (a vehicle only adds load) and
    comes back inside the record: it touches neither the first nor the last bin with data. A run
    that does not come back is a change of state and stays data; so does one below the baseline.
@@ -45,6 +46,7 @@ __all__ = [
     "MAX_SPLITS",
     "MIN_SIDE_BINS",
     "PIECE_SILENCE_NS",
+    "first_free",
     "screen_record",
     "split_bin",
     "support_start",
@@ -213,8 +215,8 @@ def _screen_bins(
     n = len(total)
     valid = np.flatnonzero(np.isfinite(total))  # bins with both channels (sparse data leaves gaps)
     t = np.arange(n) + 0.5
-    start = None if all(ends) else support_start(total, threshold_n)
-    flags = flag_car(t, total, threshold_n, margin, empty_is_car=False, parts=2, start=start)
+    start = first_free(total, threshold_n) if all(ends) else support_start(total, threshold_n)
+    flags = flag_car(t, total, threshold_n, margin, empty_is_car=False, start=start)
     baseline = total - flags.residual_n
     cut = np.zeros(n, bool)
     open_run = False
@@ -273,6 +275,24 @@ def _holds_a_further_state(tail_n: float, head_n: float, vehicle_max_n: float) -
     if np.isnan(head_n):
         return False
     return bool(np.isnan(tail_n) or head_n > vehicle_max_n)
+
+
+def first_free(s: np.ndarray, threshold_n: float) -> np.ndarray:
+    """Return the bins that start the car rule's baseline on a whole record (NaN: none).
+
+    In each half of the bins with data, the lowest fifth (the calibration's rule, one per half so
+    that a drift of ~1 kN through a record does not put the whole start at one end), but no bin
+    more than ``threshold_n`` above the half's lowest: a vehicle only adds load, so the lowest bin
+    is car-free and so are those near it, while a vehicle on the bridge for more than four fifths
+    of a half (a load cell silent over the car-free minutes before it) would otherwise be the
+    fifth's and the baseline.
+    """
+    out = np.zeros(len(s), bool)
+    for part in np.array_split(np.flatnonzero(np.isfinite(s)), 2):
+        if len(part):
+            low = min(float(np.quantile(s[part], 0.2)), float(np.min(s[part])) + threshold_n)
+            out[part[s[part] <= low]] = True
+    return out
 
 
 def support_start(s: np.ndarray, threshold_n: float) -> np.ndarray:
