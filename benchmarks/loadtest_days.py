@@ -38,7 +38,8 @@ the 10 mm record's own rise of 0.05 / 0.1 kN a minute, added again up to three t
 the pair after a second quiet record of the old state, and the day's four records (every new
 state creeping more, or only the two after the 10 mm record). ``--only pauses`` is a sixth: the
 later record's logger silent for 1 to 8 minutes while the test car stands (``pause_streams``),
-then the reference record paused too, or the later record twice (``more_pause_streams``).
+then the reference record paused too, or the later record twice (``more_pause_streams``), and
+one load cell silent for minutes of the later record (``with_silence``).
 
 Usage::
 
@@ -182,19 +183,35 @@ def with_creep(
     return MonitoringData(forces, data.temperature)
 
 
+def with_silence(
+    data: MonitoringData, start_ns: int, channel: int, a_min: float, b_min: float
+) -> MonitoringData:
+    """Drop load cell ``channel``'s samples over minutes ``[a_min, b_min)`` after ``start_ns``."""
+    forces = {}
+    for c, (ch, s) in enumerate(data.forces.items()):
+        gone = (c == channel) & (s.stamp_ns >= start_ns + a_min * W) & (s.stamp_ns < start_ns + b_min * W)
+        forces[ch] = ForceSeries(s.stamp_ns[~gone], s.force_n[~gone], s.frame_id[~gone])
+    return MonitoringData(forces, data.temperature)
+
+
 def real_stream(item: tuple[Any, ...]) -> tuple[str, list[bool], str, list[float]]:
     """Score one stream (a task): events right, nothing lost, within 10 % (or 1 mm), covered.
 
-    ``item``: name, pieces, car, parameter overrides, u0, and optionally a creep (factor, first
-    piece): ``with_creep`` on every record from that piece on whose state changed.
+    ``item``: name, pieces, car, parameter overrides, u0, and optionally a dict of defects:
+    ``creep`` (factor, first piece): ``with_creep`` on every record from that piece on whose state
+    changed; ``silent`` (channel, from, to minutes): that load cell silent over those minutes of
+    the last record.
     """
     name, pieces, car, over, u0, *rest = item
+    defects = rest[0] if rest else {}
     sur = load_surrogate()
     sc = build(shared_data_dir() / "Settlements", sur.A, pieces)
-    if rest and rest[0]:
-        factor, first = rest[0]
+    if "creep" in defects:
+        factor, first = defects["creep"]
         changed = [i for i in sc.changes() if i >= first]
         sc.data = with_creep(sc.data, sc.starts_ns, changed, factor)
+    if "silent" in defects:
+        sc.data = with_silence(sc.data, sc.starts_ns[-1], *defects["silent"])
     if car == "cut":
         sc.data = without_car(sc.data, sc.starts_ns)
     if u0 == "as_built":
@@ -348,13 +365,33 @@ def pause_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
     print_streams(
         mapper(real_stream, items), f"the reference record paused too, or two pauses, {over}", t0, False
     )
+    t0 = time.perf_counter()
+    later_records = [
+        (f"ref, {later} at {place}", [Piece("ref", 0.0), Piece(later, at, (-0.01, -0.01), temp_at)])
+        for later in ("ref", "lowered")
+        for place, (at, temp_at) in {"1.25 h": (1.25, None), "4 h": (4.0, 6.5)}.items()
+    ]
+    items = [
+        (
+            f"{name}, load cell {c + 1} silent over minutes {a}-{b}",
+            pieces,
+            "recorded",
+            over,
+            "model",
+            {"silent": (c, a, b)},
+        )
+        for name, pieces in later_records
+        for c in (0, 1)
+        for a, b in ((0, 2), (1, 3), (3, 6), (6, 9), (10, 13))
+    ]
+    print_streams(mapper(real_stream, items), f"one load cell silent in the later record, {over}", t0, False)
 
 
 def creep_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
     """Score the creep streams with the new states' creep 1 to 4 times the 10 mm record's own."""
     t0 = time.perf_counter()
     items = [
-        (f"{name} [creep x{1 + extra:g}]", pieces, "recorded", over, "model", (extra, first))
+        (f"{name} [creep x{1 + extra:g}]", pieces, "recorded", over, "model", {"creep": (extra, first)})
         for name, pieces, first in creep_streams()
         for extra in (0.0, 0.5, 1.0, 2.0, 3.0)
     ]
