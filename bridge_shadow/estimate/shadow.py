@@ -62,7 +62,7 @@ from bridge_shadow.estimate.events.warmup import (
     warmup_steps,
 )
 from bridge_shadow.estimate.inputs.closed_window import Window
-from bridge_shadow.estimate.inputs.gate import REASONS, TopicGate
+from bridge_shadow.estimate.inputs.gate import FROZEN_S, REASONS, TopicGate
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS, TopicLedger
 from bridge_shadow.estimate.inputs.silence import ChannelSilence
 from bridge_shadow.estimate.inputs.windows import WindowBatch, WindowBuffer, stale_variance
@@ -129,9 +129,10 @@ class Shadow:
         ranges = [(config.force_min_n, config.force_max_n, "N")] * 2 + [
             (config.temp_min_c, config.temp_max_c, "C")
         ]
+        frozen = [round(FROZEN_S * _NS)] * 2 + [None]  # the air's readings repeat as a matter of course
         self.gates = [
-            TopicGate(frame if check and frame else None, lo, hi, jump_ns, config.clock_jump_confirm)
-            for frame, (lo, hi, _) in zip(frames, ranges, strict=True)
+            TopicGate(frame if check and frame else None, lo, hi, jump_ns, config.clock_jump_confirm, fz)
+            for frame, (lo, hi, _), fz in zip(frames, ranges, frozen, strict=True)
         ]
         self.ledgers = [
             TopicLedger(key, gate.frame_id, rng)

@@ -15,6 +15,11 @@ Reasons counted at message level:
   messages were wild and are counted here. Also a single wild stamp ahead of the stream (see
   below).
 - ``late``: force stamp in a window already closed (counted by the shadow).
+- ``frozen`` (force topics): the same value repeated more than ``FROZEN_REPEATS`` times and for
+  longer than ``FROZEN_S`` since the run of it began: a channel that stopped while its logger
+  holds the last reading (a data logger's sample-and-hold when a load cell drops out), not a
+  load. The run's first ``FROZEN_S`` are taken (nothing tells it apart yet), every later repeat
+  is rejected.
 
 A single wild stamp costs that one message only. A stamp that steps forward more than
 ``GAP_FACTOR`` times the topic's previous step (a gap in the data, or one glitched stamp, say
@@ -37,7 +42,7 @@ from collections import Counter
 
 import numpy as np
 
-__all__ = ["GAP_FACTOR", "MESSAGE_REASONS", "REASONS", "TopicGate"]
+__all__ = ["FROZEN_REPEATS", "FROZEN_S", "GAP_FACTOR", "MESSAGE_REASONS", "REASONS", "TopicGate"]
 
 #: The rejection reasons of single messages (the gate's and the late-arrival check), in report order.
 MESSAGE_REASONS: tuple[str, ...] = (
@@ -48,7 +53,17 @@ MESSAGE_REASONS: tuple[str, ...] = (
     "out_of_order",
     "clock_jump",
     "late",
+    "frozen",
 )
+#: A force value repeated unchanged for longer than this is a stopped channel [s]. The public
+#: records repeat a value for at most 4 samples (40 ms at 100 Hz; some 2 % of their samples repeat
+#: the one before: a slower channel's sample-and-hold); a load cell's noise (60-80 N per sample)
+#: makes a run of identical readings over seconds a logger holding its last value. Ten seconds
+#: keep any sample-and-hold of a live channel (a 1 Hz logger's ten readings) and cost a stopped
+#: one its first ten seconds.
+FROZEN_S = 10.0
+#: ... and more often than this: a few repeats across a jump of the stamps are no run of seconds.
+FROZEN_REPEATS = 10
 #: A forward step larger than this many times the topic's previous one is held until the next
 #: message shows whether it was a real gap or a wild stamp (the bundled and real records step
 #: evenly: the largest ratio of two consecutive steps outside gaps is below 2).
@@ -80,8 +95,20 @@ class TopicGate:
 
     """
 
-    def __init__(self, frame_id: str | None, lo: float, hi: float, jump_ns: int, confirm: int) -> None:
+    def __init__(
+        self,
+        frame_id: str | None,
+        lo: float,
+        hi: float,
+        jump_ns: int,
+        confirm: int,
+        frozen_ns: int | None = None,
+    ) -> None:
         self.frame_id = frame_id
+        self.frozen_ns = frozen_ns
+        self.run_value = float("nan")  # the value of the current run of repeats, since when, how many
+        self.run_since_ns = 0
+        self.run_count = 0
         self.lo, self.hi = float(lo), float(hi)
         self.jump_ns = int(jump_ns)
         self.confirm = int(confirm)
@@ -129,12 +156,40 @@ class TopicGate:
             if bad:
                 counts["frame_id"] += bad
             ok &= good_frame
+        if self.frozen_ns is not None:
+            idx = np.flatnonzero(ok)
+            if len(idx):
+                frozen = self._frozen(stamps[idx], vals[idx])
+                bad = int(np.count_nonzero(frozen))
+                if bad:
+                    counts["frozen"] += bad
+                    ok[idx[frozen]] = False
         idx = np.flatnonzero(ok)
         if not len(idx):
             return ok
         keep = self._decide(stamps[idx], vals[idx], clock_ns, counts)
         ok[idx[~keep]] = False
         return ok
+
+    def _frozen(self, s: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Mark the messages that repeat their run's value longer than ``frozen_ns`` after its start.
+
+        Runs are read in arrival order and carried across calls (``run_value``, ``run_since_ns``),
+        so the result does not depend on the chunking.
+        """
+        new = np.empty(len(v), bool)
+        new[0] = not v[0] == self.run_value  # NaN never repeats
+        new[1:] = v[1:] != v[:-1]
+        starts = np.flatnonzero(new)
+        run = np.cumsum(new) - 1  # -1: the run carried from the last call
+        first = starts[np.maximum(run, 0)] if len(starts) else np.zeros(len(v), np.int64)
+        carried = run < 0
+        since = np.where(carried, self.run_since_ns, s[first])
+        count = np.where(carried, self.run_count + np.arange(1, len(v) + 1), np.arange(len(v)) - first + 1)
+        self.run_since_ns, self.run_count = int(since[-1]), int(count[-1])
+        self.run_value = float(v[-1])
+        assert self.frozen_ns is not None
+        return ((s - since) > self.frozen_ns) & (count > FROZEN_REPEATS)
 
     def _decide(
         self, s: np.ndarray, v: np.ndarray, clock_ns: tuple[int, int] | None, counts: Counter
@@ -286,6 +341,9 @@ class TopicGate:
             "has_held": self.held_ns is not None,
             "held_ns": -1 if self.held_ns is None else self.held_ns,
             "held_value": self.held_value,
+            "run_value": self.run_value,
+            "run_since_ns": self.run_since_ns,
+            "run_count": self.run_count,
         }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
@@ -300,3 +358,6 @@ class TopicGate:
         self.held_value = float(state["held_value"]) if held else float("nan")  # type: ignore[arg-type]
         self._held_index = -1
         self._released = []
+        self.run_value = float(state.get("run_value", float("nan")))  # type: ignore[arg-type]
+        self.run_since_ns = int(state.get("run_since_ns", 0))  # type: ignore[call-overload]
+        self.run_count = int(state.get("run_count", 0))  # type: ignore[call-overload]
