@@ -299,8 +299,9 @@ def warnings(shadow: Shadow) -> list[str]:
             how = f"{c.windows} windows until {until}, used as data of the current state"
         else:
             since = "since" if c.next_ns is None else f"before the next state from {iso_utc(c.next_ns)}"
+            windows = f"{c.windows} window{'s' if c.windows != 1 else ''}"
             how = (
-                f"probability {c.change_probability:.3g}, {c.windows} windows {since}; "
+                f"probability {c.change_probability:.3g}, {windows} {since}; "
                 "the posterior weighs it by that probability"
             )
         out.append(f"unconfirmed settlement change at {iso_utc(c.time_ns)} ({where}): {size} ({how})")
