@@ -128,9 +128,9 @@ def _state_bounds(
     levels = []
     for a, b in itertools.pairwise(bounds):
         sel = [(s >= a) & (s < b) for s in stamps]
-        total = _bin_total(
+        _, total = _bin_total(
             [s[m] for s, m in zip(stamps, sel, strict=True)], [v[m] for v, m in zip(values, sel, strict=True)]
-        )[2]
+        )
         levels.append(float(np.nanmin(total)) if np.any(np.isfinite(total)) else np.nan)
     kept = [bounds[0]]
     level = levels[0]  # the stretch's car-free level so far: its lowest piece (a piece may be all car)
@@ -144,15 +144,13 @@ def _state_bounds(
     return [*kept, bounds[-1]]
 
 
-def _bin_total(
-    stamps: list[np.ndarray], values: list[np.ndarray]
-) -> tuple[int, list[np.ndarray], np.ndarray]:
-    """1 s bins from the first stamp: (first stamp, bin index per sample, sum of the channels' bin means)."""
+def _bin_total(stamps: list[np.ndarray], values: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray]:
+    """1 s bins from the first stamp: (bin index of each sample, sum of the channels' bin means)."""
     t0 = min(int(s[0]) for s in stamps)
     n = (max(int(s[-1]) for s in stamps) - t0) // BIN_NS + 1
     idx = [(s - t0) // BIN_NS for s in stamps]
     total = sum(window_stats(i, v, n).mean for i, v in zip(idx, values, strict=True))  # NaN: a channel empty
-    return t0, idx, total
+    return idx, total
 
 
 def _screen_piece(
@@ -165,7 +163,7 @@ def _screen_piece(
     """Screen one continuous piece of a record (``screen_record``)."""
     if any(not len(s) for s in stamps):
         return [np.ones(len(s), bool) for s in stamps]
-    _, idx, total = _bin_total(stamps, values)
+    idx, total = _bin_total(stamps, values)
     cut = _screen_bins(total, threshold_n, round(margin_s * 1e9 / BIN_NS), vehicle_max_n).cut
     return [~cut[i] for i in idx]
 
