@@ -56,7 +56,7 @@ MESSAGE_REASONS: tuple[str, ...] = (
     "frozen",
 )
 #: A force value repeated unchanged for longer than this is a stopped channel [s]. The public
-#: records repeat a value for at most 4 samples (40 ms at 100 Hz; some 2 % of their samples repeat
+#: records repeat a value for at most 4 samples (40 ms at 100 Hz; 0.7-0.8 % of their samples repeat
 #: the one before: a slower channel's sample-and-hold); a load cell's noise (60-80 N per sample)
 #: makes a run of identical readings over seconds a logger holding its last value. Ten seconds
 #: keep any sample-and-hold of a live channel (a 1 Hz logger's ten readings) and cost a stopped
