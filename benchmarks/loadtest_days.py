@@ -77,6 +77,8 @@ W = 60 * 10**9
 #: Length of one public record (12 minutes) and a margin, ns.
 RECORD_NS = 13 * W
 PLACES = {"1.25 h": (1.25, None), "3.5 h": (3.5, None), "4 h": (4.0, 6.5), "24 h": (24.0, 7.5)}
+#: The placements of the defect studies (pauses, a silent or creeping cell): an hour on, and hours.
+NEAR_AND_FAR = {name: PLACES[name] for name in ("1.25 h", "4 h")}
 STEPS = {
     "0": (0.0, 0.0),
     "10": (-0.01, -0.01),
@@ -303,7 +305,7 @@ def pause_streams() -> Iterator[tuple[str, list[Piece]]]:
     """
     for later, (place, (at, temp_at)), pause, start, in_pause in itertools.product(
         ("ref", "lowered"),
-        {"1.25 h": (1.25, None), "4 h": (4.0, 6.5)}.items(),
+        NEAR_AND_FAR.items(),
         (1, 2, 4, 8),
         (2, 4, 6),
         (False, True),
@@ -330,7 +332,7 @@ def more_pause_streams() -> Iterator[tuple[str, list[Piece]]]:
     low = (-0.01, -0.01)
     for later, (place, (at, temp_at)), (p1, p2) in itertools.product(
         ("ref", "lowered"),
-        {"1.25 h": (1.25, None), "4 h": (4.0, 6.5)}.items(),
+        NEAR_AND_FAR.items(),
         (((2, 4), (7, 9)), ((3, 5), (6, 8)), ((4, 6), (8, 10))),
     ):
         ref_paused = [Piece("ref", 0.0, cut_min=(0, p1[0])), Piece("ref", 0.0, cut_min=(p1[1], 13))]
@@ -369,7 +371,7 @@ def pause_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
     later_records = [
         (f"ref, {later} at {place}", [Piece("ref", 0.0), Piece(later, at, (-0.01, -0.01), temp_at)])
         for later in ("ref", "lowered")
-        for place, (at, temp_at) in {"1.25 h": (1.25, None), "4 h": (4.0, 6.5)}.items()
+        for place, (at, temp_at) in NEAR_AND_FAR.items()
     ]
     items = [
         (

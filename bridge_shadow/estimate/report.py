@@ -7,7 +7,6 @@ Plain functions of a ``Shadow`` (SI units; text for people only in the messages)
 
 from __future__ import annotations
 
-import dataclasses
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -132,8 +131,9 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         k = f.starts[s]
         gap = gap_s.get(s, 0.0)
         nxt = f.starts[s + 1] * shadow._w_ns if s + 1 < len(f.starts) else None
-        record = ChangeRecord(k, k * shadow._w_ns, f.kinds[s], float(prob), int(n), size, cov, gap)
-        out.append(dataclasses.replace(record, next_ns=nxt))
+        out.append(
+            ChangeRecord(k, k * shadow._w_ns, f.kinds[s], float(prob), int(n), size, cov, gap, next_ns=nxt)
+        )
     a_inv = np.linalg.inv(shadow.A)
     for r in shadow.unconfirmed_runs:  # runs used as data: their change read through A
         size = a_inv @ np.asarray(r["step_n"], float)

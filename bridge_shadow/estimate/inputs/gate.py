@@ -92,6 +92,9 @@ class TopicGate:
         pending: messages held after a forward jump beyond ``jump_ns``, waiting for confirmation
             (stamp, value, index in the current call's arrays or -1).
         held_ns, held_value: a message held after a large forward step (None: none held).
+        frozen_ns: how long one value may repeat before it is ``frozen`` (None: not checked);
+            run_value, run_since_ns, run_count: the current run of one value, its first stamp, its
+            length (carried across calls).
 
     """
 
@@ -159,7 +162,7 @@ class TopicGate:
         if self.frozen_ns is not None:
             idx = np.flatnonzero(ok)
             if len(idx):
-                frozen = self._frozen(stamps[idx], vals[idx])
+                frozen = self._frozen(stamps[idx], vals[idx], self.frozen_ns)
                 bad = int(np.count_nonzero(frozen))
                 if bad:
                     counts["frozen"] += bad
@@ -171,11 +174,11 @@ class TopicGate:
         ok[idx[~keep]] = False
         return ok
 
-    def _frozen(self, s: np.ndarray, v: np.ndarray) -> np.ndarray:
+    def _frozen(self, s: np.ndarray, v: np.ndarray, frozen_ns: int) -> np.ndarray:
         """Mark the messages that repeat their run's value longer than ``frozen_ns`` after its start.
 
-        Runs are read in arrival order and carried across calls (``run_value``, ``run_since_ns``),
-        so the result does not depend on the chunking.
+        Runs are read in arrival order and carried across calls (``run_value``, ``run_since_ns``,
+        ``run_count``), so the result does not depend on the chunking.
         """
         new = np.empty(len(v), bool)
         new[0] = not v[0] == self.run_value  # NaN never repeats
@@ -188,8 +191,7 @@ class TopicGate:
         count = np.where(carried, self.run_count + np.arange(1, len(v) + 1), np.arange(len(v)) - first + 1)
         self.run_since_ns, self.run_count = int(since[-1]), int(count[-1])
         self.run_value = float(v[-1])
-        assert self.frozen_ns is not None
-        return ((s - since) > self.frozen_ns) & (count > FROZEN_REPEATS)
+        return ((s - since) > frozen_ns) & (count > FROZEN_REPEATS)
 
     def _decide(
         self, s: np.ndarray, v: np.ndarray, clock_ns: tuple[int, int] | None, counts: Counter
