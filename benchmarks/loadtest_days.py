@@ -71,7 +71,7 @@ from bridge_shadow.paths import config_file, shared_data_dir
 from bridge_shadow.series import ForceSeries, MonitoringData
 from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
 from bridge_shadow.twin.loadtest_score import score_day, score_stream
-from bridge_shadow.twin.real_records import Piece, build
+from bridge_shadow.twin.real_records import Piece, build, with_creep
 
 W = 60 * 10**9
 #: Length of one public record (12 minutes) and a margin, ns.
@@ -162,27 +162,6 @@ def without_car(data: MonitoringData, starts_ns: list[int]) -> MonitoringData:
 
 
 AS_BUILT = config_file("surrogate_fe.yaml")
-
-
-#: The 10 mm record's own creep over its minutes, south / north (N/s): its car-free windows rise
-#: by about 0.05 / 0.1 kN a minute (0.6 / 1.2 kN over the record); the reference record's north
-#: stays within 0.1 kN.
-CREEP_N_PER_S = np.array([50.0, 100.0]) / 60.0
-
-
-def with_creep(
-    data: MonitoringData, starts_ns: list[int], changed: list[int], factor: float
-) -> MonitoringData:
-    """Add ``factor`` times ``CREEP_N_PER_S`` from the first sample of each changed record to its end."""
-    forces = {}
-    for c, (ch, s) in enumerate(data.forces.items()):
-        add = np.zeros(len(s.stamp_ns))
-        for i in changed:
-            end = starts_ns[i + 1] if i + 1 < len(starts_ns) else np.iinfo(np.int64).max
-            inside = (s.stamp_ns >= starts_ns[i]) & (s.stamp_ns < end)
-            add[inside] = factor * CREEP_N_PER_S[c] * (s.stamp_ns[inside] - starts_ns[i]) / 1e9
-        forces[ch] = ForceSeries(s.stamp_ns, s.force_n + add, s.frame_id)
-    return MonitoringData(forces, data.temperature)
 
 
 def with_silence(

@@ -387,6 +387,8 @@ OTHER_VALUES: dict[str, Any] = {
     "sun_gradient": True,
     "sun_gradient_prior_mean_k": 2.0,
     "sun_gradient_prior_sd_k": 5.0,
+    "relaxation_phi0": 1.5,
+    "relaxation_horizon_s": 600.0,
     "warmup_windows": 4,
     "refit_windows": 30,
     "lambda_reselect_growth": 1.5,

@@ -52,7 +52,7 @@ def run(
         for k in d.accept_before:
             verdict.setdefault(k, "accept")
             segment.append(k)
-        for kind, run_ in (("event", d.event), ("change", d.change)):
+        for kind, run_ in (("change", d.change), ("event", d.event)):  # in window order
             if run_:
                 if kind == "event":
                     events.append((run_[0], d.glr))
@@ -153,6 +153,32 @@ def test_a_run_that_stays_away_at_the_end_or_before_a_gap_is_never_rejected() ->
                 assert [k for k, _ in events][:1] == [400]
             else:  # too short to confirm: an unconfirmed change, reported (never outliers)
                 assert held == ["change"] * n_after, (n_after, gap, held)
+
+
+def test_the_windows_that_stayed_away_before_an_events_change_time_are_never_outliers() -> None:
+    """Held windows right before an event's change time that did not come back are not outliers.
+
+    Two windows at a state of their own (a first step, too short to confirm) are an unconfirmed
+    change before the event; one window between the old state and the new (the step happened
+    inside it) holds both and is neither state. Both were rejected as outliers before: found on
+    real records with two settlements minutes apart inside one record.
+    """
+    v = ar1(400, 4)
+    v[200:202] += [-20.0, -20.0]  # a first state, two windows
+    v[202:] += [-60.0, -60.0]
+    verdict, events = run(v)
+    assert [k for k, _ in events] == [202]
+    assert [verdict[k] for k in (200, 201)] == ["change", "change"]
+    v = ar1(400, 4)
+    v[200] += [-15.0, -15.0]  # the step inside window 200, a quarter of it
+    v[201:] += [-60.0, -60.0]
+    verdict, events = run(v)
+    assert [k for k, _ in events] == [201] and verdict[200] == "moving"
+    v = ar1(400, 4)
+    v[200] += [40.0, 40.0]  # one wild window the other way, then the step: an outlier as any
+    v[201:] += [-60.0, -60.0]
+    verdict, events = run(v)
+    assert [k for k, _ in events] == [201] and verdict[200] == "reject"
 
 
 def test_the_jump_rule_keeps_a_misjudged_noise_scale_from_raising_events(monkeypatch) -> None:

@@ -70,6 +70,7 @@ from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.estimate.report import NOISE_FULL_DAY_S
 from bridge_shadow.estimate.result import ChangeRecord, EventRecord, ReplayResult, WindowOutput
 from bridge_shadow.estimate.settlement.prior import configured_prior_sigma, prior_sigma
+from bridge_shadow.estimate.settlement.relaxation import relaxation_variance
 from bridge_shadow.estimate.settlement.segments import SegmentChain
 from bridge_shadow.estimate.small import congruence, quad_inv
 from bridge_shadow.estimate.state.checkpoint import restore, save_state
@@ -83,6 +84,8 @@ _NS = 1_000_000_000
 #: Windows whose curve values are computed together after a refit (the next refit is at least
 #: ``refit_windows`` accepted windows away).
 _CURVE_BLOCK = 64
+#: Segment kinds that begin with a change of the supports (the reactions may relax after it).
+_CHANGES = frozenset({"event", "gap", "held_run", "warmup"})
 #: A refit comes early when a window's temperature lies this far outside the fitted range (K).
 _RANGE_MARGIN_K = 0.5
 #: Rejected windows (time and reason) kept for ``/diagnostics``; replay lists every one.
@@ -228,6 +231,8 @@ class Shadow:
         self._first_ns: int | None = None
         self._last_judged = -1
         self._last_ok: Window | None = None  # the last window used (the jump test's reference)
+        #: the change that began the current state: (its first window, A dx south, north in N)
+        self._relax: tuple[int, float, float] | None = None
 
     # -- input ------------------------------------------------------------------------------
     @property
@@ -651,6 +656,9 @@ class Shadow:
         apa = congruence(self._af, self.filter.predict_floats()[1])
         gv = w.gvar  # the curve's own uncertainty (large beyond the temperatures seen so far)
         apa = (apa[0] + gv[0], apa[1] + gv[1], apa[2] + gv[2])
+        rl = self._relaxation(w.k)
+        if rl is not None:  # the reactions may still relax after the change that began this state
+            apa = (apa[0] + rl[0], apa[1] + rl[1], apa[2] + rl[2])
         r_window = self.noise.window_floats(float(w.samples[0]), float(w.samples[1]))
         if not self.config.event_detection:
             infl = self.detector.inflation
@@ -658,6 +666,30 @@ class Shadow:
             w.action = "reject" if quad_inv(total, v) > self.detector.h_outlier else "accept"
             return
         self._apply(self.detector.step(w.k, v, r_window, apa, w))
+
+    def _relaxation(self, k: int) -> tuple[float, float, float] | None:
+        """Variance (N^2) the reactions may have relaxed by at window ``k`` since the current state began.
+
+        ``settlement.relaxation``: the change ``A dx`` that opened the current segment (noted at its
+        first window, ``_note_change``) times the creep coefficient at ``k``, within
+        ``relaxation_horizon_s`` of the segment's first window; None otherwise.
+        """
+        rl = self._relax
+        if rl is None or rl[0] != self.filter.starts[-1]:
+            return None
+        t = (k - rl[0] + 0.5) * self.config.window_s
+        if t > self.config.relaxation_horizon_s:
+            return None
+        return relaxation_variance((rl[1], rl[2]), t, self.config.relaxation_phi0)
+
+    def _note_change(self) -> None:
+        """At a changed segment's first window, keep its change ``A dx`` (N) for ``_relaxation``."""
+        f = self.filter
+        if self.config.relaxation_phi0 <= 0 or f.current_windows != 1 or f.kinds[-1] not in _CHANGES:
+            return
+        d0, d1 = f.level_change()
+        a = self._af
+        self._relax = (f.starts[-1], a[0] * d0 + a[1] * d1, a[2] * d0 + a[3] * d1)
 
     def _apply(self, decision: Decision) -> list[WindowOutput]:
         """Mark held windows with the detector's verdict (outputs follow in ``_drain``)."""
@@ -763,6 +795,7 @@ class Shadow:
         z = (float(w.force[0]) - self._u0f[0] - g0, float(w.force[1]) - self._u0f[1] - g1)
         if w.seg < 0 or w.seg == self.filter.segment:  # a warm-up window of an earlier segment is in the sums
             self.filter.accept(w.samples, z)
+            self._note_change()
             if self.filter.provisional:
                 self._settle_provisional(w.k)  # a confirmation is noted at once (merges at refits)
         self._last_ok = w

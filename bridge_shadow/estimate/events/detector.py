@@ -417,16 +417,44 @@ class ChangeDetector:
             before, moving, after, step = self._split_run(split)
         self.pending = []
         self.n_events += 1
+        before, away = self._away_tail(before)
+        change: list[Any] | None = None
+        if len(away) == 1 and self._between(away[0], step):
+            moving = away + moving  # the step happened inside it: it holds both states
+        elif len(away) > 1:
+            change = [p.payload for p in away]  # a state of its own before the event's
+        else:
+            before = before + away  # one odd window: an outlier, as any
         reject, ordinary = self._split_ordinary(before)
         self.prev = None  # innovations after the event refer to a new estimate
         return Decision(
             reject=reject,
             accept_before=ordinary,
             event=[p.payload for p in after],
+            change=change,
             step_n=step,
             glr=c.glr,
             moving=[p.payload for p in moving],
         )
+
+    def _away_tail(self, items: list[Pending]) -> tuple[list[Pending], list[Pending]]:
+        """Split held windows before a change time into (the rest, the last ones beyond ``h_outlier``).
+
+        The windows right before an event's change time that stayed away from the old state (none
+        of them back within ``h_outlier``) did not come back: they are not outliers, which are
+        short excursions that come back (``_event``).
+        """
+        n = len(items)
+        while n and self._d2(items[n - 1], np.zeros(2)) > self.h_outlier:
+            n -= 1
+        return items[:n], items[n:]
+
+    def _between(self, item: Pending, step: np.ndarray) -> bool:
+        """Whether a window's innovation lies between no change and ``step`` (a step inside it)."""
+        S = item.r_window + item.apa
+        w = np.linalg.solve(S, step)
+        denom = float(step @ w)
+        return denom > 0 and 0.0 < float(item.v @ w) / denom < 1.0
 
     def _remember(self, k: int, v: Vec) -> None:
         """Keep an ordinary window's innovation for the ramp rule (the history restarts with ``prev``)."""

@@ -306,6 +306,11 @@ class SegmentChain:
             return float("nan")
         return self._p if self.provisional else 1.0
 
+    def level_change(self) -> Vec:
+        """Return the current level less the one before the current segment opened (m; NaN for the first)."""
+        (b0, b1), _ = self._before
+        return (self._x[0] - b0, self._x[1] - b1)
+
     @property
     def current_windows(self) -> int:
         """Windows in the current segment (online count)."""

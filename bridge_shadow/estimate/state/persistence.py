@@ -177,6 +177,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "recent_rejected": json.dumps(list(shadow.recent_rejected)),
         "traffic_windows": json.dumps(shadow.traffic_windows),
         "silence": json.dumps(shadow.silence.state_dict()),
+        "relax": json.dumps(shadow._relax),
         "scalars": {
             "last_usable_k": _opt(shadow._last_usable_k),
             "n_windows": shadow.n_windows,
@@ -315,6 +316,9 @@ def restore_shadow(
     shadow.traffic_windows = [[int(v) for v in row] for row in json.loads(str(state["traffic_windows"]))]
     if "silence" in state:  # checkpoints written before the silence was followed have none
         shadow.silence.load_state_dict(json.loads(str(state["silence"])))
+    if "relax" in state:  # checkpoints written before the relaxation allowance have none
+        rl = json.loads(str(state["relax"]))
+        shadow._relax = None if rl is None else (int(rl[0]), float(rl[1]), float(rl[2]))
     sc = state["scalars"]
     shadow._last_usable_k = _unopt(sc["last_usable_k"])
     shadow.n_windows = int(sc["n_windows"])
