@@ -354,3 +354,39 @@ def test_real_records_five_weeks_apart_keep_the_lowering_with_the_sun_term(munic
     prior_sd = load_config().sun_gradient_prior_sd_k
     for ch in ("frc_01", "frc_02"):
         assert on.spline_info()[ch]["sun_gradient_sd_k"] <= 1.05 * prior_sd
+
+
+@pytest.mark.realdata
+def test_the_morning_pair_fits_no_negative_sun_and_ends_where_it_does_without_the_term(
+    munich_data: Path, monkeypatch
+) -> None:
+    """``g >= 0`` (``Compensation._sun_heats_only``): the sun only warms the deck's top.
+
+    The two morning records say next to nothing of the sun; unconstrained, their 28 minutes fit
+    ``g`` at about -3.5 / -2.2 K, a sign no sun gives, and the pair read -11.0 / -11.5 mm. Held at
+    the bound, the pair ends where it does without the term, the interval wider by the sun's prior.
+    """
+    from bridge_shadow.importers import import_csv
+
+    folder = munich_data / "Settlements"
+    april, _ = import_csv(
+        [
+            folder / "UniBw_2022-04-11_ref_support_load_01ForceAt100Hz.csv.zip",
+            folder / "UniBw_2022-04-11_support_load_01ForceAt100Hz.csv.zip",
+            folder / "TemperatureData2022-04-11.zip",
+        ]
+    )
+
+    def run(term: bool) -> tuple[Shadow, object]:
+        shadow = Shadow(load_config().replace(sun_gradient=term), load_surrogate())
+        return shadow, shadow.run(april)
+
+    (on, res), (_, off) = run(True), run(False)
+    assert all(on.spline_info()[ch]["sun_gradient_k"] == 0.0 for ch in ("frc_01", "frc_02"))
+    np.testing.assert_allclose(res.mean_m, off.mean_m, atol=2e-4)
+    assert len(res.events) == 1 and res.rejected["outlier"] == 0
+    assert np.all(np.diag(res.covariance_m2) >= np.diag(off.covariance_m2))
+    monkeypatch.setattr(Compensation, "_sun_heats_only", lambda self, c, b, mat, rhs: b)
+    (free, res), _ = run(True), None
+    assert all(free.spline_info()[ch]["sun_gradient_k"] < -1.0 for ch in ("frc_01", "frc_02"))
+    assert np.all(res.mean_m < off.mean_m - 1e-3)  # the negative sun read as more settlement

@@ -334,7 +334,7 @@ def spline_info(shadow: Shadow) -> dict[str, dict[str, float]]:
             slope = float(comp.sun_slope[c])
             # with the noise's long-run (AR(1)) variance, as the levels' share of the curve takes it
             var = float(shadow.noise.long_run_cov()[c, c]) * float(fit.minv[c, -1, -1])
-            info[ch]["sun_gradient_k"] = float(fit.beta[c, -1]) / slope
+            info[ch]["sun_gradient_k"] = float(fit.beta[c, -1]) / slope + 0.0  # (no -0.0 at the bound)
             info[ch]["sun_gradient_sd_k"] = float(np.sqrt(max(var, 0.0))) / abs(slope)
     return info
 

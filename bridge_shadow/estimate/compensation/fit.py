@@ -127,7 +127,12 @@ class Compensation:
     the day's clearness, ``sunlight.SunCovariate``), its force ``gamma_c s(t)``,
     ``gamma_c = sun_slope_c g``.
     ``gamma`` is fitted with the curve, on the variation inside segments like it, under the prior
-    ``g ~ N(sun_prior_k)`` weighed like the slope prior (``sigma^2 / sd_gamma^2``). It is *not*
+    ``g ~ N(sun_prior_k)`` weighed like the slope prior (``sigma^2 / sd_gamma^2``), truncated at
+    ``g >= 0``: the sun drives only the top-warmer difference (EN 1991-1-5 6.1.4: the heating case
+    ``Delta T_M,heat`` is the solar one; the bottom-warmer ``Delta T_M,cool`` comes with the night
+    sky, when ``s`` is 0). The fit is that posterior's mode: where the unconstrained one has
+    ``g < 0`` the sun column is held at 0 and the rest refitted (``minv`` stays the unconstrained
+    fit's, so the curve's error keeps the sun's uncertainty: on the generous side). It is *not*
     centred: a level is the state without sun (the night), so the sun's mean over the data does
     not end up in the settlement. Days of monitoring fix ``gamma``; short records hours apart do
     not, and then the prior's spread reaches the level differences (``beta_variance_factor``).
@@ -270,7 +275,7 @@ class Compensation:
             rhs = rp
             chol = linalg.cho_factor(mat, lower=True, check_finite=False)
             sol = linalg.cho_solve(chol, np.column_stack([rhs, gw, np.eye(q)]), check_finite=False)
-            beta[c] = sol[:, 0]
+            beta[c] = self._sun_heats_only(c, sol[:, 0], mat, rhs) if self.sun else sol[:, 0]
             edf[c] = float(np.trace(sol[:, 1 : q + 1]))
             minv[c] = sol[:, q + 1 :]
         ws_all = np.where(used[:, None], sums.Ws, 1.0)
@@ -299,6 +304,18 @@ class Compensation:
         )
 
     # -- evaluation -------------------------------------------------------------------------------
+    def _sun_heats_only(self, c: int, b: np.ndarray, mat: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """Return channel ``c``'s coefficients ``b`` with ``g >= 0`` (the class docstring's truncation).
+
+        Where ``b``'s sun coefficient means ``g < 0``, the mode of the truncated posterior lies on
+        ``g = 0``: the other coefficients solve the system without the sun column.
+        """
+        if b[-1] * self.sun_slope[c] >= 0.0:
+            return b
+        out = np.zeros_like(b)
+        out[:-1] = linalg.solve(mat[:-1, :-1], rhs[:-1], assume_a="pos", check_finite=False)
+        return out
+
     def curve(self, fit: CompensationFit, temp_c: np.ndarray) -> np.ndarray:
         """Centred ``g(T)`` (n, 2) N at window temperatures (n, 2); 0 where T is unknown.
 
