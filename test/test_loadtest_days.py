@@ -210,8 +210,9 @@ def test_a_new_state_whose_reactions_creep_is_one_event(
 
     The 10 mm record's car-free windows rise by 0.05 / 0.1 kN a minute; here more (``with_creep``:
     1.5 and 2 times its own), or as they are after a second record of the old state. Without the
-    relaxation allowance the rise across the car's minutes was raised as a +0.2 to +0.5 mm event
-    and the lowering before it kept two windows, an unconfirmed change (pinned below).
+    relaxation allowance the rise across the car's minutes is raised as a +0.2 to +0.5 mm event
+    after the lowering's (pinned below; before ``SegmentChain.windows_changed`` the lowering then
+    kept two windows and stayed an unconfirmed change).
     """
     if name == "pair":
         pieces = [Piece("ref", 0.0), Piece("lowered", 0.73)]
@@ -222,8 +223,41 @@ def test_a_new_state_whose_reactions_creep_is_one_event(
     res = _one_event_at_the_later_record(sc, surrogate, len(pieces) - 1)
     assert not res.changes  # and no unconfirmed one
     off = Shadow(load_config().replace(relaxation_phi0=0.0), surrogate).run(sc.data)
-    assert len(off.events) == 1 and [c.kind for c in off.changes] == ["gap"]  # the split
-    assert off.events[0].time_ns > sc.starts_ns[-1] + 5 * W  # the creep's "event" after the car
+    assert len(off.events) == 2 and not off.changes  # the split: the lowering, and the creep
+    assert off.events[1].time_ns > sc.starts_ns[-1] + 5 * W  # the creep's "event" after the car
+    assert np.all(np.abs(off.events[1].size_m) < 1e-3)
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize(("size", "confirmed"), [(-0.003, True), (-0.01, False)])
+def test_a_change_left_by_a_further_step_after_two_windows_is_confirmed_by_the_state_after_it(
+    folder: Path, surrogate, size: float, confirmed: bool
+) -> None:
+    """The 10 mm record 1.25 h on (10 mm below the reference), lowered ``size`` more at minute 4.5.
+
+    The gap's change keeps two windows before the test car, and the further step comes while the
+    car stands: the change could not gather ``event_confirm_windows`` windows of its own and stayed
+    unconfirmed. The windows after the further step confirm it when they stay within half the
+    change of its state (``SegmentChain.windows_changed``): 3 mm more, yes; 10 mm more says nothing
+    of the first 10 mm, and it stays an unconfirmed change, reported with its probability.
+    """
+    pieces = [
+        Piece("ref", 0.0),
+        Piece("lowered", 1.25, (0.0, 0.0), cut_min=(0.0, 4.5)),
+        Piece("lowered", 1.25, (size, size), cut_min=(4.5, 13.0)),
+    ]
+    sc = build(folder, surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    check(sc, res)
+    assert res.rejected["outlier"] == 0
+    start = sc.starts_ns[1]
+    later = [e for e in res.events if e.time_ns > start + 5 * W]
+    assert len(later) == 1 and np.all(np.abs(later[0].size_m - size) < 0.25 * abs(size))
+    first = [e for e in res.events if e.time_ns < start + W]
+    gap = [c for c in res.changes if c.kind == "gap"]
+    assert (len(first), len(gap)) == ((1, 0) if confirmed else (0, 1))
+    if not confirmed:
+        assert gap[0].change_probability > 0.99 and gap[0].next_ns == later[0].time_ns
 
 
 def _one_event_at_the_later_record(sc: Scenario, surrogate, at: int = 1) -> ReplayResult:

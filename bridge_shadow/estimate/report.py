@@ -66,9 +66,11 @@ def _segment_change(shadow: Shadow, s: int) -> tuple[np.ndarray, np.ndarray, flo
 
 def _confirmed(shadow: Shadow, s: int) -> bool:
     """Whether provisional segment ``s``'s change is confirmed now (reported as an event)."""
-    p, n = shadow.filter.segment_probability(s)
+    p, _ = shadow.filter.segment_probability(s)
     cfg = shadow.config
-    return n >= cfg.event_confirm_windows and p >= cfg.change_confirm_probability
+    if p < cfg.change_confirm_probability:
+        return False
+    return shadow.filter.windows_changed(s) >= cfg.event_confirm_windows
 
 
 def _provisional(shadow: Shadow) -> list[int]:

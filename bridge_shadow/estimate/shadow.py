@@ -585,7 +585,8 @@ class Shadow:
     def _settle_provisional(self, now_k: int, merge: bool = False) -> bool:
         """Note provisional segments the data have decided; merge the unchanged ones; True if merged.
 
-        With at least ``event_confirm_windows`` windows, a change probability of at least
+        With at least ``event_confirm_windows`` windows (``SegmentChain.windows_changed``: its own
+        and those after it that stayed with the change), a change probability of at least
         ``change_confirm_probability`` confirms the change (it is reported as an event from then
         on, with ``now_k`` as the window that confirmed it; the posterior stays the mixture, which
         by then is the new state's). With ``merge`` (at refits), one of at most
@@ -603,13 +604,28 @@ class Shadow:
         for s in range(len(f.starts) - 1, 0, -1):
             if not 0.0 < f.change_prior[s] < 1.0:
                 continue
-            p, n = f.segment_probability(s)
-            if p >= cfg.change_confirm_probability and n >= cfg.event_confirm_windows:
+            p, _ = f.segment_probability(s)
+            if p >= cfg.change_confirm_probability and f.windows_changed(s) >= cfg.event_confirm_windows:
                 self.confirmed_at.setdefault(f.starts[s], int(now_k))
             elif merge and p <= 1.0 - cfg.change_confirm_probability:
                 self._merge_segment(s)
                 return True  # the chain is stale now: refit before judging the next one
         return False
+
+    def _confirm_previous(self, now_k: int) -> None:
+        """Note the confirmation of the provisional segment before the current one by the windows after it.
+
+        ``SegmentChain.windows_changed``: a change too short to confirm on its own windows is
+        confirmed when the state after it stays away from the one before it (here, with no
+        provisional segment open, only the segment before the current one can still be).
+        """
+        f, cfg = self.filter, self.config
+        s = len(f.starts) - 2
+        if s <= 0 or not 0.0 < f.change_prior[s] < 1.0 or f.starts[s] in self.confirmed_at:
+            return
+        p, _ = f.segment_probability(s)
+        if p >= cfg.change_confirm_probability and f.windows_changed(s) >= cfg.event_confirm_windows:
+            self.confirmed_at[f.starts[s]] = int(now_k)
 
     def _merge_segment(self, s: int) -> None:
         """Segment ``s`` did not change: its windows join segment ``s - 1`` (indices after it shift)."""
@@ -798,6 +814,8 @@ class Shadow:
             self._note_change()
             if self.filter.provisional:
                 self._settle_provisional(w.k)  # a confirmation is noted at once (merges at refits)
+            else:
+                self._confirm_previous(w.k)
         self._last_ok = w
         if add_rows:
             y = w.force - self.u0

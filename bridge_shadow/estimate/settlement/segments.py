@@ -362,6 +362,44 @@ class SegmentChain:
             return self.summaries[s].change_probability, self.summaries[s].windows
         return float("nan"), 0
 
+    def windows_changed(self, s: int) -> int:
+        """Windows from segment ``s``'s start on that stayed away from the state before it.
+
+        Its own windows, and those of the segments after it (up to the next gap) whose level lies
+        within half of ``s``'s change of ``s``'s own state along that change: closer to the step
+        than to no change (the detector's rule for a run that has not come back), and closer to it
+        than to a second step of its size (the windows of a much larger change after it say
+        nothing of a small one's). A change confirmed only
+        by its own windows waited for a state that a further change ended after two or three (a
+        lowering at a record's first minutes, a further one after the test car's).
+        """
+        if not 0 < s < len(self.starts):
+            return 0
+        current = len(self.starts) - 1
+        if s == current:
+            return self._online.n
+        if s >= len(self.summaries):
+            return 0
+        sm = self.summaries[s]
+        d = sm.x_data - sm.x_before
+        dd = float(d @ d)
+        n = sm.windows
+        if not np.isfinite(dd) or dd <= 0.0:
+            return n
+        for t in range(s + 1, current + 1):
+            if self.kinds[t] == "gap":
+                break
+            if t == current:
+                x_t, n_t = np.array(self._x), self._online.n
+            elif t < len(self.summaries):
+                x_t, n_t = self.summaries[t].x, self.summaries[t].windows
+            else:
+                break
+            if not 0.5 * dd <= float((x_t - sm.x_before) @ d) <= 1.5 * dd:
+                break
+            n += n_t
+        return n
+
     def remove_segment(self, s: int) -> None:
         """Drop the start of segment ``s`` (its windows belong to ``s - 1`` now); refresh after it."""
         if not 0 < s < len(self.starts):
