@@ -160,8 +160,8 @@ def test_the_windows_that_stayed_away_before_an_events_change_time_are_never_out
 
     Two windows at a state of their own (a first step, too short to confirm) are an unconfirmed
     change before the event; one window between the old state and the new (the step happened
-    inside it) holds both and is neither state. Both were rejected as outliers before: found on
-    real records with two settlements minutes apart inside one record.
+    inside it, for any part of it) holds both and is neither state. Both were rejected as
+    outliers before: found on real records with two settlements minutes apart inside one record.
     """
     v = ar1(400, 4)
     v[200:202] += [-20.0, -20.0]  # a first state, two windows
@@ -169,11 +169,16 @@ def test_the_windows_that_stayed_away_before_an_events_change_time_are_never_out
     verdict, events = run(v)
     assert [k for k, _ in events] == [202]
     assert [verdict[k] for k in (200, 201)] == ["change", "change"]
-    v = ar1(400, 4)
-    v[200] += [-15.0, -15.0]  # the step inside window 200, a quarter of it
-    v[201:] += [-60.0, -60.0]
-    verdict, events = run(v)
-    assert [k for k, _ in events] == [201] and verdict[200] == "moving"
+    for part in (0.25, 0.5, 0.75):  # the step inside window 200, this part of the window after it
+        v = ar1(400, 4)
+        v[200] += [-60.0 * part, -60.0 * part]
+        v[201:] += [-60.0, -60.0]
+        verdict, events = run(v)
+        assert [k for k, _ in events] == [201] and verdict[200] == "moving", part
+        # (at 0.75 the likeliest change time once took window 200 into the new state, which then
+        # failed the scatter test: the run was held to event_max_pending and used as data of the
+        # old state, the event 15 windows late; ``MIXED_PENALTY``)
+        assert "unconfirmed" not in verdict.values(), part
     v = ar1(400, 4)
     v[200] += [40.0, 40.0]  # one wild window the other way, then the step: an outlier as any
     v[201:] += [-60.0, -60.0]

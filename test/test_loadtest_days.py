@@ -585,7 +585,9 @@ def test_the_window_a_step_happened_in_is_no_state_and_raises_no_second_event(
     assert got["within"]
     assert res.rejected["step_window"] >= 1 and res.rejected["outlier"] == 0
     mixed = [o.end_ns // W - 1 for o in res.outputs if o.reason == "step_window"]
-    assert all(sc.starts_ns[3] // W == k for k in mixed)  # the window the second step fell in
+    assert sc.starts_ns[3] // W in mixed  # the window the second step fell in
+    # (the car leaving over minutes 4-7 moves the level inside a window too: that window may be
+    # read as one, ``MIXED_PENALTY``; it is never a state's only window)
     _every_state_keeps_a_window(sc, res)
 
 

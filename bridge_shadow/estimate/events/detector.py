@@ -64,6 +64,7 @@ __all__ = [
     "JUMP_LOOKAHEAD",
     "JUMP_MEMORY",
     "JUMP_OVER_SEEN",
+    "MIXED_PENALTY",
     "RAMP_HISTORY",
     "ChangeDetector",
     "Decision",
@@ -93,6 +94,18 @@ JUMP_MEMORY = 0.99
 #: support with jacks, a minute or two) shows fully in ``v_{j+2}``. Three windows cover both; the
 #: test ``test_a_two_window_ramp_needs_the_look_ahead`` pins it.
 JUMP_LOOKAHEAD = 3
+#: The price, in ``-2 log L``, of the fraction a step took of the window before a change time.
+#:
+#: Derivation: a change time ``j`` may come with the window before it holding the step for part of
+#: its length (a step inside a window: ``v = f step``, ``0 <= f <= 1``; the windows after it hold
+#: all of it). That reading has one parameter more than "the window before ``j`` is the old
+#: state", so it always fits at least as well; it is taken only when it fits better by more than
+#: the likelihood-ratio test of one parameter at the trigger's level allows (chi-square(1) at
+#: 0.999, 10.8). Without it, a step a quarter into a window made the likeliest change time the
+#: mixed window itself, whose scatter around the step fails the consistency test: the run waited
+#: for ``event_max_pending`` windows, was used as data of the old state, and the event came 15
+#: windows late (twin, one day at 1 Hz; ``test_estimate_events`` pins it).
+MIXED_PENALTY = float(stats.chi2.ppf(0.999, 1))
 #: Ordinary windows remembered before a run (the old state's differences, which the ramp rule of
 #: ``events.warmup`` measures a ramp in the run against: at least ``RAMP_MIN_REST`` and a few more).
 RAMP_HISTORY = 4
@@ -169,6 +182,7 @@ class _Candidate:
     jump: float
     cost: float  # -2 log-likelihood of the whole run with the change at j (up to a constant)
     n_after: int
+    mixed: bool = False  # the cost reads the window before j as holding part of the step
 
 
 class ChangeDetector:
@@ -260,6 +274,8 @@ class ChangeDetector:
             series = self._run_series()
             split = self._ramp_split(series)
             waiting = len(self.pending) < self.max_pending
+            if split is None and best.mixed and waiting and best.n_after < 2 * self.confirm:
+                return Decision()  # a window inside the step, or a ramp's last: the ramp rule looks first
             if split is not None and len(self.pending) - split[1] < self.confirm:
                 if waiting:
                     return Decision()  # a ramp ended: its new state needs its own windows first
@@ -380,8 +396,30 @@ class ChangeDetector:
             scatter = sum(self._d2(p, step) for p in self.pending[j:])
             bound = self._chi2_bound[min(nj - 1, len(self._chi2_bound) - 1)]
             cost = float(before[j] + scatter)  # windows before j at no change, from j on at the step
-            out.append(_Candidate(j, t, step, bool(scatter <= bound), self._jump(j), cost, nj))
+            inside = False
+            if j > 0:  # or the window before j held the step: part of it, at the fraction that fits
+                mixed = float(before[j - 1] + self._d2_inside(self.pending[j - 1], step) + MIXED_PENALTY)
+                inside = mixed + scatter < cost
+                cost = min(cost, mixed + scatter)
+            out.append(_Candidate(j, t, step, bool(scatter <= bound), self._jump(j), cost, nj, inside))
         return out
+
+    @staticmethod
+    def _d2_inside(item: Pending, step: np.ndarray) -> float:
+        """``d2(v, f step)`` at the ``f`` that fits, for a window the step happened inside.
+
+        Only a window between the two states (``0 < f < 1``) can have held the step for part of
+        its length; any other is infinitely unlikely under this reading (one beyond the step is
+        no mixture of the two states).
+        """
+        S = item.r_window + item.apa
+        w = np.linalg.solve(S, step)
+        denom = float(step @ w)
+        f = float(item.v @ w) / denom if denom > 0 else -1.0
+        if not 0.0 < f < 1.0:
+            return float("inf")
+        d = item.v - f * step
+        return float(d @ np.linalg.solve(S, d))
 
     def _best(self, cands: list[_Candidate]) -> _Candidate | None:
         """Return the most likely change time if it qualifies (None otherwise: wait, or unconfirmed)."""
@@ -518,11 +556,14 @@ class ChangeDetector:
             return Decision(accept_before=ordinary, change=run, moving=moved, **common)
         before, after = self.pending[: c.j], self.pending[c.j :]
         self.pending = []
+        moved = []
+        if provisional and c.mixed:  # the window before the change time held the step: neither state
+            moved, before = [before[-1].payload], before[:-1]
         ordinary = [p.payload for p in before]  # a run that stayed away loses no window
         run = [p.payload for p in after]
         if provisional:
             self.prev = None  # innovations after the change refer to a new estimate
-            return Decision(accept_before=ordinary, change=run, **common)
+            return Decision(accept_before=ordinary, change=run, moving=moved, **common)
         self.prev = after[-1]
         return Decision(accept_before=ordinary + run, unconfirmed=run, **common)
 
