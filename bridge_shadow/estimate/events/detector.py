@@ -24,10 +24,13 @@ freedom.
      autocorrelated noise drifts, a step jumps;
    - *event*: among the qualifying candidates, the change time is the one under which the whole
      run is most likely (windows before it scatter around no change, windows from it on around
-     the step: the smallest ``sum_{i<j} d2(v_i, 0) + sum_{i>=j} d2(v_i, step_j)``). Choosing the
-     change time and qualifying use the same criteria, so a run that qualifies is never lost to a
-     neighbouring start that does not. The windows from ``j*`` on start a new segment; windows
-     before it are handled as in *transient*;
+     the step: the smallest ``sum_{i<j} d2(v_i, 0) + sum_{i>=j} d2(v_i, step_j)``; the window just
+     before ``j`` may instead hold part of the step, ``MIXED_PENALTY``, and is then neither
+     state). Choosing the change time and qualifying use the same criteria, so a run that
+     qualifies is never lost to a neighbouring start that does not. The windows from ``j*`` on
+     start a new segment; windows before it are handled as in *transient*, but for the last ones
+     if they did not come back (two or more: an unconfirmed change of their own; one between the
+     states: the window the step happened in; never outliers);
    - *transient*: the latest window is back (closer to no change than to the step of the whole
      run): the earlier pending windows were a passing excursion, such as a test car. Those beyond
      ``h_outlier`` (``mahalanobis_probability``) are rejected as outliers, the others are ordinary
@@ -97,14 +100,17 @@ JUMP_LOOKAHEAD = 3
 #: The price, in ``-2 log L``, of the fraction a step took of the window before a change time.
 #:
 #: Derivation: a change time ``j`` may come with the window before it holding the step for part of
-#: its length (a step inside a window: ``v = f step``, ``0 <= f <= 1``; the windows after it hold
+#: its length (a step inside a window: ``v = f step``, ``0 < f < 1``; the windows after it hold
 #: all of it). That reading has one parameter more than "the window before ``j`` is the old
 #: state", so it always fits at least as well; it is taken only when it fits better by more than
 #: the likelihood-ratio test of one parameter at the trigger's level allows (chi-square(1) at
-#: 0.999, 10.8). Without it, a step a quarter into a window made the likeliest change time the
-#: mixed window itself, whose scatter around the step fails the consistency test: the run waited
-#: for ``event_max_pending`` windows, was used as data of the old state, and the event came 15
-#: windows late (twin, one day at 1 Hz; ``test_estimate_events`` pins it).
+#: 0.999, 10.8), and only after ``2 event_confirm_windows`` windows from ``j`` (the last window of
+#: a ramp over several reads the same way: the ramp rule, which needs the windows after the ramp,
+#: looks first; ``test_a_ramp_in_continuous_data...`` keeps its verdicts). Without it, a step a
+#: quarter into a window made the likeliest change time the mixed window itself, whose scatter
+#: around the step fails the consistency test: the run waited for ``event_max_pending`` windows,
+#: was used as data of the old state, and the event came 15 windows late (twin, three days at
+#: 1 Hz; ``test_estimate_events`` pins it).
 MIXED_PENALTY = float(stats.chi2.ppf(0.999, 1))
 #: Ordinary windows remembered before a run (the old state's differences, which the ramp rule of
 #: ``events.warmup`` measures a ramp in the run against: at least ``RAMP_MIN_REST`` and a few more).
@@ -405,21 +411,21 @@ class ChangeDetector:
         return out
 
     @staticmethod
-    def _d2_inside(item: Pending, step: np.ndarray) -> float:
+    def _fraction(item: Pending, step: np.ndarray) -> float:
+        """Return the part ``f`` of ``step`` that best explains a window's innovation (``v ~ f step``)."""
+        w = np.linalg.solve(item.r_window + item.apa, step)
+        denom = float(step @ w)
+        return float(item.v @ w) / denom if denom > 0 else float("nan")
+
+    def _d2_inside(self, item: Pending, step: np.ndarray) -> float:
         """``d2(v, f step)`` at the ``f`` that fits, for a window the step happened inside.
 
         Only a window between the two states (``0 < f < 1``) can have held the step for part of
         its length; any other is infinitely unlikely under this reading (one beyond the step is
         no mixture of the two states).
         """
-        S = item.r_window + item.apa
-        w = np.linalg.solve(S, step)
-        denom = float(step @ w)
-        f = float(item.v @ w) / denom if denom > 0 else -1.0
-        if not 0.0 < f < 1.0:
-            return float("inf")
-        d = item.v - f * step
-        return float(d @ np.linalg.solve(S, d))
+        f = self._fraction(item, step)
+        return self._d2(item, f * step) if 0.0 < f < 1.0 else float("inf")
 
     def _best(self, cands: list[_Candidate]) -> _Candidate | None:
         """Return the most likely change time if it qualifies (None otherwise: wait, or unconfirmed)."""
@@ -489,10 +495,7 @@ class ChangeDetector:
 
     def _between(self, item: Pending, step: np.ndarray) -> bool:
         """Whether a window's innovation lies between no change and ``step`` (a step inside it)."""
-        S = item.r_window + item.apa
-        w = np.linalg.solve(S, step)
-        denom = float(step @ w)
-        return denom > 0 and 0.0 < float(item.v @ w) / denom < 1.0
+        return 0.0 < self._fraction(item, step) < 1.0
 
     def _remember(self, k: int, v: Vec) -> None:
         """Keep an ordinary window's innovation for the ramp rule (the history restarts with ``prev``)."""
