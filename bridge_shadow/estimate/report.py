@@ -70,7 +70,8 @@ def _confirmed(shadow: Shadow, s: int) -> bool:
     cfg = shadow.config
     if p < cfg.change_confirm_probability:
         return False
-    return shadow.filter.windows_changed(s) >= cfg.event_confirm_windows
+    n = cfg.event_confirm_windows
+    return shadow.filter.windows_changed(s, n) >= n
 
 
 def _provisional(shadow: Shadow) -> list[int]:

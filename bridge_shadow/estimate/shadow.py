@@ -605,7 +605,8 @@ class Shadow:
             if not 0.0 < f.change_prior[s] < 1.0:
                 continue
             p, _ = f.segment_probability(s)
-            if p >= cfg.change_confirm_probability and f.windows_changed(s) >= cfg.event_confirm_windows:
+            n = cfg.event_confirm_windows
+            if p >= cfg.change_confirm_probability and f.windows_changed(s, n) >= n:
                 self.confirmed_at.setdefault(f.starts[s], int(now_k))
             elif merge and p <= 1.0 - cfg.change_confirm_probability:
                 self._merge_segment(s)
@@ -624,7 +625,8 @@ class Shadow:
         if s <= 0 or not 0.0 < f.change_prior[s] < 1.0 or f.starts[s] in self.confirmed_at:
             return
         p, _ = f.segment_probability(s)
-        if p >= cfg.change_confirm_probability and f.windows_changed(s) >= cfg.event_confirm_windows:
+        n = cfg.event_confirm_windows
+        if p >= cfg.change_confirm_probability and f.windows_changed(s, n) >= n:
             self.confirmed_at[f.starts[s]] = int(now_k)
 
     def _merge_segment(self, s: int) -> None:

@@ -362,14 +362,14 @@ class SegmentChain:
             return self.summaries[s].change_probability, self.summaries[s].windows
         return float("nan"), 0
 
-    def windows_changed(self, s: int) -> int:
+    def windows_changed(self, s: int, enough: int | None = None) -> int:
         """Windows from segment ``s``'s start on that stayed away from the state before it.
 
         Its own windows, and those of the segments after it (up to the next gap) whose level lies
         within half of ``s``'s change of ``s``'s own state along that change: closer to the step
         than to no change (the detector's rule for a run that has not come back), and closer to it
         than to a second step of its size (the windows of a much larger change after it say
-        nothing of a small one's). A change confirmed only
+        nothing of a small one's). Counting stops once it reaches ``enough``. A change confirmed only
         by its own windows waited for a state that a further change ended after two or three (a
         lowering at a record's first minutes, a further one after the test car's).
         """
@@ -387,7 +387,7 @@ class SegmentChain:
         if not np.isfinite(dd) or dd <= 0.0:
             return n
         for t in range(s + 1, current + 1):
-            if self.kinds[t] == "gap":
+            if self.kinds[t] == "gap" or (enough is not None and n >= enough):
                 break
             if t == current:
                 x_t, n_t = np.array(self._x), self._online.n
