@@ -33,10 +33,12 @@ false event, the final error and interval, and the ``g`` the term learns. ``--on
 fourth: the two real records minutes apart (one record for the traffic hold, a step inside the
 warm-up), cut to their first or last 6 minutes, small, raised and one-sided steps, and the day's
 four states, each in 30 s, 1 min and 2 min windows (``window_s``), scored as the real study.
-``--only creep`` is a fifth: the new state's reactions creeping after a lowering (``with_creep``:
-the 10 mm record's own rise of 0.05 / 0.1 kN a minute, added again up to three times) in the pair,
-the pair after a second quiet record of the old state, and the day's four records (every new
-state creeping more, or only the two after the 10 mm record). ``--only pauses`` is a sixth: the
+``--creep FACTOR`` lets the twin's new states creep as the real one does (``with_creep``,
+FACTOR times its rate). ``--only creep`` is a fifth: the new state's reactions creeping after a
+lowering (``with_creep``: the 10 mm record's own rise of 0.05 / 0.1 kN a minute, added again up to
+three times) in the pair, the pair after a second quiet record of the old state, and the day's
+four records (every new state creeping more, or only the two after the 10 mm record).
+``--only pauses`` is a sixth: the
 later record's logger silent for 1 to 8 minutes while the test car stands (``pause_streams``),
 then the reference record paused too, or the later record twice (``more_pause_streams``), and
 one load cell silent for minutes of the later record (``with_silence``).
@@ -46,7 +48,7 @@ Usage::
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200]
         [--only real|twin|continuous|minutes|creep|pauses]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term]
-        [--sun-prior MEAN SD] [--monitor-days N]
+        [--sun-prior MEAN SD] [--monitor-days N] [--creep FACTOR]
 
 Streams and seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers``
 processes, default one per core).
@@ -379,11 +381,15 @@ def creep_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
     print_streams(mapper(real_stream, items), f"new states creeping, {over}", t0)
 
 
-def twin_day(item: tuple[int, float, dict, float]) -> Any:
-    """Score one twin load-test day (a task)."""
-    seed, sun, over, monitor_days = item
+def twin_day(item: tuple[int, float, dict, float, float]) -> Any:
+    """Score one twin load-test day (a task); ``creep``: the new states creeping (``with_creep``)."""
+    seed, sun, over, monitor_days, creep = item
     sur = load_surrogate()
     data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun, monitor_days=monitor_days), sur)
+    if creep:
+        starts = [int(t) for t in truth["record_start_ns"]]
+        changed = [i + 1 for i, dx in enumerate(truth["steps_m"]) if np.any(np.asarray(dx) != 0.0)]
+        data = with_creep(data, starts, changed, creep)
     return score_day(Shadow(_config(over), sur).run(data), truth)
 
 
@@ -393,11 +399,12 @@ def twin_study(
     verbose: bool,
     over: dict[str, Any] | None = None,
     monitor_days: float = 0.0,
+    creep: float = 0.0,
 ) -> None:
     over = over or {}
     for sun in (4.0, 0.0):
         t0 = time.perf_counter()
-        scores = mapper(twin_day, [(seed, sun, over, monitor_days) for seed in range(seeds)])
+        scores = mapper(twin_day, [(seed, sun, over, monitor_days, creep) for seed in range(seeds)])
         for seed, s in enumerate(scores):
             if verbose or not s.passed:
                 err = np.round(1e3 * s.error_m, 2)
@@ -410,6 +417,7 @@ def twin_study(
         }
         err = np.array([s.error_m for s in scores]) * 1e3
         head = f"twin load-test day, sun {sun:g} K, {monitor_days:g} days monitored before, {over}"
+        head += f", new states creeping {creep:g} x the 10 mm record's rate" if creep else ""
         print(f"{head}: {seeds} seeds in {time.perf_counter() - t0:.0f} s")
         for label, r in rates.items():
             print(f"  {label:16s} {r:.3f}")
@@ -497,6 +505,13 @@ def main() -> None:
         default=0.0,
         help="twin study: days of continuous monitoring before the load-test day (default 0)",
     )
+    ap.add_argument(
+        "--creep",
+        type=float,
+        default=0.0,
+        help="twin study: each new state's reactions rise through its record at this many times the "
+        "real 10 mm record's own 0.05 / 0.1 kN a minute (with_creep; default 0: none)",
+    )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
     over: dict[str, Any] = {}
@@ -513,7 +528,7 @@ def main() -> None:
         if args.only in (None, "real"):
             real_study(mapper, args.verbose, args.car, over, args.u0)
         if args.only in (None, "twin"):
-            twin_study(mapper, args.seeds, args.verbose, over, args.monitor_days)
+            twin_study(mapper, args.seeds, args.verbose, over, args.monitor_days, args.creep)
         if args.only == "continuous":
             continuous_study(mapper, args.seeds)
         if args.only == "minutes":
