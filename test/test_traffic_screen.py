@@ -446,3 +446,24 @@ def test_a_second_vehicle_arriving_just_before_a_drop_is_cut_with_the_first() ->
             level = u0 - (10000.0 if k - k0 >= 6 else 0.0)
             assert np.all(np.abs(mean - level) < 100.0), (k - k0, mean - level)
     assert any(c.sum() for k, (_, _, c) in got.items() if 6 <= k - k0 <= 8)
+
+
+def test_the_first_baseline_starts_on_quiet_bins_not_on_a_noise_burst() -> None:
+    """``traffic.first_free``: a burst of sensor noise is no car-free level.
+
+    A 12-minute record of 1 s bins at 400 kN, a vehicle parked at +10 kN over minutes 3-8 and a
+    burst of noise (500 N per bin both ways) over minutes 1-3. The burst's lowest bins, a kN below
+    the car-free level, were the lowest fifth of the first half: a baseline started there sits
+    below every car-free bin. Started on quiet bins (``traffic.quiet``), it is the car-free level.
+    """
+    from bridge_shadow.estimate.inputs.traffic import first_free, quiet
+
+    rng = np.random.default_rng(3)
+    s = 400e3 + rng.normal(0.0, 20.0, 720)
+    s[180:480] += 10e3
+    s[60:180] += rng.normal(0.0, 500.0, 120)
+    calm = quiet(s, 300.0)
+    assert calm[:58].all() and calm[482:].all() and calm[60:180].mean() < 0.05
+    start = first_free(s, 300.0)
+    assert start.sum() > 50 and start[60:180].sum() <= 2
+    assert abs(np.median(s[start]) - 400e3) < 20.0

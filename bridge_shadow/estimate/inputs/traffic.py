@@ -286,10 +286,45 @@ def first_free(s: np.ndarray, threshold_n: float) -> np.ndarray:
     fifth's and the baseline.
     """
     out = np.zeros(len(s), bool)
+    calm = quiet(s, threshold_n)
     for part in np.array_split(np.flatnonzero(np.isfinite(s)), 2):
+        if calm[part].any():
+            part = part[calm[part]]
         if len(part):
             low = min(float(np.quantile(s[part], 0.2)), float(np.min(s[part])) + threshold_n)
             out[part[s[part] <= low]] = True
+    return out
+
+
+#: Bins with data on each side whose steps a quiet bin's neighbourhood spans (``quiet``).
+QUIET_REACH = 2
+
+
+def quiet(s: np.ndarray, threshold_n: float) -> np.ndarray:
+    """Return the bins whose neighbourhood moves by at most ``threshold_n`` a step (NaN: none).
+
+    The neighbourhood: ``QUIET_REACH`` bins with data on each side, every step between them.
+
+    A car-free bin is quiet: the load cells' noise moves a 1 s bin by tens of newtons, a vehicle
+    driving on or off by kilonewtons within seconds. A burst of sensor noise (a loose cable, a
+    failing amplifier: kilonewtons per sample) scatters its bins both ways; its lowest bins are no
+    car-free level, and a baseline started on them sits below every car-free bin, which the car
+    rule then flags as a vehicle, leaving the real one in the data. The first baseline is started
+    on quiet bins only (where there are any). One step each side would let a third of a white
+    burst's bins through (a step of its ``sqrt(2)`` times the bins' scatter stays under the
+    threshold that often); the neighbourhood's ``2 QUIET_REACH`` steps let about 1 % through.
+    """
+    out = np.zeros(len(s), bool)
+    idx = np.flatnonzero(np.isfinite(s))
+    if len(idx) < 2:
+        out[idx] = True
+        return out
+    loud = np.abs(np.diff(s[idx])) > threshold_n  # step i: between bins i and i + 1 (with data)
+    ok = np.ones(len(idx), bool)
+    for r in range(QUIET_REACH):  # the steps r before and r after each bin
+        ok[r + 1 :] &= ~loud[: len(loud) - r]
+        ok[: len(ok) - r - 1] &= ~loud[r:]
+    out[idx] = ok
     return out
 
 
