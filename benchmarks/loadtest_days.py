@@ -71,9 +71,9 @@ from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.paths import config_file, shared_data_dir
 from bridge_shadow.series import ForceSeries, MonitoringData
-from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
+from bridge_shadow.twin.loadtest import LoadTestDay, creeping, load_test_day
 from bridge_shadow.twin.loadtest_score import score_day, score_stream
-from bridge_shadow.twin.real_records import Piece, build, with_creep
+from bridge_shadow.twin.real_records import Piece, build, with_creep, with_silence
 
 W = 60 * 10**9
 #: Length of one public record (12 minutes) and a margin, ns.
@@ -164,17 +164,6 @@ def without_car(data: MonitoringData, starts_ns: list[int]) -> MonitoringData:
 
 
 AS_BUILT = config_file("surrogate_fe.yaml")
-
-
-def with_silence(
-    data: MonitoringData, start_ns: int, channel: int, a_min: float, b_min: float
-) -> MonitoringData:
-    """Drop load cell ``channel``'s samples over minutes ``[a_min, b_min)`` after ``start_ns``."""
-    forces = {}
-    for c, (ch, s) in enumerate(data.forces.items()):
-        gone = (c == channel) & (s.stamp_ns >= start_ns + a_min * W) & (s.stamp_ns < start_ns + b_min * W)
-        forces[ch] = ForceSeries(s.stamp_ns[~gone], s.force_n[~gone], s.frame_id[~gone])
-    return MonitoringData(forces, data.temperature)
 
 
 def real_stream(item: tuple[Any, ...]) -> tuple[str, list[bool], str, list[float]]:
@@ -387,9 +376,7 @@ def twin_day(item: tuple[int, float, dict, float, float]) -> Any:
     sur = load_surrogate()
     data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun, monitor_days=monitor_days), sur)
     if creep:
-        starts = [int(t) for t in truth["record_start_ns"]]
-        changed = [i + 1 for i, dx in enumerate(truth["steps_m"]) if np.any(np.asarray(dx) != 0.0)]
-        data = with_creep(data, starts, changed, creep)
+        data = creeping(data, truth, creep)
     return score_day(Shadow(_config(over), sur).run(data), truth)
 
 

@@ -19,9 +19,9 @@ import pytest
 from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.estimate.result import ReplayResult
 from bridge_shadow.model.surrogate_file import load_surrogate
-from bridge_shadow.series import ForceSeries, MonitoringData
+from bridge_shadow.series import MonitoringData
 from bridge_shadow.twin.loadtest_score import score_stream
-from bridge_shadow.twin.real_records import Piece, Scenario, build, with_creep
+from bridge_shadow.twin.real_records import Piece, Scenario, build, with_creep, with_silence
 
 W = 60 * 10**9
 #: (hour the later record is placed at, hour whose air temperature it gets; None: its own)
@@ -308,12 +308,7 @@ def test_one_load_cell_silent_over_the_records_car_free_minute_loses_nothing(
     now starts from no bin more than the threshold above the half's lowest (``first_free``).
     """
     sc = build(folder, surrogate.A, [Piece("ref", 0.0), Piece("ref", 1.25, (-0.01, -0.01))])
-    t1 = sc.starts_ns[1]
-    forces = {}
-    for c, (ch, s) in enumerate(sc.data.forces.items()):
-        gone = (c == channel) & (s.stamp_ns >= t1 + W) & (s.stamp_ns < t1 + 3 * W)
-        forces[ch] = ForceSeries(s.stamp_ns[~gone], s.force_n[~gone], s.frame_id[~gone])
-    sc.data = MonitoringData(forces, sc.data.temperature)
+    sc.data = with_silence(sc.data, sc.starts_ns[1], channel, 1.0, 3.0)
     _one_event_at_the_later_record(sc, surrogate)
 
 
@@ -377,13 +372,13 @@ def test_twin_load_test_days_find_every_step_and_keep_every_window(engine) -> No
 
 def _creeping_twin_day(item: tuple[int, float]):
     """Score one twin load-test day without sun whose new states creep as the real record (a task)."""
-    from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
+    from bridge_shadow.twin.loadtest import LoadTestDay, creeping, load_test_day
     from bridge_shadow.twin.loadtest_score import score_day
 
     seed, phi0 = item
     sur = load_surrogate()
     data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=0.0), sur)
-    data = with_creep(data, [int(t) for t in truth["record_start_ns"]], [1, 2, 3], 1.0)
+    data = creeping(data, truth, 1.0)
     return score_day(Shadow(load_config().replace(relaxation_phi0=phi0), sur).run(data), truth)
 
 

@@ -66,12 +66,8 @@ def _segment_change(shadow: Shadow, s: int) -> tuple[np.ndarray, np.ndarray, flo
 
 def _confirmed(shadow: Shadow, s: int) -> bool:
     """Whether provisional segment ``s``'s change is confirmed now (reported as an event)."""
-    p, _ = shadow.filter.segment_probability(s)
     cfg = shadow.config
-    if p < cfg.change_confirm_probability:
-        return False
-    n = cfg.event_confirm_windows
-    return shadow.filter.windows_changed(s, n) >= n
+    return shadow.filter.confirms(s, cfg.change_confirm_probability, cfg.event_confirm_windows)
 
 
 def _provisional(shadow: Shadow) -> list[int]:

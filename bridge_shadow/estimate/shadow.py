@@ -604,11 +604,9 @@ class Shadow:
         for s in range(len(f.starts) - 1, 0, -1):
             if not 0.0 < f.change_prior[s] < 1.0:
                 continue
-            p, _ = f.segment_probability(s)
-            n = cfg.event_confirm_windows
-            if p >= cfg.change_confirm_probability and f.windows_changed(s, n) >= n:
+            if f.confirms(s, cfg.change_confirm_probability, cfg.event_confirm_windows):
                 self.confirmed_at.setdefault(f.starts[s], int(now_k))
-            elif merge and p <= 1.0 - cfg.change_confirm_probability:
+            elif merge and f.segment_probability(s)[0] <= 1.0 - cfg.change_confirm_probability:
                 self._merge_segment(s)
                 return True  # the chain is stale now: refit before judging the next one
         return False
@@ -624,9 +622,7 @@ class Shadow:
         s = len(f.starts) - 2
         if s <= 0 or not 0.0 < f.change_prior[s] < 1.0 or f.starts[s] in self.confirmed_at:
             return
-        p, _ = f.segment_probability(s)
-        n = cfg.event_confirm_windows
-        if p >= cfg.change_confirm_probability and f.windows_changed(s, n) >= n:
+        if f.confirms(s, cfg.change_confirm_probability, cfg.event_confirm_windows):
             self.confirmed_at[f.starts[s]] = int(now_k)
 
     def _merge_segment(self, s: int) -> None:

@@ -38,6 +38,7 @@ from bridge_shadow.contract import CHANNELS, FORCE_FRAMES
 from bridge_shadow.model.surrogate_file import Surrogate
 from bridge_shadow.series import ForceSeries, MonitoringData
 from bridge_shadow.twin.config import LOCAL_TZ, TwinConfig
+from bridge_shadow.twin.real_records import with_creep
 from bridge_shadow.twin.response import two_span_mid_influence
 
 __all__ = [
@@ -353,6 +354,17 @@ def load_test_day(
     )
     truth["record_x_m"] = np.asarray(truth["settlement_m"], float)
     return data, truth
+
+
+def creeping(data: MonitoringData, truth: dict[str, Any], factor: float) -> MonitoringData:
+    """Return ``load_test_day``'s ``data`` with every record after a step creeping (``with_creep``).
+
+    ``factor`` times the real 10 mm record's own rise (``real_records.CREEP_N_PER_S``) from each
+    such record's first sample: the twin has no creep of its own.
+    """
+    steps = [np.asarray(dx, float) for dx in truth["steps_m"]]
+    changed = [i + 1 for i, dx in enumerate(steps) if np.any(dx != 0.0)]
+    return with_creep(data, [int(t) for t in truth["record_start_ns"]], changed, factor)
 
 
 def day_from_records(

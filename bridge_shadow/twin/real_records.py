@@ -27,7 +27,16 @@ import numpy as np
 from bridge_shadow.contract import CHANNELS
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
-__all__ = ["CREEP_N_PER_S", "RECORDS", "Piece", "Scenario", "build", "load_records", "with_creep"]
+__all__ = [
+    "CREEP_N_PER_S",
+    "RECORDS",
+    "Piece",
+    "Scenario",
+    "build",
+    "load_records",
+    "with_creep",
+    "with_silence",
+]
 
 NS = 1_000_000_000
 HOUR_NS = 3600 * NS
@@ -172,4 +181,16 @@ def with_creep(
             inside = (s.stamp_ns >= starts_ns[i]) & (s.stamp_ns < end)
             add[inside] = factor * CREEP_N_PER_S[c] * (s.stamp_ns[inside] - starts_ns[i]) / 1e9
         forces[ch] = ForceSeries(s.stamp_ns, s.force_n + add, s.frame_id)
+    return MonitoringData(forces, data.temperature)
+
+
+def with_silence(
+    data: MonitoringData, start_ns: int, channel: int, a_min: float, b_min: float
+) -> MonitoringData:
+    """Drop load cell ``channel``'s samples over minutes ``[a_min, b_min)`` after ``start_ns``."""
+    forces = {}
+    for c, (ch, s) in enumerate(data.forces.items()):
+        t = s.stamp_ns
+        gone = (c == channel) & (t >= start_ns + a_min * 60 * NS) & (t < start_ns + b_min * 60 * NS)
+        forces[ch] = ForceSeries(t[~gone], s.force_n[~gone], s.frame_id[~gone])
     return MonitoringData(forces, data.temperature)

@@ -303,7 +303,6 @@ class Compensation:
             self.sun,
         )
 
-    # -- evaluation -------------------------------------------------------------------------------
     def _sun_heats_only(self, c: int, b: np.ndarray, mat: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         """Return channel ``c``'s coefficients ``b`` with ``g >= 0`` (the class docstring's truncation).
 
@@ -316,6 +315,7 @@ class Compensation:
         out[:-1] = linalg.solve(mat[:-1, :-1], rhs[:-1], assume_a="pos", check_finite=False)
         return out
 
+    # -- evaluation -------------------------------------------------------------------------------
     def curve(self, fit: CompensationFit, temp_c: np.ndarray) -> np.ndarray:
         """Centred ``g(T)`` (n, 2) N at window temperatures (n, 2); 0 where T is unknown.
 

@@ -13,7 +13,8 @@ it is at most ``traffic_hold_s`` long, screens it here before its windows close:
 2. the calibration's car rule (``bridge_shadow.traffic.flag_car``) on that sum, its first
    baseline from the lowest fifth of each half of the record (a drift of ~1 kN through a record
    must not put the whole start at one end), no bin of it more than the threshold above its
-   half's lowest (``first_free``);
+   half's lowest, and only quiet bins (``first_free``, ``quiet``: a burst of sensor noise is no
+   car-free level);
 3. a flagged run is *traffic* when it lies above the baseline (a vehicle only adds load) and
    comes back inside the record: it touches neither the first nor the last bin with data. A run
    that does not come back is a change of state and stays data; so does one below the baseline.
@@ -278,7 +279,8 @@ def _holds_a_further_state(tail_n: float, head_n: float, vehicle_max_n: float) -
 def first_free(s: np.ndarray, threshold_n: float) -> np.ndarray:
     """Return the bins that start the car rule's baseline on a whole record (NaN: none).
 
-    In each half of the bins with data, the lowest fifth (the calibration's rule, one per half so
+    In each half of the bins with data (its quiet bins, ``quiet``, where it has any), the lowest
+    fifth (the calibration's rule, one per half so
     that a drift of ~1 kN through a record does not put the whole start at one end), but no bin
     more than ``threshold_n`` above the half's lowest: a vehicle only adds load, so the lowest bin
     is car-free and so are those near it, while a vehicle on the bridge for more than four fifths

@@ -362,6 +362,15 @@ class SegmentChain:
             return self.summaries[s].change_probability, self.summaries[s].windows
         return float("nan"), 0
 
+    def confirms(self, s: int, probability: float, windows: int) -> bool:
+        """Return whether segment ``s``'s change is confirmed (the one rule of every confirmation).
+
+        Its change probability at least ``probability``, and at least ``windows`` windows that
+        stayed with it (``windows_changed``).
+        """
+        p, _ = self.segment_probability(s)
+        return p >= probability and self.windows_changed(s, windows) >= windows
+
     def windows_changed(self, s: int, enough: int | None = None) -> int:
         """Windows from segment ``s``'s start on that stayed away from the state before it.
 
