@@ -342,7 +342,8 @@ class TopicGate:
             "pending_values": np.array([x for _, x, _ in self.pending], dtype=float),
             "has_held": self.held_ns is not None,
             "held_ns": -1 if self.held_ns is None else self.held_ns,
-            "held_value": self.held_value,
+            # the last held value stays in the attribute once taken; it is state only while held
+            "held_value": self.held_value if self.held_ns is not None else float("nan"),
             "run_value": self.run_value,
             "run_since_ns": self.run_since_ns,
             "run_count": self.run_count,
