@@ -19,7 +19,7 @@ import pytest
 from archive_fixtures import _keep, corrupt_bag, seamed_record, write_archive
 
 from bridge_shadow.archive.join import join_bags
-from bridge_shadow.archive.reduce import head_windows, reduce_bag
+from bridge_shadow.archive.reduce import HEAD_WINDOWS, head_windows, reduce_bag
 from bridge_shadow.estimate import load_config
 from bridge_shadow.estimate.shadow import Shadow
 from bridge_shadow.model.surrogate_file import load_surrogate, placeholder_surrogate, save_surrogate
@@ -120,6 +120,32 @@ def test_a_record_held_on_after_a_silence_near_a_seam_still_settles(tmp_path: Pa
     stats = join_bags(shadow, reductions)
     assert not stats.fed_whole
     assert_same_result(shadow.result([], stats.messages, 1.0).to_json(), ref.to_json())
+
+
+def test_a_bag_that_goes_on_from_the_one_before_settles_before_the_hold(archive: dict[str, Any]) -> None:
+    """A long record runs through seam 1: a bag reduced as continuing settles within ``HEAD_WINDOWS``.
+
+    Its front end starts in a released record (``reduce_bag(continuing=True)``, what the bags' log
+    times say: ``continuing_flags``), as the archive's is there, instead of holding the hold's 30
+    windows; a wrong guess (seam 2, after a 3 h outage) settles as a fresh bag would, later.
+    """
+    from bridge_shadow.archive.run import continuing_flags
+    from bridge_shadow.archive.tasks import bag_span_task
+
+    config, surrogate = load_config(), placeholder_surrogate()
+    bags = archive["bags"][:3]
+    flags = continuing_flags([bag_span_task(str(b), config) for b in bags], config.gap_s)
+    assert flags == [False, True, False]
+    seam1, seam2 = {}, {}
+    for guess in (False, True):  # bags 1 and 2 reduced as continuing, or not
+        reductions = [reduce_bag(b, config, surrogate, continuing=guess and i > 0) for i, b in enumerate(bags)]
+        n = [join_bags(Shadow(config, surrogate), reductions[:k]) for k in (1, 2, 3)]
+        assert not any(st.fed_whole for st in n)  # a wrong guess (seam 2) settles too
+        seam1[guess] = n[1].head_chunks - n[0].head_chunks
+        seam2[guess] = n[2].head_chunks - n[1].head_chunks
+    hold = head_windows(config) - HEAD_WINDOWS
+    assert seam1[True] <= HEAD_WINDOWS < hold < seam1[False]
+    assert seam2[True] > hold  # seam 2 starts a record: the guess is wrong, and only costs time
 
 
 @pytest.mark.parametrize("workers", [1, 2, 4])
@@ -321,14 +347,14 @@ def test_a_wrong_expected_order_is_caught(
     from bridge_shadow.archive import run as run_module
     from bridge_shadow.archive.run import plan_bridges, run_archive
     from bridge_shadow.archive.sources import archive_sources
-    from bridge_shadow.archive.tasks import bag_start_task
+    from bridge_shadow.archive.tasks import bag_span_task
     from bridge_shadow.engine import dask_client
 
-    def reversed_start(bag: str, config: Any) -> int | None:
-        first = bag_start_task(bag, config)
-        return None if first is None else -first
+    def reversed_span(bag: str, config: Any) -> tuple[int | None, int | None]:
+        first, last = bag_span_task(bag, config)
+        return (None, None) if first is None or last is None else (-last, -first)
 
-    monkeypatch.setattr(run_module, "bag_start_task", reversed_start)
+    monkeypatch.setattr(run_module, "bag_span_task", reversed_span)
     plans = plan_bridges(archive_sources(str(archive["folder"] / "bridge")))
     with dask_client(workers=2, processes=False) as client:
         run = run_archive(client, plans, tmp_path / "cache")

@@ -80,10 +80,12 @@ ESTIMATOR_ONLY: frozenset[str] = frozenset(
 _CHUNK = 1 << 22  # bytes read at a time while hashing (4 MiB)
 
 
-def front_key(config: Any) -> str:
-    """Return the hex key of the parameters that shape a reduction (``ShadowConfig``)."""
+def front_key(config: Any, continuing: bool = False) -> str:
+    """Return the hex key of the parameters that shape a reduction (``ShadowConfig``, ``continuing``)."""
     params = {k: v for k, v in config.to_params().items() if k not in ESTIMATOR_ONLY}
-    text = json.dumps({"version": REDUCTION_VERSION, "params": params}, sort_keys=True)
+    text = json.dumps(
+        {"version": REDUCTION_VERSION, "params": params, "continuing": bool(continuing)}, sort_keys=True
+    )
     return hashlib.blake2b(text.encode(), digest_size=16).hexdigest()
 
 

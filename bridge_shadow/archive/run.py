@@ -1,6 +1,7 @@
 """Run an archive on Dask: a local cluster by default, a running scheduler when given its address.
 
-The graph, per bridge: one ``bag_start_task`` per bag (its first log time: the order), one
+The graph, per bridge: one ``bag_span_task`` per bag (its first and last log times: the order, and
+which bags go on from the one before within ``gap_s``), one
 ``reduce_task`` per bag (parallel, across bags and bridges) and one ``join_task`` that takes the
 reductions in time order as they finish (parallel across bridges, overlapping the reductions).
 Dask schedules it all; nothing here waits on a worker except through Dask's own futures and
@@ -24,7 +25,7 @@ from typing import Any
 
 from bridge_shadow.archive.sources import BridgeSource
 from bridge_shadow.archive.summary import DEFAULT_PERIOD_S
-from bridge_shadow.archive.tasks import BagOutcome, BridgeOutcome, bag_start_task, join_task, reduce_task
+from bridge_shadow.archive.tasks import BagOutcome, BridgeOutcome, bag_span_task, join_task, reduce_task
 
 __all__ = ["ArchiveRun", "plan_bridges", "run_archive", "write_outputs"]
 
@@ -58,9 +59,22 @@ class ArchiveRun:
     scheduler: str = ""
 
 
-def _start_key(item: tuple[int | None, Path]) -> tuple[bool, int, str]:
-    first, bag = item
+def _start_key(item: tuple[tuple[int | None, int | None], Path]) -> tuple[bool, int, str]:
+    (first, _), bag = item
     return (first is None, first or 0, str(bag))
+
+
+def continuing_flags(spans: list[tuple[int | None, int | None]], gap_s: float) -> list[bool]:
+    """For bags in time order: whether each starts within ``gap_s`` of the one before's end.
+
+    A hint for the reduction (``reduce_bag(continuing=...)``), checked exactly by the join.
+    """
+    flags = [False] * len(spans)
+    gap_ns = round(gap_s * 1e9)
+    for i in range(1, len(spans)):
+        (first, _), (_, last_before) = spans[i], spans[i - 1]
+        flags[i] = first is not None and last_before is not None and 0 <= first - last_before < gap_ns
+    return flags
 
 
 def plan_bridges(sources: list[BridgeSource]) -> list[BridgePlan]:
@@ -100,17 +114,19 @@ def run_archive(
     token = uuid.uuid4().hex[:8]  # keys of this run only (a shared scheduler may hold older ones)
     # the order of each bridge's bags (their first message) is known before they are reduced, so
     # its join takes them as they come, while later bags are still being reduced
-    starts = client.gather(
+    spans = client.gather(
         [
-            client.map(bag_start_task, [str(b) for b in p.source.bags], config=p.config, pure=False)
+            client.map(bag_span_task, [str(b) for b in p.source.bags], config=p.config, pure=False)
             for p in plans
         ]
     )
     reduces: dict[str, list[Any]] = {}
     joins = []
-    for plan, first in zip(plans, starts, strict=True):
+    for plan, span in zip(plans, spans, strict=True):
         name = plan.source.name
-        bags = [b for _, b in sorted(zip(first, plan.source.bags, strict=True), key=_start_key)]
+        ordered = sorted(zip(span, plan.source.bags, strict=True), key=_start_key)
+        bags = [b for _, b in ordered]
+        continuing = continuing_flags([sp for sp, _ in ordered], plan.config.gap_s)
         queue = Queue(f"archive-{token}-{name}", client=client)
         # the join first (it waits outside the thread pool), then the bags in time order, whose
         # futures go into its queue as they are submitted
@@ -136,6 +152,7 @@ def run_archive(
                     plan.config,
                     plan.surrogate,
                     str(cache),
+                    continuing[i],
                     key=f"reduce-{token}-{name}-{i}",
                 )
             )

@@ -5,7 +5,8 @@ writes a bag's reduction there and returns a small ``BagOutcome``; ``join_task``
 outcomes of its bridge in time order as they come (it waits outside the worker's thread pool, so
 the sequential part overlaps the reduction of later bags) and reads each reduction back from the
 cache, so a worker holds one bag's reduction at a time however long the archive is.
-``bag_start_task`` finds a bag's first log time, which fixes the order before anything is reduced.
+``bag_span_task`` finds a bag's first and last log times, which fix the order (and which bags go on
+from the one before) before anything is reduced.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from typing import Any
 from bridge_shadow.archive.cache import ReductionCache, front_key
 from bridge_shadow.archive.reduce import BagReduction, reduce_bag
 
-__all__ = ["BagOutcome", "BridgeOutcome", "bag_start_task", "join_task", "reduce_task", "time_order"]
+__all__ = ["BagOutcome", "BridgeOutcome", "bag_span_task", "join_task", "reduce_task", "time_order"]
 
 
 @dataclass
@@ -47,8 +48,11 @@ class BagOutcome:
     seconds: float = 0.0
 
 
-def reduce_task(bag: str, config: Any, surrogate: Any, cache_root: str) -> BagOutcome:
-    """Reduce one bag into the cache (or find it there); a bag that cannot be read is ``failed``."""
+def reduce_task(bag: str, config: Any, surrogate: Any, cache_root: str, continuing: bool = False) -> BagOutcome:
+    """Reduce one bag into the cache (or find it there); a bag that cannot be read is ``failed``.
+
+    ``continuing``: the bag goes on from the one before (``archive.reduce.reduce_bag``).
+    """
     from bridge_shadow.bagio import BagError
 
     t0 = time.perf_counter()
@@ -59,12 +63,12 @@ def reduce_task(bag: str, config: Any, surrogate: Any, cache_root: str) -> BagOu
         if not path.exists():
             raise FileNotFoundError(f"{bag}: no such bag")
         out.digest = cache.digest(path)
-        entry = cache.path(out.digest, front_key(config))
+        entry = cache.path(out.digest, front_key(config, continuing))
         red = cache.load(entry)
         if isinstance(red, BagReduction):
             out.status = "cached"
         else:
-            red = reduce_bag(path, config, surrogate)
+            red = reduce_bag(path, config, surrogate, continuing=continuing)
             cache.store(entry, red)
             out.status = "reduced"
     except (BagError, OSError) as err:
@@ -98,16 +102,18 @@ class BridgeOutcome:
     seconds: float = 0.0
 
 
-def bag_start_task(bag: str, config: Any) -> int | None:
-    """Return the log time of a bag's first message (None: unreadable or empty), as the reduction will."""
+def bag_span_task(bag: str, config: Any) -> tuple[int | None, int | None]:
+    """Return the log times of a bag's first and last messages (None: unreadable or empty), as the reduction will."""
     from bridge_shadow.bagio import BagError
     from bridge_shadow.bagio.stream import MonitoringStream
 
     try:
         with MonitoringStream(bag, topics=config.input_topics(), required=False) as stream:
-            return None if stream.first_ns is None else int(stream.first_ns)
+            if stream.first_ns is None or stream.last_ns is None:
+                return None, None
+            return int(stream.first_ns), int(stream.last_ns)
     except (BagError, OSError):
-        return None
+        return None, None
 
 
 def time_order(outcomes: list[BagOutcome]) -> list[BagOutcome]:
@@ -139,7 +145,7 @@ def join_task(
     """Run the bridge's shadow over its bags in time order, each as soon as it is reduced.
 
     ``queue`` names the Dask queue that gets the bridge's ``n_bags`` reduce futures in the
-    expected time order (by ``bag_start_task``); the join checks each bag's actual first message
+    expected time order (by ``bag_span_task``); the join checks each bag's actual first message
     against it, and if a bag turns out earlier than one already joined, it starts over in the
     actual order (exact either way).
     """

@@ -112,6 +112,11 @@ class _Record:
         self.mode, self.start_ns, self.last_ns = 1, first_ns, first_ns
         self.piece_ns = self.before_ns = _NONE
 
+    def released(self, last_ns: int) -> None:
+        """Take an open record as released, last followed at ``last_ns`` (a bag cut out of one)."""
+        self.mode, self.last_ns, self.start_ns = 2, last_ns, _NONE
+        self.piece_ns = self.before_ns = _NONE
+
     def resume(self, first_ns: int) -> None:
         """Note that the open record goes on at ``first_ns`` after a silence of a piece or longer."""
         if self.mode == 1 and self.last_ns is not None:
