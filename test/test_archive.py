@@ -138,7 +138,9 @@ def test_a_bag_that_goes_on_from_the_one_before_settles_before_the_hold(archive:
     assert flags == [False, True, False]
     seam1, seam2 = {}, {}
     for guess in (False, True):  # bags 1 and 2 reduced as continuing, or not
-        reductions = [reduce_bag(b, config, surrogate, continuing=guess and i > 0) for i, b in enumerate(bags)]
+        reductions = [
+            reduce_bag(b, config, surrogate, continuing=guess and i > 0) for i, b in enumerate(bags)
+        ]
         n = [join_bags(Shadow(config, surrogate), reductions[:k]) for k in (1, 2, 3)]
         assert not any(st.fed_whole for st in n)  # a wrong guess (seam 2) settles too
         seam1[guess] = n[1].head_chunks - n[0].head_chunks

@@ -48,7 +48,9 @@ class BagOutcome:
     seconds: float = 0.0
 
 
-def reduce_task(bag: str, config: Any, surrogate: Any, cache_root: str, continuing: bool = False) -> BagOutcome:
+def reduce_task(
+    bag: str, config: Any, surrogate: Any, cache_root: str, continuing: bool = False
+) -> BagOutcome:
     """Reduce one bag into the cache (or find it there); a bag that cannot be read is ``failed``.
 
     ``continuing``: the bag goes on from the one before (``archive.reduce.reduce_bag``).
@@ -103,7 +105,10 @@ class BridgeOutcome:
 
 
 def bag_span_task(bag: str, config: Any) -> tuple[int | None, int | None]:
-    """Return the log times of a bag's first and last messages (None: unreadable or empty), as the reduction will."""
+    """Return the log times of a bag's first and last messages (None: unreadable or empty).
+
+    As the reduction reads them.
+    """
     from bridge_shadow.bagio import BagError
     from bridge_shadow.bagio.stream import MonitoringStream
 
