@@ -14,10 +14,13 @@ from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.ros.convert import (
     array_from_msg,
     covariance_msg,
+    covariance_raw,
     decode_forces,
     decode_temperatures,
     mean_msg,
+    mean_raw,
     wrench_msg,
+    wrench_raw,
 )
 from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
 
@@ -40,6 +43,29 @@ def test_wrench_msg_stamp_and_force() -> None:
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1_647_212_400, 123_456_789)
     assert msg.header.frame_id == "frc_02"
     assert msg.wrench.force.z == 2.34e5
+
+
+def test_serialized_outputs_are_what_rclpy_makes_of_the_typed_messages() -> None:
+    """The node publishes CDR bytes packed into templates: byte for byte rclpy's own serialization."""
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.serialization import deserialize_message, serialize_message
+    from std_msgs.msg import Float64MultiArray
+
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        mean = rng.normal(0.0, 1e-2, 2)
+        a = rng.normal(0.0, 1e-3, (2, 2))
+        cov = a @ a.T
+        assert mean_raw(mean) == serialize_message(mean_msg(mean))
+        assert covariance_raw(cov) == serialize_message(covariance_msg(cov))
+        back, labels = array_from_msg(deserialize_message(covariance_raw(cov), Float64MultiArray))
+        np.testing.assert_array_equal(back, cov)  # the same floats, copied
+        assert labels == ("row", "col")
+    for stamp, frame, force in ((1_647_212_400_123_456_789, "frc_02", 2.34e5), (-5, "frc_01_long", -1.5)):
+        raw = wrench_raw(stamp, frame, force)
+        assert raw == serialize_message(wrench_msg(stamp, frame, force))
+        msg = deserialize_message(raw, WrenchStamped)
+        assert (msg.header.frame_id, msg.wrench.force.z) == (frame, force)
 
 
 def test_decode_drops_and_counts_malformed() -> None:

@@ -376,14 +376,14 @@ class ShadowNode(Node):
             if np.all(np.isfinite(out.compensated_n)):
                 for c, ch in enumerate(CHANNELS):
                     self._pub_comp[c].publish(
-                        convert.wrench_msg(out.end_ns, FORCE_FRAMES[ch], out.compensated_n[c])
+                        convert.wrench_raw(out.end_ns, FORCE_FRAMES[ch], out.compensated_n[c])
                     )
             self.windows_published += 1
             self.history.append(out)
 
     def _publish_posterior(self, mean_m: np.ndarray, covariance_m2: np.ndarray) -> None:
-        self._pub_mean.publish(convert.mean_msg(mean_m))
-        self._pub_cov.publish(convert.covariance_msg(covariance_m2))
+        self._pub_mean.publish(convert.mean_raw(mean_m))
+        self._pub_cov.publish(convert.covariance_raw(covariance_m2))
         self._last_posterior = (np.array(mean_m, float), np.array(covariance_m2, float))
         self.posteriors_published += 1
 
