@@ -122,6 +122,25 @@ def test_a_record_held_on_after_a_silence_near_a_seam_still_settles(tmp_path: Pa
     assert_same_result(shadow.result([], stats.messages, 1.0).to_json(), ref.to_json())
 
 
+def test_continuing_flags_follow_the_bags_log_times() -> None:
+    """A bag goes on from the one before when it starts within ``gap_s`` after that one's end."""
+    from bridge_shadow.archive.run import continuing_flags
+
+    s = 10**9
+    spans = [
+        (0, 100 * s),
+        (150 * s, 200 * s),
+        (900 * s, 950 * s),
+        (None, None),
+        (960 * s, 990 * s),
+        (980 * s, 999 * s),
+    ]
+    # the first never; 50 s after: yes; 700 s after: no (gap_s 600); after an unreadable bag: no;
+    # overlapping the one before (starts before its end): no
+    assert continuing_flags(spans, 600.0) == [False, True, False, False, False, False]
+    assert continuing_flags(spans, 60.0)[1] and not continuing_flags(spans, 40.0)[1]
+
+
 def test_a_bag_that_goes_on_from_the_one_before_settles_before_the_hold(archive: dict[str, Any]) -> None:
     """A long record runs through seam 1: a bag reduced as continuing settles within ``HEAD_WINDOWS``.
 
