@@ -159,8 +159,8 @@ def test_a_new_state_too_short_to_confirm_is_an_unconfirmed_change(folder: Path,
     assert diag["level"] == "WARN" and "unconfirmed" in diag["message"]
 
 
-def _jacking(folder: Path, surrogate, minutes: tuple[int, int], size: float) -> Scenario:
-    """Return the reference and 10 mm records, a jacking record, and one more record after it.
+def _jacking(folder: Path, surrogate, minutes: tuple[int, int], size: float, then: bool = True) -> Scenario:
+    """Return the reference and 10 mm records, a jacking record, and one more record after it (``then``).
 
     The jacking record is the 10 mm record hours on, lowered ``size`` more from ``minutes[0]`` to
     ``minutes[1]`` in half-minute pieces.
@@ -172,8 +172,35 @@ def _jacking(folder: Path, surrogate, minutes: tuple[int, int], size: float) -> 
     for k, (u, v) in enumerate(itertools.pairwise(edges)):
         f = size * (k + 0.5) / (len(edges) - 1)
         pieces.append(Piece("lowered", at, (f, f), cut_min=(float(u), float(v))))
-    pieces += [Piece("lowered", at, (size, size), cut_min=(b, 13)), Piece("lowered", 5.06, (size, size))]
+    pieces.append(Piece("lowered", at, (size, size), cut_min=(b, 13)))
+    if then:
+        pieces.append(Piece("lowered", 5.06, (size, size)))
     return build(folder, surrogate.A, pieces)
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("sun", [False, True])
+def test_a_jacking_record_that_ends_the_data_leaves_the_morning_lowering_standing(
+    folder: Path, surrogate, sun: bool
+) -> None:
+    """The priors are weighed on the noise the estimate is read with (``Shadow._refit``).
+
+    The jacking record (10 mm more over minutes 2-10, nothing after it) ends the data; its ramp's
+    windows grow the noise model twentyfold at the last refit. Read with that noise, a fit whose
+    slope and sun priors were weighed on the one before gave the sun's coefficient an sd of 40-46
+    K (its prior's 6.75) and weighed the real morning lowering, 44 minutes after the reference
+    record, at probability 0.07 with the sun term (0.998 without it, unconfirmed).
+    """
+    sc = _jacking(folder, surrogate, (2, 10), -0.01, then=False)
+    config = load_config().replace(sun_gradient=sun)
+    res = Shadow(config, surrogate).run(sc.data)
+    js = res.to_json()
+    assert js["gaps"][0]["change_probability"] >= (0.9 if sun else config.change_confirm_probability)
+    if sun:
+        for ch in js["spline"].values():
+            assert ch["sun_gradient_sd_k"] <= np.sqrt(2.0) * config.sun_gradient_prior_sd_k
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    assert np.all(np.abs(res.mean_m - sc.truth_m) <= 1.96 * sd)
 
 
 @pytest.mark.realdata

@@ -84,6 +84,13 @@ _NS = 1_000_000_000
 #: Windows whose curve values are computed together after a refit (the next refit is at least
 #: ``refit_windows`` accepted windows away).
 _CURVE_BLOCK = 64
+#: The slope and sun priors are weighed as data against the noise model's variance, and the noise
+#: is re-estimated from that fit's residuals: a refit whose noise moved by more than this factor
+#: (either way) fits again with it, so that the priors are weighed on the noise the estimate is read
+#: with (a prior's weight off by 2 moves the sd of what only it decides by at most sqrt(2)).
+_NOISE_CONSISTENT = 2.0
+#: Fits in one refit at most while the noise settles (the first and up to three more).
+_NOISE_PASSES = 4
 #: Segment kinds that begin with a change of the supports (the reactions may relax after it).
 _CHANGES = frozenset({"event", "gap", "held_run", "warmup"})
 #: A refit comes early when a window's temperature lies this far outside the fitted range (K).
@@ -915,6 +922,7 @@ class Shadow:
         self._flush_rows()
         cfg = self.config
         detected = self._last_judged if self._last_judged >= 0 else (self._last_usable_k or 0)
+        passes = 0
         while True:
             lam = None if reselect or not np.all(np.isfinite(self.lam)) else self.lam
             per_sample = np.diag(self.noise.r1)
@@ -931,6 +939,12 @@ class Shadow:
                 )
             moments = residual_moments(self.sums, fit.beta, fit.level)
             self.noise.update(moments, fit.edf, self.sums.ns)
+            passes += 1
+            moved = np.diag(self.noise.r1) / np.maximum(per_sample, 1e-300)
+            if passes < _NOISE_PASSES and np.any(
+                (moved > _NOISE_CONSISTENT) | (moved < 1 / _NOISE_CONSISTENT)
+            ):
+                continue  # the priors were weighed on another noise: fit again with this one
             self.filter.refresh(self.sums, fit, self.noise)
             if not self._settle_provisional(detected, merge=True):
                 break  # else one level fewer: fit again
