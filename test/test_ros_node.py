@@ -242,6 +242,62 @@ def test_parameters_default_to_shadow_yaml_and_override() -> None:
         rclpy.try_shutdown(context=context)
 
 
+def test_the_message_that_closes_a_window_publishes_it_even_right_after_a_timers_drain() -> None:
+    """The closing message drains at once, also when the drain timer ran a moment before.
+
+    In-process (the subscription callbacks called directly, no DDS): 100 Hz forces and air, 0.1 s
+    windows. Before each window's closing messages the drain timer has just run; the window's
+    posterior must leave with its closing message, not with the next message
+    10 ms later (the closing drain used to be skipped within ``MIN_DRAIN_GAP_S`` of any drain: a
+    timer in that phase delayed every window of a live run by a sample period).
+    """
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from bridge_shadow.bagio import encode_stamped_floats
+    from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, TEMPERATURE_FRAME
+    from bridge_shadow.ros.node import ShadowNode
+
+    n = 400
+    stamp = 1_646_667_300 * 10**9 + np.arange(n, dtype=np.int64) * 10_000_000
+    rng = np.random.default_rng(4)
+    wrench = np.zeros((n, 6))
+    raws = []
+    for ch in CHANNELS:
+        wrench[:, 2] = 2.4e5 + rng.normal(0.0, 60.0, n)
+        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
+    raws.append(encode_stamped_floats(stamp, TEMPERATURE_FRAME, np.c_[np.full(n, 8.0), np.zeros(n)]))
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        overrides = [
+            Parameter("window_s", value=0.1),
+            Parameter("window_min_samples", value=5),
+            Parameter("topic_timeout_s", value=0.05),
+            Parameter("warmup_windows", value=5),
+            Parameter("traffic_hold_s", value=0.0),
+        ]
+        node = ShadowNode(context=context, parameter_overrides=overrides)
+        try:
+            temp_cb, f1_cb, f2_cb = node._callback(2), node._callback(0), node._callback(1)
+            late = 0
+            for j in range(n):
+                closing = j % 10 == 0 and j >= 100  # after the warm-up: a posterior per window
+                if j % 5 == 0:
+                    node._on_drain_timer()  # every 50 ms, and just before each closing message
+                before = node.posteriors_published
+                temp_cb(raws[2][j])
+                f1_cb(raws[0][j])
+                f2_cb(raws[1][j])
+                if closing:
+                    late += node.posteriors_published == before
+            assert late == 0
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
 def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
     """When every input stops, the windows holding the last data are closed and published anyway.
 

@@ -118,8 +118,9 @@ HISTORY_WINDOWS = 10_080
 BATCH = 1024
 #: Period of the timer that ingests whatever is buffered [s].
 DRAIN_PERIOD_S = 0.05
-#: A message that brings the last topic past the open window's end triggers a drain unless one ran
-#: this recently [s] (live, windows end minutes apart; in a fast replay the batch and timer take over).
+#: A message that brings the last topic past the open window's end triggers a drain; while that
+#: window stays open (held by the traffic screen), later such messages drain at most this often [s]
+#: (live, windows end minutes apart; in a fast replay the batch and timer take over).
 MIN_DRAIN_GAP_S = 0.002
 #: Longest wall time a message waits for the other topics to catch up with its stamp [s].
 REORDER_HOLD_S = 5.0
@@ -172,6 +173,7 @@ class ShadowNode(Node):
         self._arrival: list[float | None] = [None, None, None]
         self._latest: list[int | None] = [None, None, None]
         self._last_drain = 0.0
+        self._tried_end = -(2**62)  # the window end a closing message last drained for
         self._started: float | None = None  # wall time of the first message (monotonic)
         self._peek = [-(2**62)] * 3  # stamp of the last raw message per topic (undecoded)
         self._pending: list[tuple[np.ndarray, ...] | None] = [None, None, None]
@@ -253,8 +255,13 @@ class ShadowNode(Node):
                 stamp = peek[i] = sec * _NS + nsec
                 # every topic past the open window's end: this message may close it
                 end = self._next_end_ns
-                if stamp >= end and min(peek) >= end and clock() - self._last_drain >= MIN_DRAIN_GAP_S:
-                    self.drain()
+                if stamp >= end and min(peek) >= end:
+                    # the first message that may close this window drains at once (whatever ran
+                    # just before: a timer's drain had not seen it); later ones for the same end
+                    # (a window the screen holds) at most every MIN_DRAIN_GAP_S
+                    if end != self._tried_end or clock() - self._last_drain >= MIN_DRAIN_GAP_S:
+                        self._tried_end = end
+                        self.drain()
 
         return callback
 
