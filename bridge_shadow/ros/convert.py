@@ -6,9 +6,11 @@ codec the offline replay uses. Outputs are built as typed rclpy messages (one pe
 Units are SI: forces in N, settlements in m, covariances in m^2, stamps in integer ns.
 
 The node publishes its outputs serialized (``*_raw``: ``Publisher.publish`` takes CDR bytes):
-each is a template serialized once by rclpy with the varying fields packed in place, byte for byte
-what rclpy makes of the typed message (``test_ros_messages.py``), without building a Python
-message per window (about a quarter of a millisecond off every posterior's way out).
+each is a template serialized once by rclpy with the varying fields packed in place: what rclpy
+reads back is the typed message, field for field, at the length of rclpy's own serialization
+(``test_ros_messages.py``; only CDR's alignment padding, which rclpy leaves unset, may differ),
+without building a Python message per window (about a quarter of a millisecond off every
+posterior's way out).
 """
 
 from __future__ import annotations
