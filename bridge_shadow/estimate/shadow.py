@@ -89,7 +89,7 @@ _CURVE_BLOCK = 64
 #: (either way) fits again with it, so that the priors are weighed on the noise the estimate is read
 #: with (a prior's weight off by 2 moves the sd of what only it decides by at most sqrt(2)).
 _NOISE_CONSISTENT = 2.0
-#: Fits in one refit at most while the noise settles (the first and up to three more).
+#: Fits at most while the noise settles, in a refit and after each merge (the first and three more).
 _NOISE_PASSES = 4
 #: Segment kinds that begin with a change of the supports (the reactions may relax after it).
 _CHANGES = frozenset({"event", "gap", "held_run", "warmup"})
@@ -947,7 +947,8 @@ class Shadow:
                 continue  # the priors were weighed on another noise: fit again with this one
             self.filter.refresh(self.sums, fit, self.noise)
             if not self._settle_provisional(detected, merge=True):
-                break  # else one level fewer: fit again
+                break  # else one level fewer: fit again (the noise settling again with it)
+            passes = 0
         if not online:
             self.filter.restart_current()
         self.detector.set_noise(self.noise.phi, float(np.min(self.noise.dof)))
