@@ -110,7 +110,9 @@ def test_live_replay_equals_direct_replay(bag: Path, direct, tmp_path: Path) -> 
 
     last, labels = array_from_msg(deserialize_message(raw[-1], Float64MultiArray))
     assert labels == ("support",)
-    np.testing.assert_array_equal(last, live["posterior"]["mean_m"])
+    np.testing.assert_array_equal(
+        last, live["posterior"]["mean_m"]
+    )  # the node's floats, copied through the bag
     # --plots: the same four PNGs as the direct replay, drawn from the node's own state
     assert sorted(Path(p).name for p in live["plots"]) == [
         "compensation_curve.png",

@@ -611,9 +611,9 @@ class Shadow:
         for s in range(len(f.starts) - 1, 0, -1):
             if not 0.0 < f.change_prior[s] < 1.0:
                 continue
-            if f.confirms(s, cfg.change_confirm_probability, cfg.event_confirm_windows):
-                self.confirmed_at.setdefault(f.starts[s], int(now_k))
-            elif merge and f.segment_probability(s)[0] <= 1.0 - cfg.change_confirm_probability:
+            if self._note_confirmed(s, now_k):
+                continue
+            if merge and f.segment_probability(s)[0] <= 1.0 - cfg.change_confirm_probability:
                 self._merge_segment(s)
                 return True  # the chain is stale now: refit before judging the next one
         return False
@@ -625,12 +625,18 @@ class Shadow:
         confirmed when the state after it stays away from the one before it (here, with no
         provisional segment open, only the segment before the current one can still be).
         """
-        f, cfg = self.filter, self.config
+        f = self.filter
         s = len(f.starts) - 2
-        if s <= 0 or not 0.0 < f.change_prior[s] < 1.0 or f.starts[s] in self.confirmed_at:
-            return
-        if f.confirms(s, cfg.change_confirm_probability, cfg.event_confirm_windows):
-            self.confirmed_at[f.starts[s]] = int(now_k)
+        if s > 0 and 0.0 < f.change_prior[s] < 1.0 and f.starts[s] not in self.confirmed_at:
+            self._note_confirmed(s, now_k)
+
+    def _note_confirmed(self, s: int, now_k: int) -> bool:
+        """If provisional segment ``s``'s change is confirmed (``SegmentChain.confirms``), note when."""
+        cfg = self.config
+        if not self.filter.confirms(s, cfg.change_confirm_probability, cfg.event_confirm_windows):
+            return False
+        self.confirmed_at.setdefault(self.filter.starts[s], int(now_k))
+        return True
 
     def _merge_segment(self, s: int) -> None:
         """Segment ``s`` did not change: its windows join segment ``s - 1`` (indices after it shift)."""

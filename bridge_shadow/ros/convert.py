@@ -129,9 +129,8 @@ _FLOAT = struct.Struct("<d")
 
 
 @cache
-def _array_prefix(shape: tuple[int, ...]) -> bytes:
+def _array_prefix(shape: tuple[int, ...], labels: tuple[str, ...]) -> bytes:
     """CDR of a ``Float64MultiArray`` of ``shape`` up to its data (the data are its last bytes)."""
-    labels = [MEAN_LAYOUT_LABEL] if shape == (2,) else list(COVARIANCE_LAYOUT_LABELS)
     raw = serialize_message(_array_msg(np.zeros(shape), labels))
     return bytes(raw[: len(raw) - 8 * int(np.prod(shape))])
 
@@ -139,13 +138,13 @@ def _array_prefix(shape: tuple[int, ...]) -> bytes:
 def mean_raw(mean_m: np.ndarray) -> bytes:
     """``mean_msg`` serialized."""
     x = np.asarray(mean_m, dtype="<f8").reshape(2)
-    return _array_prefix((2,)) + x.tobytes()
+    return _array_prefix(x.shape, (MEAN_LAYOUT_LABEL,)) + x.tobytes()
 
 
 def covariance_raw(covariance_m2: np.ndarray) -> bytes:
     """``covariance_msg`` serialized."""
     x = np.asarray(covariance_m2, dtype="<f8").reshape(2, 2)
-    return _array_prefix((2, 2)) + x.tobytes()
+    return _array_prefix(x.shape, tuple(COVARIANCE_LAYOUT_LABELS)) + x.tobytes()
 
 
 @cache
