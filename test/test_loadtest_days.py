@@ -322,6 +322,31 @@ def test_a_logger_pause_inside_the_new_states_record_loses_nothing(
 
 
 @pytest.mark.realdata
+@pytest.mark.parametrize(("place", "temp_at", "pause"), [(1.25, None, (2, 3)), (4.0, 6.5, (4, 5))])
+def test_a_step_while_the_logger_paused_under_the_parked_car_is_one_event(
+    folder: Path, surrogate, place: float, temp_at: float | None, pause: tuple[int, int]
+) -> None:
+    """The reference record hours on, 10 mm lower after a pause of its logger while the car stood.
+
+    The car arrives before the pause and leaves after it, and the level drops across it: two
+    states, each piece screened against its own baseline. Screened as records of their own, the
+    car's halves touching the pause stayed data: the car's arrival read as a 0.6 mm change before
+    the pause, and the 10 mm as two events of -8.7 and -1.3 mm (the car leaving). A run at each
+    side of the pause is a vehicle across it (``traffic._screen_states``): both halves are cut.
+    """
+    a, b = pause
+    pieces = [
+        Piece("ref", 0.0),
+        Piece("ref", place, (0.0, 0.0), temp_at, cut_min=(0, a)),
+        Piece("ref", place, (-0.01, -0.01), temp_at, cut_min=(b, 13)),
+    ]
+    sc = build(folder, surrogate.A, pieces)
+    res = _one_event_at_the_later_record(sc, surrogate)
+    assert np.all(np.abs(res.events[0].size_m + 0.01) < 0.001)
+    assert not [c for c in res.changes if c.kind != "gap" or c.change_probability > 0.5]
+
+
+@pytest.mark.realdata
 @pytest.mark.parametrize("channel", [0, 1])
 def test_one_load_cell_silent_over_the_records_car_free_minute_loses_nothing(
     folder: Path, surrogate, channel: int

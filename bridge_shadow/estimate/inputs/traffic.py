@@ -25,7 +25,8 @@ it is at most ``traffic_hold_s`` long, screens it here before its windows close:
 
 A record whose recording stopped and started again inside it (a silence of ``PIECE_SILENCE_NS``)
 is screened in pieces where the car-free level changes across a silence, and as one stretch with
-the silence's bins empty where it does not (``_state_bounds``).
+the silence's bins empty where it does not (``_state_bounds``); a vehicle on the bridge at both
+sides of a silence with a change is cut on both (``_screen_states``).
 
 The samples of the traffic bins are cut; the windows are built from the rest (a window left
 with fewer than ``window_min_samples`` is rejected as ``traffic``). A record longer than the hold
@@ -58,8 +59,9 @@ BIN_NS = 1_000_000_000
 #: A silence of both channels this long may split a record into pieces screened one by one, ns: a
 #: minute without a sample of a 100 Hz (or 1 Hz) recording is a recording that stopped, not a
 #: dropout. The pieces stay apart where the car-free level changes across the silence
-#: (``_state_bounds``); a pause without a change is one stretch, so that a car parked across it
-#: comes back on its far side and is cut.
+#: (``_state_bounds``; a car parked across such a silence is cut on both sides, ``_screen_states``);
+#: a pause without a change is one stretch, so that a car parked across it comes back on its far
+#: side and is cut.
 PIECE_SILENCE_NS = 60 * BIN_NS
 #: A state change inside a record is looked for only with a minute on either side of it (a shorter
 #: state has no window of its own: the detector reads it), and at most this many times per piece.
@@ -88,22 +90,75 @@ def screen_record(
     cuts = both[1:][np.diff(both) >= PIECE_SILENCE_NS]
     if not len(cuts):
         return _screen_piece(stamps, values, threshold_n, margin_s, vehicle_max_n)
-    keep = [np.ones(len(s), bool) for s in stamps]
     bounds = _state_bounds(
         stamps, values, [int(both[0]), *map(int, cuts), int(both[-1]) + 1], threshold_n, vehicle_max_n
     )
+    if len(bounds) == 2:
+        return _screen_piece(stamps, values, threshold_n, margin_s, vehicle_max_n)
+    return _screen_states(stamps, values, bounds, threshold_n, margin_s, vehicle_max_n)
+
+
+def _screen_states(
+    stamps: list[np.ndarray],
+    values: list[np.ndarray],
+    bounds: list[int],
+    threshold_n: float,
+    margin_s: float,
+    vehicle_max_n: float,
+) -> list[np.ndarray]:
+    """Screen the pieces of a record whose car-free level changes across silences (``_state_bounds``).
+
+    Each piece is screened against its own baseline, as a record of its own (a run touching a
+    silence does not come back), except where a vehicle stood across a silence: the piece before
+    ends with a run above its baseline at the silence and the piece after begins with one above
+    its own, neither heavier than any vehicle (``vehicle_max_n``; ``_Screened.tail_n`` /
+    ``head_n``), i.e. a test car parked while the logger paused and the state changed, arriving
+    before the silence and leaving after it. There the silence is a split, not an end of the
+    record (``_screen_bins``' split of a state change inside a record, at a place the recording
+    gives), and both halves of the car are cut. A run at one side only stays data: with nothing
+    on the bridge at the other side it is what a further state looks like too (the rule of
+    ``_holds_a_further_state``). Screened as records of their own, both halves of such a car
+    stayed data and the change was read as two events of 87 % and 13 % of it (the pause study of
+    ``benchmarks/loadtest_days.py``); cutting a run at one side too cut the drifting end of a
+    record before a silence and lost windows of the state after it.
+    """
+    margin = round(margin_s * 1e9 / BIN_NS)
+    sels, bins = [], []
     for a, b in itertools.pairwise(bounds):
         sel = [(s >= a) & (s < b) for s in stamps]
-        piece = _screen_piece(
-            [s[m] for s, m in zip(stamps, sel, strict=True)],
-            [v[m] for v, m in zip(values, sel, strict=True)],
-            threshold_n,
-            margin_s,
-            vehicle_max_n,
+        part = [s[m] for s, m in zip(stamps, sel, strict=True)]
+        vals = [v[m] for v, m in zip(values, sel, strict=True)]
+        sels.append(sel)
+        bins.append(_bin_total(part, vals) if all(map(len, part)) else None)
+
+    def screened(i: int, ends: tuple[bool, bool]) -> _Screened | None:
+        piece = bins[i]
+        return (
+            None if piece is None else _screen_bins(piece[1], threshold_n, margin, vehicle_max_n, ends=ends)
         )
+
+    # the loads at the silences, each piece screened with its silences as splits
+    inner = [screened(i, (i == 0, i == len(bins) - 1)) for i in range(len(bins))]
+    across = [
+        a is not None and b is not None and _vehicle_across(a, b, vehicle_max_n)
+        for a, b in itertools.pairwise(inner)
+    ]
+    keep = [np.ones(len(s), bool) for s in stamps]
+    for i, sel in enumerate(sels):
+        ends = (i == 0 or not across[i - 1], i == len(bins) - 1 or not across[i])
+        done = inner[i] if ends == (i == 0, i == len(bins) - 1) else screened(i, ends)
+        if done is None:
+            continue
+        idx = bins[i][0]
         for c, m in enumerate(sel):
-            keep[c][m] = piece[c]
+            keep[c][m] = ~done.cut[idx[c]]
     return keep
+
+
+def _vehicle_across(before: _Screened, after: _Screened, vehicle_max_n: float) -> bool:
+    """Whether a vehicle stood across the silence between two pieces (``_screen_states``)."""
+    loads = np.array([before.tail_n, after.head_n])
+    return bool(np.all(np.isfinite(loads)) and np.all(loads <= vehicle_max_n))
 
 
 def _state_bounds(
