@@ -354,6 +354,93 @@ def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
     np.testing.assert_allclose(mean, ref.mean_m, rtol=1e-12, atol=0)
 
 
+def test_a_quiet_input_close_inside_a_record_is_undone_when_the_record_goes_on() -> None:
+    """A logger pause inside a record, longer than the quiet limit: live ends as the offline replay.
+
+    In-process (the callbacks called directly, the quiet limit passed by ageing the arrival times):
+    a reference record at 1 Hz, then 3 h later a 20-min record whose logger paused over minutes
+    5-8 while a test car stood (minutes 3-10), the level 20 kN lower after the pause. The node's
+    quiet-input close at the pause ended the record there (flushed as a replay's end), and the
+    car's half before it stayed data: the live posterior ended 0.11 mm off the offline replay of
+    the same stream. Now the close is undone when the data goes on within ``gap_s`` (the state
+    from before it restored), and the node ends where the offline replay does; a close before data
+    ``gap_s`` or more later stands.
+    """
+    import time
+
+    import rclpy
+
+    from bridge_shadow.bagio import encode_stamped_floats
+    from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, TEMPERATURE_FRAME
+    from bridge_shadow.model.surrogate_file import load_surrogate
+    from bridge_shadow.ros.node import ShadowNode
+    from bridge_shadow.series import MonitoringData
+
+    ns = 10**9
+    u0 = load_surrogate().u0
+    rng = np.random.default_rng(5)
+    t0 = 1_650_000_000 * ns + 8 * 3600 * ns
+    ref = t0 + np.arange(12 * 60) * ns
+    later = t0 + 3 * 3600 * ns + np.arange(20 * 60) * ns
+    f_ref = u0[:, None] + rng.normal(0.0, 20.0, (2, len(ref)))
+    f_later = u0[:, None] + rng.normal(0.0, 20.0, (2, len(later)))
+    f_later[:, 180:600] += 6000.0
+    f_later[:, 480:] -= 20000.0
+    keep = (later < later[0] + 300 * ns) | (later >= later[0] + 480 * ns)
+    last = later[-1] + 3600 * ns + np.arange(5 * 60) * ns  # an hour on: a record of its own
+    stamp = np.r_[ref, later[keep], last]
+    force = np.c_[f_ref, f_later[:, keep], u0[:, None] - 20000.0 + rng.normal(0.0, 20.0, (2, len(last)))].T
+    t_stamp = stamp[::10]
+    temp = np.full(len(t_stamp), 12.0)
+    config = load_config()
+    whole = Shadow(config).run(MonitoringData.from_arrays(stamp, force, t_stamp, temp))
+    pauses = [int(np.searchsorted(stamp, later[0] + 300 * ns)), int(np.searchsorted(stamp, last[0]))]
+    # the premise: ended at the pause (what the node did), the stream reads otherwise
+    split = Shadow(config)
+    for a, b in zip([0, pauses[0]], [pauses[0], len(stamp)], strict=True):
+        for c in range(2):
+            split.ingest_forces(c, stamp[a:b], force[a:b, c])
+        inside = (t_stamp >= stamp[a]) & (t_stamp <= stamp[b - 1])
+        split.ingest_temperature(t_stamp[inside], temp[inside])
+        split.poll()
+        split.flush()
+    assert np.max(np.abs(split.posterior[0] - whole.mean_m)) > 1e-4
+
+    wrench = np.zeros((len(stamp), 6))
+    raws = []
+    for c, ch in enumerate(CHANNELS):
+        wrench[:, 2] = force[:, c]
+        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
+    t_raw = encode_stamped_floats(t_stamp, TEMPERATURE_FRAME, np.c_[temp, np.zeros(len(temp))])
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = ShadowNode(context=context)
+        try:
+            callbacks = [node._callback(i) for i in range(3)]
+            j_t = 0
+            for j in range(len(stamp)):
+                if j in pauses:  # the inputs fall quiet for longer than the quiet limit
+                    node.drain()
+                    node._arrival = [time.monotonic() - 1000.0] * 3
+                    node._on_drain_timer()
+                while j_t < len(t_stamp) and t_stamp[j_t] <= stamp[j]:
+                    callbacks[2](t_raw[j_t])
+                    j_t += 1
+                callbacks[0](raws[0][j])
+                callbacks[1](raws[1][j])
+            node.close_open_windows()
+            np.testing.assert_allclose(node._last_posterior[0], whole.mean_m, rtol=1e-12, atol=0)
+            np.testing.assert_allclose(node._last_posterior[1], whole.covariance_m2, rtol=1e-12, atol=0)
+            assert (node.quiet_flushes, node.quiet_flushes_undone) == (2, 1)
+            shown = [out.index for out in node.history]
+            assert len(shown) == len(set(shown)), "the undone close's outputs left the history"
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
 def test_topic_parameters_rename_the_node_graph(short_bag: Path, short_direct, tmp_path: Path) -> None:
     """The node subscribes and publishes under the topic_* parameters; the posterior is unchanged."""
     from renamed_topics import RENAMED, renamed_bag

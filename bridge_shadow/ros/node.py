@@ -31,8 +31,13 @@ for ``REORDER_HOLD_S``). Live, the window-closing message never waits: the other
 Quiet inputs (wall clock): windows close on stamp time, so when every input stops the window holding
 the last data would wait for the next message. Once no input has arrived for
 ``max(topic_timeout_s, window_s)`` of wall time (what /diagnostics reports as an ERROR), the node closes
-the windows holding data as the replay's end does (``Shadow.flush``) and publishes them; a message
-for such a window that arrives later still is counted ``late``. Data after the gap is unaffected.
+the windows holding data as the replay's end does (``Shadow.flush``) and publishes them. That close
+is provisional: the node keeps the shadow's state from before it, and when the inputs come back
+with stamps less than ``gap_s`` after the last ones (a logger that paused inside a record:
+the offline replay goes on with the same record there), it goes back to that state, says so in
+the log, publishes the posterior it holds and goes on as the offline replay of the whole stream
+does; the outputs of the undone close leave the history. Data from ``gap_s`` on is a new record
+and the close stands. A message for a closed window that arrives later still is counted ``late``.
 
 Checkpoint: with ``checkpoint_path`` set, the node resumes from that file when it exists, the shadow
 saves it every ``checkpoint_period_s`` of stamp time, and the node saves it on SIGINT/SIGTERM
@@ -77,7 +82,7 @@ from bridge_shadow.contract import (
     NODE_NAME,
 )
 from bridge_shadow.errors import BridgeShadowError
-from bridge_shadow.estimate import ShadowConfig, WindowOutput
+from bridge_shadow.estimate import Shadow, ShadowConfig, WindowOutput
 from bridge_shadow.estimate.parameters.specs import SPECS
 from bridge_shadow.estimate.startup import open_shadow
 from bridge_shadow.jsonvalues import jsonable
@@ -155,6 +160,7 @@ class ShadowNode(Node):
         self._next_config: ShadowConfig | None = None
         cfg = self.config
         surrogate = load_surrogate(cfg.surrogate_path or None)
+        self._surrogate = surrogate
         self.shadow, notes = open_shadow(cfg, surrogate)
         log = self.get_logger()
         for line in startup_lines(cfg, surrogate, params_files):
@@ -167,6 +173,9 @@ class ShadowNode(Node):
         self.posteriors_published = 0
         self._last_posterior: tuple[np.ndarray, np.ndarray] | None = None
         self.quiet_flushes = 0
+        self.quiet_flushes_undone = 0
+        # the state before the last quiet-input close, its last force stamp and outputs published
+        self._before_quiet: tuple[dict[str, Any], int, int] | None = None
         self._warned: set[str] = set()
         self.history: deque[Any] = deque(maxlen=HISTORY_WINDOWS)
         self._raw: list[list[bytes]] = [[], [], []]
@@ -326,6 +335,8 @@ class ShadowNode(Node):
         """
         now = time.monotonic()
         self._decode_buffers(now)
+        if self._before_quiet is not None and any(p is not None and len(p[0]) for p in self._pending):
+            self._resume_or_confirm_quiet_close()
         for i in range(3):
             if self._pending[i] is None:
                 continue
@@ -355,15 +366,44 @@ class ShadowNode(Node):
         if not arrivals or time.monotonic() - max(arrivals) <= self._timeout_s:
             return
         if any(p is not None for p in self._pending) or self.shadow.holds_data:
-            n = self.close_open_windows()
+            n = self.close_open_windows(provisional=True)
             self.quiet_flushes += 1
             self.get_logger().warning(
-                f"no input for {self._timeout_s:g} s: closed {n} open window(s) with the data held"
+                f"no input for {self._timeout_s:g} s: closed {n} open window(s) with the data held "
+                f"(undone if the inputs come back within gap_s = {self.config.gap_s:g} s of the data)"
             )
 
-    def close_open_windows(self) -> int:
-        """Ingest everything buffered, close every window holding data, publish; return how many."""
+    def _resume_or_confirm_quiet_close(self) -> None:
+        """Undo the last quiet-input close if the new data go on with its record, else keep it."""
+        assert self._before_quiet is not None
+        state, last_ns, published = self._before_quiet
+        self._before_quiet = None
+        first = min(int(p[0].min()) for p in self._pending if p is not None and len(p[0]))
+        if first - last_ns >= round(self.config.gap_s * _NS):
+            return  # a new record: the close stands
+        self.shadow = Shadow.from_state_dict(state, self.config, self._surrogate)
+        undone = self.windows_published - published
+        for _ in range(min(undone, len(self.history))):
+            self.history.pop()
+        self.quiet_flushes_undone += 1
+        self._publish_posterior(*self.shadow.posterior)
+        self._next_end_ns = self._window_end()
+        self.get_logger().info(
+            f"inputs back {(first - last_ns) / _NS:.0f} s of data after the last, within gap_s: the "
+            f"quiet-input close is undone ({undone} window output(s) provisional), the record goes on"
+        )
+
+    def close_open_windows(self, provisional: bool = False) -> int:
+        """Ingest everything buffered, close every window holding data, publish; return how many.
+
+        ``provisional`` (the quiet-input close): keep the state from before the close, to go back
+        to when the data goes on within ``gap_s`` (``_resume_or_confirm_quiet_close``).
+        """
         self.drain(everything=True)
+        self._before_quiet = None
+        clock = self.shadow.clock_ns
+        if provisional and clock is not None:
+            self._before_quiet = (self.shadow.state_dict(), clock, self.windows_published)
         outputs = self.shadow.flush()
         self._publish(outputs)
         # the flush's refit (lambda reselected) lands on its last output; when every window had
@@ -404,6 +444,7 @@ class ShadowNode(Node):
             "windows_published": self.windows_published,
             "posteriors_published": self.posteriors_published,
             "quiet_flushes": self.quiet_flushes,
+            "quiet_flushes_undone": self.quiet_flushes_undone,
             "arrival_age_s": self._ages(),
         }
         return diag
