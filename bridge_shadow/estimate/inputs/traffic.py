@@ -95,21 +95,20 @@ def screen_record(
     )
     if len(bounds) == 2:
         return _screen_piece(stamps, values, threshold_n, margin_s, vehicle_max_n)
-    return _screen_states(stamps, values, bounds, threshold_n, margin_s, vehicle_max_n)
+    return _screen_states(stamps, values, bounds, (threshold_n, margin_s, vehicle_max_n))
 
 
 def _screen_states(
     stamps: list[np.ndarray],
     values: list[np.ndarray],
     bounds: list[int],
-    threshold_n: float,
-    margin_s: float,
-    vehicle_max_n: float,
+    rule: tuple[float, float, float],
 ) -> list[np.ndarray]:
     """Screen the pieces of a record whose car-free level changes across silences (``_state_bounds``).
 
-    Each piece is screened against its own baseline, as a record of its own (a run touching a
-    silence does not come back), except where a vehicle stood across a silence: the piece before
+    ``rule``: ``threshold_n``, ``margin_s``, ``vehicle_max_n`` of ``screen_record``. Each piece is
+    screened against its own baseline, as a record of its own (a run touching a silence does not
+    come back), except where a vehicle stood across a silence: the piece before
     ends with a run above its baseline at the silence and the piece after begins with one above
     its own, neither heavier than any vehicle (``vehicle_max_n``; ``_Screened.tail_n`` /
     ``head_n``), i.e. a test car parked while the logger paused and the state changed, arriving
@@ -122,6 +121,7 @@ def _screen_states(
     ``benchmarks/loadtest_days.py``); cutting a run at one side too cut the drifting end of a
     record before a silence and lost windows of the state after it.
     """
+    threshold_n, margin_s, vehicle_max_n = rule
     margin = round(margin_s * 1e9 / BIN_NS)
     sels, bins = [], []
     for a, b in itertools.pairwise(bounds):
