@@ -174,7 +174,7 @@ class ShadowNode(Node):
         self._last_posterior: tuple[np.ndarray, np.ndarray] | None = None
         self.quiet_flushes = 0
         self.quiet_flushes_undone = 0
-        # the state before the last quiet-input close, its last force stamp and outputs published
+        # before the last quiet-input close: the state, its data clock, the outputs published so far
         self._before_quiet: tuple[dict[str, Any], int, int] | None = None
         self._warned: set[str] = set()
         self.history: deque[Any] = deque(maxlen=HISTORY_WINDOWS)

@@ -108,11 +108,11 @@ def _screen_states(
 
     ``rule``: ``threshold_n``, ``margin_s``, ``vehicle_max_n`` of ``screen_record``. Each piece is
     screened against its own baseline, as a record of its own (a run touching a silence does not
-    come back), except where a vehicle stood across a silence: the piece before
-    ends with a run above its baseline at the silence and the piece after begins with one above
-    its own, neither heavier than any vehicle (``vehicle_max_n``; ``_Screened.tail_n`` /
-    ``head_n``), i.e. a test car parked while the logger paused and the state changed, arriving
-    before the silence and leaving after it. There the silence is a split, not an end of the
+    come back), except where a vehicle stood across a silence: the piece before ends with a run
+    above its baseline at the silence and the piece after begins with one above its own, neither
+    heavier than any vehicle (``vehicle_max_n``; ``_Screened.tail_n`` / ``head_n``), i.e. a test
+    car parked while the logger paused and the state changed, arriving before the silence and
+    leaving after it. There the silence is a split, not an end of the
     record (``_screen_bins``' split of a state change inside a record, at a place the recording
     gives), and both halves of the car are cut. A run at one side only stays data: with nothing
     on the bridge at the other side it is what a further state looks like too (the rule of
