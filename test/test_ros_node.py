@@ -354,26 +354,16 @@ def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
     np.testing.assert_allclose(mean, ref.mean_m, rtol=1e-12, atol=0)
 
 
-def test_a_quiet_input_close_inside_a_record_is_undone_when_the_record_goes_on() -> None:
-    """A logger pause inside a record, longer than the quiet limit: live ends as the offline replay.
+def _paused_record_stream() -> dict:
+    """Return a stream with a logger pause inside a record, its raw messages and its offline replay.
 
-    In-process (the callbacks called directly, the quiet limit passed by ageing the arrival times):
-    a reference record at 1 Hz, then 3 h later a 20-min record whose logger paused over minutes
-    5-8 while a test car stood (minutes 3-10), the level 20 kN lower after the pause. The node's
-    quiet-input close at the pause ended the record there (flushed as a replay's end), and the
-    car's half before it stayed data: the live posterior ended 0.11 mm off the offline replay of
-    the same stream. Now the close is undone when the data goes on within ``gap_s`` (the state
-    from before it restored), and the node ends where the offline replay does; a close before data
-    ``gap_s`` or more later stands.
+    1 Hz forces and air: a reference record, 3 h on a 20-min record whose logger paused over
+    minutes 5-8 while a test car stood (minutes 3-10), the level 20 kN lower after the pause, and
+    an hour on a 5-min record of its own.
     """
-    import time
-
-    import rclpy
-
     from bridge_shadow.bagio import encode_stamped_floats
     from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, TEMPERATURE_FRAME
     from bridge_shadow.model.surrogate_file import load_surrogate
-    from bridge_shadow.ros.node import ShadowNode
     from bridge_shadow.series import MonitoringData
 
     ns = 10**9
@@ -387,16 +377,71 @@ def test_a_quiet_input_close_inside_a_record_is_undone_when_the_record_goes_on()
     f_later[:, 180:600] += 6000.0
     f_later[:, 480:] -= 20000.0
     keep = (later < later[0] + 300 * ns) | (later >= later[0] + 480 * ns)
-    last = later[-1] + 3600 * ns + np.arange(5 * 60) * ns  # an hour on: a record of its own
+    last = later[-1] + 3600 * ns + np.arange(5 * 60) * ns
     stamp = np.r_[ref, later[keep], last]
     force = np.c_[f_ref, f_later[:, keep], u0[:, None] - 20000.0 + rng.normal(0.0, 20.0, (2, len(last)))].T
     t_stamp = stamp[::10]
     temp = np.full(len(t_stamp), 12.0)
-    config = load_config()
-    whole = Shadow(config).run(MonitoringData.from_arrays(stamp, force, t_stamp, temp))
-    pauses = [int(np.searchsorted(stamp, later[0] + 300 * ns)), int(np.searchsorted(stamp, last[0]))]
+    wrench = np.zeros((len(stamp), 6))
+    raws = []
+    for c, ch in enumerate(CHANNELS):
+        wrench[:, 2] = force[:, c]
+        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
+    raws.append(encode_stamped_floats(t_stamp, TEMPERATURE_FRAME, np.c_[temp, np.zeros(len(temp))]))
+    return {
+        "stamp": stamp,
+        "force": force,
+        "t_stamp": t_stamp,
+        "temp": temp,
+        "raws": raws,
+        "pauses": [int(np.searchsorted(stamp, later[0] + 300 * ns)), int(np.searchsorted(stamp, last[0]))],
+        "whole": Shadow(load_config()).run(MonitoringData.from_arrays(stamp, force, t_stamp, temp)),
+    }
+
+
+def _feed(node, stream: dict, start: int, stop: int, quiet_at: tuple[int, ...] = ()) -> None:
+    """Call the node's callbacks with messages ``start:stop`` of ``stream`` in stamp order.
+
+    Before message ``j`` in ``quiet_at`` the inputs fall quiet for longer than the quiet limit (the
+    arrival times aged, the drain timer run).
+    """
+    import time
+
+    callbacks = [node._callback(i) for i in range(3)]
+    stamp, t_stamp, raws = stream["stamp"], stream["t_stamp"], stream["raws"]
+    j_t = int(np.searchsorted(t_stamp, stamp[start], side="left")) if start else 0
+    for j in range(start, stop):
+        if j in quiet_at:
+            node.drain()
+            node._arrival = [time.monotonic() - 1000.0] * 3
+            node._on_drain_timer()
+        while j_t < len(t_stamp) and t_stamp[j_t] <= stamp[j]:
+            callbacks[2](raws[2][j_t])
+            j_t += 1
+        callbacks[0](raws[0][j])
+        callbacks[1](raws[1][j])
+
+
+def test_a_quiet_input_close_inside_a_record_is_undone_when_the_record_goes_on() -> None:
+    """A logger pause inside a record, longer than the quiet limit: live ends as the offline replay.
+
+    In-process (the callbacks called directly, the quiet limit passed by ageing the arrival times;
+    ``_paused_record_stream``). The node's quiet-input close at the pause ended the record there
+    (flushed as a replay's end), and the car's half before it stayed data: the live posterior
+    ended 0.11 mm off the offline replay of the same stream. Now the close is undone when the
+    data goes on within ``gap_s`` (the state from before it restored), and the node ends where
+    the offline replay does; the close before the record an hour on stands.
+    """
+    import rclpy
+
+    from bridge_shadow.ros.node import ShadowNode
+
+    stream = _paused_record_stream()
+    stamp, force, t_stamp, temp, pauses, whole = (
+        stream[k] for k in ("stamp", "force", "t_stamp", "temp", "pauses", "whole")
+    )
     # the premise: ended at the pause (what the node did), the stream reads otherwise
-    split = Shadow(config)
+    split = Shadow(load_config())
     for a, b in zip([0, pauses[0]], [pauses[0], len(stamp)], strict=True):
         for c in range(2):
             split.ingest_forces(c, stamp[a:b], force[a:b, c])
@@ -406,35 +451,72 @@ def test_a_quiet_input_close_inside_a_record_is_undone_when_the_record_goes_on()
         split.flush()
     assert np.max(np.abs(split.posterior[0] - whole.mean_m)) > 1e-4
 
-    wrench = np.zeros((len(stamp), 6))
-    raws = []
-    for c, ch in enumerate(CHANNELS):
-        wrench[:, 2] = force[:, c]
-        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
-    t_raw = encode_stamped_floats(t_stamp, TEMPERATURE_FRAME, np.c_[temp, np.zeros(len(temp))])
     context = rclpy.Context()
     rclpy.init(context=context)
     try:
         node = ShadowNode(context=context)
         try:
-            callbacks = [node._callback(i) for i in range(3)]
-            j_t = 0
-            for j in range(len(stamp)):
-                if j in pauses:  # the inputs fall quiet for longer than the quiet limit
-                    node.drain()
-                    node._arrival = [time.monotonic() - 1000.0] * 3
-                    node._on_drain_timer()
-                while j_t < len(t_stamp) and t_stamp[j_t] <= stamp[j]:
-                    callbacks[2](t_raw[j_t])
-                    j_t += 1
-                callbacks[0](raws[0][j])
-                callbacks[1](raws[1][j])
+            _feed(node, stream, 0, len(stamp), quiet_at=tuple(pauses))
             node.close_open_windows()
             np.testing.assert_allclose(node._last_posterior[0], whole.mean_m, rtol=1e-12, atol=0)
             np.testing.assert_allclose(node._last_posterior[1], whole.covariance_m2, rtol=1e-12, atol=0)
             assert (node.quiet_flushes, node.quiet_flushes_undone) == (2, 1)
             shown = [out.index for out in node.history]
             assert len(shown) == len(set(shown)), "the undone close's outputs left the history"
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_a_node_stopped_after_a_quiet_close_resumes_the_record_as_the_offline_replay(tmp_path: Path) -> None:
+    """Stopped during the logger pause (after its quiet-input close), restarted, the data goes on.
+
+    The checkpoint written on exit holds the state from before the close; the resumed node, its
+    inputs still quiet, closes the held record again (the same outputs as before the stop), and
+    when the data comes back within ``gap_s`` goes on with the record: it ends where the offline
+    replay does. Written after the close, the checkpoint had the record ended at the pause.
+    """
+    import time
+
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from bridge_shadow.ros.node import ShadowNode
+
+    stream = _paused_record_stream()
+    pause = stream["pauses"][0]
+    ckpt = tmp_path / "shadow.ckpt"
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        params = [Parameter("checkpoint_path", value=str(ckpt))]
+        node = ShadowNode(context=context, parameter_overrides=params)
+        try:
+            _feed(node, stream, 0, pause)
+            node.drain()
+            node._arrival = [time.monotonic() - 1000.0] * 3  # quiet: the close, then SIGTERM
+            node._on_drain_timer()
+            assert node.quiet_flushes == 1
+            before = [(out.index, out.mean_m.copy()) for out in node.history]
+            assert node.save_on_exit() == ckpt
+        finally:
+            node.destroy_node()
+        node = ShadowNode(context=context, parameter_overrides=params)
+        try:
+            assert node.shadow.holds_data  # the record's windows, held as before the close
+            node._born = time.monotonic() - 1000.0  # quiet since the start
+            node._on_drain_timer()
+            assert node.quiet_flushes == 1
+            again = [(out.index, out.mean_m) for out in node.history]
+            assert [k for k, _ in again] == [k for k, _ in before[-len(again) :]]
+            for (_, a), (_, b) in zip(again, before[-len(again) :], strict=True):
+                np.testing.assert_allclose(a, b, rtol=1e-12, atol=0)
+            _feed(node, stream, pause, len(stream["stamp"]), quiet_at=(stream["pauses"][1],))
+            node.close_open_windows()
+            whole = stream["whole"]
+            np.testing.assert_allclose(node._last_posterior[0], whole.mean_m, rtol=1e-12, atol=0)
+            assert node.quiet_flushes_undone == 1
         finally:
             node.destroy_node()
     finally:

@@ -37,7 +37,9 @@ with stamps less than ``gap_s`` after the last ones (a logger that paused inside
 the offline replay goes on with the same record there), it goes back to that state, says so in
 the log, publishes the posterior it holds and goes on as the offline replay of the whole stream
 does; the outputs of the undone close leave the history. Data from ``gap_s`` on is a new record
-and the close stands. A message for a closed window that arrives later still is counted ``late``.
+and the close stands. A checkpoint written on exit before any data has decided holds the state
+from before the close (a resumed node whose inputs stay quiet closes the held windows again).
+A message for a closed window that arrives later still is counted ``late``.
 
 Checkpoint: with ``checkpoint_path`` set, the node resumes from that file when it exists, the shadow
 saves it every ``checkpoint_period_s`` of stamp time, and the node saves it on SIGINT/SIGTERM
@@ -85,6 +87,7 @@ from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.estimate import Shadow, ShadowConfig, WindowOutput
 from bridge_shadow.estimate.parameters.specs import SPECS
 from bridge_shadow.estimate.startup import open_shadow
+from bridge_shadow.estimate.state.checkpoint import save_state
 from bridge_shadow.jsonvalues import jsonable
 from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 from bridge_shadow.paths import config_file
@@ -184,6 +187,7 @@ class ShadowNode(Node):
         self._last_drain = 0.0
         self._tried_end = -(2**62)  # the window end a closing message last drained for
         self._started: float | None = None  # wall time of the first message (monotonic)
+        self._born = time.monotonic()  # the quiet limit's reference before any message
         self._peek = [-(2**62)] * 3  # stamp of the last raw message per topic (undecoded)
         self._pending: list[tuple[np.ndarray, ...] | None] = [None, None, None]
         self._next_end_ns = self._window_end()
@@ -363,7 +367,8 @@ class ShadowNode(Node):
         """Ingest what is buffered; close the open windows when every input has been quiet too long."""
         self.drain()
         arrivals = [t for t in self._arrival if t is not None]
-        if not arrivals or time.monotonic() - max(arrivals) <= self._timeout_s:
+        # no message yet: a shadow resumed holding a record's windows closes them as quiet too
+        if time.monotonic() - max(arrivals, default=self._born) <= self._timeout_s:
             return
         if any(p is not None for p in self._pending) or self.shadow.holds_data:
             n = self.close_open_windows(provisional=True)
@@ -495,9 +500,19 @@ class ShadowNode(Node):
         return response
 
     def save_on_exit(self) -> Path | None:
-        """Ingest what is buffered and write the checkpoint (if configured); return its path."""
+        """Ingest what is buffered and write the checkpoint (if configured); return its path.
+
+        After a quiet-input close that no data has decided yet, the state from before it is
+        written: the stream as the offline replay has it (the node resumed from it closes the held
+        windows again once its inputs stay quiet, and goes on with the record if they come back
+        within ``gap_s``).
+        """
         self.ingest_pending(everything=True)
-        return self.shadow.save_checkpoint() if self.config.checkpoint_path else None
+        if not self.config.checkpoint_path:
+            return None
+        if self._before_quiet is not None:
+            return save_state(self._before_quiet[0], self.config.checkpoint_path)
+        return self.shadow.save_checkpoint()
 
 
 def startup_lines(config: ShadowConfig, surrogate: Any, params_files: Sequence[str] = ()) -> list[str]:
