@@ -18,7 +18,8 @@ import yaml
 
 pytest.importorskip("rclpy")
 
-from bridge_shadow.bagio import encode_stamped_floats
+from input_messages import raw_inputs
+
 from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.ros.fleet import main as fleet_main
@@ -40,18 +41,6 @@ def _record(seed: int, n: int = 600) -> MonitoringData:
     stamps = T0_NS + np.arange(n, dtype=np.int64) * 10**9  # 1 Hz, 10 min
     forces = np.array([2.60e5, 2.21e5]) + 80.0 * rng.standard_normal((n, 2))
     return MonitoringData.from_arrays(stamps, forces, stamps[::30], 8.0 + 0.01 * np.arange(len(stamps[::30])))
-
-
-def _raws(data: MonitoringData) -> list[list[bytes]]:
-    out = []
-    for ch in ("frc_01", "frc_02"):
-        s = data.forces[ch]
-        values = np.zeros((len(s), 6))
-        values[:, 2] = s.force_n
-        out.append(encode_stamped_floats(s.stamp_ns, s.frame_id, values))
-    t = data.temperature
-    out.append(encode_stamped_floats(t.stamp_ns, t.frame_id, np.column_stack([t.temp_c, t.variance])))
-    return out
 
 
 @pytest.fixture
@@ -112,7 +101,7 @@ def test_a_fleet_runs_each_bridge_with_its_own_model(fleet_file: Path, tmp_path:
             return json.loads(future.result().message)
 
         for name, data in records.items():
-            raws = _raws(data)
+            raws = raw_inputs(data)
             for i in range(len(raws[0])):  # in arrival order: frc_01, frc_02, then the temperature
                 pubs[name][0].publish(raws[0][i])
                 pubs[name][1].publish(raws[1][i])

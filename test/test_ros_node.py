@@ -16,6 +16,7 @@ import pytest
 
 pytest.importorskip("rclpy")
 
+from input_messages import raw_inputs
 from rclpy.serialization import deserialize_message
 
 from bridge_shadow.bagio import read_monitoring, read_raw_topics
@@ -307,8 +308,6 @@ def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
     time. The posterior the node publishes without any flush call equals the offline replay of the
     same data (which closes the last window at its end).
     """
-    from bridge_shadow.bagio import encode_stamped_floats
-    from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, TEMPERATURE_FRAME
     from bridge_shadow.series import MonitoringData
 
     t0 = 1_646_667_300 * 10**9
@@ -330,12 +329,7 @@ def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
     config = load_config(None, overrides)
     ref = Shadow(config).run(data)
     assert len(ref.outputs) == 21 and ref.updates > 10
-    wrench = np.zeros((len(stamp), 6))
-    raws = []
-    for c, ch in enumerate(CHANNELS):
-        wrench[:, 2] = force[:, c]
-        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
-    raws.append(encode_stamped_floats(t_stamp, TEMPERATURE_FRAME, np.c_[temp, np.zeros(len(temp))]))
+    raws = raw_inputs(data)
     topic, pos, _ = merge_log_order([stamp, stamp, t_stamp])
     with tempfile.TemporaryDirectory() as tmp:
         args = ["--ros-args", "--params-file", str(write_params_file(config.to_params(), Path(tmp)))]
@@ -361,8 +355,6 @@ def _paused_record_stream() -> dict:
     minutes 5-8 while a test car stood (minutes 3-10), the level 20 kN lower after the pause, and
     an hour on a 5-min record of its own.
     """
-    from bridge_shadow.bagio import encode_stamped_floats
-    from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, TEMPERATURE_FRAME
     from bridge_shadow.model.surrogate_file import load_surrogate
     from bridge_shadow.series import MonitoringData
 
@@ -382,20 +374,15 @@ def _paused_record_stream() -> dict:
     force = np.c_[f_ref, f_later[:, keep], u0[:, None] - 20000.0 + rng.normal(0.0, 20.0, (2, len(last)))].T
     t_stamp = stamp[::10]
     temp = np.full(len(t_stamp), 12.0)
-    wrench = np.zeros((len(stamp), 6))
-    raws = []
-    for c, ch in enumerate(CHANNELS):
-        wrench[:, 2] = force[:, c]
-        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
-    raws.append(encode_stamped_floats(t_stamp, TEMPERATURE_FRAME, np.c_[temp, np.zeros(len(temp))]))
+    data = MonitoringData.from_arrays(stamp, force, t_stamp, temp)
     return {
         "stamp": stamp,
         "force": force,
         "t_stamp": t_stamp,
         "temp": temp,
-        "raws": raws,
+        "raws": raw_inputs(data),
         "pauses": [int(np.searchsorted(stamp, later[0] + 300 * ns)), int(np.searchsorted(stamp, last[0]))],
-        "whole": Shadow(load_config()).run(MonitoringData.from_arrays(stamp, force, t_stamp, temp)),
+        "whole": Shadow(load_config()).run(data),
     }
 
 
