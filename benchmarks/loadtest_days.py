@@ -38,10 +38,10 @@ FACTOR times its rate). ``--only creep`` is a fifth: the new state's reactions c
 lowering (``with_creep``: the 10 mm record's own rise of 0.05 / 0.1 kN a minute, added again up to
 three times) in the pair, the pair after a second quiet record of the old state, and the day's
 four records (every new state creeping more, or only the two after the 10 mm record).
-``--only pauses`` is a sixth: the
-later record's logger silent for 1 to 8 minutes while the test car stands (``pause_streams``),
-then the reference record paused too, or the later record twice (``more_pause_streams``), and
-one load cell silent for minutes of the later record (``with_silence``).
+``--only pauses`` is a sixth: the later record's logger silent for 1 to 8 minutes while the test
+car stands (``pause_streams``), then the reference record paused too, or the later record twice
+(``more_pause_streams``), and one load cell silent for minutes of the later record
+(``with_silence``).
 
 Usage::
 

@@ -56,6 +56,7 @@ def _data(n: int = 500, seed: int = 1) -> MonitoringData:
 
 
 def _assert_same(a: MonitoringData, b: MonitoringData) -> None:
+    """Exact: the same messages through a bag and back (copies, no arithmetic)."""
     for ch in ("frc_01", "frc_02"):
         x, y = a.forces[ch], b.forces[ch]
         np.testing.assert_array_equal(x.stamp_ns, y.stamp_ns)
@@ -93,6 +94,7 @@ def test_messages_in_log_time_order_and_vectorized_decode_equals_rosbags(
     for ch, topic in FORCE_TOPICS.items():
         msgs = [ts.deserialize_cdr(raw, FORCE_TYPE) for t, _, _, raw in items if t == topic]
         ref_stamp = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in msgs]
+        # exact: both decode the same bytes (copies, no arithmetic)
         np.testing.assert_array_equal(got.forces[ch].stamp_ns, ref_stamp)
         np.testing.assert_array_equal(got.forces[ch].force_n, [m.wrench.force.z for m in msgs])
         assert list(got.forces[ch].frame_id) == [m.header.frame_id for m in msgs]
@@ -128,7 +130,7 @@ def test_decoder_reads_big_endian_cdr_and_rejects_garbage() -> None:
     big = bytes(ts.serialize_cdr(msg, TEMPERATURE_TYPE, little_endian=False))
     little = bytes(ts.serialize_cdr(msg, TEMPERATURE_TYPE))
     stamp, frames, values = decode_stamped_floats([big, little], 2)
-    np.testing.assert_array_equal(stamp, [12 * 10**9 + 34] * 2)
+    np.testing.assert_array_equal(stamp, [12 * 10**9 + 34] * 2)  # exact: decoded bytes, no arithmetic
     assert list(frames) == ["air", "air"]
     np.testing.assert_array_equal(values, [[-6.5, 0.25], [-6.5, 0.25]])
     with pytest.raises(ValueError, match="too short"):
@@ -193,7 +195,7 @@ def test_optional_topics_and_missing_topic(tmp_path: Path) -> None:
         read_monitoring(tmp_path / "forces_only")
     got = read_monitoring(tmp_path / "forces_only", required=list(FORCE_TOPICS.values()))
     assert len(got.temperature) == 0
-    np.testing.assert_array_equal(got.forces["frc_02"].force_n, data.forces["frc_02"].force_n)
+    np.testing.assert_array_equal(got.forces["frc_02"].force_n, data.forces["frc_02"].force_n)  # a copy
 
 
 @pytest.mark.parametrize("storage", STORAGES)
@@ -290,7 +292,7 @@ def test_output_writer_messages_deserialize(tmp_path: Path, storage: str) -> Non
         msgs = {c.topic: ts.deserialize_cdr(raw, c.msgtype) for c, _, raw in reader.messages()}
     w = msgs["/bridge_shadow/compensated/frc_01"]
     assert (w.wrench.force.z, w.header.frame_id, w.header.stamp.nanosec) == (2.6e5, "frc_01", 601_000_000 - 5)
-    np.testing.assert_array_equal(msgs[MEAN_TOPIC].data, [7e-4, -7e-4])
+    np.testing.assert_array_equal(msgs[MEAN_TOPIC].data, [7e-4, -7e-4])  # written, read back: a copy
     assert [d.label for d in msgs[MEAN_TOPIC].layout.dim] == ["support"]
     c = msgs[COVARIANCE_TOPIC]
     assert [(d.label, d.size, d.stride) for d in c.layout.dim] == [("row", 2, 4), ("col", 2, 2)]
@@ -362,6 +364,6 @@ def test_decode_buffer_gathers_scattered_messages() -> None:
     starts = np.array([5 + len(raws[2]) + 5, 5 + len(raws[2]) + 5 + len(raws[0]), 5])
     lengths = np.array([len(r) for r in raws])
     stamp, frames, values = decode_buffer(buf, starts, lengths, 6)
-    np.testing.assert_array_equal(stamp, [5, 6, 7])
+    np.testing.assert_array_equal(stamp, [5, 6, 7])  # exact: decoded bytes, no arithmetic
     assert list(frames) == ["a", "bbbbbbbbbbbb", "a"]
     np.testing.assert_array_equal(values, np.arange(18.0).reshape(3, 6))

@@ -54,7 +54,7 @@ def test_a_bag_appears_whole_or_not_at_all(tmp_path: Path) -> None:
     with pytest.raises(RuntimeError), BagOutputWriter(tmp_path / "bag", overwrite=True) as writer:
         writer.write_float64_array("/x", 1, [1.0, 2.0], ["support"])
         raise RuntimeError("interrupted")
-    np.testing.assert_array_equal(read_monitoring(old).forces["frc_01"].force_n, 2.0e5)
+    np.testing.assert_array_equal(read_monitoring(old).forces["frc_01"].force_n, 2.0e5)  # set, read back
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bag"]
     # a finished overwrite replaces it; a stage left by a killed writer is cleaned up
     orphan = tmp_path / f".bag.{_dead_pid()}.tmp"

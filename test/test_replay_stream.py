@@ -56,6 +56,7 @@ def _concat(pieces: list[MonitoringData]) -> MonitoringData:
 
 
 def _assert_same(a: MonitoringData, b: MonitoringData) -> None:
+    """Exact: the same messages cut and joined again (copies, no arithmetic)."""
     for x, y in [(a.forces[ch], b.forces[ch]) for ch in CHANNELS] + [(a.temperature, b.temperature)]:
         np.testing.assert_array_equal(x.stamp_ns, y.stamp_ns)
         np.testing.assert_array_equal(x.log_ns, y.log_ns)

@@ -33,7 +33,7 @@ def test_mean_and_covariance_layout_round_trip() -> None:
     assert [(d.label, d.size, d.stride) for d in c.layout.dim] == [("row", 2, 4), ("col", 2, 2)]
     back_m, _ = array_from_msg(m)
     back_c, labels = array_from_msg(c)
-    np.testing.assert_array_equal(back_m, mean)
+    np.testing.assert_array_equal(back_m, mean)  # exact: copied into the message and out
     np.testing.assert_array_equal(back_c, cov)  # row-major
     assert labels == ("row", "col")
 
@@ -83,7 +83,7 @@ def test_decode_drops_and_counts_malformed() -> None:
     raws = encode_stamped_floats(stamps, "frc_01", values)
     stamp, force, frame, bad = decode_forces([raws[0], raws[1][:20], raws[2]])
     assert bad == 1
-    np.testing.assert_array_equal(stamp, stamps[[0, 2]])
+    np.testing.assert_array_equal(stamp, stamps[[0, 2]])  # exact: encoded and decoded, no arithmetic
     np.testing.assert_array_equal(force, [2.6e5, 2.2e5])
     assert list(frame) == ["frc_01", "frc_01"]
     temp = encode_stamped_floats(stamps, "air_temperature", np.array([[5.0, 0.0], [6.5, 0.1], [7.0, 0.0]]))

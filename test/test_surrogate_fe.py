@@ -158,6 +158,7 @@ def test_mesh_convergence_coarse_to_default(coarse, cfg):
 def test_write_and_load_round_trip(coarse_run, tmp_path):
     path = write_surrogate(coarse_run, tmp_path / "s.yaml")
     back = load_surrogate(path)
+    # exact: the floats written and read back (a copy through the file, no arithmetic)
     np.testing.assert_array_equal(back.A, coarse_run.surrogate.A)
     np.testing.assert_array_equal(back.u0, coarse_run.surrogate.u0)
     for k, v in coarse_run.surrogate.thermal.items():

@@ -2,8 +2,9 @@
 
 Inputs arrive as raw CDR bytes (``raw=True`` subscriptions: no Python message object per sample)
 and are decoded in blocks by ``bridge_shadow.bagio.decode_stamped_floats``, the same vectorized
-codec the offline replay uses. Outputs are built as typed rclpy messages (one per window, cheap).
-Units are SI: forces in N, settlements in m, covariances in m^2, stamps in integer ns.
+codec the offline replay uses. Outputs are built as typed rclpy messages (``*_msg``: bags, tests)
+or serialized directly (``*_raw``: what the node publishes, below). Units are SI: forces in N,
+settlements in m, covariances in m^2, stamps in integer ns.
 
 The node publishes its outputs serialized (``*_raw``: ``Publisher.publish`` takes CDR bytes):
 each is a template serialized once by rclpy with the varying fields packed in place: what rclpy

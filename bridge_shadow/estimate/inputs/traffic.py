@@ -112,14 +112,14 @@ def _screen_states(
     above its baseline at the silence and the piece after begins with one above its own, neither
     heavier than any vehicle (``vehicle_max_n``; ``_Screened.tail_n`` / ``head_n``), i.e. a test
     car parked while the logger paused and the state changed, arriving before the silence and
-    leaving after it. There the silence is a split, not an end of the
-    record (``_screen_bins``' split of a state change inside a record, at a place the recording
-    gives), and both halves of the car are cut. A run at one side only stays data: with nothing
-    on the bridge at the other side it is what a further state looks like too (the rule of
-    ``_holds_a_further_state``). Screened as records of their own, both halves of such a car
-    stayed data and the change was read as two events of 87 % and 13 % of it (the pause study of
-    ``benchmarks/loadtest_days.py``); cutting a run at one side too cut the drifting end of a
-    record before a silence and lost windows of the state after it.
+    leaving after it. There the silence is a split, not an end of the record (``_screen_bins``'
+    split of a state change inside a record, at a place the recording gives), and both halves of
+    the car are cut. A run at one side only stays data: with nothing on the bridge at the other
+    side it is what a further state looks like too (the rule of ``_holds_a_further_state``).
+    Screened as records of their own, both halves of such a car stayed data and the change was
+    read as two events of 87 % and 13 % of it (the pause study of ``benchmarks/loadtest_days.py``);
+    cutting a run at one side too cut the drifting end of a record before a silence and lost
+    windows of the state after it.
     """
     threshold_n, margin_s, vehicle_max_n = rule
     margin = round(margin_s * 1e9 / BIN_NS)
@@ -335,8 +335,8 @@ def first_free(s: np.ndarray, threshold_n: float) -> np.ndarray:
     """Return the bins that start the car rule's baseline on a whole record (NaN: none).
 
     In each half of the bins with data (its quiet bins, ``quiet``, where it has any), the lowest
-    fifth (the calibration's rule, one per half so
-    that a drift of ~1 kN through a record does not put the whole start at one end), but no bin
+    fifth (the calibration's rule, one per half so that a drift of ~1 kN through a record does
+    not put the whole start at one end), but no bin
     more than ``threshold_n`` above the half's lowest: a vehicle only adds load, so the lowest bin
     is car-free and so are those near it, while a vehicle on the bridge for more than four fifths
     of a half (a load cell silent over the car-free minutes before it) would otherwise be the
