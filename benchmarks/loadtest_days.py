@@ -15,6 +15,8 @@ Two studies, each printed as rates:
 - **twin**: ``twin.loadtest.load_test_day`` over ``--seeds`` seeds, with the sun (a 4 K vertical
   difference at full clear sky) and without it: every step an event at its record, no car-free
   window of a new state rejected, the final estimate within 10 %, the 95 % interval holding it.
+  ``--only schedule``: the same on ``twin.loadtest.scheduled_day``, the day as 2022-04-11's
+  loggers ran (the step inside each lowering record, three-hour ambient records between).
 
 The shadow cuts the test car itself (its traffic screen, ``traffic_hold_s``); ``--hold 0`` runs
 it without the screen (the previous stop's numbers). ``--car cut`` is the what-if that preceded
@@ -71,7 +73,7 @@ from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.paths import config_file, shared_data_dir
 from bridge_shadow.series import ForceSeries, MonitoringData
-from bridge_shadow.twin.loadtest import LoadTestDay, creeping, load_test_day
+from bridge_shadow.twin.loadtest import LoadTestDay, creeping, load_test_day, scheduled_day
 from bridge_shadow.twin.loadtest_score import score_day, score_stream
 from bridge_shadow.twin.real_records import Piece, build, with_creep, with_silence
 
@@ -380,6 +382,14 @@ def twin_day(item: tuple[int, float, dict, float, float]) -> Any:
     return score_day(Shadow(_config(over), sur).run(data), truth)
 
 
+def scheduled_twin_day(item: tuple[int, float, dict, float, float]) -> Any:
+    """Score one twin day on 2022-04-11's own schedule (``scheduled_day``; a task)."""
+    seed, sun, over, _, _ = item
+    sur = load_surrogate()
+    data, truth = scheduled_day(seed, LoadTestDay(vertical_gradient_k=sun), sur)
+    return score_day(Shadow(_config(over), sur).run(data), truth)
+
+
 def twin_study(
     mapper: Callable[..., list[Any]],
     seeds: int,
@@ -387,11 +397,13 @@ def twin_study(
     over: dict[str, Any] | None = None,
     monitor_days: float = 0.0,
     creep: float = 0.0,
+    schedule: bool = False,
 ) -> None:
     over = over or {}
+    task = scheduled_twin_day if schedule else twin_day
     for sun in (4.0, 0.0):
         t0 = time.perf_counter()
-        scores = mapper(twin_day, [(seed, sun, over, monitor_days, creep) for seed in range(seeds)])
+        scores = mapper(task, [(seed, sun, over, monitor_days, creep) for seed in range(seeds)])
         for seed, s in enumerate(scores):
             if verbose or not s.passed:
                 err = np.round(1e3 * s.error_m, 2)
@@ -403,7 +415,8 @@ def twin_study(
             "95 % holds": np.mean([s.covered for s in scores]),
         }
         err = np.array([s.error_m for s in scores]) * 1e3
-        head = f"twin load-test day, sun {sun:g} K, {monitor_days:g} days monitored before, {over}"
+        day = "twin day on 2022-04-11's schedule" if schedule else "twin load-test day"
+        head = f"{day}, sun {sun:g} K, {monitor_days:g} days monitored before, {over}"
         head += f", new states creeping {creep:g} x the 10 mm record's rate" if creep else ""
         print(f"{head}: {seeds} seeds in {time.perf_counter() - t0:.0f} s")
         for label, r in rates.items():
@@ -454,11 +467,12 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument(
         "--only",
-        choices=("real", "twin", "continuous", "minutes", "creep", "pauses"),
+        choices=("real", "twin", "schedule", "continuous", "minutes", "creep", "pauses"),
         help="one study (continuous: three sunny days of monitoring, sun term off and on; minutes: the "
         "two records minutes apart or cut short, in 30 s, 1 min and 2 min windows; creep: the new "
         "states' reactions creeping after the lowering, 1 to 4 times the 10 mm record's own; pauses: a "
-        "logger pause of minutes inside the later record; none of these by default)",
+        "logger pause of minutes inside the later record; schedule: the twin's day cut to 2022-04-11's "
+        "own recordings, with its lowering and three-hour ambient records; none of these by default)",
     )
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
     ap.add_argument(
@@ -516,6 +530,8 @@ def main() -> None:
             real_study(mapper, args.verbose, args.car, over, args.u0)
         if args.only in (None, "twin"):
             twin_study(mapper, args.seeds, args.verbose, over, args.monitor_days, args.creep)
+        if args.only == "schedule":
+            twin_study(mapper, args.seeds, args.verbose, over, schedule=True)
         if args.only == "continuous":
             continuous_study(mapper, args.seeds)
         if args.only == "minutes":

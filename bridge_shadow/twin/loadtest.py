@@ -15,6 +15,11 @@ Two ways to make one:
   air warms from about 2 C in the morning to 12-14 C in the afternoon and the sun heats the deck
   from above (``vertical_gradient``, a linear temperature difference through the deck), and the
   car parks at two or three random places per record (+3 to +9 kN per bearing) (``LoadTestDay``).
+- ``scheduled_day``: the day as its loggers actually ran (``SCHEDULE_2022_04_11``, read off the
+  day's ten air-temperature files): three load records with the car, lowering records in which the
+  support moves (a step at the record's middle), and two three-hour ambient records between, the
+  later records starting minutes after the earlier ones stopped. The withheld records of that day
+  have this shape; the four-record day above has nothing between its records.
 - ``day_from_records``: the two real records of 2022-04-11 (reference 08:36, after 10 mm 09:20),
   cut and shifted to the afternoon, with the further steps added through a given ``A``
   (``A dx``) and the real air temperature of the hours they are placed at. Only the first step is
@@ -45,11 +50,13 @@ __all__ = [
     "DAY",
     "RECORD_S",
     "RECORD_TIMES",
+    "SCHEDULE_2022_04_11",
     "LoadTestDay",
     "SeatingSupports",
     "day_from_records",
     "load_test_day",
     "parked_car",
+    "scheduled_day",
     "synthetic_day",
 ]
 
@@ -354,6 +361,100 @@ def load_test_day(
     )
     truth["record_x_m"] = np.asarray(truth["settlement_m"], float)
     return data, truth
+
+
+#: 2022-04-11 as its loggers ran: (kind, local start, local end) of each recording, from the ten
+#: air-temperature files of the day (``Settlements/TemperatureData2022-04-11.zip``, logged with the
+#: forces). ``load``: 12 minutes with the test car; ``lowering``: the jacks lowered the central
+#: support by 10 mm during it; ``quiet``: no car, no change (the first lowering's second file, and
+#: the two ambient records of three hours). The records follow each other after silences of 1 to 4
+#: minutes, except for the gaps before 09:44, 13:40 and 14:13.
+SCHEDULE_2022_04_11: tuple[tuple[str, str, str], ...] = (
+    ("load", "08:36:26", "08:48:24"),
+    ("lowering", "08:49:35", "09:09:34"),
+    ("quiet", "09:10:48", "09:18:39"),
+    ("load", "09:20:06", "09:32:05"),
+    ("quiet", "09:44:02", "12:44:01"),
+    ("lowering", "12:47:10", "13:04:56"),
+    ("load", "13:39:57", "13:51:56"),
+    ("quiet", "14:13:14", "17:13:13"),
+    ("lowering", "17:15:54", "17:34:25"),
+    ("load", "17:37:51", "17:49:48"),
+)
+
+
+def _hours(clock: str) -> float:
+    h, m, s = (float(x) for x in clock.split(":"))
+    return h + m / 60.0 + s / 3600.0
+
+
+def scheduled_day(
+    seed: int,
+    spec: LoadTestDay | None = None,
+    surrogate: Surrogate | None = None,
+    *,
+    schedule: Sequence[tuple[str, str, str]] = SCHEDULE_2022_04_11,
+    step_m: tuple[float, float] = (-0.010, -0.010),
+) -> tuple[MonitoringData, dict[str, Any]]:
+    """Simulate a load-test day on ``schedule``: the twin's day cut to its recordings (SI).
+
+    ``spec`` gives the sun (``vertical_gradient_k``), the force rate, the car and the twin's world
+    (its ``record_h`` and ``steps_m`` are not used); ``step_m`` happens at the middle of every
+    ``lowering`` record (the jacks' minutes as one step). The truth is ``load_test_day``'s:
+    ``record_x_m`` is each recording's settlement at its end (a lowering record's new state, whose
+    event belongs inside it), ``stops`` the car's plateaus.
+    """
+    from bridge_shadow.model.surrogate_file import load_surrogate
+    from bridge_shadow.twin.simulate import simulate
+
+    spec = spec or LoadTestDay()
+    reality = surrogate if surrogate is not None else load_surrogate()
+    day_ns = 86400 * NS
+    t0 = _local_ns(DAY, 0.0)
+    spans = [(_local_ns(DAY, _hours(a)), _local_ns(DAY, _hours(b))) for _, a, b in schedule]
+    kinds = [k for k, _, _ in schedule]
+    at = [(a + b) // 2 for (a, b), k in zip(spans, kinds, strict=True) if k == "lowering"]
+    data, twin = simulate(
+        1.0,
+        spec.rate_hz,
+        seed,
+        {"vertical_gradient": spec.vertical_gradient_k} if spec.vertical_gradient_k else {},
+        start=t0,
+        steps=[((t - t0) / day_ns, step_m[0], step_m[1]) for t in at],
+        surrogate=reality,
+        temp_rate_hz=1 / 60,
+        config=spec.twin,
+    )
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 7]))
+    loads = [span for span, k in zip(spans, kinds, strict=True) if k == "load"]
+    plateaus: list[tuple[Plateau, ...]] = []
+    while len(plateaus) < len(loads):
+        plateaus += spec.car_plateaus(rng)
+    forces = {}
+    for i, ch in enumerate(CHANNELS):
+        s = data.forces[ch]
+        f = s.force_n.copy()
+        for (a, b), ps in zip(loads, plateaus, strict=False):
+            m = (s.stamp_ns >= a) & (s.stamp_ns < b)
+            f[m] += parked_car(s.stamp_ns[m], a, spec.car_weight_n, spec.twin.span_m, ps)[:, i]
+        forces[ch] = ForceSeries(s.stamp_ns, f, FORCE_FRAMES[ch])
+    x_end = np.array([sum(t < b for t in at) for _, b in spans], float)[:, None] * np.asarray(step_m, float)
+    truth = {
+        "seed": seed,
+        "record_start_ns": [a for a, _ in spans],
+        "record_end_ns": [b for _, b in spans],
+        "record_kind": kinds,
+        "record_x_m": x_end,
+        "settlement_m": x_end.tolist(),
+        "step_ns": at,
+        "stops": [
+            (a + round(p[0] * NS), a + round((p[0] + p[1]) * NS), p[2] * 2 * spec.twin.span_m, p[3])
+            for (a, _), ps in zip(loads, plateaus, strict=False)
+            for p in ps
+        ],
+        "twin": {k: twin[k] for k in ("effects", "t_ref_c", "reality") if k in twin},
+    }
+    return _cut(MonitoringData(forces, data.temperature), spans), truth
 
 
 def creeping(data: MonitoringData, truth: dict[str, Any], factor: float) -> MonitoringData:
