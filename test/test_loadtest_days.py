@@ -725,3 +725,27 @@ def test_two_records_minutes_apart_longer_together_than_the_hold_are_each_screen
     assert got["event"] and got["within"]
     cut = [o.end_ns for o in res.outputs if o.reason == "traffic"]
     assert any(t < sc.starts_ns[1] for t in cut) and any(t > sc.starts_ns[1] for t in cut)  # both screened
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("later", ["ref", "lowered"])
+def test_a_load_record_minutes_after_hours_of_monitoring_is_screened(
+    folder: Path, surrogate, later: str
+) -> None:
+    """A 12-minute record 3 minutes after a recording longer than the hold (2022-04-11's schedule).
+
+    The day's temperature files show the loggers running for three hours of ambient monitoring
+    (09:44-12:44, 14:13-17:13), then a lowering record 3 minutes later, then the load record
+    3 minutes after that. Here the reference record's car-free first two minutes, copied back to
+    back for 34 minutes (longer than ``traffic_hold_s``: released, unscreened), then the later
+    record 3 minutes on. The released recording went on across the silence, so the later record
+    was never held: its test car stayed data (8 outlier windows on the same state; the lowered
+    record 1.8 / 1.2 mm off, outside 1 mm). A recording that starts after a silence is now a
+    record of its own, held and screened.
+    """
+    pieces = [Piece("ref", 2 * i / 60, cut_min=(0, 2)) for i in range(17)]
+    sc = build(folder, surrogate.A, [*pieces, Piece(later, 37 / 60)])
+    _, res = replay(sc, surrogate)
+    got = check(sc, res)
+    assert got["event"] and got["within"]
+    assert sum(o.reason == "traffic" and o.end_ns > sc.starts_ns[-1] for o in res.outputs) >= 4

@@ -29,7 +29,7 @@ __all__ = ["ESTIMATOR_ONLY", "REDUCTION_VERSION", "ReductionCache", "bag_digest"
 
 #: Bumped whenever ``archive.reduce`` or the front end (gate, window buffer) changes what a
 #: reduction holds or means: older entries are then never read.
-REDUCTION_VERSION = 10
+REDUCTION_VERSION = 11
 #: Shadow parameters that act only after a window is closed (compensation, noise, prior, events,
 #: outputs, checkpoint, node): they leave a bag's reduction as it is (test_archive.py
 #: changes each one and compares the reductions). Every other parameter is in the key.

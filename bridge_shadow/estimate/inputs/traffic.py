@@ -30,7 +30,10 @@ sides of a silence with a change is cut on both (``_screen_states``).
 
 The samples of the traffic bins are cut; the windows are built from the rest (a window left
 with fewer than ``window_min_samples`` is rejected as ``traffic``). A record longer than the hold
-limit is released unscreened (continuous monitoring: the detector's transients handle it).
+limit is released unscreened (continuous monitoring: the detector's transients handle it); a
+recording that starts again after a silence of ``PIECE_SILENCE_NS`` or more is a record of its
+own, held and screened, also after a released one (2022-04-11's load records followed its
+three-hour ambient and lowering records after silences of 3 minutes).
 """
 
 from __future__ import annotations

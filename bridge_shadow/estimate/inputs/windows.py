@@ -455,7 +455,10 @@ class WindowBuffer:
             for i, seg in zip([-1, *cuts], np.split(new, cuts), strict=True):
                 if not len(seg):
                     continue
-                if i >= 0 and (not rec.open or step[i] >= self.gap_ns):  # a new record starts at seg[0]
+                if i >= 0 and (not rec.holding or step[i] >= self.gap_ns):  # a new record starts at seg[0]
+                    # after a silence of a piece, a released (long) record does not go on: the
+                    # recording that starts is a record of its own, held and screened (a load-test
+                    # record minutes after hours of ambient monitoring)
                     ended.extend(rec.end())
                     rec.begin(int(seg[0]))
                 elif i >= 0:  # the record goes on after a silence: a recording that started again
