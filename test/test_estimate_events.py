@@ -7,6 +7,8 @@ rejected, and the two constants of the jump rule each have a test that pins thei
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from scipy.signal import lfilter
 
@@ -184,6 +186,31 @@ def test_the_windows_that_stayed_away_before_an_events_change_time_are_never_out
     v[201:] += [-60.0, -60.0]
     verdict, events = run(v)
     assert [k for k, _ in events] == [201] and verdict[200] == "reject"
+
+
+def test_a_run_that_drifted_one_way_and_then_stepped_the_other_is_never_outliers() -> None:
+    """A run away one way, then a step the other way: the run did not come back, so no outliers.
+
+    Found on the twin of 2022-04-11's schedule in the sun: the reactions rose by ~0.7 kN over a
+    quarter of an hour as the sun left the deck (the windows held beyond the trigger), then the
+    support was lowered. The step's window lay nearer no change than the run's mean, the run was
+    taken as an excursion that came back, and its 9-13 windows were rejected as outliers. A
+    passing load that does come back stays an outlier or data (``test_a_spike_is_...``).
+    """
+    for seed, n_drift, step in itertools.product((7, 8, 9), (10, 20), (-40.0, -80.0)):
+        v = ar1(500, seed)
+        v[300 - n_drift : 300] += np.linspace(0.0, 8.0, n_drift)[:, None]  # a drift away, not back
+        v[300:] += [step, step]  # then a step the other way
+        verdict, events = run(v)
+        assert [k for k, _ in events] == [300], (seed, n_drift, step, events)
+        drift = [verdict[k] for k in range(300 - n_drift, 300)]
+        # one window left alone before the step is an outlier as any (``_event``); a run never
+        assert drift.count("reject") <= 1, (seed, n_drift, drift)
+    v = ar1(500, 7)
+    v[300:303] += [8.0, 8.0]  # a car parked for three windows that leaves: back, not moved on
+    v[303:] += [-80.0, -80.0]  # ... as the support steps: the car's windows are no state
+    verdict, events = run(v)
+    assert [k for k, _ in events] == [303]
 
 
 def test_the_jump_rule_keeps_a_misjudged_noise_scale_from_raising_events(monkeypatch) -> None:

@@ -32,14 +32,20 @@ freedom.
      if they did not come back (two or more: an unconfirmed change of their own; one between the
      states: the window the step happened in; never outliers);
    - *transient*: the latest window is back (closer to no change than to the step of the whole
-     run): the earlier pending windows were a passing excursion, such as a test car. Those beyond
-     ``h_outlier`` (``mahalanobis_probability``) are rejected as outliers, the others are ordinary
-     windows; the latest window is judged afresh. Only a run that came back loses windows;
+     run, and within the trigger of no change): the earlier pending windows were a passing
+     excursion, such as a test car. Those beyond ``h_outlier`` (``mahalanobis_probability``) are
+     rejected as outliers, the others are ordinary windows; the latest window is judged afresh.
+     Only a run that came back loses windows; one whose latest window left it the other way,
+     beyond the trigger (a drift, then a step), did not come back: it is decided as a run that
+     stayed away (below), the latest window judged afresh (``_moved_on``);
    - *unconfirmed change*: a run that has not come back but must be decided without a qualifying
      candidate (after ``event_max_pending`` windows, at the end of the data, or at the start of a
      gap, see ``close_run``) is never rejected: it starts a *provisional* segment at its most
      likely change time, whose jump is uncertain (the shadow weighs "changed" against "not
-     changed" by the data, ``segments``), and the shadow reports it.
+     changed" by the data, ``segments``), and the shadow reports it. At ``event_max_pending``
+     inside the data the run is ordinary data, the change reported; when its most likely change
+     time has fewer than ``event_confirm_windows`` windows after it, only the windows before it
+     are decided so and the rest stay held (``_forced``).
 
 While the noise model rests on few windows, its variance is uncertain: detection uses it inflated
 by ``dof / chi2_dof(0.05)`` (its one-sided 95 % bound; ``dof`` the fit's residual degrees of
@@ -273,8 +279,11 @@ class ChangeDetector:
             return Decision()
         self.pending.append(item)
         cands = self._candidates()
-        if self._d2(item, np.zeros(2)) < self._d2(item, cands[0].step):
-            return self._transient()  # back to where the run started from: it was passing by
+        back = self._d2(item, np.zeros(2))
+        if back < self._d2(item, cands[0].step):  # nearer the old state than the run's
+            if back <= self.h_trigger:
+                return self._transient()  # back to where the run started from: it was passing by
+            return self._moved_on()  # beyond it, the other way: the run never came back
         best = self._best(cands)
         if best is not None:
             series = self._run_series()
@@ -290,7 +299,7 @@ class ChangeDetector:
                 return Decision()  # still moving: the new state is not reached yet
             return self._event(best, split)
         if len(self.pending) >= self.max_pending:
-            return self._unconfirmed(cands, provisional=False)  # stayed away unqualified: data, reported
+            return self._forced(cands)
         return Decision()
 
     def close_run(self) -> Decision:
@@ -452,6 +461,48 @@ class ChangeDetector:
             last.k, tuple(last.v), _sym(last.r_window / self.inflation), _sym(last.apa), last.payload
         )
         return Decision(reject=reject + again.reject, accept_before=ordinary, accept=again.accept)
+
+    def _forced(self, cands: list[_Candidate]) -> Decision:
+        """Decide a run at ``event_max_pending`` without a qualifying candidate.
+
+        It stayed away unqualified: data, and the change reported (``_unconfirmed``). When its
+        likeliest change time lies among its last windows, fewer than ``event_confirm_windows``
+        after it, that change cannot be judged yet: the windows before it are decided so, and
+        the ones from it on stay held. (A drift of a quarter of an hour and then a step: the step's
+        three windows were used as data with the drift, the event dated 18 windows late.)
+        """
+        c = min(cands, key=lambda c: c.cost)
+        if c.j == 0 or c.n_after >= self.confirm:
+            return self._unconfirmed(cands, provisional=False)
+        rest = self.pending[c.j :]
+        self.pending = self.pending[: c.j]
+        decision = self._unconfirmed(self._candidates(), provisional=False)
+        self.pending = rest
+        return decision
+
+    def _moved_on(self) -> Decision:
+        """Decide a run whose latest window left it the other way, beyond the trigger of no change.
+
+        A run that drifted one way (the sun leaving the deck: the reactions rose by 0.7 kN over a
+        quarter of an hour) and then a step the other way (a lowering): the step's window lies
+        nearer no change than the run's mean, but it is not back, and the run did not come back
+        either. Taken as a transient, the run's windows were rejected as outliers (9-13 windows on
+        4 of 100 sunny twin days on 2022-04-11's schedule). Now a run of two or more is decided as
+        one that stayed away without qualifying (ordinary data, the change reported:
+        ``_unconfirmed``), as ``_event`` keeps the windows before a step that did not come back;
+        one window is an outlier as any. The latest window is judged afresh.
+        """
+        *before, last = self.pending
+        if len(before) < 2:
+            return self._transient()
+        self.pending = before
+        decision = self._unconfirmed(self._candidates(), provisional=False)
+        again = self.step(
+            last.k, tuple(last.v), _sym(last.r_window / self.inflation), _sym(last.apa), last.payload
+        )
+        decision.reject += again.reject
+        decision.accept = again.accept
+        return decision
 
     def _event(self, c: _Candidate, split: tuple[int, int] | None = None) -> Decision:
         """Decide an event at ``c``'s change time, or after the ramp ``split`` (its windows moving)."""
