@@ -383,10 +383,10 @@ def twin_day(item: tuple[int, float, dict, float, float]) -> Any:
 
 
 def scheduled_twin_day(item: tuple[int, float, dict, float, float]) -> Any:
-    """Score one twin day on 2022-04-11's own schedule (``scheduled_day``; a task)."""
-    seed, sun, over, _, _ = item
+    """Score one twin day on 2022-04-11's own schedule (``scheduled_day``; a task; ``rate``: Hz)."""
+    seed, sun, over, _, rate = item
     sur = load_surrogate()
-    data, truth = scheduled_day(seed, LoadTestDay(vertical_gradient_k=sun), sur)
+    data, truth = scheduled_day(seed, LoadTestDay(vertical_gradient_k=sun, rate_hz=rate), sur)
     return score_day(Shadow(_config(over), sur).run(data), truth)
 
 
@@ -397,13 +397,14 @@ def twin_study(
     over: dict[str, Any] | None = None,
     monitor_days: float = 0.0,
     creep: float = 0.0,
-    schedule: bool = False,
+    schedule: float = 0.0,
 ) -> None:
+    """Score the twin's days with and without the sun; ``schedule``: on 2022-04-11's, at this rate (Hz)."""
     over = over or {}
-    task = scheduled_twin_day if schedule else twin_day
+    task, last = (scheduled_twin_day, schedule) if schedule else (twin_day, creep)
     for sun in (4.0, 0.0):
         t0 = time.perf_counter()
-        scores = mapper(task, [(seed, sun, over, monitor_days, creep) for seed in range(seeds)])
+        scores = mapper(task, [(seed, sun, over, monitor_days, last) for seed in range(seeds)])
         for seed, s in enumerate(scores):
             if verbose or not s.passed:
                 err = np.round(1e3 * s.error_m, 2)
@@ -415,7 +416,7 @@ def twin_study(
             "95 % holds": np.mean([s.covered for s in scores]),
         }
         err = np.array([s.error_m for s in scores]) * 1e3
-        day = "twin day on 2022-04-11's schedule" if schedule else "twin load-test day"
+        day = f"twin day on 2022-04-11's schedule at {schedule:g} Hz" if schedule else "twin load-test day"
         head = f"{day}, sun {sun:g} K, {monitor_days:g} days monitored before, {over}"
         head += f", new states creeping {creep:g} x the 10 mm record's rate" if creep else ""
         print(f"{head}: {seeds} seeds in {time.perf_counter() - t0:.0f} s")
@@ -513,6 +514,12 @@ def main() -> None:
         help="twin study: each new state's reactions rise through its record at this many times the "
         "real 10 mm record's own 0.05 / 0.1 kN a minute (with_creep; default 0: none)",
     )
+    ap.add_argument(
+        "--rate",
+        type=float,
+        default=0.2,
+        help="schedule study: force samples per second per channel (default 0.2; the real 100)",
+    )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
     over: dict[str, Any] = {}
@@ -531,7 +538,7 @@ def main() -> None:
         if args.only in (None, "twin"):
             twin_study(mapper, args.seeds, args.verbose, over, args.monitor_days, args.creep)
         if args.only == "schedule":
-            twin_study(mapper, args.seeds, args.verbose, over, schedule=True)
+            twin_study(mapper, args.seeds, args.verbose, over, schedule=args.rate)
         if args.only == "continuous":
             continuous_study(mapper, args.seeds)
         if args.only == "minutes":

@@ -459,6 +459,29 @@ def test_twin_days_on_the_real_days_schedule_end_within_10_percent_in_the_sun(en
     assert np.mean([s.covered for s in days]) >= 0.9
 
 
+def test_a_step_inside_a_window_after_a_held_drift_is_neither_state(surrogate) -> None:
+    """The window a step fell in, after a few held windows of drift, is no state (``step_window``).
+
+    Found by the twin on 2022-04-11's schedule at 10 Hz (seed 9, no sun; 1 of 100 days): the
+    compensated reactions drifted 0.2 kN over the five minutes before the first lowering (held,
+    beyond ``h_outlier``), the step fell in the middle of a window, and the event's change time
+    was right, with that window read as holding part of the step; but the held drift and that
+    window were taken together as a state of their own before the event. The window, half one
+    state and half the other, was then data: the noise model's per-sample scale grew a hundredfold
+    (0.3-0.6 to 67-84 kN), the third lowering had no jump on that scale, was used as data, and the day
+    ended 7.1 mm short of -30 mm. The window that held part of the step now leaves the run first.
+    """
+    from bridge_shadow.twin.loadtest import LoadTestDay, scheduled_day
+    from bridge_shadow.twin.loadtest_score import score_day
+
+    data, truth = scheduled_day(9, LoadTestDay(vertical_gradient_k=0.0, rate_hz=10.0), surrogate)
+    res = Shadow(load_config(), surrogate).run(data)
+    s = score_day(res, truth)
+    assert s.events_right and s.within_10pct and s.covered and not s.lost_windows, s
+    reason = {o.index: o.reason for o in res.outputs}
+    assert reason[truth["step_ns"][0] // W] == "step_window"
+
+
 def _creeping_twin_day(item: tuple[int, float]):
     """Score one twin load-test day without sun whose new states creep as the real record (a task)."""
     from bridge_shadow.twin.loadtest import LoadTestDay, creeping, load_test_day

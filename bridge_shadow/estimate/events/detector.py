@@ -513,6 +513,12 @@ class ChangeDetector:
         self.pending = []
         self.n_events += 1
         before, away = self._away_tail(before)
+        if split is None and c.mixed and len(away) > 1 and self._between(away[-1], step):
+            # the window that held part of the step, after held windows at another level (a drift):
+            # neither state, not one of theirs (taken with them, it was data)
+            level = np.mean([p.v for p in away[:-1]], axis=0)
+            if self._d2(away[-1], level) > self.h_outlier:
+                moving, away = away[-1:] + moving, away[:-1]
         change: list[Any] | None = None
         if len(away) == 1 and self._between(away[0], step):
             moving = away + moving  # the step happened inside it: it holds both states
