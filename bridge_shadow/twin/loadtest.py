@@ -4,7 +4,7 @@ A load-test day of the real bridge (DESIGN section 3): four 12-minute records (0
 two in the afternoon), the central support lowered by 10 mm in every gap, each record with the
 same test-car pattern (car-free minutes at both ends, the car parked at three positions for about
 two minutes each in between, crossings on the way), and the air temperature of the whole day.
-Two ways to make one:
+Ways to make one:
 
 - ``synthetic_day``: the truth twin (``twin.simulate``) over the whole day, cut to the records,
   with the parked test car added; the reality may differ from the estimator's model (a
