@@ -580,6 +580,32 @@ def test_live_replay_of_records_hours_apart_follows_the_new_state_as_direct(
     assert live["rejected"] == direct["rejected"] and live["rejected"]["outlier"] == 0
 
 
+@pytest.mark.ros
+def test_live_replay_of_the_real_days_schedule_is_the_direct_replay(surrogate, tmp_path: Path) -> None:
+    """``replay --live`` of the twin on 2022-04-11's schedule (sun 4 K) ends where the direct one does.
+
+    The node sees recordings start minutes after others stopped, a released three-hour record
+    followed by a held and screened one (the screen's record rule), steps inside records and a
+    drift held before a step: the same posterior, events, rejected windows and reports.
+    """
+    pytest.importorskip("rclpy")
+    from bridge_shadow.bagio import read_monitoring, write_monitoring
+    from bridge_shadow.ros.live_replay import run_live
+    from bridge_shadow.twin.loadtest import LoadTestDay, scheduled_day
+
+    data, _ = scheduled_day(58, LoadTestDay(vertical_gradient_k=4.0), surrogate)
+    bag = write_monitoring(tmp_path / "day", data)
+    direct = Shadow(load_config()).run(read_monitoring(bag)).to_json()
+    live = run_live(bag, timeout_s=60.0)
+    np.testing.assert_allclose(live["posterior"]["mean_m"], direct["posterior"]["mean_m"], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(
+        live["posterior"]["covariance_m2"], direct["posterior"]["covariance_m2"], rtol=1e-12, atol=0
+    )
+    assert len(live["events"]) == len(direct["events"]) >= 3
+    assert live["unconfirmed_changes"] == direct["unconfirmed_changes"]
+    assert live["rejected"] == direct["rejected"] and live["rejected"]["traffic"] > 0
+
+
 @pytest.mark.realdata
 @pytest.mark.parametrize("minute", [3, 6, 9])
 def test_a_settlement_inside_a_record_is_followed_whole(folder: Path, surrogate, minute: int) -> None:
