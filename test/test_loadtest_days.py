@@ -437,7 +437,7 @@ def _scheduled_twin_day(seed_sun: tuple[int, float]):
 def test_twin_days_on_the_real_days_schedule_end_within_10_percent_in_the_sun(engine) -> None:
     """The twin cut to 2022-04-11's recordings (``scheduled_day``), the sun on the deck (4 K).
 
-    Three load records with the car, three lowering records (10 mm each, a step at the middle),
+    Four load records with the car, three lowering records (10 mm each, a step at the middle),
     two three-hour ambient records between, the later records starting minutes after the earlier
     ones stopped: the shape of the withheld records. The shipped shadow, without its sun term,
     ends within 10 % of -30 mm on every day (the ambient hours show the sun's course, which the

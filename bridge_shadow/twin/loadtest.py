@@ -16,7 +16,7 @@ Ways to make one:
   from above (``vertical_gradient``, a linear temperature difference through the deck), and the
   car parks at two or three random places per record (+3 to +9 kN per bearing) (``LoadTestDay``).
 - ``scheduled_day``: the day as its loggers actually ran (``SCHEDULE_2022_04_11``, read off the
-  day's ten air-temperature files): three load records with the car, lowering records in which the
+  day's ten air-temperature files): four load records with the car, lowering records in which the
   support moves (a step at the record's middle), and two three-hour ambient records between, the
   later records starting minutes after the earlier ones stopped. The withheld records of that day
   have this shape; the four-record day above has nothing between its records.
