@@ -382,9 +382,9 @@ def twin_day(item: tuple[int, float, dict, float, float]) -> Any:
     return score_day(Shadow(_config(over), sur).run(data), truth)
 
 
-def scheduled_twin_day(item: tuple[int, float, dict, float, float]) -> Any:
+def scheduled_twin_day(item: tuple[int, float, dict, float]) -> Any:
     """Score one twin day on 2022-04-11's own schedule (``scheduled_day``; a task; ``rate``: Hz)."""
-    seed, sun, over, _, rate = item
+    seed, sun, over, rate = item
     sur = load_surrogate()
     data, truth = scheduled_day(seed, LoadTestDay(vertical_gradient_k=sun, rate_hz=rate), sur)
     return score_day(Shadow(_config(over), sur).run(data), truth)
@@ -401,10 +401,12 @@ def twin_study(
 ) -> None:
     """Score the twin's days with and without the sun; ``schedule``: on 2022-04-11's, at this rate (Hz)."""
     over = over or {}
-    task, last = (scheduled_twin_day, schedule) if schedule else (twin_day, creep)
     for sun in (4.0, 0.0):
         t0 = time.perf_counter()
-        scores = mapper(task, [(seed, sun, over, monitor_days, last) for seed in range(seeds)])
+        if schedule:
+            scores = mapper(scheduled_twin_day, [(seed, sun, over, schedule) for seed in range(seeds)])
+        else:
+            scores = mapper(twin_day, [(seed, sun, over, monitor_days, creep) for seed in range(seeds)])
         for seed, s in enumerate(scores):
             if verbose or not s.passed:
                 err = np.round(1e3 * s.error_m, 2)

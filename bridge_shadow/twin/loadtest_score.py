@@ -54,7 +54,6 @@ def score_day(res: ReplayResult, truth: dict[str, Any], window_s: float = 60.0) 
     x = np.asarray(truth["record_x_m"], float)
     used = [o.end_ns for o in res.outputs if o.updated]
     with_data = [i for i in range(len(starts)) if any(starts[i] < t <= ends[i] + w for t in used)]
-    changes = [(starts[b], ends[b]) for a, b in pairwise(with_data) if np.any(np.abs(x[b] - x[a]) > 1e-9)]
     if "step_ns" in truth:  # steps inside records (``scheduled_day``): each event from its step to the
         # end of the record that holds the first used window after it (a dropout may hide the step)
         changes = []
@@ -63,6 +62,8 @@ def score_day(res: ReplayResult, truth: dict[str, Any], window_s: float = 60.0) 
             rec = [i for i in with_data if first is not None and starts[i] < first <= ends[i] + w]
             if rec:
                 changes.append((t, ends[rec[0]]))
+    else:
+        changes = [(starts[b], ends[b]) for a, b in pairwise(with_data) if np.any(np.abs(x[b] - x[a]) > 1e-9)]
     found = sorted(e.time_ns for e in res.events)
     events_right = len(found) == len(changes) and all(
         a - w < t < b for t, (a, b) in zip(found, changes, strict=True)
