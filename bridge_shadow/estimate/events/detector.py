@@ -7,6 +7,10 @@ freedom.
 
 1. **Trigger.** A window with ``v' S1^-1 v > h_trigger`` (``event_trigger_probability``) starts a
    *pending* run; pending windows are held (not yet in the fit, the noise model or the output).
+   So does a window within the trigger that jumps from the last ordinary window as an event's
+   change time must (the jump test below): ``S1`` holds the estimate's own uncertainty
+   ``A P A'``, which every window shares and a jump does not see, so a step smaller than it
+   passed the trigger, and its jump counted as an ordinary one (``_note_jump``).
 2. **GLR with change-time estimation.** For each candidate start ``j`` of the pending run of ``n``
    windows, the sum ``s_j = sum_{i >= j} v_i`` of its ``n_j`` windows has, without a change, the
    covariance ``V_j = F(n_j) o R1 / m + n_j^2 A P A'``, with ``F(n) = n f(n)`` the AR(1) variance of a
@@ -269,10 +273,15 @@ class ChangeDetector:
         if not self.pending:
             total = (r_window[0] * infl + apa[0], r_window[1] * infl + apa[1], r_window[2] * infl + apa[2])
             if quad_inv(total, v) <= self.h_trigger:  # the common case, on floats
-                self._note_jump(k, v, r_window)
-                self._remember(k, v)
-                self.prev = Pending(k, v, r_window, apa, None)  # kept lazily as floats
-                return Decision(accept=[payload])
+                jump = self._neighbour_jump(k, v, r_window)
+                if jump <= self._jump_bound():
+                    self._note_jump(jump)
+                    self._remember(k, v)
+                    self.prev = Pending(k, v, r_window, apa, None)  # kept lazily as floats
+                    return Decision(accept=[payload])
+                # within the trigger, whose covariance holds the estimate's own uncertainty (shared
+                # by every window, it cancels in a jump), but it jumped as an event's change time
+                # must: held and judged with the run
         item = Pending(k, np.array(v), _arr(r_window) * infl, _arr(apa), payload)
         if not self.pending:
             self.pending = [item]
@@ -329,30 +338,38 @@ class ChangeDetector:
             c.consistent
             and c.n_after >= self.confirm
             and c.glr > self.h_event
-            and c.jump > max(self.h_jump, JUMP_OVER_SEEN * self.max_jump)
+            and c.jump > self._jump_bound()
         )
 
-    def _note_jump(self, k: int, v: Vec, r_window: Sym) -> None:
-        """Track the largest jump statistic between neighbouring ordinary windows (slowly forgotten).
+    def _jump_bound(self) -> float:
+        """Return the jump an event's change time must exceed (``_qualifies``)."""
+        return max(self.h_jump, JUMP_OVER_SEEN * self.max_jump)
 
-        An event's jump must stand out from those too: early in a record, while the noise model
-        still underestimates the scatter, ordinary jumps look large on the same wrong scale.
+    def _neighbour_jump(self, k: int, v: Vec, r_window: Sym) -> float:
+        """Return the jump statistic from the last ordinary window to window ``k`` (0 without one).
+
+        The jump covariance is ``_jump``'s (per-channel AR(1) variance, the channels' correlation);
+        windows more than ``JUMP_LOOKAHEAD`` apart are not neighbours.
         """
         p = self.prev
-        self.max_jump *= JUMP_MEMORY
-        if p is None or not isinstance(p.v, tuple) or not 0 < k - p.k <= 3:
-            return
+        if p is None or not isinstance(p.v, tuple) or not 0 < k - p.k <= JUMP_LOOKAHEAD:
+            return 0.0
         fa = 1.0 - self.phi[0] ** (k - p.k)
         fb = 1.0 - self.phi[1] ** (k - p.k)
         a0, b0, d0 = p.r_window
         a1, b1, d1 = r_window
         ra, rb, rd = a0 + a1, b0 + b1, d0 + d1
-        # V = the jump covariance of ``_jump`` (per-channel AR(1) variance, the channels' correlation)
         scale = math.sqrt(max(fa, 1e-6) * max(fb, 1e-6))
         V = (ra * max(fa, 1e-6), rb * scale, rd * max(fb, 1e-6))
-        j = quad_inv(V, (v[0] - p.v[0], v[1] - p.v[1])) / self.inflation
-        if j > self.max_jump:
-            self.max_jump = j
+        return quad_inv(V, (v[0] - p.v[0], v[1] - p.v[1])) / self.inflation
+
+    def _note_jump(self, jump: float) -> None:
+        """Track the largest jump statistic between neighbouring ordinary windows (slowly forgotten).
+
+        An event's jump must stand out from those too: early in a record, while the noise model
+        still underestimates the scatter, ordinary jumps look large on the same wrong scale.
+        """
+        self.max_jump = max(self.max_jump * JUMP_MEMORY, jump)
 
     @staticmethod
     def _d2(item: Pending, step: np.ndarray) -> float:
