@@ -218,7 +218,7 @@ def test_a_window_inside_a_step_that_the_estimates_uncertainty_let_through_is_no
     """A step's first window, within the trigger only by ``A P A'``, is held: the step is an event.
 
     Found on the twin of 2022-04-11's schedule with the sun term: early in the day the curve's
-    sun coefficient is uncertain, so ``A P A'`` was 4-6 kN (sd) against a window noise of 0.1 kN.
+    sun coefficient is uncertain, so ``A P A'`` was 4-6 kN (sd) against a window noise of 0.12 kN.
     The first lowering fell late in a window; that window, 43 % of the step, was within the
     trigger and went in as an ordinary window, and its jump (on the window noise, which a shared
     uncertainty does not enter) became the largest "ordinary" jump seen: the full step's jump from
@@ -229,7 +229,8 @@ def test_a_window_inside_a_step_that_the_estimates_uncertainty_let_through_is_no
     apa = (100.0, 0.0, 100.0)  # the estimate's uncertainty: sd 10, ten times the window noise
     total = np.array([[101.0, 0.3], [0.3, 101.0]])
     det = ChangeDetector()
-    for part in (0.35, 0.45, 0.5):  # (0.45 and 0.5 were data of the old state, 0.35 was data)
+    for part in (0.35, 0.45, 0.5):  # before: the step data of the old state at 0.45 and 0.5; at
+        # 0.35 an event, but the window inside it data of the old state
         v = ar1(400, 5)
         v[199] += [-50.0 * part, -50.0 * part]
         v[200:] += [-50.0, -50.0]
