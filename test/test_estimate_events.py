@@ -224,7 +224,9 @@ def test_a_window_inside_a_step_that_the_estimates_uncertainty_let_through_is_no
     uncertainty does not enter) became the largest "ordinary" jump seen: the full step's jump from
     it was less than ``JUMP_OVER_SEEN`` times that, no candidate qualified, and the lowering was
     data of the old state (``run_in_data``; 7 of 100 sunny days, and the third lowering with it).
-    A window that jumps from its neighbour as an event must is now held and judged with the run.
+    A window that jumps from its neighbour as an event must is now held and judged with the run
+    when only ``A P A'`` let it through: one within the trigger on the window noise alone is the
+    noise's own (held too, the bundled demo bag listed 15 more runs used as data).
     """
     apa = (100.0, 0.0, 100.0)  # the estimate's uncertainty: sd 10, ten times the window noise
     total = np.array([[101.0, 0.3], [0.3, 101.0]])
@@ -243,6 +245,16 @@ def test_a_window_inside_a_step_that_the_estimates_uncertainty_let_through_is_no
     # the same noise without a step: nothing held to an event, nothing lost
     verdict, events = run(ar1(400, 5), apa=apa)
     assert not events and set(verdict.values()) == {"accept"}
+    # a jump within the trigger on the window noise alone is the noise's own: an ordinary window,
+    # its jump remembered (``max_jump``); one beyond it only by ``A P A'`` is held, not remembered
+    for v1, held in ((1.9, False), (4.0, True)):
+        det = ChangeDetector()
+        det.set_noise(np.array([PHI, PHI]), 1e6)
+        det.step(0, (-v1, -v1), R, apa, 0)
+        decision = det.step(1, (v1, v1), R, apa, 1)
+        assert (decision.accept == []) == held and len(det.pending) == held, v1
+        jump = det._neighbour_jump(1, (v1, v1), R) if held else det.max_jump
+        assert jump > det.h_jump, v1  # a jump an event's change time may have
 
 
 def test_the_jump_rule_keeps_a_misjudged_noise_scale_from_raising_events(monkeypatch) -> None:

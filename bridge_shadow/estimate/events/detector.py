@@ -7,10 +7,11 @@ freedom.
 
 1. **Trigger.** A window with ``v' S1^-1 v > h_trigger`` (``event_trigger_probability``) starts a
    *pending* run; pending windows are held (not yet in the fit, the noise model or the output).
-   So does a window within the trigger that jumps from the last ordinary window as an event's
-   change time must (the jump test below): ``S1`` holds the estimate's own uncertainty
-   ``A P A'``, which every window shares and a jump does not see, so a step smaller than it
-   passed the trigger, and its jump counted as an ordinary one (``_note_jump``).
+   So does a window within the trigger only by the estimate's own uncertainty ``A P A'`` (beyond
+   it on the window noise ``R1 / m`` alone) that jumps from the last ordinary window as an
+   event's change time must (the jump test below): ``A P A'`` is shared by every window and a
+   jump does not see it, so a step smaller than it passed the trigger, and its jump counted as
+   an ordinary one (``_note_jump``).
 2. **GLR with change-time estimation.** For each candidate start ``j`` of the pending run of ``n``
    windows, the sum ``s_j = sum_{i >= j} v_i`` of its ``n_j`` windows has, without a change, the
    covariance ``V_j = F(n_j) o R1 / m + n_j^2 A P A'``, with ``F(n) = n f(n)`` the AR(1) variance of a
@@ -274,14 +275,14 @@ class ChangeDetector:
             total = (r_window[0] * infl + apa[0], r_window[1] * infl + apa[1], r_window[2] * infl + apa[2])
             if quad_inv(total, v) <= self.h_trigger:  # the common case, on floats
                 jump = self._neighbour_jump(k, v, r_window)
-                if jump <= self._jump_bound():
+                if jump <= self._jump_bound() or self._within_noise(v, r_window):
                     self._note_jump(jump)
                     self._remember(k, v)
                     self.prev = Pending(k, v, r_window, apa, None)  # kept lazily as floats
                     return Decision(accept=[payload])
-                # within the trigger, whose covariance holds the estimate's own uncertainty (shared
-                # by every window, it cancels in a jump), but it jumped as an event's change time
-                # must: held and judged with the run
+                # within the trigger only by the estimate's own uncertainty (shared by every
+                # window, it cancels in a jump), and it jumped as an event's change time must:
+                # held and judged with the run
         item = Pending(k, np.array(v), _arr(r_window) * infl, _arr(apa), payload)
         if not self.pending:
             self.pending = [item]
@@ -323,8 +324,8 @@ class ChangeDetector:
         if not self.pending:
             return Decision()
         if len(self.pending) == 1 and self._d2(self.pending[0], np.zeros(2)) <= self.h_trigger:
-            # one window held only for its jump, nothing after it to say whether the level stayed
-            # (a step, or a car arriving at the end of a record): data, as any within the trigger
+            # one window held for its jump, nothing after it to say whether the level stayed (a
+            # step, or a car arriving at the end of a record): data, as any within the trigger
             only = self.pending.pop()
             self._remember(only.k, only.v)
             self.prev = only
@@ -371,6 +372,11 @@ class ChangeDetector:
         scale = math.sqrt(max(fa, 1e-6) * max(fb, 1e-6))
         V = (ra * max(fa, 1e-6), rb * scale, rd * max(fb, 1e-6))
         return quad_inv(V, (v[0] - p.v[0], v[1] - p.v[1])) / self.inflation
+
+    def _within_noise(self, v: Vec, r_window: Sym) -> bool:
+        """Return whether ``v`` is within the trigger on the window noise alone (without ``A P A'``)."""
+        infl = self.inflation
+        return quad_inv((r_window[0] * infl, r_window[1] * infl, r_window[2] * infl), v) <= self.h_trigger
 
     def _note_jump(self, jump: float) -> None:
         """Track the largest jump statistic between neighbouring ordinary windows (slowly forgotten).
