@@ -493,6 +493,29 @@ def test_a_step_inside_a_window_after_a_held_drift_is_neither_state(surrogate) -
     assert reason[truth["step_ns"][0] // W] == "step_window"
 
 
+def test_a_lowering_whose_new_state_wanders_at_10_hz_is_an_event(surrogate) -> None:
+    """The scatter test gives a candidate's windows the relaxation a state after its change has.
+
+    Found by the twin on 2022-04-11's schedule at 10 Hz (seed 72, no sun; 1 of 100 days): after
+    the first lowering the new state's windows wandered by 0.1-0.2 kN against a window noise of
+    0.03-0.05 kN (600 samples a window, the noise model fitted on the first minutes of the day),
+    its windows failed the scatter test around the one step from the fourth on, no change time
+    qualified, and the lowering was used as data of the old state (``run_in_data``), its event 14
+    windows late. The allowance is the creep of ``settlement.relaxation`` (up to 2 % of the step
+    along it over the first minutes), which the real records' new states show and the state after
+    an event already has; the twin has no creep, its wander happens to lie along the step.
+    """
+    from bridge_shadow.twin.loadtest import LoadTestDay, scheduled_day
+    from bridge_shadow.twin.loadtest_score import score_day
+
+    data, truth = scheduled_day(72, LoadTestDay(vertical_gradient_k=0.0, rate_hz=10.0), surrogate)
+    res = Shadow(load_config(), surrogate).run(data)
+    s = score_day(res, truth)
+    assert s.events_right and s.within_10pct and s.covered and not s.lost_windows, s
+    first = truth["step_ns"][0] // W
+    assert not any(c.kind == "run_in_data" and c.window <= first + 1 for c in res.changes)
+
+
 def _creeping_twin_day(item: tuple[int, float]):
     """Score one twin load-test day without sun whose new states creep as the real record (a task)."""
     from bridge_shadow.twin.loadtest import LoadTestDay, creeping, load_test_day

@@ -198,6 +198,9 @@ class Shadow:
             config.mahalanobis_probability,
             config.event_confirm_windows,
             config.event_max_pending,
+            window_s=config.window_s,
+            relaxation_phi0=config.relaxation_phi0,
+            relaxation_horizon_s=config.relaxation_horizon_s,
         )
         self.fit: CompensationFit | None = None
         self._fit_id = 0

@@ -20,7 +20,8 @@ freedom.
 3. **Decision** after each pending window, by one rule:
 
    - a candidate *qualifies* when its windows scatter around the step like noise
-     (``sum (v_i - step)' S1^-1 (v_i - step)`` below the chi-square bound), ``T_j > h_event``
+     (``sum (v_i - step)' S1^-1 (v_i - step)`` below the chi-square bound; or so with the creep a
+     state may show after its change added along the step, ``_relaxing_scatter``), ``T_j > h_event``
      (``event_probability``), at least ``event_confirm_windows`` windows follow its start, and the
      innovation *jumps* there: from the window before ``j`` to one of the next ``JUMP_LOOKAHEAD``
      windows, ``v_b - v_a`` exceeds ``h_jump`` under its AR(1) covariance (variance
@@ -72,6 +73,7 @@ from scipy import special, stats
 
 from bridge_shadow.estimate.compensation.noise import ar1_factor
 from bridge_shadow.estimate.events.warmup import ramp_in_progress, ramp_windows
+from bridge_shadow.estimate.settlement.relaxation import creep_coefficient
 from bridge_shadow.estimate.small import Sym, Vec, quad_inv
 
 __all__ = [
@@ -221,6 +223,9 @@ class ChangeDetector:
         confirm: int = 4,
         max_pending: int = 15,
         consistency_probability: float = 0.999,
+        window_s: float = 60.0,
+        relaxation_phi0: float = 0.0,
+        relaxation_horizon_s: float = 0.0,
     ) -> None:
         self.false_trigger = 1.0 - float(trigger_probability)
         self.h_trigger = float(stats.chi2.ppf(trigger_probability, 2))
@@ -232,6 +237,9 @@ class ChangeDetector:
         self.confirm = int(confirm)
         self.max_pending = int(max_pending)
         self._chi2_bound = _scatter_bounds(float(consistency_probability))
+        self.window_s = float(window_s)
+        self.relaxation_phi0 = float(relaxation_phi0)
+        self.relaxation_horizon_s = float(relaxation_horizon_s)
         self.pending: list[Pending] = []
         self.prev: Pending | None = None
         self.max_jump = 0.0  # largest jump statistic between ordinary neighbours (slowly forgotten)
@@ -442,14 +450,34 @@ class ChangeDetector:
             step = s / nj
             scatter = sum(self._d2(p, step) for p in self.pending[j:])
             bound = self._chi2_bound[min(nj - 1, len(self._chi2_bound) - 1)]
+            consistent = scatter <= bound or self._relaxing_scatter(j, step) <= bound
             cost = float(before[j] + scatter)  # windows before j at no change, from j on at the step
             inside = False
             if j > 0:  # or the window before j held the step: part of it, at the fraction that fits
                 mixed = float(before[j - 1] + self._d2_inside(self.pending[j - 1], step) + MIXED_PENALTY)
                 inside = mixed + scatter < cost
                 cost = min(cost, mixed + scatter)
-            out.append(_Candidate(j, t, step, bool(scatter <= bound), self._jump(j), cost, nj, inside))
+            out.append(_Candidate(j, t, step, bool(consistent), self._jump(j), cost, nj, inside))
         return out
+
+    def _relaxing_scatter(self, j: int, step: np.ndarray) -> float:
+        """Return the scatter of the windows from ``j`` on around ``step``, which may relax after it.
+
+        The reactions creep back by up to ``phi(t) step`` after a change (``settlement.relaxation``,
+        the allowance the shadow gives a state after its change): the candidate's own windows get
+        the same, along the step, within ``relaxation_horizon_s`` (``t`` from the middle of window
+        ``j``). Only the scatter test reads it; the change time is chosen without it.
+        """
+        if self.relaxation_phi0 <= 0.0:
+            return float("inf")
+        k0, total = self.pending[j].k, 0.0
+        for p in self.pending[j:]:
+            t_s = (p.k - k0 + 0.5) * self.window_s
+            rho = creep_coefficient(t_s, self.relaxation_phi0) if t_s <= self.relaxation_horizon_s else 0.0
+            u = rho * step
+            d = p.v - step
+            total += float(d @ np.linalg.solve(p.r_window + p.apa + np.outer(u, u), d))
+        return total
 
     @staticmethod
     def _fraction(item: Pending, step: np.ndarray) -> float:
