@@ -212,6 +212,8 @@ class ChangeDetector:
         confirm: windows after the change needed to confirm it; max_pending: forced decision.
         pending: the held windows; prev: the last ordinary window (the reference of the jump test).
         n_events: events raised; phi: (2,) the noise model's autocorrelation; inflation: see above.
+        window_s, relaxation_phi0, relaxation_horizon_s: the creep a candidate's windows may show
+            in the scatter test (``_relaxing_scatter``; ``relaxation_phi0`` 0: none).
 
     """
 
