@@ -23,7 +23,8 @@ freedom.
      (``sum (v_i - step)' S1^-1 (v_i - step)`` below the chi-square bound; or so with the creep a
      state may show after its change added along the step, ``_relaxing_scatter``), ``T_j > h_event``
      (``event_probability``), at least ``event_confirm_windows`` windows follow its start, and the
-     innovation *jumps* there: from the window before ``j`` to one of the next ``JUMP_LOOKAHEAD``
+     innovation *jumps* there: from the window before ``j`` (before the one the step fell in, when
+     the window before ``j`` is read as holding part of it) to one of the next ``JUMP_LOOKAHEAD``
      windows, ``v_b - v_a`` exceeds ``h_jump`` under its AR(1) covariance (variance
      ``2 (1 - phi^d) R`` per channel, the channels correlated as in ``R``) and ``JUMP_OVER_SEEN``
      times the largest jump seen between ordinary neighbouring windows lately. A slow wander of
@@ -459,7 +460,9 @@ class ChangeDetector:
                 mixed = float(before[j - 1] + self._d2_inside(self.pending[j - 1], step) + MIXED_PENALTY)
                 inside = mixed + scatter < cost
                 cost = min(cost, mixed + scatter)
-            out.append(_Candidate(j, t, step, bool(consistent), self._jump(j), cost, nj, inside))
+            # a step inside the window before j jumps from the window before that one
+            jump = self._jump(j - 1) if inside else self._jump(j)
+            out.append(_Candidate(j, t, step, bool(consistent), jump, cost, nj, inside))
         return out
 
     def _relaxing_scatter(self, j: int, step: np.ndarray) -> float:
