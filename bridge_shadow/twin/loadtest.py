@@ -172,6 +172,32 @@ def _cut(data: MonitoringData, spans: Sequence[tuple[int, int]]) -> MonitoringDa
     return MonitoringData(forces, data.temperature)
 
 
+def _car_force(
+    stamp_ns: np.ndarray,
+    spans: Sequence[tuple[int, int]],
+    plateaus: Sequence[Sequence[Plateau]],
+    weight_n: float,
+    span_m: float,
+) -> np.ndarray:
+    """(n, 2) N: the parked test car's reactions at ``stamp_ns``, one plateau list per record span."""
+    out = np.zeros((len(stamp_ns), 2))
+    for (a, b), ps in zip(spans, plateaus, strict=True):
+        m = (stamp_ns >= a) & (stamp_ns < b)
+        out[m] += parked_car(stamp_ns[m], a, weight_n, span_m, ps)
+    return out
+
+
+def _car_stops(
+    spans: Sequence[tuple[int, int]], plateaus: Sequence[Sequence[Plateau]], span_m: float
+) -> list[tuple[int, int, float, float]]:
+    """Return the car's plateaus as truth: (from ns, to ns, position m, south share) per stop."""
+    return [
+        (a + round(p[0] * NS), a + round((p[0] + p[1]) * NS), p[2] * 2 * span_m, p[3])
+        for (a, _), ps in zip(spans, plateaus, strict=True)
+        for p in ps
+    ]
+
+
 def synthetic_day(
     seed: int,
     reality: Surrogate | None = None,
@@ -252,8 +278,8 @@ def synthetic_day(
         for k, (a, b) in enumerate(spans):
             m = (s.stamp_ns >= a) & (s.stamp_ns < b)
             f[m] += response[k, i] - (x_rec[k] @ reality.A.T)[i]  # the nonlinear response, if any
-            if car:
-                f[m] += parked_car(s.stamp_ns[m], a, car_weight_n, span_m, plateaus[k])[:, i]
+        if car:
+            f += _car_force(s.stamp_ns, spans, plateaus, car_weight_n, span_m)[:, i]
         forces[ch] = ForceSeries(s.stamp_ns, f, FORCE_FRAMES[ch])
     monitored = [(begin, t0)] if monitor_days > 0 else []
     day_data = _cut(MonitoringData(forces, data.temperature), monitored + spans)
@@ -261,11 +287,7 @@ def synthetic_day(
         "seed": seed,
         "record_start_ns": starts,
         "record_end_ns": [b for _, b in spans],
-        "stops": [
-            (a + round(p[0] * NS), a + round((p[0] + p[1]) * NS), p[2] * 2 * span_m, p[3])
-            for (a, _), ps in zip(spans, plateaus, strict=True)
-            for p in (ps if car else ())
-        ],
+        "stops": _car_stops(spans, plateaus, span_m) if car else [],
         "steps_m": [list(map(float, s)) for s in steps_m],
         "settlement_m": x_rec.tolist(),
         "reactions_n": response.tolist(),
@@ -430,14 +452,12 @@ def scheduled_day(
     plateaus: list[tuple[Plateau, ...]] = []
     while len(plateaus) < len(loads):
         plateaus += spec.car_plateaus(rng)
+    plateaus = plateaus[: len(loads)]
     forces = {}
     for i, ch in enumerate(CHANNELS):
         s = data.forces[ch]
-        f = s.force_n.copy()
-        for (a, b), ps in zip(loads, plateaus, strict=False):
-            m = (s.stamp_ns >= a) & (s.stamp_ns < b)
-            f[m] += parked_car(s.stamp_ns[m], a, spec.car_weight_n, spec.twin.span_m, ps)[:, i]
-        forces[ch] = ForceSeries(s.stamp_ns, f, FORCE_FRAMES[ch])
+        car = _car_force(s.stamp_ns, loads, plateaus, spec.car_weight_n, spec.twin.span_m)[:, i]
+        forces[ch] = ForceSeries(s.stamp_ns, s.force_n + car, FORCE_FRAMES[ch])
     x_end = np.array([sum(t < b for t in at) for _, b in spans], float)[:, None] * np.asarray(step_m, float)
     truth = {
         "seed": seed,
@@ -447,11 +467,7 @@ def scheduled_day(
         "record_x_m": x_end,
         "settlement_m": x_end.tolist(),
         "step_ns": at,
-        "stops": [
-            (a + round(p[0] * NS), a + round((p[0] + p[1]) * NS), p[2] * 2 * spec.twin.span_m, p[3])
-            for (a, _), ps in zip(loads, plateaus, strict=False)
-            for p in ps
-        ],
+        "stops": _car_stops(loads, plateaus, spec.twin.span_m),
         "twin": {k: twin[k] for k in ("effects", "t_ref_c", "reality") if k in twin},
     }
     return _cut(MonitoringData(forces, data.temperature), spans), truth

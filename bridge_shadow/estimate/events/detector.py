@@ -74,7 +74,7 @@ from scipy import special, stats
 
 from bridge_shadow.estimate.compensation.noise import ar1_factor
 from bridge_shadow.estimate.events.warmup import ramp_in_progress, ramp_windows
-from bridge_shadow.estimate.settlement.relaxation import creep_coefficient
+from bridge_shadow.estimate.settlement.relaxation import relaxation_variance
 from bridge_shadow.estimate.small import Sym, Vec, quad_inv
 
 __all__ = [
@@ -398,9 +398,10 @@ class ChangeDetector:
         self.max_jump = max(self.max_jump * JUMP_MEMORY, jump)
 
     @staticmethod
-    def _d2(item: Pending, step: np.ndarray) -> float:
+    def _d2(item: Pending, step: np.ndarray, extra: np.ndarray | None = None) -> float:
         d = item.v - step
-        return float(d @ np.linalg.solve(item.r_window + item.apa, d))
+        cov = item.r_window + item.apa if extra is None else item.r_window + item.apa + extra
+        return float(d @ np.linalg.solve(cov, d))
 
     def _reference(self, j: int) -> Pending | None:
         """Return the window before candidate start ``j`` (a held one, or the last ordinary window)."""
@@ -478,10 +479,11 @@ class ChangeDetector:
         k0, total = self.pending[j].k, 0.0
         for p in self.pending[j:]:
             t_s = (p.k - k0 + 0.5) * self.window_s
-            rho = creep_coefficient(t_s, self.relaxation_phi0) if t_s <= self.relaxation_horizon_s else 0.0
-            u = rho * step
-            d = p.v - step
-            total += float(d @ np.linalg.solve(p.r_window + p.apa + np.outer(u, u), d))
+            if t_s > self.relaxation_horizon_s:
+                total += self._d2(p, step)
+            else:
+                relax = relaxation_variance((step[0], step[1]), t_s, self.relaxation_phi0)
+                total += self._d2(p, step, _arr(relax))
         return total
 
     @staticmethod
