@@ -44,6 +44,8 @@ ESTIMATOR_ONLY: frozenset[str] = frozenset(
         "sun_gradient",
         "sun_gradient_prior_mean_k",
         "sun_gradient_prior_sd_k",
+        "sun_gradient_min_bayes_factor",
+        "sun_gradient_fit",
         "relaxation_phi0",
         "relaxation_horizon_s",
         "warmup_windows",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
@@ -176,14 +177,27 @@ def _summary(js: dict[str, Any]) -> str:
         lam = float("inf") if sp["lambda"] is None else sp["lambda"]
         lines.append(
             f"compensation {ch}: {sp['edf']:.2f} effective degrees of freedom, lambda {lam:.3g} °C³, "
-            f"level {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows"
-            + (
-                f", sun term {sp['sun_gradient_k']:.2f} ± {1.96 * sp['sun_gradient_sd_k']:.2f} K at full sun"
-                if "sun_gradient_k" in sp
-                else ""
-            )
+            f"level {1e-3 * sp['mean_force_n']:.2f} kN over {sp['windows']} windows" + _sun_text(sp)
         )
     return "\n".join(lines)
+
+
+def _sun_text(sp: dict[str, Any]) -> str:
+    """``, sun term ...``: the sun term's difference at full sun and its Bayes factor, or why it is out."""
+    if "sun_gradient_k" not in sp:
+        return ""
+    deck, apart = sp.get("sun_gradient_log_bf"), sp.get("sun_gradient_log_bf_per_bearing")
+    lbf = deck if sp.get("sun_gradient_fit") == "deck" else apart  # the factor of the term in use
+    known = lbf is not None and math.isfinite(lbf)  # (JSON: null where not computed)
+    bf = "no Bayes factor yet"
+    if known:
+        bf = f"Bayes factor {math.exp(lbf):.3g}" if lbf < 50.0 else f"Bayes factor e^{lbf:.0f}"
+    if not sp.get("sun_gradient_used", True):
+        if known and apart is not None and apart > lbf:
+            return f", sun term not used ({bf}; a g of each bearing's own fits better: not the deck's sun)"
+        return f", sun term not used ({bf}, below sun_gradient_min_bayes_factor)"
+    half = 1.96 * sp["sun_gradient_sd_k"]
+    return f", sun term {sp['sun_gradient_k']:.2f} ± {half:.2f} K at full sun ({bf})"
 
 
 def _windows_text(reason: str, count: int, js: dict[str, Any]) -> str:

@@ -307,14 +307,20 @@ def warnings(shadow: Shadow) -> list[str]:
     return out
 
 
-def spline_info(shadow: Shadow) -> dict[str, dict[str, float]]:
+def spline_info(shadow: Shadow) -> dict[str, dict[str, Any]]:
     """Per channel: edf, lambda, level, windows fitted, temperature range (NaN before a fit).
 
     With the sun term (``sun_gradient``) also its vertical temperature difference at a covariate of
-    1 and that estimate's sd from the noise (long-run variance), K (``sun_gradient_k``,
-    ``sun_gradient_sd_k``); what a misread sky adds is not in it.
+    1, K (``sun_gradient_k``: the bearing's own ``g``, or with ``sun_gradient_fit: deck`` the deck's
+    one, 0 where the last fit left the term out), its sd (``sun_gradient_sd_k``: from the noise's
+    long-run variance, or the deck's posterior from both bearings, the prior's before any; what a
+    misread sky adds is not in it), whether the last fit used it (``sun_gradient_used``; ``deck``:
+    the evidence carried it, ``Compensation._sun_carried``), ``ln`` of the Bayes factor of one ``g``
+    of the deck against no term (``sun_gradient_log_bf``) and of a ``g`` of each bearing's own
+    against none (``sun_gradient_log_bf_per_bearing``: above the first, ``deck`` leaves it out),
+    and which fit it is (``sun_gradient_fit``).
     """
-    info: dict[str, dict[str, float]] = {}
+    info: dict[str, dict[str, Any]] = {}
     fit = shadow.fit
     for c, ch in enumerate(CHANNELS):
         level = float("nan")
@@ -331,10 +337,17 @@ def spline_info(shadow: Shadow) -> dict[str, dict[str, float]]:
         comp = shadow.compensation
         if comp.sun and fit is not None:  # the sun term's difference at a covariate of 1, K
             slope = float(comp.sun_slope[c])
-            # with the noise's long-run (AR(1)) variance, as the levels' share of the curve takes it
-            var = float(shadow.noise.long_run_cov()[c, c]) * float(fit.minv[c, -1, -1])
             info[ch]["sun_gradient_k"] = float(fit.beta[c, -1]) / slope + 0.0  # (no -0.0 at the bound)
-            info[ch]["sun_gradient_sd_k"] = float(np.sqrt(max(var, 0.0))) / abs(slope)
+            if comp.sun_fit == "deck":  # one g from both bearings
+                sd = fit.sun_evidence[3] if np.isfinite(fit.sun_evidence[3]) else comp.sun_prior_k[1]
+            else:  # the bearing's own, with the noise's long-run (AR(1)) variance, as the levels take it
+                var = float(shadow.noise.long_run_cov()[c, c]) * float(fit.minv[c, -1, -1])
+                sd = float(np.sqrt(max(var, 0.0))) / abs(slope)
+            info[ch]["sun_gradient_sd_k"] = float(sd)
+            info[ch]["sun_gradient_fit"] = comp.sun_fit
+            info[ch]["sun_gradient_used"] = fit.sun_used
+            info[ch]["sun_gradient_log_bf"] = fit.sun_log_bf
+            info[ch]["sun_gradient_log_bf_per_bearing"] = float(fit.sun_evidence[1])
     return info
 
 

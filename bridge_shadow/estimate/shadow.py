@@ -174,6 +174,8 @@ class Shadow:
             slope_sd=config.thermal_prior_sd_n_per_k,
             sun_slope=vertical if config.sun_gradient else None,
             sun_prior_k=(config.sun_gradient_prior_mean_k, config.sun_gradient_prior_sd_k),
+            sun_min_bf=config.sun_gradient_min_bayes_factor,
+            sun_fit=config.sun_gradient_fit,
         )
         self.sums = FitSums(self.compensation.q, self.compensation.width)
         self.sun = SunCovariate() if config.sun_gradient else None

@@ -108,6 +108,9 @@ def _compensation(diag: Mapping[str, Any]) -> Status:
         if "sun_gradient_k" in sp:  # the sun term (sun_gradient): its difference at full sun
             values[f"{ch} sun term [K]"] = _num(sp["sun_gradient_k"], ".2f")
             values[f"{ch} sun term sd [K]"] = _num(sp["sun_gradient_sd_k"], ".2f")
+            values[f"{ch} sun term used"] = str(bool(sp.get("sun_gradient_used", True))).lower()
+            log_bf = sp.get("sun_gradient_log_bf", float("nan"))
+            values[f"{ch} sun term log Bayes factor"] = _num(log_bf, ".2f")
     noise = diag["noise"]
     values["noise mode"] = str(noise["mode"])
     for ch, phi, sd in zip(CHANNELS, noise["phi"], noise["sigma_n"], strict=True):

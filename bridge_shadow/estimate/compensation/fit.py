@@ -33,10 +33,10 @@ segment level through ``v_s = sb_s / W_s - sb / W`` (zero with one segment):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import linalg
+from scipy import linalg, stats
 
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.estimate.compensation.spline import (
@@ -49,6 +49,12 @@ from bridge_shadow.estimate.compensation.spline import (
 from bridge_shadow.estimate.compensation.sums import FitSums, row_columns
 
 __all__ = ["Compensation", "CompensationFit"]
+
+
+def _log_savage_dickey(m0: float, s0: float, mu: float, sd: float) -> float:
+    """``ln`` of the prior's over the posterior's density at ``g = 0``, both truncated to ``g >= 0``."""
+    log_prior0 = stats.norm.logpdf(0.0, m0, s0) - stats.norm.logsf(0.0, m0, s0)
+    return float(log_prior0 - (stats.norm.logpdf(0.0, mu, sd) - stats.norm.logsf(0.0, mu, sd)))
 
 
 @dataclass
@@ -69,6 +75,10 @@ class CompensationFit:
         n: windows in the fit.
         bbar: (2, q) the centring direction ``bbar``.
         sun: the fit has a sun term (its coefficient is ``beta[:, -1]``, N per unit of the sun covariate).
+        sun_evidence: (4,) the sun term's evidence (``Compensation.sun_evidence``): ``ln B10`` of
+            one ``g`` for the deck against none, ``ln B`` of separate ones per bearing against
+            none, and the mean and sd (K) of ``g``'s posterior (untruncated); NaN where none was
+            computed. A term the evidence does not carry is out of the fit (``sun_used``).
 
     """
 
@@ -86,6 +96,17 @@ class CompensationFit:
     n: int
     bbar: np.ndarray
     sun: bool = False
+    sun_evidence: np.ndarray = field(default_factory=lambda: np.full(4, np.nan))
+
+    @property
+    def sun_used(self) -> bool:
+        """The sun term is in this fit (not left out for want of evidence)."""
+        return self.sun and bool(np.any(self.minv[:, -1, -1] > 0))
+
+    @property
+    def sun_log_bf(self) -> float:
+        """``ln B10`` of the sun term (one ``g`` for the deck) against none; NaN: not computed."""
+        return float(self.sun_evidence[0])
 
     def level_directions(self, sums: FitSums, s: int) -> np.ndarray:
         """Return (2, q) ``v_s = sb_s / W_s - bbar`` per channel (level error of segment s: ``-v_s' dbeta``).
@@ -149,6 +170,8 @@ class Compensation:
         slope_sd: float = 500.0,
         sun_slope: np.ndarray | None = None,
         sun_prior_k: tuple[float, float] = (0.0, 6.75),
+        sun_min_bf: float = 0.0,
+        sun_fit: str = "per_bearing",
     ) -> None:
         self.knots = clamped_knots(np.linspace(t_min_c, t_max_c, segments + 1))
         self.t_min, self.t_max = float(self.knots[0]), float(self.knots[-1])
@@ -162,7 +185,8 @@ class Compensation:
             raise ConfigError(
                 "sun_gradient needs the surrogate's thermal.vertical_gradient (the FE response to a "
                 "vertical temperature difference, N/K, non-zero on both bearings); "
-                f"it has {self.sun_slope.tolist()}"
+                f"it has {self.sun_slope.tolist()}: rebuild it (bridge-shadow surrogate) or set "
+                "sun_gradient: false"
             )
         if self.sun and self.sun_prior_k[1] <= 0:
             raise ConfigError(f"sun_gradient_prior_sd_k must be > 0 (now {self.sun_prior_k[1]:g})")
@@ -179,6 +203,12 @@ class Compensation:
         self._one = np.r_[np.ones(qs), np.zeros(self.q - qs)]
         q_full, _ = np.linalg.qr(np.column_stack([self._one, np.eye(self.q)[:, : self.q - 1]]))
         self._z = q_full[:, 1:]
+        q_spl, _ = np.linalg.qr(np.column_stack([np.ones(qs), np.eye(qs)[:, : qs - 1]]))
+        self._z_spline = q_spl[:, 1:]
+        self.sun_min_log_bf = float(np.log(sun_min_bf)) if sun_min_bf > 0 else -np.inf
+        if sun_fit not in ("deck", "per_bearing"):
+            raise ConfigError(f"sun_gradient_fit must be deck or per_bearing (now {sun_fit!r})")
+        self.sun_fit = sun_fit
 
     def _pad(self, mat: np.ndarray) -> np.ndarray:
         """Return a spline-basis matrix with a zero row and column for the sun term, if any."""
@@ -231,7 +261,9 @@ class Compensation:
         ``long_run`` (2,): the noise's long-run over its per-sample variance (the AR(1) factor; None:
         1). The sun prior is weighed on the long-run scale, the one the levels' share of the fit is
         read on (``SegmentChain.refresh``): with data that say nothing of the sun, ``g``'s variance
-        there is the prior's, not the prior's times that factor.
+        there is the prior's, not the prior's times that factor. A sun term is one ``g`` of the deck
+        for both channels, or out of the fit where its evidence does not carry it (``sun_evidence``,
+        ``_sun_carried``).
         """
         q, n_seg = self.q, sums.n_segments
         beta = np.zeros((2, q))
@@ -240,44 +272,26 @@ class Compensation:
         minv = np.zeros((2, q, q))
         used = sums.ns > 0
         n_levels = int(np.count_nonzero(used))
+        post = np.full((2, 2), np.nan)  # the sun's unconstrained posterior per channel: g mean, sd (K)
+        systems: list[tuple[np.ndarray, np.ndarray] | None] = [None, None]
         for c in range(2):
-            ws = np.where(used, sums.Ws[:, c], 1.0)
-            has_t = sums.W[c] > 0 and np.any(sums.sb[c] > 0)
-            if self.mode == "none" or not has_t:
-                continue
-            sbs, sys = sums.sbs[:, c], sums.sys[:, c]
-            gw = sums.G[c] - (sbs.T / ws) @ sbs
-            rw = sums.r[c] - sbs.T @ (sys / ws)
-            yyw = sums.yy[c] - float(np.sum(sys**2 / ws))
-            gw = 0.5 * (gw + gw.T)
-            kap = 0.0 if kappa is None else float(kappa[c])
-            s_fe = self.slope_fe[c]
-            gp = gw + kap * self.omega1  # the slope prior, counted as data for lambda's choice
-            rp = rw + kap * s_fe * self.e
-            yyp = yyw + kap * s_fe**2 * self.span
-            if self.sun:  # the sun prior, as data (a tiny ridge without the noise model's variance)
-                ks, g0 = self.sun_weight(kap, c) if kap > 0 else (1e-9 * (1.0 + gw[-1, -1]), 0.0)
-                ks *= 1.0 if long_run is None else float(long_run[c])
-                gp[-1, -1] += ks
-                rp[-1] += ks * g0
-                yyp += ks * g0**2
-            if lam is not None and np.isfinite(lam[c]):
-                lams[c] = float(lam[c])
-            elif self.mode == "fixed":
-                lams[c] = self.lam_fixed
-            else:
-                z = self._z
-                lams[c] = select_lambda(
-                    z.T @ gp @ z, z.T @ self.omega @ z, z.T @ rp, yyp, max(sums.n - n_levels, 2), self.mode
+            beta[c], lams[c], edf[c], minv[c], post[c], systems[c] = self._fit_channel(
+                c, sums, n_levels, lam, kappa, long_run, self.sun
+            )
+        evidence = self.sun_evidence(post) if self.sun else np.full(4, np.nan)
+        if self.sun and self.sun_fit == "per_bearing":
+            pass  # each channel's own g (its truncated mode, ``_fit_channel``), always in
+        elif self.sun and self._sun_carried(evidence):
+            if np.isfinite(evidence[2]):  # one g for the deck, at its (truncated) posterior's mode
+                g = self._sun_mode(evidence)
+                for c, system in enumerate(systems):
+                    if system is not None:
+                        beta[c] = self._given_sun(c, *system, g)
+        elif self.sun:
+            for c in range(2):
+                beta[c], lams[c], edf[c], minv[c], _, _ = self._fit_channel(
+                    c, sums, n_levels, lam, kappa, long_run, False
                 )
-            cvec = self._one * sums.sb[c] / np.sqrt(sums.W[c])
-            mat = gp + lams[c] * self.omega + np.outer(cvec, cvec)  # + c c' fixes sb' beta = 0
-            rhs = rp
-            chol = linalg.cho_factor(mat, lower=True, check_finite=False)
-            sol = linalg.cho_solve(chol, np.column_stack([rhs, gw, np.eye(q)]), check_finite=False)
-            beta[c] = self._sun_heats_only(c, sol[:, 0], mat, rhs) if self.sun else sol[:, 0]
-            edf[c] = float(np.trace(sol[:, 1 : q + 1]))
-            minv[c] = sol[:, q + 1 :]
         ws_all = np.where(used[:, None], sums.Ws, 1.0)
         level = (sums.sys - np.einsum("scq,cq->sc", sums.sbs, beta)) / ws_all
         level[~used] = 0.0
@@ -301,7 +315,115 @@ class Compensation:
             sums.n,
             bbar,
             self.sun,
+            evidence,
         )
+
+    def _fit_channel(
+        self,
+        c: int,
+        sums: FitSums,
+        n_levels: int,
+        lam: np.ndarray | None,
+        kappa: np.ndarray | None,
+        long_run: np.ndarray | None,
+        with_sun: bool,
+    ) -> tuple[np.ndarray, float, float, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+        """Fit channel ``c``: (beta (q,), lambda, edf, minv (q, q), the sun's posterior, the system).
+
+        ``with_sun`` False fits the spline columns alone (the sun's coefficient, row and column 0).
+        The sun's posterior is the unconstrained (untruncated) one of ``g``: mean and sd, K; NaN
+        without a sun term, without data or without the noise model's weight. With the sun term the
+        channel's system (matrix, right-hand side) is returned for ``_given_sun``, else None;
+        ``beta`` is then the channel's own mode with ``g >= 0``.
+        """
+        q = self.q
+        k = q if with_sun else self.q_spline
+        beta, minv, lam_c, edf, post = np.zeros(q), np.zeros((q, q)), np.inf, 0.0, np.full(2, np.nan)
+        used = sums.ns > 0
+        ws = np.where(used, sums.Ws[:, c], 1.0)
+        has_t = sums.W[c] > 0 and np.any(sums.sb[c] > 0)
+        if self.mode == "none" or not has_t:
+            return beta, lam_c, edf, minv, post, None
+        sbs, sys = sums.sbs[:, c, :k], sums.sys[:, c]
+        gw = sums.G[c][:k, :k] - (sbs.T / ws) @ sbs
+        rw = sums.r[c][:k] - sbs.T @ (sys / ws)
+        yyw = sums.yy[c] - float(np.sum(sys**2 / ws))
+        gw = 0.5 * (gw + gw.T)
+        kap = 0.0 if kappa is None else float(kappa[c])
+        s_fe = self.slope_fe[c]
+        gp = gw + kap * self.omega1[:k, :k]  # the slope prior, counted as data for lambda's choice
+        rp = rw + kap * s_fe * self.e[:k]
+        yyp = yyw + kap * s_fe**2 * self.span
+        lr = 1.0 if long_run is None else float(long_run[c])
+        if with_sun:  # the sun prior, as data (a tiny ridge without the noise model's variance)
+            ks, g0 = self.sun_weight(kap, c) if kap > 0 else (1e-9 * (1.0 + gw[-1, -1]), 0.0)
+            ks *= lr
+            gp[-1, -1] += ks
+            rp[-1] += ks * g0
+            yyp += ks * g0**2
+        if lam is not None and np.isfinite(lam[c]):
+            lam_c = float(lam[c])
+        elif self.mode == "fixed":
+            lam_c = self.lam_fixed
+        else:
+            z = self._z if with_sun else self._z_spline
+            omega = self.omega[:k, :k]
+            lam_c = select_lambda(
+                z.T @ gp @ z, z.T @ omega @ z, z.T @ rp, yyp, max(sums.n - n_levels, 2), self.mode
+            )
+        one = self._one[:k]
+        cvec = one * sums.sb[c][:k] / np.sqrt(sums.W[c])
+        mat = gp + lam_c * self.omega[:k, :k] + np.outer(cvec, cvec)  # + c c' fixes sb' beta = 0
+        rhs = rp
+        chol = linalg.cho_factor(mat, lower=True, check_finite=False)
+        sol = linalg.cho_solve(chol, np.column_stack([rhs, gw, np.eye(k)]), check_finite=False)
+        beta[:k] = sol[:, 0]
+        if with_sun:
+            beta = self._sun_heats_only(c, beta, mat, rhs)
+            if kap > 0:  # the sun coefficient's posterior, on the long-run scale of its prior
+                sd = np.sqrt(max(kap * self.slope_sd**2 * lr * float(sol[-1, -1]), 0.0))
+                slope = float(self.sun_slope[c])
+                post[:] = float(sol[-1, 0]) / slope, sd / abs(slope)
+        edf = float(np.trace(sol[:, 1 : k + 1]))
+        minv[:k, :k] = sol[:, k + 1 :]
+        return beta, lam_c, edf, minv, post, ((mat, rhs) if with_sun else None)
+
+    def sun_evidence(self, post: np.ndarray) -> np.ndarray:
+        """Return the sun term's evidence (4,): ``ln B10``, ``ln B`` per bearing, ``g``'s mean and sd.
+
+        ``post`` (2, 2): each channel's unconstrained posterior of ``g`` (mean, sd; K) under the
+        prior ``N(m0, s0)``. Each channel's data alone say ``N(d_c, v_c)`` (the prior divided
+        out). A vertical temperature difference of the deck is one ``g`` read through both
+        bearings (independent fits): its posterior is the product of both with the prior.
+        ``ln B10`` (Savage-Dickey: prior over posterior density at ``g = 0``, both of ``g >= 0``,
+        the prior's truncation, each normalized on that half line; the term nests ``g = 0``, so
+        the ratio is the Bayes factor against no term, Dickey 1971). The second value is the same
+        for a ``g`` of each bearing's own (the sum of the two Savage-Dickey ratios): a pattern in
+        one bearing that the other contradicts fits it better than one ``g`` of the deck. NaN
+        where no channel has a posterior.
+        """
+        m0, s0 = self.sun_prior_k
+        ok = np.isfinite(post).all(axis=1) & (post[:, 1] > 0)
+        if not ok.any():
+            return np.full(4, np.nan)
+        prec, num = 1.0 / s0**2, m0 / s0**2
+        for mu, sd in post[ok]:
+            prec += max(1.0 / sd**2 - 1.0 / s0**2, 0.0)
+            num += mu / sd**2 - m0 / s0**2
+        mu, sd = num / prec, prec**-0.5
+        separate = sum(_log_savage_dickey(m0, s0, m, v) for m, v in post[ok])
+        return np.array([_log_savage_dickey(m0, s0, mu, sd), separate, mu, sd])
+
+    def _sun_carried(self, evidence: np.ndarray) -> bool:
+        """Return whether the sun term is in the fit: always (``sun_min_bf`` 0), or as its evidence says.
+
+        One ``g`` for the deck must be at least ``sun_min_bf`` times as likely as no term and at
+        least as likely as a ``g`` of each bearing's own (``sun_evidence``).
+        """
+        if self.sun_min_log_bf == -np.inf:
+            return True
+        log_bf, separate = float(evidence[0]), float(evidence[1])
+        return log_bf >= self.sun_min_log_bf and log_bf >= separate - 1e-9
 
     def _sun_heats_only(self, c: int, b: np.ndarray, mat: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         """Return channel ``c``'s coefficients ``b`` with ``g >= 0`` (the class docstring's truncation).
@@ -309,10 +431,24 @@ class Compensation:
         Where ``b``'s sun coefficient means ``g < 0``, the mode of the truncated posterior lies on
         ``g = 0``: the other coefficients solve the system without the sun column.
         """
-        if b[-1] * self.sun_slope[c] >= 0.0:
-            return b
-        out = np.zeros_like(b)
-        out[:-1] = linalg.solve(mat[:-1, :-1], rhs[:-1], assume_a="pos", check_finite=False)
+        return b if b[-1] * self.sun_slope[c] >= 0.0 else self._given_sun(c, mat, rhs, 0.0)
+
+    @staticmethod
+    def _sun_mode(evidence: np.ndarray) -> float:
+        """Return ``g`` (K) of the fit: the mode of its posterior truncated at ``g >= 0``."""
+        return max(float(evidence[2]), 0.0)
+
+    def _given_sun(self, c: int, mat: np.ndarray, rhs: np.ndarray, g: float) -> np.ndarray:
+        """Return channel ``c``'s coefficients with the sun's held at ``sun_slope_c g``, the rest refitted.
+
+        The conditional mode of the Gaussian posterior: ``M_rr b_r = rhs_r - M_rs gamma``.
+        """
+        gamma = float(self.sun_slope[c]) * g
+        out = np.zeros(len(rhs))
+        out[:-1] = linalg.solve(
+            mat[:-1, :-1], rhs[:-1] - mat[:-1, -1] * gamma, assume_a="pos", check_finite=False
+        )
+        out[-1] = gamma
         return out
 
     # -- evaluation -------------------------------------------------------------------------------

@@ -97,6 +97,8 @@ class ShadowConfig:
     sun_gradient: bool = False
     sun_gradient_prior_mean_k: float = 0.0
     sun_gradient_prior_sd_k: float = 6.75
+    sun_gradient_min_bayes_factor: float = 3.0
+    sun_gradient_fit: str = "per_bearing"
     relaxation_phi0: float = 0.663
     relaxation_horizon_s: float = 3600.0
     warmup_windows: int = 10

@@ -31,7 +31,7 @@ _VERSION = 5  # 5: the sun term (basis width, the FE vertical-gradient response,
 _NONE = -(2**62)
 _FIT_FIELDS = (
     *("beta", "lam", "edf", "level", "dof", "minv", "t_lo", "t_hi", "kappa", "mbar", "sbar"),
-    *("n", "bbar"),
+    *("n", "bbar", "sun_evidence"),
 )
 
 
@@ -225,10 +225,11 @@ def restore_shadow(
     if bool(state["has_fit"]):
         f = state["fit"]
         shadow.fit = CompensationFit(
-            *(np.asarray(f[name], float) for name in _FIT_FIELDS[:-2]),
+            *(np.asarray(f[name], float) for name in _FIT_FIELDS[:-3]),
             int(f["n"]),  # type: ignore[arg-type]
             np.asarray(f["bbar"], float),
             shadow.compensation.sun,
+            np.asarray(f["sun_evidence"], float) if "sun_evidence" in f else np.full(4, np.nan),
         )
     shadow.lam = np.asarray(state["lam"], float).reshape(2)
     shadow.noise.load_state_dict(state["noise"])
