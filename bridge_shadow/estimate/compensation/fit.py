@@ -157,6 +157,14 @@ class Compensation:
     centred: a level is the state without sun (the night), so the sun's mean over the data does
     not end up in the settlement. Days of monitoring fix ``gamma``; short records hours apart do
     not, and then the prior's spread reaches the level differences (``beta_variance_factor``).
+
+    ``sun_fit``: ``per_bearing`` (the above: each channel its own ``gamma_c``, always in; it takes
+    any pattern that follows the sun, the transverse difference too) or ``deck``: one ``g`` for both
+    channels, ``gamma_c = sun_slope_c g`` at the mode of the product of both channels' posteriors
+    (their priors divided out) with one prior, and only where the evidence carries it
+    (``sun_evidence``: its Bayes factor at least ``sun_min_bf`` and one ``g`` at least as likely
+    as one per channel); else the fit is the one without the sun column. ``minv`` stays each
+    channel's own (its sun variance that of the channel's data alone: on the generous side).
     """
 
     def __init__(
@@ -261,9 +269,9 @@ class Compensation:
         ``long_run`` (2,): the noise's long-run over its per-sample variance (the AR(1) factor; None:
         1). The sun prior is weighed on the long-run scale, the one the levels' share of the fit is
         read on (``SegmentChain.refresh``): with data that say nothing of the sun, ``g``'s variance
-        there is the prior's, not the prior's times that factor. A sun term is one ``g`` of the deck
-        for both channels, or out of the fit where its evidence does not carry it (``sun_evidence``,
-        ``_sun_carried``).
+        there is the prior's, not the prior's times that factor. With ``sun_fit`` ``deck`` the sun
+        term is one ``g`` of the deck for both channels, or out of the fit where its evidence does
+        not carry it (``sun_evidence``, ``_sun_carried``).
         """
         q, n_seg = self.q, sums.n_segments
         beta = np.zeros((2, q))
