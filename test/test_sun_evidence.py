@@ -18,25 +18,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.interpolate import BSpline
+from sun_helpers import assert_chunks_and_checkpoint_change_nothing, sun_rows
 
 from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.estimate.compensation.fit import Compensation
 from bridge_shadow.estimate.compensation.spline import gram_penalty, gram_slope
 from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows
 from bridge_shadow.model.surrogate_file import load_surrogate
-
-
-def _rows(comp: Compensation, n: int, seed: int) -> tuple[WindowRows, np.ndarray]:
-    """Random windows of two segments: temperatures, a sun covariate, weights, forces."""
-    rng = np.random.default_rng(seed)
-    t = rng.uniform(-5.0, 25.0, n)
-    s = np.clip(np.sin(np.linspace(0, 9 * np.pi, n)), 0.0, None) * rng.uniform(0.3, 1.0, n)
-    seg = (np.arange(n) >= n // 2).astype(np.int64)
-    y = np.c_[40.0 * t - 3000.0 * s + 500.0 * seg, -20.0 * t - 4000.0 * s - 800.0 * seg]
-    y += rng.normal(0.0, 50.0, (n, 2))
-    m = rng.integers(5, 60, (n, 2)).astype(float)
-    i0, bv = comp.basis_rows(np.c_[t, t], s)
-    return WindowRows(np.arange(n, dtype=np.int64), m, y, np.c_[t, t], i0, bv, seg), s
 
 
 def _dense_reference(comp: Compensation, rows: WindowRows, s: np.ndarray, lam: float, kappa: np.ndarray):
@@ -92,7 +80,7 @@ def test_one_g_of_the_deck_equals_a_joint_dense_constrained_solve() -> None:
     comp = Compensation(
         -20.0, 45.0, 13, mode="fixed", slope_fe=np.array([10.0, 12.0]), sun_slope=slope, sun_fit="deck"
     )
-    rows, s = _rows(comp, 400, 1)
+    rows, s = sun_rows(comp, 400, 1)
     sums = FitSums(comp.q, comp.width)
     sums.add(rows)
     kappa = np.array([3e-3, 5e-3])
@@ -166,7 +154,7 @@ def test_the_sun_terms_bayes_factor_is_the_marginal_likelihood_ratio(sun_n, used
     kw = {"mode": "fixed", "slope_fe": np.array([10.0, 12.0])}
     comp = Compensation(-20.0, 45.0, 13, sun_slope=slope, sun_min_bf=3.0, sun_fit="deck", **kw)
     plain = Compensation(-20.0, 45.0, 13, **kw)
-    rows, s = _rows(comp, 300, 4)
+    rows, s = sun_rows(comp, 300, 4)
     rows.y += np.outer(s, np.asarray(sun_n) - (-3000.0, -4000.0))  # (_rows puts -3000 / -4000 N in)
     sigma = np.array([4.0e4, 5.0e4])  # N per sample: window means within a few kN of the sun's
     rows.y += np.random.default_rng(5).normal(0.0, 1.0, rows.y.shape) * sigma / np.sqrt(rows.m)
@@ -206,7 +194,7 @@ def test_the_sun_terms_bayes_factor_is_the_marginal_likelihood_ratio(sun_n, used
         np.testing.assert_allclose(fit.beta, same.beta, rtol=1e-12)
         return
     ref_sums = FitSums(plain.q, plain.width)
-    ref_rows, _ = _rows(plain, 300, 4)
+    ref_rows, _ = sun_rows(plain, 300, 4)
     ref_rows.y[:] = rows.y
     ref_sums.add(ref_rows)
     ref = plain.fit(ref_sums, lam=lam, kappa=kappa)
@@ -298,7 +286,6 @@ def test_one_g_of_the_deck_learns_a_vertical_sun_and_survives_chunks_and_a_check
     Its evidence, the fit it decides and the posterior are the same fed in chunks, and stopped at
     the middle, checkpointed and resumed (``sun_evidence`` travels in the checkpoint).
     """
-    from bridge_shadow.series import MonitoringData
     from bridge_shadow.twin.simulate import simulate
 
     data, truth = simulate(3.0, 0.1, 2, {"settlement_offset": 7e-4, "vertical_gradient": 4.0})
@@ -314,18 +301,4 @@ def test_one_g_of_the_deck_learns_a_vertical_sun_and_survives_chunks_and_a_check
     assert g[0] == pytest.approx(g[1], rel=1e-12) and g[0] == pytest.approx(4.0, abs=0.5)
     sd = np.sqrt(np.diag(whole.covariance_m2))
     assert np.all(np.abs(whole.mean_m - np.array(truth["settlement"]["end_m"])) <= 1.96 * sd)
-    chunked = Shadow(cfg, sur).run(data, chunk=997)
-    np.testing.assert_allclose(chunked.mean_m, whole.mean_m, rtol=1e-9, atol=1e-12)
-    cut = int(np.median(data.forces["frc_01"].stamp_ns))
-
-    def part(lo: int | None, hi: int | None) -> MonitoringData:
-        return data.select(lambda t: (t >= (lo or 0)) & (t < (hi or 2**62)), by="stamp_ns")
-
-    a = Shadow(cfg, sur)
-    a.run(part(None, cut), flush=False)
-    a.save_checkpoint()
-    b = Shadow.resume(tmp_path / "s.npz", cfg, sur)
-    np.testing.assert_allclose(b.fit.sun_evidence, a.fit.sun_evidence, rtol=1e-12)
-    res = b.run(part(cut, None))
-    np.testing.assert_allclose(res.mean_m, whole.mean_m, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(res.covariance_m2, whole.covariance_m2, rtol=1e-8, atol=1e-18)
+    assert_chunks_and_checkpoint_change_nothing(cfg, sur, data, whole, tmp_path)

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.interpolate import BSpline
+from sun_helpers import assert_chunks_and_checkpoint_change_nothing, sun_rows
 
 from bridge_shadow.effects import plausible_range
 from bridge_shadow.estimate import Shadow, load_config
@@ -35,19 +36,6 @@ from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.sun import CLEAR_SWING_K, LON_DEG, OVERCAST_SWING_K, clear_sky
 
 NS = 10**9
-
-
-def _rows(comp: Compensation, n: int, seed: int) -> tuple[WindowRows, np.ndarray]:
-    """Random windows of two segments: temperatures, a sun covariate, weights, forces."""
-    rng = np.random.default_rng(seed)
-    t = rng.uniform(-5.0, 25.0, n)
-    s = np.clip(np.sin(np.linspace(0, 9 * np.pi, n)), 0.0, None) * rng.uniform(0.3, 1.0, n)
-    seg = (np.arange(n) >= n // 2).astype(np.int64)
-    y = np.c_[40.0 * t - 3000.0 * s + 500.0 * seg, -20.0 * t - 4000.0 * s - 800.0 * seg]
-    y += rng.normal(0.0, 50.0, (n, 2))
-    m = rng.integers(5, 60, (n, 2)).astype(float)
-    i0, bv = comp.basis_rows(np.c_[t, t], s)
-    return WindowRows(np.arange(n, dtype=np.int64), m, y, np.c_[t, t], i0, bv, seg), s
 
 
 def _dense_reference(comp: Compensation, rows: WindowRows, s: np.ndarray, c: int, lam: float, kap: float):
@@ -81,7 +69,7 @@ def test_fit_with_a_sun_term_equals_a_dense_constrained_solve() -> None:
     slope = np.array([-4000.0, -5000.0])
     comp = Compensation(-20.0, 45.0, 13, mode="fixed", slope_fe=np.array([10.0, 12.0]), sun_slope=slope)
     assert comp.q == comp.q_spline + 1 and comp.width == 5
-    rows, s = _rows(comp, 400, 1)
+    rows, s = sun_rows(comp, 400, 1)
     sums = FitSums(comp.q, comp.width)
     sums.add(rows)
     dense = rows.dense_b(comp.q)
@@ -232,25 +220,9 @@ def test_the_sun_term_learns_the_gradient_and_removes_the_suns_bias(gradient_run
 
 
 def test_sun_term_chunking_and_checkpoint_change_nothing(gradient_runs, tmp_path: Path) -> None:
-    from bridge_shadow.series import MonitoringData
-
     _, whole, _, data = gradient_runs[4.0, True]
     cfg = load_config().replace(sun_gradient=True, checkpoint_path=str(tmp_path / "s.npz"))
-    sur = load_surrogate()
-    chunked = Shadow(cfg, sur).run(data, chunk=997)
-    np.testing.assert_allclose(chunked.mean_m, whole.mean_m, rtol=1e-9, atol=1e-12)
-    cut = int(np.median(data.forces["frc_01"].stamp_ns))
-
-    def part(lo: int | None, hi: int | None) -> MonitoringData:
-        return data.select(lambda t: (t >= (lo or 0)) & (t < (hi or 2**62)), by="stamp_ns")
-
-    a = Shadow(cfg, sur)
-    a.run(part(None, cut), flush=False)
-    a.save_checkpoint()
-    b = Shadow.resume(tmp_path / "s.npz", cfg, sur)
-    res = b.run(part(cut, None))
-    np.testing.assert_allclose(res.mean_m, whole.mean_m, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(res.covariance_m2, whole.covariance_m2, rtol=1e-8, atol=1e-18)
+    assert_chunks_and_checkpoint_change_nothing(cfg, load_surrogate(), data, whole, tmp_path)
 
 
 def test_the_bundled_demo_with_the_sun_term_reads_the_twins_offset(root: Path, tmp_path: Path) -> None:
