@@ -225,12 +225,22 @@ def test_a_jacking_record_that_ends_the_data_leaves_the_morning_lowering_standin
     assert np.all(np.abs(res.mean_m - sc.truth_m) <= 1.96 * sd)
 
 
-def _further_step(folder: Path, surrogate, first: Piece, size: float) -> Scenario:
-    """``first``, then the 10 mm record 1.25 h on, moved ``size`` more at its minute 4.5 (the car on)."""
+def _split_record(
+    folder: Path,
+    surrogate,
+    first: Piece,
+    size: float,
+    later: str = "lowered",
+    minutes: tuple[float, float] = (4.5, 4.5),
+) -> Scenario:
+    """``first``, then ``later`` 1.25 h on, moved ``size`` more from ``minutes[1]`` (data to ``minutes[0]``).
+
+    By default the 10 mm record, moved at its minute 4.5 while the test car stands.
+    """
     pieces = [
         first,
-        Piece("lowered", 1.25, (0.0, 0.0), cut_min=(0.0, 4.5)),
-        Piece("lowered", 1.25, (size, size), cut_min=(4.5, 13.0)),
+        Piece(later, 1.25, (0.0, 0.0), cut_min=(0.0, minutes[0])),
+        Piece(later, 1.25, (size, size), cut_min=(minutes[1], 13.0)),
     ]
     return build(folder, surrogate.A, pieces)
 
@@ -250,12 +260,7 @@ def test_a_lowering_inside_a_record_with_three_windows_left_is_not_confirmed(fol
     holds the new state. (The minutes before the pause, the test car standing, leave two small
     unconfirmed raises of their own.)
     """
-    pieces = [
-        Piece("ref", 0.0),
-        Piece("ref", 1.25, (0.0, 0.0), cut_min=(0, 6)),
-        Piece("ref", 1.25, (-0.01, -0.01), cut_min=(10, 13)),
-    ]
-    sc = build(folder, surrogate.A, pieces)
+    sc = _split_record(folder, surrogate, Piece("ref", 0.0), -0.01, "ref", (6.0, 10.0))
     _, res = replay(sc, surrogate)
     assert not res.events and res.rejected["outlier"] == 0
     after = sc.starts_ns[2] - W  # (its window may begin before the data go on)
@@ -275,7 +280,7 @@ def test_a_change_the_data_left_for_another_state_says_when(folder: Path, surrog
     when the state after the further step begins. (A lowering there is confirmed by its two
     windows, ``GAP_LOWERING_WINDOWS``, and so was the jacking record's ramp this test first used.)
     """
-    _, res = replay(_further_step(folder, surrogate, BELOW, 0.01), surrogate)
+    _, res = replay(_split_record(folder, surrogate, BELOW, 0.01), surrogate)
     js = res.to_json()
     (change,) = js["unconfirmed_changes"]
     later = [e for e in js["events"] if e["time_ns"] > change["time_ns"]]
@@ -338,7 +343,7 @@ def test_a_change_left_by_a_further_step_after_two_windows_is_confirmed_by_the_s
     A lowering takes load off, which no parked car does: its two windows confirm it
     (``GAP_LOWERING_WINDOWS``), whatever comes after.
     """
-    sc = _further_step(folder, surrogate, first, size)
+    sc = _split_record(folder, surrogate, first, size)
     _, res = replay(sc, surrogate)
     check(sc, res)
     assert res.rejected["outlier"] == 0
@@ -779,12 +784,7 @@ def test_a_second_test_car_arriving_just_before_a_step_is_cut_with_the_first(fol
     event at the first window after the cars (the 10 mm state before it, two windows before the
     cars, an event across the gap: a lowering, ``GAP_LOWERING_WINDOWS``).
     """
-    pieces = [
-        Piece("ref", 0.0),
-        Piece("lowered", 1.25, (0.0, 0.0), cut_min=(0, 4)),
-        Piece("lowered", 1.25, (-0.01, -0.01), cut_min=(4, 13)),
-    ]
-    sc = build(folder, surrogate.A, pieces)
+    sc = _split_record(folder, surrogate, Piece("ref", 0.0), -0.01, minutes=(4.0, 4.0))
     _, res = replay(sc, surrogate)
     got = check(sc, res)  # nothing spurious, every change reported, nothing lost, covered
     assert got["within"]
