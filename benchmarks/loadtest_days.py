@@ -27,7 +27,8 @@ the screen: before the shadow sees a stream, the samples that ``calibrate``'s te
 previous stops' ``u0``).
 
 ``--sun-term`` runs the shadow with its sun term (``sun_gradient: true``), ``--sun-prior MEAN SD``
-with another prior of its ``g`` (K; the shipped one is 0 and 6.75); ``--monitor-days N``
+with another prior of its ``g`` (K; the shipped one is 0 and 6.75), ``--sun-fit deck`` with one
+``g`` of the deck, in as its evidence says (``sun_gradient_fit``); ``--monitor-days N``
 gives the twin's load-test day N days of continuous monitoring (no car, no step) before it.
 ``--only continuous`` is a third study, not run by default: three sunny days of continuous twin
 monitoring (0.1 Hz, a 0.7 mm offset, 4 K at full sun), the sun term off and on: days without a
@@ -50,7 +51,7 @@ Usage::
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200]
         [--only real|twin|continuous|minutes|creep|pauses]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term]
-        [--sun-prior MEAN SD] [--monitor-days N] [--creep FACTOR]
+        [--sun-prior MEAN SD] [--sun-fit per_bearing|deck] [--monitor-days N] [--creep FACTOR]
 
 Streams and seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers``
 processes, default one per core).
@@ -429,29 +430,32 @@ def twin_study(
         print(f"  final 95 % half-width, median {np.round(np.median(half, axis=0), 2)} mm")
 
 
-def continuous_day(item: tuple[int, bool]) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
-    """Three days of monitoring under the sun (4 K), a 0.7 mm offset: error, sd, events, fitted g (a task)."""
+def continuous_day(item: tuple[int, bool, str]) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+    """Three days of monitoring under the sun (4 K), a 0.7 mm offset: error, sd, events, fitted g (a task).
+
+    ``item``: seed, the sun term on, its fit (``sun_gradient_fit``).
+    """
     from bridge_shadow.twin.simulate import simulate
 
-    seed, term = item
+    seed, term, fit = item
     sur = load_surrogate()
     data, truth = simulate(3.0, 0.1, seed, {"settlement_offset": 7e-4, "vertical_gradient": 4.0})
-    shadow = Shadow(load_config().replace(sun_gradient=term), sur)
+    shadow = Shadow(load_config().replace(sun_gradient=term, sun_gradient_fit=fit), sur)
     res = shadow.run(data)
     err = res.mean_m - np.array(truth["settlement"]["end_m"])
     g = shadow.fit.beta[:, -1] / sur.thermal["vertical_gradient"] if term else np.full(2, np.nan)
     return err, np.sqrt(np.diag(res.covariance_m2)), len(res.events), g
 
 
-def continuous_study(mapper: Callable[..., list[Any]], seeds: int) -> None:
-    """Run the twin's three sunny days of continuous monitoring, the sun term off and on."""
+def continuous_study(mapper: Callable[..., list[Any]], seeds: int, fit: str = "per_bearing") -> None:
+    """Run the twin's three sunny days of continuous monitoring, the sun term off and on (``fit``)."""
     for term in (False, True):
         t0 = time.perf_counter()
-        out = mapper(continuous_day, [(seed, term) for seed in range(seeds)])
+        out = mapper(continuous_day, [(seed, term, fit) for seed in range(seeds)])
         err = 1e3 * np.array([o[0] for o in out])
         sd = 1e3 * np.array([o[1] for o in out])
         print(
-            f"three sunny days monitored, sun term {'on' if term else 'off'}: {seeds} seeds in "
+            f"three sunny days monitored, sun term {f'on ({fit})' if term else 'off'}: {seeds} seeds in "
             f"{time.perf_counter() - t0:.0f} s"
         )
         print(f"  days without a false event {np.mean([o[2] == 0 for o in out]):.3f}")
@@ -504,6 +508,12 @@ def main() -> None:
         help="with --sun-term: the prior of g in K (default: shipped, 0 and 6.75)",
     )
     ap.add_argument(
+        "--sun-fit",
+        choices=("per_bearing", "deck"),
+        help="with --sun-term (and the continuous study): the term's fit, sun_gradient_fit (default: "
+        "shipped, per_bearing; deck: one g of the deck, as its evidence says)",
+    )
+    ap.add_argument(
         "--monitor-days",
         type=float,
         default=0.0,
@@ -533,6 +543,10 @@ def main() -> None:
         if not args.sun_term:
             ap.error("--sun-prior needs --sun-term")
         over["sun_gradient_prior_mean_k"], over["sun_gradient_prior_sd_k"] = args.sun_prior
+    if args.sun_fit:
+        if not args.sun_term and args.only != "continuous":
+            ap.error("--sun-fit needs --sun-term (or --only continuous)")
+        over["sun_gradient_fit"] = args.sun_fit
     with dask_client(workers=args.workers) as client:
         mapper = client_mapper(client)
         if args.only in (None, "real"):
@@ -542,7 +556,7 @@ def main() -> None:
         if args.only == "schedule":
             twin_study(mapper, args.seeds, args.verbose, over, schedule=args.rate)
         if args.only == "continuous":
-            continuous_study(mapper, args.seeds)
+            continuous_study(mapper, args.seeds, args.sun_fit or "per_bearing")
         if args.only == "minutes":
             minutes_study(mapper, over)
         if args.only == "creep":
