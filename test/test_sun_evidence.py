@@ -198,7 +198,7 @@ def test_the_sun_terms_bayes_factor_is_the_marginal_likelihood_ratio(sun_n, used
     ref_rows.y[:] = rows.y
     ref_sums.add(ref_rows)
     ref = plain.fit(ref_sums, lam=lam, kappa=kappa)
-    assert np.all(fit.beta[:, -1] == 0.0) and np.all(fit.minv[:, -1, :] == 0.0)
+    assert np.all(fit.beta[:, -1] == 0.0) and np.all(fit.minv[:, -1, :] == 0.0)  # set, not computed
     np.testing.assert_allclose(fit.beta[:, :-1], ref.beta, rtol=1e-9, atol=1e-9 * np.abs(ref.beta).max())
     np.testing.assert_allclose(fit.level, ref.level, rtol=1e-10)
     np.testing.assert_allclose(
@@ -236,7 +236,7 @@ def test_the_bundled_demo_with_one_g_of_the_deck_leaves_the_term_out_and_says_wh
     assert text.getvalue().count("sun term not used (Bayes factor e^") == 2
     assert "a g of each bearing's own fits better" in text.getvalue()
     for sp in js["spline"].values():
-        assert sp["sun_gradient_used"] is False and sp["sun_gradient_k"] == 0.0
+        assert sp["sun_gradient_used"] is False and sp["sun_gradient_k"] == 0.0  # set: the term out
         assert sp["sun_gradient_log_bf"] > 100.0  # one g is far likelier than none ...
         assert (
             sp["sun_gradient_log_bf_per_bearing"] > sp["sun_gradient_log_bf"]

@@ -57,6 +57,11 @@ def _log_savage_dickey(m0: float, s0: float, mu: float, sd: float) -> float:
     return float(log_prior0 - (stats.norm.logpdf(0.0, mu, sd) - stats.norm.logsf(0.0, mu, sd)))
 
 
+def _no_evidence() -> np.ndarray:
+    """Return the sun evidence of a fit that has none (``CompensationFit.sun_evidence``): four NaNs."""
+    return np.full(4, np.nan)
+
+
 @dataclass
 class CompensationFit:
     """One fit of both channels.
@@ -96,7 +101,7 @@ class CompensationFit:
     n: int
     bbar: np.ndarray
     sun: bool = False
-    sun_evidence: np.ndarray = field(default_factory=lambda: np.full(4, np.nan))
+    sun_evidence: np.ndarray = field(default_factory=_no_evidence)
 
     @property
     def sun_used(self) -> bool:
@@ -286,7 +291,7 @@ class Compensation:
             beta[c], lams[c], edf[c], minv[c], post[c], systems[c] = self._fit_channel(
                 c, sums, n_levels, lam, kappa, long_run, self.sun
             )
-        evidence = self.sun_evidence(post) if self.sun else np.full(4, np.nan)
+        evidence = self.sun_evidence(post) if self.sun else _no_evidence()
         if self.sun and self.sun_fit == "per_bearing":
             pass  # each channel's own g (its truncated mode, ``_fit_channel``), always in
         elif self.sun and self._sun_carried(evidence):
@@ -413,7 +418,7 @@ class Compensation:
         m0, s0 = self.sun_prior_k
         ok = np.isfinite(post).all(axis=1) & (post[:, 1] > 0)
         if not ok.any():
-            return np.full(4, np.nan)
+            return _no_evidence()
         prec, num = 1.0 / s0**2, m0 / s0**2
         for mu, sd in post[ok]:
             prec += max(1.0 / sd**2 - 1.0 / s0**2, 0.0)

@@ -224,12 +224,14 @@ def restore_shadow(
         shadow.sun.load_state_dict(state["sun"])
     if bool(state["has_fit"]):
         f = state["fit"]
+        # (a checkpoint from before the sun evidence has none: the field's default)
+        evidence = {"sun_evidence": np.asarray(f["sun_evidence"], float)} if "sun_evidence" in f else {}
         shadow.fit = CompensationFit(
             *(np.asarray(f[name], float) for name in _FIT_FIELDS[:-3]),
             int(f["n"]),  # type: ignore[arg-type]
             np.asarray(f["bbar"], float),
             shadow.compensation.sun,
-            np.asarray(f["sun_evidence"], float) if "sun_evidence" in f else np.full(4, np.nan),
+            **evidence,
         )
     shadow.lam = np.asarray(state["lam"], float).reshape(2)
     shadow.noise.load_state_dict(state["noise"])
