@@ -263,3 +263,35 @@ def test_a_curve_error_shared_by_the_segments_is_carried_once() -> None:
         p = 1.0 / (1.0 + (0.7 / 0.3) * np.exp(logs[0] - logs[1]))
         np.testing.assert_allclose(gap.change_probability, p, rtol=1e-7, atol=1e-12)
         assert (p > 0.99) if shift else (p < 0.3)
+
+
+def test_a_lowering_right_after_a_logger_outage_is_confirmed_by_two_windows() -> None:
+    """``mark_outage``: three windows confirm a lowering that starts where the data had stopped.
+
+    The same three windows do not confirm it where the data ran on (``event_confirm_windows`` = 4),
+    nor a raise after the outage (a vehicle adds load); marks below every segment that may still
+    ask are dropped when a later segment opens.
+    """
+    n, n1 = 60, 57
+    seg = (np.arange(n) >= n1).astype(int)
+    for shift, marked, confirmed in ((-2e-3, False, False), (-2e-3, True, True), (2e-3, True, False)):
+        rows, sums, fit, noise = _setup(n, np.zeros(n, int), seed=4)
+        rows.seg = seg.astype(np.int64)
+        rows.y[seg == 1] += SUR.A @ np.array([shift, shift])
+        sums = FitSums(sums.q)
+        sums.add(rows)
+        chain = SegmentChain(SUR.A, PRIOR, PRIOR)
+        chain.start(0)
+        if marked:
+            chain.mark_outage(n1)
+        chain.mark_outage(10)  # an earlier outage, inside the first segment
+        chain.open_segment(n1, kind="held_run", change_prior=0.5)
+        chain.refresh(sums, fit, noise)
+        assert chain.segment_probability(1)[0] > 0.999
+        assert chain.confirms(1, 0.99, 4) is confirmed
+        assert chain.confirms(1, 0.99, 3)  # three windows of it whatever the rule
+        assert chain.outage_starts == ({n1} if marked else set())  # the earlier mark pruned
+        state = chain.state_dict()
+        again = SegmentChain(SUR.A, PRIOR, PRIOR)
+        again.load_state_dict(state)
+        assert again.outage_starts == chain.outage_starts

@@ -221,6 +221,8 @@ class Shadow:
         self.gaps: list[dict[str, int]] = []  # {"from_k", "to_k", "segment"}: gaps in usable windows
         self._gap_k = max(1, round(config.gap_s / config.window_s))  # missing windows that make a gap
         self._last_usable_k: int | None = None
+        self._last_data_k: int | None = None  # the last window with force data (usable or not)
+        self._outage_since_usable = False  # a window without any force data since the last usable one
         self.n_windows = 0
         self.uncompensated = 0
         self.stale_temperature = 0  # windows used with a stale air temperature (widened, see windows)
@@ -423,6 +425,9 @@ class Shadow:
         for j, w in enumerate(windows):
             self.settle()  # the state this window is judged against
             self.silence.note(w.k, w.samples)
+            if self._last_data_k is not None and w.k - self._last_data_k > 1:
+                self._outage_since_usable = True
+            self._last_data_k = w.k
             if w.reason:
                 self.counts[w.reason] += 1
             elif not np.isfinite(w.temp[0]):
@@ -437,6 +442,9 @@ class Shadow:
             elif self._last_usable_k is not None and w.k - self._last_usable_k - 1 >= self._gap_k:
                 outputs.extend(self._open_gap(w))
             self._last_usable_k = w.k
+            if self._outage_since_usable:  # (a gap's first window too: kind "gap" says it already)
+                self.filter.mark_outage(w.k)
+                self._outage_since_usable = False
             if not self.warm:
                 w.seg = self.filter.segment
                 self._warm.append(w)

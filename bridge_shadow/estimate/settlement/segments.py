@@ -88,10 +88,10 @@ __all__ = ["SegmentChain", "SegmentData", "SegmentSummary", "mixture_update"]
 _NO_CROSS: Mat = (0.0, 0.0, 0.0, 0.0)
 
 
-#: Windows that confirm a change across a gap that lowered the reactions' sum
-#: (``SegmentChain.confirms``): not a parked vehicle (it only adds load), so not
-#: ``event_confirm_windows``; two, because one window alone at the end of the data or before a
-#: further step is what an outlier looks like.
+#: Windows that confirm a change that lowered the reactions' sum where the data had stopped (across
+#: a gap, or right after a logger outage inside a record: ``SegmentChain.confirms``): not a parked
+#: vehicle (it only adds load), so not ``event_confirm_windows``; two, because one window alone at
+#: the end of the data or before a further step is what an outlier looks like.
 GAP_LOWERING_WINDOWS = 2
 
 
@@ -267,6 +267,7 @@ class SegmentChain:
         self.jumps: list[np.ndarray] = []  # covariance opened for certain at each segment start (m^2)
         self.change_prior: list[float] = []  # probability of a further jump J (provisional segments)
         self.summaries: list[SegmentSummary] = []
+        self.outage_starts: set[int] = set()  # first windows after a logger outage (``mark_outage``)
         self.n_updates = 0
         self._atf = (float(self.A[0, 0]), float(self.A[1, 0]), float(self.A[0, 1]), float(self.A[1, 1]))
         self._m0f: Vec = (0.0, 0.0)  # prior of the current segment (no change, for a provisional one)
@@ -360,6 +361,15 @@ class SegmentChain:
         self.starts.append(int(k))
         self._online = _Online()
         self._update_current()
+        self._prune_outages()
+
+    def _prune_outages(self) -> None:
+        """Keep the outage marks a segment may still start at (the provisional ones' and later)."""
+        if not self.outage_starts:
+            return
+        open_starts = [k for k, p in zip(self.starts, self.change_prior, strict=True) if 0.0 < p < 1.0]
+        floor = min([self.starts[-1], *open_starts])
+        self.outage_starts = {k for k in self.outage_starts if k >= floor}
 
     def segment_probability(self, s: int) -> tuple[float, int]:
         """Change probability at segment ``s``'s start, and its windows (the current one online)."""
@@ -373,25 +383,33 @@ class SegmentChain:
         """Return whether segment ``s``'s change is confirmed (the one rule of every confirmation).
 
         Its change probability at least ``probability``, and at least ``windows`` windows that
-        stayed with it (``windows_changed``); ``GAP_LOWERING_WINDOWS`` for a change across a gap
-        that lowered the reactions' sum (``_lowers_across_gap``).
+        stayed with it (``windows_changed``); ``GAP_LOWERING_WINDOWS`` for a change that lowered
+        the reactions' sum where the data had stopped (``_lowers_where_data_stopped``).
         """
         p, _ = self.segment_probability(s)
         if p < probability:
             return False
-        need = min(windows, GAP_LOWERING_WINDOWS) if self._lowers_across_gap(s) else windows
+        need = min(windows, GAP_LOWERING_WINDOWS) if self._lowers_where_data_stopped(s) else windows
         return self.windows_changed(s, need) >= need
 
-    def _lowers_across_gap(self, s: int) -> bool:
-        """Return whether segment ``s`` starts at a gap and its change lowered the reactions' sum.
+    def mark_outage(self, k: int) -> None:
+        """Note that window ``k`` is the first usable one after a logger outage shorter than a gap."""
+        self.outage_starts.add(int(k))
+
+    def _lowers_where_data_stopped(self, s: int) -> bool:
+        """Return whether segment ``s`` starts where the data had stopped and its change lowered the sum.
 
         The windows ``event_confirm_windows`` asks for are there to tell a change from a load that
         stays for minutes (a parked test car); a vehicle only adds load (``inputs.traffic``), so a
-        change that takes load off the bearings is none. Only across a gap: there the segment's
-        start is the data's (a record's first minutes), while inside a record a short state can
-        be the detector's own reading of a step under the test car (split in two).
+        change that takes load off the bearings is none. Only where the data had stopped: across a
+        gap, or at the first usable window after a logger outage inside a record (``mark_outage``:
+        windows without any force data). There the segment's start is the data's, and the change
+        happened while nothing was recorded; inside continuous data a short state can be the
+        detector's own reading of a step under the test car (split in two).
         """
-        if not 0 < s < len(self.summaries) or self.kinds[s] != "gap":
+        if not 0 < s < len(self.summaries):
+            return False
+        if self.kinds[s] != "gap" and self.starts[s] not in self.outage_starts:
             return False
         sm = self.summaries[s]
         d = self.A @ (sm.x_data - sm.x_before)
@@ -663,6 +681,7 @@ class SegmentChain:
             "jumps": np.asarray(self.jumps, float).reshape(-1, 2, 2),
             "change_prior": np.asarray(self.change_prior, float),
             "n_updates": self.n_updates,
+            "outage_starts": np.array(sorted(self.outage_starts), np.int64),
             "m0": np.array(self._m0f),
             "p0": _arr(self._p0f),
             "p1": _arr(self._p1f),
@@ -698,6 +717,9 @@ class SegmentChain:
         self.jumps = list(np.asarray(state["jumps"], float).reshape(-1, 2, 2))
         self.change_prior = [float(p) for p in np.asarray(state["change_prior"], float).ravel()]
         self.n_updates = int(state["n_updates"])
+        # checkpoints written before logger outages were marked have none
+        marks = state["outage_starts"] if "outage_starts" in state else []
+        self.outage_starts = {int(k) for k in np.asarray(marks, np.int64).ravel()}
         m0 = np.asarray(state["m0"], float).reshape(2)
         self._m0f = (float(m0[0]), float(m0[1]))
         self._p0f = _sym(np.asarray(state["p0"], float).reshape(2, 2))

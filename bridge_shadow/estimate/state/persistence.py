@@ -180,6 +180,8 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "relax": json.dumps(shadow._relax),
         "scalars": {
             "last_usable_k": _opt(shadow._last_usable_k),
+            "last_data_k": _opt(shadow._last_data_k),
+            "outage_since_usable": int(shadow._outage_since_usable),
             "n_windows": shadow.n_windows,
             "uncompensated": shadow.uncompensated,
             "stale_temperature": shadow.stale_temperature,
@@ -324,6 +326,9 @@ def restore_shadow(
         shadow._relax = None if rl is None else (int(rl[0]), float(rl[1]), float(rl[2]))
     sc = state["scalars"]
     shadow._last_usable_k = _unopt(sc["last_usable_k"])
+    # checkpoints written before logger outages were marked have neither
+    shadow._last_data_k = _unopt(sc["last_data_k"]) if "last_data_k" in sc else shadow._last_usable_k
+    shadow._outage_since_usable = bool(int(sc.get("outage_since_usable", 0)))
     shadow.n_windows = int(sc["n_windows"])
     shadow.uncompensated = int(sc["uncompensated"])
     shadow.stale_temperature = int(sc["stale_temperature"]) if "stale_temperature" in sc else 0
