@@ -295,3 +295,36 @@ def test_a_lowering_right_after_a_logger_outage_is_confirmed_by_two_windows() ->
         again = SegmentChain(SUR.A, PRIOR, PRIOR)
         again.load_state_dict(state)
         assert again.outage_starts == chain.outage_starts
+
+
+def test_a_change_is_read_against_the_covariance_of_the_difference() -> None:
+    """``change_chi2``: a segment's data estimate less the previous one's, against that difference.
+
+    Independent reference: the dense covariance of the stacked measurements under no change (the
+    state common to both, so only the noise and the curve's error as the two read it differently
+    remain), ``E C E'`` for ``E = [-I, I]``. A curve error shared by the segments mostly cancels: the
+    chi-square is larger than with each segment's whole covariance added. ``confirms`` asks it to
+    reach ``min_chi2``.
+    """
+    data, curve_cov, hs, sigma = _curve_case(4)
+    chain = SegmentChain(SUR.A, PRIOR, np.diag([2e-3, 3e-3]) ** 2)
+    chain.start(0)
+    chain.open_segment(40)
+    chain.open_segment(80)
+    chain.run_chain(data, curve_cov)
+    cov, _, _ = _stacked_cov(data, hs, sigma, [np.zeros((2, 2))] * 3)
+    for s in (1, 2):
+        E = np.zeros((2, 6))
+        E[:, 2 * s - 2 : 2 * s], E[:, 2 * s : 2 * s + 2] = -np.eye(2), np.eye(2)
+        d = data[s].x_d - data[s - 1].x_d
+        expected = float(d @ np.linalg.solve(E @ cov @ E.T, d))
+        np.testing.assert_allclose(chain.change_chi2(s), expected, rtol=1e-9)
+        whole = [data[t].lam_inv + hs[t] @ sigma @ hs[t].T for t in (s - 1, s)]
+        assert chain.change_chi2(s) > float(d @ np.linalg.solve(whole[0] + whole[1], d))
+        chi2 = chain.change_chi2(s)
+        assert chain.confirms(s, 0.0, 0, min_chi2=0.5 * chi2)
+        assert not chain.confirms(s, 0.0, 0, min_chi2=2.0 * chi2)
+    assert np.isnan(chain.change_chi2(0)) and np.isnan(chain.change_chi2(5))
+    again = SegmentChain(SUR.A, PRIOR, np.diag([2e-3, 3e-3]) ** 2)
+    again.load_state_dict(chain.state_dict())
+    np.testing.assert_allclose(again.change_chi2(2), chain.change_chi2(2), rtol=1e-12)

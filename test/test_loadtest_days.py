@@ -571,9 +571,10 @@ def test_twin_days_on_the_real_days_schedule_end_within_10_percent_in_the_sun(en
     ones stopped: the shape of the withheld records. The shipped shadow, without its sun term,
     ends within 10 % of -30 mm on every day (the ambient hours show the sun's course, which the
     four-record day does not), loses no window of a new state, and dates every step inside its
-    lowering record; the few misses are a false event of about +1 mm while the sun leaves the deck
-    in the afternoon ambient record (4 of 100 days in ``benchmarks/loadtest_days.py --only
-    schedule``). Before, the load record three minutes after the afternoon lowering was never
+    lowering record, and nothing else is an event: the detector's step of about +1 mm while the
+    sun leaves the deck in the afternoon ambient record (4 of 100 days in ``benchmarks/
+    loadtest_days.py --only schedule``) is one the data do not tell from none (the test above).
+    Before, the load record three minutes after the afternoon lowering was never
     screened (a recording after a silence went on from one longer than the hold), and a drift
     held before a step was rejected as outliers. With the sun term every day passes every
     criterion.
@@ -581,16 +582,48 @@ def test_twin_days_on_the_real_days_schedule_end_within_10_percent_in_the_sun(en
     runs = [(seed, 4.0, False) for seed in range(40)] + [(seed, 0.0, False) for seed in range(10)]
     days = engine(_scheduled_twin_day, runs + [(seed, 4.0, True) for seed in range(30)])
     days, term = days[:50], days[50:]
-    sunny, clear = days[:40], days[40:]
+    sunny = days[:40]
     # with the sun term every criterion on every day (2 and 23 of these lost a lowering to the
     # old state before a step's first window was held on its jump; ``ChangeDetector.step``)
     assert all(s.passed for s in term), [i for i, s in enumerate(term) if not s.passed]
     assert np.mean([s.covered for s in term]) >= 0.9
     assert all(s.within_10pct for s in days), [i for i, s in enumerate(days) if not s.within_10pct]
     assert not any(s.lost_windows for s in sunny), [i for i, s in enumerate(sunny) if s.lost_windows]
-    assert np.mean([s.events_right for s in sunny]) >= 0.9
-    assert all(s.events_right for s in clear), [i for i, s in enumerate(clear) if not s.events_right]
+    assert all(s.events_right for s in days), [i for i, s in enumerate(days) if not s.events_right]
     assert np.mean([s.covered for s in days]) >= 0.9
+
+
+@pytest.mark.parametrize(("seed", "sun_k"), [(58, 4.0), (64, 0.0)])
+def test_a_step_the_data_cannot_tell_from_none_is_no_event(surrogate, seed: int, sun_k: float) -> None:
+    """The twin on 2022-04-11's schedule: the detector's step in an ambient record is no event.
+
+    Seed 58 (4 K of sun): as the sun leaves the deck, the compensated reactions rise by about 0.1
+    kN a minute and the detector reads a step of +1.27 mm at 14:30 local; seed 64 (no sun): a step
+    of 0.02 mm in the morning's ambient record. Each passed the detector's test of the windows
+    (GLR 27.8 and 28.6 against 27.6), but not the data's own reading of the two segments' levels
+    (their difference against its covariance, the curve's error as far as they read it differently:
+    chi-square 25.7 and 3.6 against the same 27.6, ``change_chi2``; the day's true steps 250 and
+    more). They are reported as possible changes, not significant (kind ``step``, no warning), the
+    estimate keeping their jump; every step of the day is one event at its record.
+    """
+    from bridge_shadow.twin.loadtest import LoadTestDay, scheduled_day
+    from bridge_shadow.twin.loadtest_score import score_day
+
+    data, truth = scheduled_day(seed, LoadTestDay(vertical_gradient_k=sun_k), surrogate)
+    shadow = Shadow(load_config(), surrogate)
+    res = shadow.run(data)
+    score = score_day(res, truth)
+    assert score.events_right and score.within_10pct and score.covered
+    (step,) = [c for c in res.changes if c.kind == "step"]
+    assert not step.likely and step.significant is False
+    assert len(shadow.events) == len(res.events) + 1  # found by the detector, not reported as an event
+    (seg,) = [int(e["segment"]) for e in shadow.events if int(e["window"]) == step.window]
+    assert shadow.filter.change_chi2(seg) < shadow.detector.h_event
+    others = [int(e["segment"]) for e in shadow.events if int(e["window"]) != step.window]
+    assert all(shadow.filter.change_chi2(s) > 3 * shadow.detector.h_event for s in others)
+    js = res.to_json()
+    (listed,) = [c for c in js["unconfirmed_changes"] if c["kind"] == "step"]
+    assert not any(f"at {listed['time']}" in w for w in js["warnings"])  # (the drift before it is)
 
 
 def test_a_step_inside_a_window_after_a_held_drift_is_neither_state(surrogate) -> None:

@@ -162,6 +162,8 @@ def _summary(js: dict[str, Any]) -> str:
         )
         if c["kind"] == "run_in_data":
             how = f"a run of {c['windows']} windows until {c['until']} without a step's jump, used as data"
+        elif c["kind"] == "step":
+            how = "a step the detector found, its size not told from zero on the data: no event"
         else:
             where = {
                 "gap": f"after a gap of {c['gap_s'] / 3600.0:.1f} h",

@@ -67,7 +67,22 @@ def _segment_change(shadow: Shadow, s: int) -> tuple[np.ndarray, np.ndarray, flo
 def _confirmed(shadow: Shadow, s: int) -> bool:
     """Whether provisional segment ``s``'s change is confirmed now (reported as an event)."""
     cfg = shadow.config
-    return shadow.filter.confirms(s, cfg.change_confirm_probability, cfg.event_confirm_windows)
+    h = shadow.detector.h_event
+    return shadow.filter.confirms(s, cfg.change_confirm_probability, cfg.event_confirm_windows, h)
+
+
+def _not_significant(shadow: Shadow, s: int) -> bool:
+    """Whether a step the detector found into segment ``s`` is, as the data now say, no change.
+
+    The detector tests windows against the estimate; the two segments' levels, each from all of
+    its windows with the noise's long-run variance and the curve's error as far as the two read it
+    differently (``SegmentChain.change_chi2``, as of the last refit; not the model's uncertainty of
+    a change, which scales a change and cannot make one), must show the change at the same
+    ``event_probability``. A step that does not (a drift the detector dated, a wander of the
+    noise) is reported as a possible change, not significant; the estimate keeps its jump.
+    Unknown (NaN: no refit since) keeps the event.
+    """
+    return bool(shadow.filter.change_chi2(s) < shadow.detector.h_event)
 
 
 def _provisional(shadow: Shadow) -> list[int]:
@@ -84,6 +99,8 @@ def event_records(shadow: Shadow) -> list[EventRecord]:
     nan2, nan22 = np.full(2, np.nan), np.full((2, 2), np.nan)
     for i, e in enumerate(shadow.events):
         s = int(e.get("segment", i + 1))
+        if _not_significant(shadow, s):
+            continue
         change = _segment_change(shadow, s)
         size, cov = (nan2, nan22) if change is None else change[:2]
         k = int(e["window"])
@@ -133,6 +150,15 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         out.append(
             ChangeRecord(k, k * shadow._w_ns, f.kinds[s], float(prob), int(n), size, cov, gap, next_ns=nxt)
         )
+    for i, e in enumerate(shadow.events):  # steps the data no longer tell from no change
+        s = int(e.get("segment", i + 1))
+        change = _segment_change(shadow, s)
+        if change is None or not _not_significant(shadow, s):
+            continue
+        size, cov, _, n = change
+        k = int(e["window"])
+        t = k * shadow._w_ns
+        out.append(ChangeRecord(k, t, "step", float("nan"), int(n), size, cov, significant=False))
     a_inv = np.linalg.inv(shadow.A)
     for r in shadow.unconfirmed_runs:  # runs used as data: their change read through A
         size = a_inv @ np.asarray(r["step_n"], float)

@@ -646,7 +646,8 @@ class Shadow:
     def _note_confirmed(self, s: int, now_k: int) -> bool:
         """If provisional segment ``s``'s change is confirmed (``SegmentChain.confirms``), note when."""
         cfg = self.config
-        if not self.filter.confirms(s, cfg.change_confirm_probability, cfg.event_confirm_windows):
+        h = self.detector.h_event
+        if not self.filter.confirms(s, cfg.change_confirm_probability, cfg.event_confirm_windows, h):
             return False
         self.confirmed_at.setdefault(self.filter.starts[s], int(now_k))
         return True

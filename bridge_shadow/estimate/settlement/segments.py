@@ -110,6 +110,8 @@ class SegmentSummary:
             events and drift blocks, ``p`` for a provisional segment, NaN for the first segment).
         x_before: (2,) the chained posterior of the previous segment (NaN for the first);
         P_before: (2, 2) its covariance.
+        change_chi2: the change from the previous segment's data estimate on the data alone
+            (``SegmentChain.change_chi2``; NaN for the first or without data at either side).
 
     """
 
@@ -123,6 +125,7 @@ class SegmentSummary:
     change_probability: float = float("nan")
     x_before: np.ndarray = field(default_factory=lambda: np.full(2, np.nan))
     P_before: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
+    change_chi2: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -379,18 +382,31 @@ class SegmentChain:
             return self.summaries[s].change_probability, self.summaries[s].windows
         return float("nan"), 0
 
-    def confirms(self, s: int, probability: float, windows: int) -> bool:
+    def confirms(self, s: int, probability: float, windows: int, min_chi2: float = 0.0) -> bool:
         """Return whether segment ``s``'s change is confirmed (the one rule of every confirmation).
 
-        Its change probability at least ``probability``, and at least ``windows`` windows that
-        stayed with it (``windows_changed``); ``GAP_LOWERING_WINDOWS`` for a change that lowered
-        the reactions' sum where the data had stopped (``_lowers_where_data_stopped``).
+        Its change probability at least ``probability``, its size significant on the data
+        (``change_chi2`` at least ``min_chi2``), and at least ``windows`` windows that stayed with
+        it (``windows_changed``); ``GAP_LOWERING_WINDOWS`` for a change that lowered the reactions'
+        sum where the data had stopped (``_lowers_where_data_stopped``).
         """
         p, _ = self.segment_probability(s)
-        if p < probability:
-            return False
+        if p < probability or (min_chi2 > 0.0 and self.change_chi2(s) < min_chi2):
+            return False  # (NaN, not refreshed since the segment opened: not known yet, not held against it)
         need = min(windows, GAP_LOWERING_WINDOWS) if self._lowers_where_data_stopped(s) else windows
         return self.windows_changed(s, need) >= need
+
+    def change_chi2(self, s: int) -> float:
+        """Chi-square of segment ``s``'s change on the data alone, as of the last refresh (else NaN).
+
+        Its data estimate less the previous segment's, against the covariance of that difference
+        (``_difference_chi2``: both segments' noise and the curve's error as far as the two read it
+        differently; not the model's uncertainty of a change read through ``A``, which scales a
+        change and cannot make one).
+        """
+        if 0 < s < len(self.summaries) and self.summaries[s].start_k == self.starts[s]:
+            return float(self.summaries[s].change_chi2)
+        return float("nan")
 
     def mark_outage(self, k: int) -> None:
         """Note that window ``k`` is the first usable one after a logger outage shorter than a gap."""
@@ -585,6 +601,7 @@ class SegmentChain:
         cross = np.zeros((2, curve_cov.shape[0], curve_cov.shape[1]))
         self.summaries = []
         n_seg = len(self.starts)
+        before: SegmentData | None = None  # the previous segment's data
         for s in range(n_seg):
             x_before, p_before = kf.x[:, 0].copy(), kf.P.copy()  # segment s - 1's posterior
             if s > 0:
@@ -634,6 +651,8 @@ class SegmentChain:
                 cross = cross - np.einsum("ij,jck->ick", kf.K, cross + hsig)
             if s == 0:
                 x_before, p_before = np.full(2, np.nan), np.full((2, 2), np.nan)
+            chi2 = self._difference_chi2(before, seg, curve_cov) if s > 0 else float("nan")
+            before = seg
             self.summaries.append(
                 SegmentSummary(
                     self.starts[s],
@@ -646,11 +665,35 @@ class SegmentChain:
                     prob,
                     x_before,
                     p_before,
+                    chi2,
                 )
             )
         if n_seg:
             self._x, self._P = (float(kf.x[0, 0]), float(kf.x[1, 0])), _sym(kf.P)
             self._p = self.summaries[-1].change_probability
+
+    def _difference_chi2(self, a: SegmentData | None, b: SegmentData, curve_cov: np.ndarray) -> float:
+        """Chi-square of ``b``'s data estimate less ``a``'s against the covariance of that difference.
+
+        Both segments' noise (``Lambda^-1``, and a misread sky's), and the curve's error through the
+        difference of their level directions, ``A^-1 (v_b - v_a) Sigma (v_b - v_a)' A^-T`` per
+        channel: an error of the curve common to both cancels as far as the two segments read it
+        alike (the same temperatures, the same sky). NaN without data at either side.
+        """
+        if a is None or a.x_d is None or b.x_d is None or a.lam_inv is None or b.lam_inv is None:
+            return float("nan")
+        cov = np.asarray(a.lam_inv, float) + np.asarray(b.lam_inv, float)
+        for extra in (a.sky_cov, b.sky_cov):
+            if extra is not None:
+                cov = cov + extra
+        if a.v is not None and b.v is not None:
+            dv = np.asarray(b.v, float) - np.asarray(a.v, float)
+            var = np.einsum("ci,cij,cj->c", dv, curve_cov, dv)
+            cov = cov + self.a_inv @ np.diag(var) @ self.a_inv.T
+        d = np.asarray(b.x_d, float) - np.asarray(a.x_d, float)
+        if not (np.all(np.isfinite(d)) and np.all(np.isfinite(cov))):
+            return float("nan")
+        return float(d @ np.linalg.solve(cov, d))
 
     @staticmethod
     def _sums_mz(sums: FitSums, fit: CompensationFit, s: int) -> tuple[np.ndarray, np.ndarray]:
@@ -704,6 +747,7 @@ class SegmentChain:
                 "x": np.array([s.x for s in sm]).reshape(-1, 2),
                 "P": np.array([s.P for s in sm]).reshape(-1, 2, 2),
                 "kind": json.dumps([s.kind for s in sm]),
+                "change_chi2": np.array([s.change_chi2 for s in sm], float),
                 "change_probability": np.array([s.change_probability for s in sm], float),
                 "x_before": np.array([s.x_before for s in sm]).reshape(-1, 2),
                 "P_before": np.array([s.P_before for s in sm]).reshape(-1, 2, 2),
@@ -741,9 +785,12 @@ class SegmentChain:
         self._P = _sym(np.asarray(state["P"], float).reshape(2, 2))
         sm = state["summaries"]
         kinds = json.loads(str(sm["kind"]))
+        # checkpoints written before the change's chi-square was kept: unknown (NaN) until a refresh
+        chi2s = np.asarray(sm["change_chi2"] if "change_chi2" in sm else np.full(len(kinds), np.nan), float)
+        chi2s = chi2s.ravel()
         self.summaries = [
-            SegmentSummary(int(k), int(n), xd, d, x, P, kd, float(pr), xb, pb)
-            for k, n, xd, d, x, P, kd, pr, xb, pb in zip(
+            SegmentSummary(int(k), int(n), xd, d, x, P, kd, float(pr), xb, pb, float(c2))
+            for k, n, xd, d, x, P, kd, pr, xb, pb, c2 in zip(
                 np.asarray(sm["start_k"]).ravel(),
                 np.asarray(sm["windows"]).ravel(),
                 np.asarray(sm["x_data"], float).reshape(-1, 2),
@@ -754,6 +801,7 @@ class SegmentChain:
                 np.asarray(sm["change_probability"], float).ravel(),
                 np.asarray(sm["x_before"], float).reshape(-1, 2),
                 np.asarray(sm["P_before"], float).reshape(-1, 2, 2),
+                chi2s,
                 strict=True,
             )
         ]
