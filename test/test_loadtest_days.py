@@ -702,7 +702,8 @@ def _creeping_twin_day(item: tuple[int, float]):
     sur = load_surrogate()
     data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=0.0), sur)
     data = creeping(data, truth, 1.0)
-    return score_day(Shadow(load_config().replace(relaxation_phi0=phi0), sur).run(data), truth)
+    res = Shadow(load_config().replace(relaxation_phi0=phi0), sur).run(data)
+    return score_day(res, truth), sum(c.kind == "step" for c in res.changes)
 
 
 @pytest.mark.slow
@@ -711,15 +712,19 @@ def test_twin_load_test_days_whose_new_states_creep_find_every_step(engine) -> N
 
     The twin had no creep and passed where the real records failed. With it, every step is one
     event at its record on every day thanks to the relaxation allowance; without the allowance
-    the creep across the test car's minutes is a second, small event on about a third of the days
-    (62 of 100 right, ``benchmarks/loadtest_days.py --only twin --creep 1``).
+    the detector reads the creep across the test car's minutes as a second, small step on about a
+    third of the days (62 of 100 right before an event had to be a change the levels show,
+    ``benchmarks/loadtest_days.py --only twin --creep 1``), which the segments' levels do not
+    show: listed as a possible change, not significant, every event right on those days too.
     """
-    days = engine(_creeping_twin_day, [(seed, p) for p in (0.663, 0.0) for seed in range(100)])
+    runs = engine(_creeping_twin_day, [(seed, p) for p in (0.663, 0.0) for seed in range(100)])
+    days, steps = [d for d, _ in runs], np.array([n for _, n in runs])
     on, off = days[:100], days[100:]
     assert all(s.events_right for s in on), [i for i, s in enumerate(on) if not s.events_right]
     assert not any(s.lost_windows for s in on + off)
     assert all(s.within_10pct and s.covered for s in on)
-    assert np.mean([s.events_right for s in off]) < 0.8
+    assert all(s.events_right for s in off), [i for i, s in enumerate(off) if not s.events_right]
+    assert np.mean(steps[100:] > 0) > 0.2 and np.mean(steps[:100] > 0) < 0.05, (steps[:100], steps[100:])
 
 
 def _cut(data, t_ns: int, after: bool):
