@@ -226,6 +226,8 @@ def posterior_state(shadow: Shadow) -> dict[str, Any]:
         )
     else:
         what = {"event": "the settlement step", "drift": "the drift block starting"}.get(kind, kind)
+        if kind == "event" and _not_significant(shadow, s):
+            what = "a step the detector found (its size not told from zero on the data: no event)"
         state["text"] = f"the state since {what} at {iso_utc(since)}"
     last = shadow._last_usable_k
     blind = [
