@@ -85,6 +85,15 @@ def _not_significant(shadow: Shadow, s: int) -> bool:
     return bool(shadow.filter.change_chi2(s) < shadow.detector.h_event)
 
 
+def _detector_steps(shadow: Shadow) -> list[tuple[dict[str, Any], int, bool]]:
+    """Return the detector's steps: (its record, its segment, whether the levels show it: an event)."""
+    out = []
+    for i, e in enumerate(shadow.events):
+        s = int(e.get("segment", i + 1))
+        out.append((e, s, not _not_significant(shadow, s)))
+    return out
+
+
 def _provisional(shadow: Shadow) -> list[int]:
     return [s for s, pi in enumerate(shadow.filter.change_prior) if 0.0 < pi < 1.0]
 
@@ -97,9 +106,8 @@ def event_records(shadow: Shadow) -> list[EventRecord]:
     """
     out = []
     nan2, nan22 = np.full(2, np.nan), np.full((2, 2), np.nan)
-    for i, e in enumerate(shadow.events):
-        s = int(e.get("segment", i + 1))
-        if _not_significant(shadow, s):
+    for e, s, shown in _detector_steps(shadow):
+        if not shown:
             continue
         change = _segment_change(shadow, s)
         size, cov = (nan2, nan22) if change is None else change[:2]
@@ -150,10 +158,9 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         out.append(
             ChangeRecord(k, k * shadow._w_ns, f.kinds[s], float(prob), int(n), size, cov, gap, next_ns=nxt)
         )
-    for i, e in enumerate(shadow.events):  # steps the data no longer tell from no change
-        s = int(e.get("segment", i + 1))
-        change = _segment_change(shadow, s)
-        if change is None or not _not_significant(shadow, s):
+    for e, s, shown in _detector_steps(shadow):  # steps the levels do not show
+        change = None if shown else _segment_change(shadow, s)
+        if change is None:
             continue
         size, cov, _, n = change
         k = int(e["window"])

@@ -292,15 +292,15 @@ class Compensation:
                 c, sums, n_levels, lam, kappa, long_run, self.sun
             )
         evidence = self.sun_evidence(post) if self.sun else _no_evidence()
-        if self.sun and self.sun_fit == "per_bearing":
-            pass  # each channel's own g (its truncated mode, ``_fit_channel``), always in
-        elif self.sun and self._sun_carried(evidence):
-            if np.isfinite(evidence[2]):  # one g for the deck, at its (truncated) posterior's mode
-                g = self._sun_mode(evidence)
+        # per_bearing: each channel's own g (its truncated mode, ``_fit_channel``), always in
+        deck = self.sun and self.sun_fit == "deck"
+        if deck and self._sun_carried(evidence):
+            if np.isfinite(evidence[2]):  # one g for the deck, at its posterior's mode truncated at g >= 0
+                g = max(float(evidence[2]), 0.0)
                 for c, system in enumerate(systems):
                     if system is not None:
                         beta[c] = self._given_sun(c, *system, g)
-        elif self.sun:
+        elif deck:
             for c in range(2):
                 beta[c], lams[c], edf[c], minv[c], _, _ = self._fit_channel(
                     c, sums, n_levels, lam, kappa, long_run, False
@@ -445,11 +445,6 @@ class Compensation:
         ``g = 0``: the other coefficients solve the system without the sun column.
         """
         return b if b[-1] * self.sun_slope[c] >= 0.0 else self._given_sun(c, mat, rhs, 0.0)
-
-    @staticmethod
-    def _sun_mode(evidence: np.ndarray) -> float:
-        """Return ``g`` (K) of the fit: the mode of its posterior truncated at ``g >= 0``."""
-        return max(float(evidence[2]), 0.0)
 
     def _given_sun(self, c: int, mat: np.ndarray, rhs: np.ndarray, g: float) -> np.ndarray:
         """Return channel ``c``'s coefficients with the sun's held at ``sun_slope_c g``, the rest refitted.
