@@ -322,3 +322,38 @@ def test_a_row_with_an_unreadable_cell_is_rejected_whole(tmp_path: Path) -> None
         assert series.force_n[at] == pytest.approx(value, rel=1e-12), ch
         assert len(series) == 3
     assert [(r["line"], r["reason"]) for r in report.rejected] == [(3, "unreadable value of frc_02")]
+
+
+def test_a_file_none_of_whose_rows_can_be_read_is_refused_by_name(tmp_path: Path, capsys) -> None:
+    """A record whose every value is unreadable must not leave the bag as a mere count of rejects.
+
+    The bag without it would be a stream missing that record: the state it holds lost with exit 0.
+    A file with some bad rows is imported, and the summary names it with its count.
+    """
+    good = tmp_path / "a_2022-03-07.csv"
+    good.write_text(
+        "Time (-),FRC-01 (kN),FRC-02 (kN)\n"
+        "2022-03-07 16:35:00.000,233.90,221.10\n"
+        "2022-03-07 16:35:00.010,233.90,#WERT!\n"
+        "2022-03-07 16:35:00.020,233.80,221.00\n"
+    )
+    bad = tmp_path / "b_2022-03-07.csv"
+    bad.write_text(
+        "Time (-),FRC-01 (kN),FRC-02 (kN)\n"
+        "2022-03-07 17:35:00.000,np.float64(203.9),np.float64(191.1)\n"
+        "2022-03-07 17:35:00.010,np.float64(203.9),np.float64(191.2)\n"
+    )
+    refused = r"b_2022-03-07\.csv: none of its 2 data rows could be read \(line 2"
+    with pytest.raises(InputError, match=refused):
+        import_csv([good, bad])
+    out = tmp_path / "bag"
+    assert main(["import-csv", str(good), str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "b_2022-03-07.csv" in err and err.count("\n") == 1
+    assert not out.exists()
+    assert main(["import-csv", str(good), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "rejected rows: 1" in text and f"1 of 3 rows in {good}" in text
+    assert main(["import-csv", str(good), "--out", str(out), "--force", "--json"]) == 0
+    (source,) = json.loads(capsys.readouterr().out)["inputs"]
+    assert (source["rows_read"], source["rows_rejected"]) == (2, 1)

@@ -75,6 +75,11 @@ def run(args: argparse.Namespace) -> int:
         lines.append(f"  date fixed {fix['written']} -> {fix['used']} ({fix['evidence']}): {fix['file']}")
     rejected = summary["rejected"]
     lines.append(f"  rejected rows: {rejected['count']} {rejected['by_reason'] or ''}".rstrip())
+    for source in report.inputs:
+        if source["rows_rejected"]:
+            total = source["rows_read"] + source["rows_rejected"]
+            name = source["file"] + (f"!{source['member']}" if source["member"] else "")
+            lines.append(f"    {source['rows_rejected']} of {total} rows in {name}")
     lines.append(f"  UTC offsets (h): {report.utc_offsets_h}")
     sys.stdout.write("\n".join(lines) + "\n")
     return 0

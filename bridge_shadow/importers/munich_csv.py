@@ -177,6 +177,22 @@ def parse_source(source: CsvSource) -> Parsed:
     return Parsed(source, local, values, ok, columns, written, rejected)
 
 
+def _check_some_rows_read(parsed: Parsed, kept: int) -> None:
+    """Refuse a table whose data rows were all rejected: a record must not vanish into a count.
+
+    (A file with a bad row here and there is imported, its rejects listed; one of which no row could
+    be read is a file that cannot be what its header says, and the bag without it would be a stream
+    missing a record: the settlement it holds lost with exit 0.)
+    """
+    if kept or not parsed.rejected:
+        return
+    line, reason = parsed.rejected[0]
+    raise InputError(
+        f"{parsed.source.label}: none of its {len({n for n, _ in parsed.rejected})} data rows could be read "
+        f"(line {line}: {reason}); nothing was written"
+    )
+
+
 def _valid_date(y: int, m: int, d: int) -> bool:
     try:
         date(y, m, d)
@@ -347,6 +363,8 @@ def import_csv(
         # a row with any unreadable cell is rejected whole: its other cells carry the same
         # doubtful stamp, and a kept half-row would displace a good sample at that stamp
         ok = p.ok.all(axis=1)
+        kept = int(np.count_nonzero(ok))
+        _check_some_rows_read(p, kept)
         for j, name in enumerate(p.columns):
             stamps[name].append(utc[ok])
             values[name].append(p.values[ok, j] * scale)
@@ -357,6 +375,8 @@ def import_csv(
                 "member": p.source.member,
                 "kind": p.source.kind,
                 "rows": len(p.local_ns),
+                "rows_read": kept,
+                "rows_rejected": len({line for line, _ in p.rejected}),
                 "dates": [str(d) for d in sorted(set(used_dates))],
             }
         )
