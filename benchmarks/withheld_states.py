@@ -12,11 +12,17 @@ shadow (sun term off) reads it as settlement. This prints, before those records 
   clear sky of 0 to 8 K (the twin's ``vertical_gradient``; 4 K is its default): at the end of each
   load record after a lowering, the common mode's error (mean and sd over seeds), that error in
   kelvin of vertical difference, the 95 % half-width of the common mode, and how often the interval
-  holds the truth.
+  holds the truth;
+- ``--day records``: the same on the four load records alone at their real times (08:36, 09:20,
+  13:39, 17:37; ``twin.loadtest.load_test_day``, nothing between them): the stream a user has who
+  was given the load records and not the ambient hours between them;
+- ``--sun-term``: read with the shadow's sun term (``sun_gradient: true``) instead of the shipped
+  defaults.
 
 Usage::
 
     .venv/bin/python benchmarks/withheld_states.py [--seeds 50] [--suns 0 2 4 6 8] [--workers N]
+        [--day schedule|records] [--sun-term]
 
 Seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers`` processes,
 default one per core).
@@ -32,7 +38,12 @@ import numpy as np
 from bridge_shadow.engine import client_mapper, dask_client
 from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.model.surrogate_file import load_surrogate
-from bridge_shadow.twin.loadtest import SCHEDULE_2022_04_11, LoadTestDay, scheduled_day
+from bridge_shadow.twin.loadtest import (
+    SCHEDULE_2022_04_11,
+    LoadTestDay,
+    load_test_day,
+    scheduled_day,
+)
 
 W_NS = 60 * 10**9
 #: The load records after a lowering (indices into the schedule): the states the records show.
@@ -41,17 +52,30 @@ STATE_RECORDS = [
     for i, (kind, _, _) in enumerate(SCHEDULE_2022_04_11)
     if kind == "load" and any(k == "lowering" for k, _, _ in SCHEDULE_2022_04_11[:i])
 ]
+LOAD_RECORDS = [i for i, (kind, _, _) in enumerate(SCHEDULE_2022_04_11) if kind == "load"]
+#: The load records' local start hours: the four-record stream (``--day records``).
+RECORD_H = tuple(
+    sum(float(x) / 60**j for j, x in enumerate(SCHEDULE_2022_04_11[i][1].split(":"))) for i in LOAD_RECORDS
+)
 ONES = np.ones(2) / 2.0  # the common mode: the mean of the two supports
 
 
-def read_states(item: tuple[int, float]) -> np.ndarray:
+def read_states(item: tuple[int, float, str, bool]) -> np.ndarray:
     """One seed: (records, 3) common-mode error (m), its 95 % half-width (m), the truth (m)."""
-    seed, sun = item
+    seed, sun, day, sun_term = item
     sur = load_surrogate()
-    data, truth = scheduled_day(seed, LoadTestDay(vertical_gradient_k=sun, rate_hz=0.2), sur)
-    res = Shadow(load_config(), sur).run(data)
+    if day == "records":
+        data, truth = load_test_day(seed, LoadTestDay(record_h=RECORD_H, vertical_gradient_k=sun), sur)
+        records = [1, 2, 3]
+    else:
+        data, truth = scheduled_day(seed, LoadTestDay(vertical_gradient_k=sun, rate_hz=0.2), sur)
+        records = STATE_RECORDS
+    config = load_config()
+    if sun_term:
+        config = config.replace(sun_gradient=True)
+    res = Shadow(config, sur).run(data)
     out = []
-    for i in STATE_RECORDS:
+    for i in records:
         end = truth["record_end_ns"][i]
         last = [o for o in res.outputs if o.updated and o.end_ns <= end + W_NS][-1]
         x = float(ONES @ np.asarray(truth["record_x_m"][i], float))
@@ -65,6 +89,13 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--suns", type=float, nargs="+", default=[0.0, 2.0, 4.0, 6.0, 8.0], metavar="K")
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
+    ap.add_argument(
+        "--day",
+        choices=("schedule", "records"),
+        default="schedule",
+        help="the day as its loggers ran (default), or its four load records alone",
+    )
+    ap.add_argument("--sun-term", action="store_true", help="the shadow with its sun term (sun_gradient)")
     args = ap.parse_args()
     sur = load_surrogate()
     per_k = np.linalg.solve(sur.A, np.asarray(sur.thermal["vertical_gradient"], float))
@@ -77,9 +108,12 @@ def main() -> None:
         mapper = client_mapper(client)
         for sun in args.suns:
             t0 = time.perf_counter()
-            r = np.array(mapper(read_states, [(seed, sun) for seed in range(args.seeds)]))
+            items = [(seed, sun, args.day, args.sun_term) for seed in range(args.seeds)]
+            r = np.array(mapper(read_states, items))
             took = time.perf_counter() - t0
-            print(f"twin sun {sun:g} K at full clear sky, {args.seeds} seeds in {took:.0f} s")
+            what = "the day as its loggers ran" if args.day == "schedule" else "the four load records alone"
+            term = ", the sun term" if args.sun_term else ""
+            print(f"twin sun {sun:g} K at full clear sky, {what}{term}, {args.seeds} seeds in {took:.0f} s")
             for j, name in enumerate(names):
                 err, half, x = r[:, j, 0], r[:, j, 1], r[:, j, 2]
                 kelvin = err.mean() / float(ONES @ per_k)
