@@ -21,6 +21,8 @@ __all__ = [
     "LON_DEG",
     "OVERCAST_SWING_K",
     "clear_sky",
+    "clearness_of_warming",
+    "daily_warming",
     "haurwitz_ghi",
     "solar_elevation_deg",
 ]
@@ -81,3 +83,40 @@ def clear_sky(t_ns: np.ndarray | int, lat_deg: float = LAT_DEG, lon_deg: float =
     """
     ghi = haurwitz_ghi(solar_elevation_deg(t_ns, lat_deg, lon_deg))
     return np.clip(ghi / _site_peak_ghi(lat_deg), 0.0, 1.0)
+
+
+def daily_warming(
+    t_ns: np.ndarray, temp_c: np.ndarray, lon_deg: float = LON_DEG
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each solar day's sun-driven warming of the air, K (whole days, not causal).
+
+    Per solar day (mean solar time at the site) the warming is the afternoon maximum (10-18 h)
+    minus the morning minimum (02-10 h), both needing more than ten readings (a NaN reading makes
+    its day's warming NaN).
+
+    Returns:
+        The solar day of each stamp (days since 1970 in mean solar time), the distinct days, and
+        each day's warming (NaN for a day without both parts).
+
+    """
+    t_ns = np.asarray(t_ns, dtype=np.int64)
+    temp_c = np.asarray(temp_c, dtype=float)
+    solar_s = t_ns // 1_000_000_000 + lon_deg / 15.0 * 3600.0
+    sday = np.floor(solar_s / 86_400.0).astype(np.int64)
+    hour = (solar_s % 86_400.0) / 3600.0
+    days = np.unique(sday)
+    warming = np.full(len(days), np.nan)
+    for k, dd in enumerate(days):
+        sel = sday == dd
+        morning = sel & (hour >= 2.0) & (hour < 10.0)
+        afternoon = sel & (hour >= 10.0) & (hour < 18.0)
+        if morning.sum() > 10 and afternoon.sum() > 10:
+            warming[k] = temp_c[afternoon].max() - temp_c[morning].min()
+    return sday, days, warming
+
+
+def clearness_of_warming(warming_k: np.ndarray | float) -> np.ndarray:
+    """Return a day's clearness 0..1: its warming mapped from an overcast to a clear day, clipped."""
+    return np.clip(
+        (np.asarray(warming_k, float) - OVERCAST_SWING_K) / (CLEAR_SWING_K - OVERCAST_SWING_K), 0.0, 1.0
+    )

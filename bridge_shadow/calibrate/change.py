@@ -23,6 +23,22 @@ warmed), and nothing is measured in the gap between two records. Two treatments:
   continues through the gap and ``dt`` times it is subtracted; the covariance then holds
   ``dt^2 (r_a - r_b)(r_a - r_b)' / 4`` (how far the two records disagree on the rate) and the
   rates' standard errors.
+- ``baseline_change="sun"``: the baseline's change over hours is the deck's vertical temperature
+  difference, driven by the sun (issue 20, item 4): ``dR_sun = v g (c_a s_a - c_b s_b)``, with
+  ``v`` the model's response to one kelvin of it (``thermal["vertical_gradient"]``, N/K), ``s``
+  the clear-sky covariate at the bridge (``bridge_shadow.sun.clear_sky``) averaged over each
+  record's car-free windows, ``c`` the day's clearness from the air's warming over the whole day
+  (``bridge_shadow.sun.daily_warming``; a day without its morning and afternoon in the data: 0..1
+  uniform), and ``g`` the difference at full clear sky under the shadow's own prior of its sun
+  term (``sun_gradient_prior_mean_k`` / ``sd_k``: EN 1991-1-5, ``config/shadow.yaml``) held at
+  ``g >= 0`` as there (a top warmer than the bottom; a truncated normal). Its mean ``v E[X]`` is
+  subtracted and ``v v' Var[X]`` added, ``X = g (c_a s_a - c_b s_b)``. The drift each record
+  shows within itself (relaxation after a step, the bearings' seating, the sun's own course) is
+  added as an uncertainty over that record's own length, ``(D_b^2 r_b r_b' + D_a^2 r_a r_a') / 2``,
+  not over the hours between: such a course is not assumed to go on for hours at the rate twelve
+  minutes showed. What this treatment assumes and the default does not: that the sun's vertical
+  difference is what moves a baseline over hours. The two public records are both from the
+  morning, 44 minutes apart, so only the twin checks it (``test_calibrate_sun.py``).
 
 The model's own uniform thermal response to the change of the air temperature between the
 records is a modelled term of the forward model, not of this module (``air_temp_change_k``).
@@ -34,20 +50,65 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.stats import truncnorm
 
 from bridge_shadow.calibrate.car import Binned, CarDetection, bin_record, detect_car
 from bridge_shadow.calibrate.errors import CalibrationError
 from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import Moments
+from bridge_shadow.estimate.compensation.sunlight import FIRST_SD, WANDER_K
+from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.series import MonitoringData
+from bridge_shadow.sun import (
+    CLEAR_SWING_K,
+    LON_DEG,
+    OVERCAST_SWING_K,
+    clear_sky,
+    clearness_of_warming,
+    daily_warming,
+)
 
-__all__ = ["BASELINE_CHANGES", "MeasuredChange", "RecordLevel", "measured_change", "record_level"]
+__all__ = [
+    "BASELINE_CHANGES",
+    "MeasuredChange",
+    "RecordLevel",
+    "SunBaseline",
+    "measured_change",
+    "record_level",
+]
 
 NS = 1_000_000_000
 #: Per-sample load-cell noise of the paper (Sigma_E, DESIGN 2), N: the floor of the window noise.
 PAPER_SIGMA_E_N = (60.4, 82.7)
 #: Treatments of the baseline's change between two records (see the module docstring).
-BASELINE_CHANGES = ("uncertainty", "linear")
+BASELINE_CHANGES = ("uncertainty", "linear", "sun")
+#: sd of a day's clearness read from its warming: the air's irregular wander at the morning's
+#: minimum and at the afternoon's maximum (``sunlight.WANDER_K`` each) over the clear-overcast span.
+CLEARNESS_SD = float(np.sqrt(2.0) * WANDER_K / (CLEAR_SWING_K - OVERCAST_SWING_K))
+
+
+@dataclass(frozen=True)
+class SunBaseline:
+    """What ``baseline_change="sun"`` needs beside the records (see the module docstring).
+
+    Attributes:
+        response_n_per_k: (2,) N/K, the model's reactions per kelvin of a linear vertical
+            temperature difference through the deck, top warmer (``thermal["vertical_gradient"]``).
+        prior_mean_k, prior_sd_k: the normal prior of that difference at full clear sky, K, held at
+            ``g >= 0`` (default: the shadow's sun term's, ``config/shadow.yaml``).
+
+    """
+
+    response_n_per_k: np.ndarray
+    prior_mean_k: float = ShadowConfig.sun_gradient_prior_mean_k
+    prior_sd_k: float = ShadowConfig.sun_gradient_prior_sd_k
+
+    def moments(self) -> tuple[float, float]:
+        """``E[g]`` and ``E[g^2]`` of the prior held at ``g >= 0`` (a truncated normal), K and K^2."""
+        mu, sd = self.prior_mean_k, self.prior_sd_k
+        g = truncnorm(-mu / sd, np.inf, loc=mu, scale=sd)
+        mean = float(g.mean())
+        return mean, float(g.var()) + mean**2
 
 
 @dataclass
@@ -65,6 +126,9 @@ class RecordLevel:
         temp_c: mean air temperature over the car-free windows, C (NaN without temperature).
         car: the car detection (intervals, plateaus).
         start_ns, duration_s: the record's first stamp and length.
+        sun: the clear-sky covariate (0..1) averaged over the car-free windows.
+        clearness: the day's clearness 0..1 from the air's warming over the whole day in the data
+            (NaN when the data hold no morning and afternoon of that day).
 
     """
 
@@ -81,6 +145,8 @@ class RecordLevel:
     car: CarDetection
     start_ns: int
     duration_s: float
+    sun: float = float("nan")
+    clearness: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (SI)."""
@@ -100,6 +166,8 @@ class RecordLevel:
             "car_free_fraction": self.car.free_fraction,
             "car_intervals_s": [list(iv) for iv in self.car.intervals_s],
             "plateaus": [p.to_dict() for p in self.car.plateaus],
+            "sun_clear_sky": self.sun,
+            "clearness": None if np.isnan(self.clearness) else self.clearness,
         }
 
 
@@ -159,8 +227,10 @@ def record_level(
     rate_se = np.sqrt(np.diag(r_window) / sxx) if sxx > 0 else np.full(2, np.inf)
     temps = np.concatenate([binned.temp_c[w] for w in wins])
     temp = float(np.nanmean(temps)) if np.isfinite(temps).any() else float("nan")
+    t_ns = int(binned.start_ns + round(t_c * NS))
+    sun = float(np.mean(clear_sky(binned.start_ns + np.round(w_t * NS).astype(np.int64))))
     return RecordLevel(
-        t_ns=int(binned.start_ns + round(t_c * NS)),
+        t_ns=t_ns,
         level_n=coef[0].copy(),
         cov_n2=cov_level,
         rate_n_per_s=coef[1].copy(),
@@ -173,7 +243,25 @@ def record_level(
         car=det,
         start_ns=int(binned.start_ns),
         duration_s=float(binned.t_s[-1] + binned.bin_s / 2),
+        sun=sun,
+        clearness=_clearness_of_day(data, t_ns),
     )
+
+
+def _solar_day(t_ns: int) -> int:
+    return int(np.floor((t_ns / NS + LON_DEG / 15.0 * 3600.0) / 86_400.0))
+
+
+def _clearness_of_day(data: MonitoringData, t_ns: int) -> float:
+    """Return the clearness of the solar day of ``t_ns`` from the air in ``data`` (NaN: not there)."""
+    temp = data.temperature
+    if temp is None or not len(temp.stamp_ns):
+        return float("nan")
+    _, days, warming = daily_warming(temp.stamp_ns, temp.temp_c)
+    k = np.searchsorted(days, _solar_day(t_ns))
+    if k == len(days) or days[k] != _solar_day(t_ns) or not np.isfinite(warming[k]):
+        return float("nan")
+    return float(clearness_of_warming(warming[k]))
 
 
 def _iso(ns: int) -> str:
@@ -190,11 +278,14 @@ class MeasuredChange:
         dR_n: (2,) N, after minus before [south, north] (drift-corrected with ``linear``).
         cov_n2: (2, 2) N^2, total covariance: both levels + the baseline change between the records.
         parts: name -> (2, 2) N^2, the covariance's parts (``level_before``, ``level_after``,
-            ``baseline_change``).
+            ``baseline_change``; with ``sun`` also ``baseline_wander``).
         dt_s: s between the two levels. air_temp_change_k: K, mean air temperature after minus
             before (NaN without temperature). baseline_change: the treatment used.
         drift_correction_n: (2,) N subtracted from the raw difference (zero for ``uncertainty``).
         before, after: the two record levels.
+        sun: with ``sun``: the sun's part (``sun_change_k``: mean and sd of ``X``, the vertical
+            difference's change between the records, K; ``exposure``: ``c s`` of each record,
+            mean; the prior of ``g``).
 
     """
 
@@ -207,6 +298,7 @@ class MeasuredChange:
     drift_correction_n: np.ndarray = field(default_factory=lambda: np.zeros(2))
     before: RecordLevel | None = None
     after: RecordLevel | None = None
+    sun: dict[str, Any] | None = None
 
     @property
     def sd_n(self) -> np.ndarray:
@@ -226,13 +318,42 @@ class MeasuredChange:
             "drift_correction_n": self.drift_correction_n.tolist(),
             "before": self.before.to_dict() if self.before else None,
             "after": self.after.to_dict() if self.after else None,
+            "sun": self.sun,
         }
 
 
+def _exposure_moments(before: RecordLevel, after: RecordLevel) -> tuple[float, float, list[float]]:
+    """``E[D]``, ``E[D^2]`` of ``D = c_a s_a - c_b s_b`` and each record's ``E[c] s``.
+
+    A day's clearness read from its air is known to ``CLEARNESS_SD``; unread, it is uniform on
+    0..1. Two records of one solar day share it (the one read, if only one was).
+    """
+
+    def clearness(level: RecordLevel) -> tuple[float, float]:
+        if np.isnan(level.clearness):
+            return 0.5, FIRST_SD
+        return level.clearness, CLEARNESS_SD
+
+    (cb, sdb), (ca, sda) = clearness(before), clearness(after)
+    sb, sa = before.sun, after.sun
+    if _solar_day(before.t_ns) == _solar_day(after.t_ns):
+        c, sd = (ca, sda) if sda <= sdb else (cb, sdb)
+        ds = sa - sb
+        return c * ds, (c**2 + sd**2) * ds**2, [c * sb, c * sa]
+    mean = ca * sa - cb * sb
+    return mean, mean**2 + (sda * sa) ** 2 + (sdb * sb) ** 2, [cb * sb, ca * sa]
+
+
 def measured_change(
-    before: RecordLevel, after: RecordLevel, baseline_change: str = "uncertainty"
+    before: RecordLevel,
+    after: RecordLevel,
+    baseline_change: str = "uncertainty",
+    sun: SunBaseline | None = None,
 ) -> MeasuredChange:
-    """``after - before`` with the baseline change between them handled as ``baseline_change``."""
+    """``after - before`` with the baseline change between them handled as ``baseline_change``.
+
+    ``sun``: the model's response and the prior for ``baseline_change="sun"`` (needed there).
+    """
     if baseline_change not in BASELINE_CHANGES:
         raise CalibrationError(
             f"baseline_change must be one of {', '.join(BASELINE_CHANGES)}, got {baseline_change!r}"
@@ -242,13 +363,37 @@ def measured_change(
         raise CalibrationError("the 'after' record must come after the 'before' record")
     rb, ra = before.rate_n_per_s, after.rate_n_per_s
     correction = np.zeros(2)
+    sun_part = None
+    parts = {"level_before": before.cov_n2, "level_after": after.cov_n2}
     if baseline_change == "uncertainty":
-        base = dt**2 * 0.5 * (np.outer(rb, rb) + np.outer(ra, ra))
-    else:
+        parts["baseline_change"] = dt**2 * 0.5 * (np.outer(rb, rb) + np.outer(ra, ra))
+    elif baseline_change == "linear":
         correction = dt * 0.5 * (rb + ra)
         diff = ra - rb
-        base = dt**2 * (0.25 * np.outer(diff, diff) + 0.25 * np.diag(before.rate_se**2 + after.rate_se**2))
-    parts = {"level_before": before.cov_n2, "level_after": after.cov_n2, "baseline_change": base}
+        rate_var = np.diag(before.rate_se**2 + after.rate_se**2)
+        parts["baseline_change"] = dt**2 * (0.25 * np.outer(diff, diff) + 0.25 * rate_var)
+    else:
+        if sun is None:
+            raise CalibrationError(
+                "baseline_change sun needs the model's response to the deck's vertical temperature "
+                "difference (thermal vertical_gradient)"
+            )
+        e_g, e_g2 = sun.moments()
+        e_d, e_d2, exposure = _exposure_moments(before, after)
+        mean_x = e_g * e_d
+        var_x = max(e_g2 * e_d2 - mean_x**2, 0.0)
+        v = np.asarray(sun.response_n_per_k, float).reshape(2)
+        correction = v * mean_x
+        parts["baseline_change"] = np.outer(v, v) * var_x
+        parts["baseline_wander"] = 0.5 * (
+            before.duration_s**2 * np.outer(rb, rb) + after.duration_s**2 * np.outer(ra, ra)
+        )
+        sun_part = {
+            "sun_change_k": [mean_x, float(np.sqrt(var_x))],
+            "exposure": exposure,
+            "g_prior_k": [sun.prior_mean_k, sun.prior_sd_k],
+            "response_n_per_k": v.tolist(),
+        }
     d_temp = after.temp_c - before.temp_c
     return MeasuredChange(
         dR_n=after.level_n - before.level_n - correction,
@@ -260,4 +405,5 @@ def measured_change(
         drift_correction_n=correction,
         before=before,
         after=after,
+        sun=sun_part,
     )

@@ -35,6 +35,8 @@ class PairCheck:
     Attributes:
         name: the pair. x_m: (2,) ``A^-1 dR``. cov_m2: (2, 2) its covariance (measurement and
             model). measurement_cov_m2, model_cov_m2: the two parts. imposed_m, imposed_sd_m: (2,).
+        sun: with ``baseline_change: sun``, the sun's part of the baseline change
+            (``MeasuredChange.sun``), else None.
 
     """
 
@@ -45,6 +47,7 @@ class PairCheck:
     model_cov_m2: np.ndarray
     imposed_m: np.ndarray
     imposed_sd_m: np.ndarray
+    sun: dict[str, Any] | None = None
 
     @property
     def sd_m(self) -> np.ndarray:
@@ -95,6 +98,7 @@ class PairCheck:
             "held95": self.held(),
             "chi2": self.chi2,
             "consistent95": bool(self.chi2 <= CHI2_2DOF_95),
+            "sun": self.sun,
         }
 
 
@@ -115,6 +119,7 @@ def check_pair(
         model,
         np.asarray(imposed_m, float).reshape(2),
         np.asarray(imposed_sd_m, float).reshape(2),
+        change.sun,
     )
 
 
@@ -136,6 +141,15 @@ def check_text(checks: list[PairCheck], surrogate_name: str) -> str:
                 f"    {side}  {c.x_m[k] * mm:+8.2f} mm ± {Z95 * c.sd_m[k] * mm:.2f} (95 %; {model_part[k]}), "
                 f"imposed {c.imposed_m[k] * mm:+.2f} "
                 f"± {Z95 * c.imposed_sd_m[k] * mm:.2f}: {'holds' if c.held()[k] else 'MISSES'}"
+            )
+        if c.sun is not None:
+            mean_k, sd_k = c.sun["sun_change_k"]
+            before, after = c.sun["exposure"]
+            lines.append(
+                f"    the sun: the deck's vertical difference changed by {mean_k:+.2f} ± {Z95 * sd_k:.2f} K "
+                f"(95 %) between the records (sun x clearness {before:.2f} -> {after:.2f}; prior at "
+                f"full sun {c.sun['g_prior_k'][0]:g} ± {c.sun['g_prior_k'][1]:g} K, g >= 0): its mean "
+                "subtracted, its spread in the interval"
             )
         lines.append(
             f"    common {c.common_m * mm:+8.2f} mm ± {Z95 * c.common_sd_m * mm:.2f}, "

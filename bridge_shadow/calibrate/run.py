@@ -41,7 +41,13 @@ from typing import Any
 import numpy as np
 
 from bridge_shadow import __version__
-from bridge_shadow.calibrate.change import MeasuredChange, RecordLevel, measured_change, record_level
+from bridge_shadow.calibrate.change import (
+    MeasuredChange,
+    RecordLevel,
+    SunBaseline,
+    measured_change,
+    record_level,
+)
 from bridge_shadow.calibrate.errors import CalibrationError
 from bridge_shadow.calibrate.explain import (
     Explanation,
@@ -154,14 +160,19 @@ def _record_level(paths: list[str], spec: CalibrationSpec, dated: bool = True) -
     return record_level(load_record(paths, spec.base_dir, dated=dated), window_s=spec.window_s)
 
 
-def measure_pairs(spec: CalibrationSpec, report: Progress | None = None) -> list[PairData]:
-    """Read every pair's records and measure its change (car-free levels, noise, baseline change)."""
+def measure_pairs(
+    spec: CalibrationSpec, report: Progress | None = None, sun: SunBaseline | None = None
+) -> list[PairData]:
+    """Read every pair's records and measure its change (car-free levels, noise, baseline change).
+
+    ``sun``: the model's vertical-difference response and prior, for ``baseline_change: sun``.
+    """
     out = []
     for i, p in enumerate(spec.pairs):
         if report is not None:
             report(i / max(len(spec.pairs), 1), f"records {p.name}")
         change: MeasuredChange = measured_change(
-            _record_level(p.before, spec), _record_level(p.after, spec), spec.baseline_change
+            _record_level(p.before, spec), _record_level(p.after, spec), spec.baseline_change, sun
         )
         out.append(PairData(p.name, p.imposed_m, p.imposed_sd_m, change))
     return out
@@ -333,12 +344,18 @@ def calibrate(
         if report is not None:
             report(frac, label)
 
-    pairs = measure_pairs(spec, lambda f, s: tick(0.05 * f, s))
+    store = SolutionStore()
+    sun = None
+    if spec.baseline_change == "sun":
+        # the sun's change between the records read through the model as built (the FE solve is
+        # the one u0_built below reuses); an explanation that changes the stiffness scales it a little
+        built = ForwardModel(cfg, spec.mesh, (), store).evaluate({}, derivatives=False)
+        sun = SunBaseline(np.asarray(built.thermal["vertical_gradient"], float))
+    pairs = measure_pairs(spec, lambda f, s: tick(0.05 * f, s), sun=sun)
     ref_level, ref_n = None, spec.reference_reactions_n
     if spec.reference_record:
         ref_level = _record_level(spec.reference_record, spec, dated=False)  # only its levels enter
         ref_n = ref_level.level_n
-    store = SolutionStore()
     explanations: dict[str, Explanation] = {}
     if mapper is None:
         span = 0.6 if sensitivity else 0.85

@@ -3,7 +3,7 @@
 Keys (SI units)::
 
     mesh: default                       # FE mesh level of the calibration
-    baseline_change: uncertainty        # or linear (see bridge_shadow.calibrate.change)
+    baseline_change: uncertainty        # or linear, or sun (see bridge_shadow.calibrate.change)
     window_s: 10                        # car-free window length, s
     zero: as_built                      # or before: u0 := the first pair's before record's level
     pairs:                              # one or more record pairs with a known imposed settlement

@@ -16,7 +16,8 @@ both central bearings by 10 mm, read from the shared data directory).
 
   1. measured change per pair: car-free windows (the test car is detected and left out), levels
      and their AR(1) window noise (the shadow's noise model), the baseline's change between the
-     two records as an uncertainty (or a modelled linear drift: baseline_change);
+     two records as an uncertainty (or a modelled linear drift, or the sun's vertical
+     temperature difference through the deck: baseline_change, --baseline-change);
   2. every candidate explanation (a set of parameters; the jacks' errors are estimated in each) is
      fitted by projected Levenberg-Marquardt with FE re-solves and adjoint sensitivities, and
      scored by its Laplace evidence; what each implies for the south-north (differential) mode is
@@ -88,9 +89,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--baseline-change",
-        choices=("uncertainty", "linear"),
+        choices=("uncertainty", "linear", "sun"),
         default=None,
-        help="override the file's treatment",
+        help="override the file's treatment of the baseline's change between two records: "
+        "uncertainty (the drifts seen within them, over the time between), linear (that drift "
+        "continued and subtracted) or sun (the deck's vertical temperature difference under the "
+        "clear-sky sun and the day's clearness, with the sun term's prior; see "
+        "bridge_shadow/calibrate/change.py)",
     )
     parser.add_argument(
         "--model", type=Path, default=None, help="bridge model YAML (default config/bridge.yaml)"
@@ -223,7 +228,17 @@ def _check(args: argparse.Namespace, spec: object) -> int:
         names = ", ".join(f"--{n.replace('_', '-')}" for n in calibrating) or "--set"
         raise InputError(f"--check scores a surrogate and calibrates nothing: drop {names}")
     surrogate = load_surrogate(args.check)
-    pairs = measure_pairs(spec, report=lambda f, s: progress(f, "records"))
+    sun = None
+    if spec.baseline_change == "sun":
+        from bridge_shadow.calibrate.change import SunBaseline
+
+        if "vertical_gradient" not in surrogate.thermal:
+            raise InputError(
+                f"--baseline-change sun: {args.check} has no thermal vertical_gradient case "
+                "(regenerate it with `bridge-shadow surrogate`)"
+            )
+        sun = SunBaseline(surrogate.thermal["vertical_gradient"])
+    pairs = measure_pairs(spec, report=lambda f, s: progress(f, "records"), sun=sun)
     checks = [check_pair(p.name, p.change, surrogate, p.imposed_m, p.imposed_sd_m) for p in pairs]
     require_finite(
         {f"{c.name}: {key}": c.to_dict()[key] for c in checks for key in ("x_m", "covariance_m2")},

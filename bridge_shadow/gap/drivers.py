@@ -13,7 +13,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from bridge_shadow.gap.windows import NS, Windows
-from bridge_shadow.sun import CLEAR_SWING_K, LON_DEG, OVERCAST_SWING_K, clear_sky
+from bridge_shadow.sun import clear_sky, clearness_of_warming, daily_warming
 
 __all__ = ["Drivers", "compute_drivers", "lowpass"]
 
@@ -94,24 +94,13 @@ def _clearness(t_ns: np.ndarray, temp: np.ndarray) -> np.ndarray:
     Per solar day (mean solar time at the site) the warming is the afternoon maximum (10-18 h)
     minus the morning minimum (02-10 h); the clearness maps it linearly from an overcast day
     (``OVERCAST_SWING_K``) to a clear one (``CLEAR_SWING_K``). A day without both parts gets the
-    record's median.
+    record's median (``bridge_shadow.sun.daily_warming``).
     """
-    solar_s = t_ns // NS + LON_DEG / 15.0 * 3600.0
-    sday = np.floor(solar_s / DAY_S).astype(np.int64)
-    hour = (solar_s % DAY_S) / 3600.0
-    days = np.unique(sday)
-    warming = np.full(len(days), np.nan)
-    for k, dd in enumerate(days):
-        sel = sday == dd
-        morning = sel & (hour >= 2.0) & (hour < 10.0)
-        afternoon = sel & (hour >= 10.0) & (hour < 18.0)
-        if morning.sum() > 10 and afternoon.sum() > 10:
-            warming[k] = temp[afternoon].max() - temp[morning].min()
+    sday, days, warming = daily_warming(t_ns, temp)
     if not np.isfinite(warming).any():
         return np.ones(len(t_ns))
     warming = np.where(np.isfinite(warming), warming, np.nanmedian(warming))
-    by_day = np.clip((warming - OVERCAST_SWING_K) / (CLEAR_SWING_K - OVERCAST_SWING_K), 0.0, 1.0)
-    return by_day[np.searchsorted(days, sday)]
+    return clearness_of_warming(warming)[np.searchsorted(days, sday)]
 
 
 def compute_drivers(w: Windows) -> Drivers:
