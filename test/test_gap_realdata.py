@@ -264,3 +264,17 @@ def test_four_record_day_after_follows_the_named_stiffness(lowering_bag: Path):
         err = np.abs(np.asarray(p["mean_m"]) - final)
         assert np.all(err <= 1.96 * np.asarray(p["sigma_m"])) == holds, p
     assert np.all(np.abs(np.asarray(after["mean_m"]) - final) <= 0.1 * np.abs(final))
+
+
+def test_gap_reads_the_records_levels_with_the_sun_when_asked(lowering_bag: Path):
+    """``--baseline-change sun``: the pair's baseline change is the morning sun's, as calibrate reads it."""
+    imposed = "2022-04-11T09:00=-0.01,-0.01"
+    argv = ["gap", str(lowering_bag), "--json", "--surrogate", str(_as_built_path()), "--imposed", imposed]
+    gap = _run([*argv, "--baseline-change", "sun"])
+    (pair,) = gap["levels"]["pairs"]
+    assert pair["baseline_change"] == "sun"
+    mean_k, sd_k = pair["sun"]["sun_change_k"]
+    assert 0.0 < mean_k < 1.0 and sd_k > 0.0  # the sun rose between 08:42 and 09:26
+    assert pair["sun"]["response_n_per_k"] == pytest.approx(_as_built().thermal["vertical_gradient"])
+    # the as-built model is still told wrong by the imposed step, and a stiffness explains it
+    assert gap["levels"]["imposed"]["best"] != "settlement_step"

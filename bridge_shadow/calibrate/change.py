@@ -73,6 +73,7 @@ __all__ = [
     "MeasuredChange",
     "RecordLevel",
     "SunBaseline",
+    "clearness_of_day",
     "measured_change",
     "record_level",
 ]
@@ -244,7 +245,7 @@ def record_level(
         start_ns=int(binned.start_ns),
         duration_s=float(binned.t_s[-1] + binned.bin_s / 2),
         sun=sun,
-        clearness=_clearness_of_day(data, t_ns),
+        clearness=clearness_of_day(data, t_ns),
     )
 
 
@@ -252,7 +253,7 @@ def _solar_day(t_ns: int) -> int:
     return int(np.floor((t_ns / NS + LON_DEG / 15.0 * 3600.0) / 86_400.0))
 
 
-def _clearness_of_day(data: MonitoringData, t_ns: int) -> float:
+def clearness_of_day(data: MonitoringData, t_ns: int) -> float:
     """Return the clearness of the solar day of ``t_ns`` from the air in ``data`` (NaN: not there)."""
     temp = data.temperature
     if temp is None or not len(temp.stamp_ns):

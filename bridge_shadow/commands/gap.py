@@ -91,6 +91,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--force", action="store_true", help="replace an existing surrogate file at --out-surrogate"
     )
     parser.add_argument("--window", type=float, default=60.0, metavar="S", help="window length in s (60)")
+    parser.add_argument(
+        "--baseline-change",
+        choices=("uncertainty", "linear", "sun"),
+        default="uncertainty",
+        help="on a day of records, the baseline's change between them, as calibrate reads it: "
+        "uncertainty (the drifts within the records over the hours between; default), linear, or "
+        "sun (the deck's vertical temperature difference under the clear-sky sun and the day's "
+        "clearness, with the sun term's prior)",
+    )
     add_engine_options(parser, "fit every candidate's held-out folds (for long archives)")
 
 
@@ -182,6 +191,12 @@ def _levels_lines(levels: dict | None) -> list[str]:
             f"{p['dR_n'][1] / 1e3:+.2f} +- {p['dR_sd_n'][1] / 1e3:.2f} kN over "
             f"{p['hours_between']:.1f} h; {what}"
         )
+        if p.get("sun"):
+            mean_k, sd_k = p["sun"]["sun_change_k"]
+            lines.append(
+                f"    the sun between them: the deck's vertical difference {mean_k:+.2f} +- "
+                f"{1.96 * sd_k:.2f} K (its mean taken out of dR, its spread in the +-)"
+            )
     for note in levels["not_measured"]:
         lines.append(f"  {note}")
     imp = levels.get("imposed")
@@ -284,6 +299,7 @@ def _diagnose(
         alternatives=args.alternatives,
         surrogate_path=config.surrogate_path or None,
         mapper=mapper,
+        baseline_change=args.baseline_change,
     )
 
 

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from bridge_shadow.errors import InputError
 from bridge_shadow.gap.drivers import Drivers
 from bridge_shadow.gap.fit import folds_of
 from bridge_shadow.gap.records import Record
@@ -99,11 +100,25 @@ def read_levels(
     s: Surrogate,
     sens: dict[str, Any],
     surrogate_path: str | None,
+    baseline_change: str = "uncertainty",
 ) -> DayLevels:
-    """Read the levels of a day of records: the imposed steps' explanation, the free steps."""
+    """Read the levels of a day of records: the imposed steps' explanation, the free steps.
+
+    ``baseline_change``: the baseline's change between the records (``calibrate.change``); with
+    ``sun`` the model in use's ``thermal.vertical_gradient`` reads the sun's part.
+    """
+    from bridge_shadow.calibrate.change import SunBaseline
     from bridge_shadow.gap.levels import explain_imposed, free_steps, level_pairs
 
-    pairs, notes = level_pairs(data, records, imposed, imposed_sd_m)
+    sun = None
+    if baseline_change == "sun":
+        if "vertical_gradient" not in s.thermal:
+            raise InputError(
+                "baseline change sun: the model has no thermal vertical_gradient case "
+                "(regenerate it with `bridge-shadow surrogate`)"
+            )
+        sun = SunBaseline(np.asarray(s.thermal["vertical_gradient"], float))
+    pairs, notes = level_pairs(data, records, imposed, imposed_sd_m, baseline_change, sun)
     analysis = None
     model = s
     if any(p.imposed for p in pairs):

@@ -81,6 +81,7 @@ def diagnose(
     alternatives: bool = False,
     surrogate_path: str | None = None,
     mapper: Mapper | None = None,
+    baseline_change: str = "uncertainty",
 ) -> Diagnosis:
     """Diagnose the sim-to-real gap of a monitoring record (see the module docstring).
 
@@ -103,12 +104,14 @@ def diagnose(
             blocks are read (default ``config/surrogate.yaml``).
         mapper: how the held-out folds of every candidate are fitted (``engine.client_mapper``: as
             Dask tasks; default one after the other here). The same fits either way.
+        baseline_change: on a day of records, the baseline's change between them
+            (``calibrate.change``: ``uncertainty``, ``linear`` or ``sun``).
 
     """
     t0 = time.perf_counter()
     s = surrogate if surrogate is not None else load_surrogate()
     # Where the gap lies: the residual against the baseline model on the window grid.
-    r = residual_of(data, s, width_s, holdout_days, imposed, imposed_sd_m, surrogate_path)
+    r = residual_of(data, s, width_s, holdout_days, imposed, imposed_sd_m, surrogate_path, baseline_change)
     # Which effect: every candidate cross-validated inside its plausible range; a candidate whose
     # data-optimal fit lies outside it is rejected; the rest ranked, grouped, then further effects.
     sel = select_effects(Fitter(r.ctx, r.resid, r.valid, r.fold, r.candidates, r.record, mapper), z)

@@ -9,7 +9,10 @@ across every gap between records:
 - ``level_pairs``: the car-free level of the records on both sides of a gap
   (:func:`bridge_shadow.calibrate.change.record_level`: test car left out, AR(1) noise, the drift
   within the records) and their change with its covariance, the baseline's change across the gap
-  an uncertainty (:func:`~bridge_shadow.calibrate.change.measured_change`). A step given with
+  an uncertainty (:func:`~bridge_shadow.calibrate.change.measured_change`; or, with
+  ``baseline_change="sun"``, the deck's vertical temperature difference under the sun, as
+  ``calibrate --baseline-change sun`` reads it, the day's clearness from all of the day's air
+  temperature in the data). A step given with
   ``--imposed`` inside a continuous record splits it; at most ``PAIR_SPAN_S`` on each side is used.
 - ``explain_imposed``: at the gaps with a known imposed step, the calibration's machinery
   (:class:`~bridge_shadow.calibrate.problem.CalibrationProblem`, Levenberg-Marquardt, Laplace
@@ -28,12 +31,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
-from bridge_shadow.calibrate.change import MeasuredChange, measured_change, record_level
+from bridge_shadow.calibrate.change import (
+    MeasuredChange,
+    SunBaseline,
+    clearness_of_day,
+    measured_change,
+    record_level,
+)
 from bridge_shadow.calibrate.errors import CalibrationError
 from bridge_shadow.calibrate.explain import Explanation, fit_explanation
 from bridge_shadow.calibrate.problem import PairData
@@ -141,6 +150,8 @@ class LevelPair:
             "dR_sd_n": c.sd_n.tolist(),
             "hours_between": c.dt_s / 3600.0,
             "air_temp_change_k": c.air_temp_change_k,
+            "baseline_change": c.baseline_change,
+            "sun": c.sun,
             "before_ns": list(self.before),
             "after_ns": list(self.after),
         }
@@ -159,8 +170,12 @@ def level_pairs(
     records: Sequence[Record],
     imposed: Sequence[tuple[int, float, float]],
     imposed_sd_m: float = IMPOSED_SD_M,
+    baseline_change: str = "uncertainty",
+    sun: SunBaseline | None = None,
 ) -> tuple[list[LevelPair], list[str]]:
     """Measure the level change across every record gap and every imposed step.
+
+    ``baseline_change``, ``sun``: as ``calibrate.change.measured_change`` takes them.
 
     Returns the pairs (in time order) and notes on what could not be measured (a record with too
     few car-free windows).
@@ -198,7 +213,10 @@ def level_pairs(
         try:
             lb = record_level(slice_data(data, *before), window_s=_window_s(data))
             la = record_level(slice_data(data, *after), window_s=_window_s(data))
-            change = measured_change(lb, la)
+            # the day's clearness from all of its air in the data, not from the slices' minutes
+            lb = replace(lb, clearness=clearness_of_day(data, lb.t_ns))
+            la = replace(la, clearness=clearness_of_day(data, la.t_ns))
+            change = measured_change(lb, la, baseline_change, sun)
         except (CalibrationError, ValueError) as err:
             notes.append(f"{name}: level not measured ({err})")
             if step is not None:

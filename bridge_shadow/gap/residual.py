@@ -105,6 +105,7 @@ def residual_of(
     imposed: Sequence[tuple[int, float, float]],
     imposed_sd_m: float,
     surrogate_path: str | None,
+    baseline_change: str = "uncertainty",
 ) -> Residual:
     """Aggregate, read the levels of a day of records, form the residual and its folds."""
     w = aggregate(data, width_s)
@@ -113,7 +114,7 @@ def residual_of(
     records = records_of(w.t_ns, w.valid, width_s)
     lv = None
     if is_day_of_records(d, w.valid, records, holdout_days):
-        lv = read_levels(data, records, imposed, imposed_sd_m, s, sens, surrogate_path)
+        lv = read_levels(data, records, imposed, imposed_sd_m, s, sens, surrogate_path, baseline_change)
     model = lv.model if lv is not None else s
     x_known = imposed_path(w.t_ns, width_s, imposed)
     ctx = Context.build(d, model, sens, x_known, w.t_ns, width_s)
