@@ -149,10 +149,11 @@ def test_on_a_sunny_twin_day_the_sun_treatment_holds_and_narrows_the_later_pairs
                 errors[how].append(abs(read.common_m - p["imposed"]))
         if p["record"] == 2:  # 13:40: the sun's difference from the morning is the error's cause
             assert sun.sun["sun_change_k"][0] > 0.5
-    # the default reads the afternoon's sun as settlement (30 seeds: -1.73 mm, sd 0.63; sun +0.27)
+    # the default reads the afternoon's sun as settlement (benchmarks/sun_baseline.py, 30 seeds:
+    # -1.73 mm, sd 0.63; with the sun +0.27)
     assert np.mean(errors["sun"]) < 0.6 * np.mean(errors["uncertainty"])
-    # 30 seeds, median 95 % half-width: 13:40 4.8 against 6.4 mm; 17:38 (as little sun as at 08:36,
-    # but the morning's rising drifts extrapolated over nine hours) 5.3 against 14.1 mm
+    # 30 seeds, median 95 % half-width: 13:40 4.8 against 6.5 mm; 17:38 (as little sun as at 08:36,
+    # but the morning's rising drifts extrapolated over nine hours) 5.3 against 14.3 mm
     assert np.median(sd[2, "sun"]) < 0.9 * np.median(sd[2, "uncertainty"])
     assert np.median(sd[3, "sun"]) < 0.5 * np.median(sd[3, "uncertainty"])
 
@@ -174,9 +175,9 @@ def test_gap_reads_the_steps_between_sunny_records_with_the_sun_as_calibrate_doe
                 if how == "sun":
                     assert np.all(np.abs(err) <= 1.96 * np.asarray(step["sigma_m"]))
                 errors.setdefault((k, how), []).append(float(np.mean(err)))
-    # 30 seeds (scratch): 13:40 after 09:20 -1.25 mm (sd 0.46) against +0.20 with the sun; 17:38
-    # after 13:40, the sun leaving the deck, +1.74 (0.64) against -0.22; the default's interval
-    # missed once in 30, the sun's never
+    # benchmarks/sun_baseline.py, 30 seeds: 13:40 after 09:20 -1.25 mm (sd 0.46) against +0.20
+    # with the sun; 17:38 after 13:40, the sun leaving the deck, +1.74 (0.64) against -0.22; the
+    # default's interval missed once in 30, the sun's never
     for k in (2, 3):
         assert np.mean(np.abs(errors[k, "sun"])) < 0.5 * np.mean(np.abs(errors[k, "uncertainty"]))
 
