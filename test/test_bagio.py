@@ -217,11 +217,14 @@ def test_missing_path_and_not_a_bag(tmp_path: Path) -> None:
     with pytest.raises(BagNotFoundError, match="no such bag"):
         read_monitoring(tmp_path / "nope")
     (tmp_path / "dir").mkdir()
-    with pytest.raises(NotABagError, match=r"metadata\.yaml"):
+    with pytest.raises(NotABagError, match=r"metadata\.yaml\)$"):  # nothing there to convert
         read_monitoring(tmp_path / "dir")
     (tmp_path / "x.csv").write_text("a,b\n")
-    with pytest.raises(NotABagError):
+    convert = "make a bag of them with `bridge-shadow import-csv FILE... --out BAG`"
+    with pytest.raises(NotABagError, match=convert):
         bag_summary(tmp_path / "x.csv")
+    with pytest.raises(NotABagError, match=convert):  # a folder of CSV records
+        read_monitoring(tmp_path)
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "metadata.yaml").write_text("{: not yaml")
     with pytest.raises(CorruptBagError, match="junk"):

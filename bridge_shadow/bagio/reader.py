@@ -100,6 +100,23 @@ def _translated(path: Path, doing: str) -> Iterator[None]:
         raise CorruptBagError(f"{path}: corrupt or truncated bag while {doing}: {text}") from err
 
 
+#: What a folder of records in the munich-bridge-data format holds (``import-csv`` reads them).
+_CSV_SUFFIXES = (".csv", ".zip")
+
+
+def not_a_bag(path: Path, why: str) -> NotABagError:
+    """Return the error for a path that is no bag (for CSV records, with the command that converts them)."""
+    csv = path.is_file() and path.suffix.lower() in _CSV_SUFFIXES
+    if path.is_dir():
+        try:
+            csv = any(p.suffix.lower() in _CSV_SUFFIXES for p in path.iterdir() if p.is_file())
+        except OSError:  # an unreadable folder: no hint
+            csv = False
+    hint = "; CSV records: make a bag of them with `bridge-shadow import-csv FILE... --out BAG`"
+    hint = hint if csv else ""
+    return NotABagError(f"{path}: not a rosbag2 bag ({why}){hint}")
+
+
 @contextmanager
 def open_bag(path: str | Path) -> Iterator[Any]:
     """Open a bag directory (or a bare ``.db3``/``.mcap`` file) with rosbags, errors typed.
@@ -117,9 +134,9 @@ def open_bag(path: str | Path) -> Iterator[Any]:
     if not path.exists():
         raise BagNotFoundError(f"{path}: no such bag")
     if path.is_dir() and not (path / "metadata.yaml").is_file():
-        raise NotABagError(f"{path}: not a rosbag2 bag (directory without metadata.yaml)")
+        raise not_a_bag(path, "directory without metadata.yaml")
     if path.is_file() and path.suffix not in (".db3", ".mcap"):
-        raise NotABagError(f"{path}: not a rosbag2 bag (expected a directory, .db3 or .mcap)")
+        raise not_a_bag(path, "expected a directory, .db3 or .mcap")
     with _translated(path, "opening"):
         reader = Reader(path)
         reader.open()

@@ -37,10 +37,10 @@ from bridge_shadow.bagio.cdr import (
     decode_buffer,
     frame_value,
 )
-from bridge_shadow.bagio.errors import CorruptBagError, MissingTopicError, NotABagError, UnexpectedTypeError
+from bridge_shadow.bagio.errors import CorruptBagError, MissingTopicError, UnexpectedTypeError
 from bridge_shadow.bagio.mcap_format import McapLayoutError, mcap_files
 from bridge_shadow.bagio.mcap_stream import McapChunks
-from bridge_shadow.bagio.reader import _required_topics, _translated, open_bag
+from bridge_shadow.bagio.reader import _required_topics, _translated, not_a_bag, open_bag
 from bridge_shadow.bagio.sqlite_direct import plain_sqlite_files
 from bridge_shadow.bagio.sqlite_stream import SqliteSlices, SqliteStreamUnsupported
 from bridge_shadow.contract import CHANNELS, INPUT_TOPICS
@@ -222,7 +222,7 @@ class MonitoringStream:
                     self.first_ns, self.last_ns = source.first_ns, source.last_ns
                     return source.types
         if path.is_file() and path.suffix not in (".db3", ".mcap"):
-            raise NotABagError(f"{path}: not a rosbag2 bag (expected a directory, .db3 or .mcap)")
+            raise not_a_bag(path, "expected a directory, .db3 or .mcap")
         reader = self._stack.enter_context(open_bag(path))
         self._source = reader
         count = int(reader.message_count)
