@@ -24,6 +24,7 @@ __all__ = [
     "clearness_of_warming",
     "daily_warming",
     "haurwitz_ghi",
+    "lagged_clear_sky",
     "solar_elevation_deg",
 ]
 
@@ -83,6 +84,28 @@ def clear_sky(t_ns: np.ndarray | int, lat_deg: float = LAT_DEG, lon_deg: float =
     """
     ghi = haurwitz_ghi(solar_elevation_deg(t_ns, lat_deg, lon_deg))
     return np.clip(ghi / _site_peak_ghi(lat_deg), 0.0, 1.0)
+
+
+def lagged_clear_sky(t_ns: np.ndarray, tau_h: float, step_s: float = 60.0) -> np.ndarray:
+    """Return the clear-sky covariate through a first-order lag of ``tau_h`` hours, at ``t_ns``.
+
+    ``s_tau(t) = integral of clear_sky(t - u) exp(-u / tau) / tau du``: how a deck whose vertical
+    temperature difference follows the sun with a delay sees it (``tau_h`` 0: ``clear_sky`` itself).
+    Integrated on a ``step_s`` grid from a day before the first stamp (the night between sets every
+    earlier sun to nothing that matters), exactly for a piecewise constant sun on the grid.
+    """
+    t_ns = np.asarray(t_ns, dtype=np.int64)
+    if tau_h <= 0.0 or not t_ns.size:
+        return clear_sky(t_ns)
+    step_ns = round(step_s * 1e9)
+    start = int(t_ns.min()) - 86_400 * 1_000_000_000
+    grid = np.arange(start, int(t_ns.max()) + step_ns, step_ns, dtype=np.int64)
+    sun = clear_sky(grid + step_ns // 2)  # the sun over each step
+    keep = float(np.exp(-step_s / (tau_h * 3600.0)))
+    from scipy.signal import lfilter
+
+    lagged = lfilter([1.0 - keep], [1.0, -keep], sun)  # the lag's value at the end of each step
+    return np.interp(t_ns.astype(float), (grid + step_ns).astype(float), lagged)
 
 
 def daily_warming(

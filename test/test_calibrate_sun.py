@@ -22,6 +22,7 @@ from scipy.stats import norm
 from bridge_shadow.calibrate.car import CarDetection
 from bridge_shadow.calibrate.change import (
     CLEARNESS_SD,
+    SUN_LAGS_H,
     RecordLevel,
     SunBaseline,
     measured_change,
@@ -40,7 +41,9 @@ T0 = 1_649_659_000 * NS  # 2022-04-11 06:36:40 UTC (08:36 local)
 V = np.array([-4.0e3, -5.0e3])  # N/K, the calibrated surrogate's order
 
 
-def _level(t_ns: int, sun: float, clearness: float, rate: tuple[float, float] = (0.0, 0.0)) -> RecordLevel:
+def _level(
+    t_ns: int, sun: tuple[float, ...], clearness: float, rate: tuple[float, float] = (0.0, 0.0)
+) -> RecordLevel:
     car = CarDetection(np.zeros(1, bool), np.zeros((2, 2)))
     return RecordLevel(
         t_ns=t_ns,
@@ -76,19 +79,22 @@ def test_the_priors_moments_held_at_zero_match_quadrature(mean_k: float) -> None
 
 @pytest.mark.parametrize("case", ["one day, its clearness read", "two days, neither read"])
 def test_the_suns_part_of_a_change_matches_sampling_its_model(case: str) -> None:
-    """Mean and covariance of ``v g (c_a s_a - c_b s_b)`` against 400,000 draws of ``g`` and ``c``."""
+    """Mean and covariance of ``v g (c_a s_a - c_b s_b)`` against 400,000 draws of g, c and the lag."""
     rng = np.random.default_rng(3)
     n = 400_000
     g = np.abs(rng.normal(0.0, 6.75, n))  # N(0, 6.75) held at g >= 0: the half-normal
+    lag = rng.integers(0, len(SUN_LAGS_H), n)  # the deck's lag behind the sun, each equally likely
     if case.startswith("one day"):
-        before = _level(T0, 0.35, 0.6)
-        after = _level(T0 + 5 * 3600 * NS, 0.83, 0.6)
+        sb, sa = np.array([0.35, 0.19, 0.12, 0.09]), np.array([0.37, 0.52, 0.59, 0.61])  # 08:42, 17:43
+        before = _level(T0, tuple(sb), 0.6)
+        after = _level(T0 + 9 * 3600 * NS, tuple(sa), 0.6)
         c = rng.normal(0.6, CLEARNESS_SD, n)
-        d = c * (0.83 - 0.35)
+        d = c * (sa[lag] - sb[lag])
     else:
-        before = _level(T0, 0.35, float("nan"))
-        after = _level(T0 + 29 * 3600 * NS, 0.70, float("nan"))
-        d = rng.uniform(0, 1, n) * 0.70 - rng.uniform(0, 1, n) * 0.35
+        sb, sa = np.array([0.35, 0.3, 0.25, 0.2]), np.array([0.70, 0.6, 0.5, 0.45])
+        before = _level(T0, tuple(sb), float("nan"))
+        after = _level(T0 + 29 * 3600 * NS, tuple(sa), float("nan"))
+        d = rng.uniform(0, 1, n) * sa[lag] - rng.uniform(0, 1, n) * sb[lag]
     change = measured_change(before, after, "sun", SunBaseline(V))
     x = g * d
     np.testing.assert_allclose(change.drift_correction_n, V * x.mean(), rtol=0.01)
@@ -106,7 +112,7 @@ def test_the_suns_part_of_a_change_matches_sampling_its_model(case: str) -> None
 
 def test_the_sun_treatment_needs_the_models_response() -> None:
     with pytest.raises(CalibrationError, match="vertical temperature difference"):
-        measured_change(_level(T0, 0.3, 0.5), _level(T0 + 3600 * NS, 0.6, 0.5), "sun")
+        measured_change(_level(T0, (0.3,) * 4, 0.5), _level(T0 + 3600 * NS, (0.6,) * 4, 0.5), "sun")
 
 
 @pytest.fixture(scope="module")
@@ -150,10 +156,10 @@ def test_on_a_sunny_twin_day_the_sun_treatment_holds_and_narrows_the_later_pairs
         if p["record"] == 2:  # 13:40: the sun's difference from the morning is the error's cause
             assert sun.sun["sun_change_k"][0] > 0.5
     # the default reads the afternoon's sun as settlement (benchmarks/sun_baseline.py, 30 seeds:
-    # -1.73 mm, sd 0.63; with the sun +0.27)
+    # -1.73 mm, sd 0.63; with the sun +0.60, sd 0.68)
     assert np.mean(errors["sun"]) < 0.6 * np.mean(errors["uncertainty"])
-    # 30 seeds, median 95 % half-width: 13:40 4.8 against 6.5 mm; 17:38 (as little sun as at 08:36,
-    # but the morning's rising drifts extrapolated over nine hours) 5.3 against 14.3 mm
+    # 30 seeds, median 95 % half-width: 13:40 5.2 against 6.5 mm; 17:38 (the morning's rising
+    # drifts extrapolated over nine hours against the sun's part, the deck's lag in it) 6.0 against 14.3
     assert np.median(sd[2, "sun"]) < 0.9 * np.median(sd[2, "uncertainty"])
     assert np.median(sd[3, "sun"]) < 0.5 * np.median(sd[3, "uncertainty"])
 
@@ -163,6 +169,7 @@ def test_gap_reads_the_steps_between_sunny_records_with_the_sun_as_calibrate_doe
     sur = load_surrogate()
     sun = SunBaseline(sur.thermal["vertical_gradient"])
     errors: dict[tuple[int, str], list[float]] = {}
+    half: dict[tuple[int, str], list[float]] = {}
     for data, truth in sunny_days:
         starts = [int(s) for s in truth["record_start_ns"]]
         records = [Record(i, 0, 0, s, s + 720 * NS) for i, s in enumerate(starts)]
@@ -175,11 +182,13 @@ def test_gap_reads_the_steps_between_sunny_records_with_the_sun_as_calibrate_doe
                 if how == "sun":
                     assert np.all(np.abs(err) <= 1.96 * np.asarray(step["sigma_m"]))
                 errors.setdefault((k, how), []).append(float(np.mean(err)))
-    # benchmarks/sun_baseline.py, 30 seeds: 13:40 after 09:20 -1.25 mm (sd 0.46) against +0.20
-    # with the sun; 17:38 after 13:40, the sun leaving the deck, +1.74 (0.64) against -0.22; the
-    # default's interval missed once in 30, the sun's never
+                half.setdefault((k, how), []).append(float(np.mean(1.96 * np.asarray(step["sigma_m"]))))
+    # benchmarks/sun_baseline.py, 30 seeds: 13:40 after 09:20 -1.25 mm (sd 0.46), +-4.4, against
+    # +0.64 (0.54), +-3.7 with the sun; 17:38 after 13:40, the sun leaving the deck, +1.74 (0.64),
+    # +-4.2, against +0.79 (0.56), +-2.8; the default's interval missed once in 30, the sun's never
     for k in (2, 3):
-        assert np.mean(np.abs(errors[k, "sun"])) < 0.5 * np.mean(np.abs(errors[k, "uncertainty"]))
+        assert np.mean(np.abs(errors[k, "sun"])) < np.mean(np.abs(errors[k, "uncertainty"]))
+        assert np.median(half[k, "sun"]) < np.median(half[k, "uncertainty"])
 
 
 @pytest.mark.realdata

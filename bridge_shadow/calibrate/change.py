@@ -27,7 +27,13 @@ warmed), and nothing is measured in the gap between two records. Two treatments:
   difference, driven by the sun (issue 20, item 4): ``dR_sun = v g (c_a s_a - c_b s_b)``, with
   ``v`` the model's response to one kelvin of it (``thermal["vertical_gradient"]``, N/K), ``s``
   the clear-sky covariate at the bridge (``bridge_shadow.sun.clear_sky``) averaged over each
-  record's car-free windows, ``c`` the day's clearness from the air's warming over the whole day
+  record's car-free windows, through a lag ``tau`` the deck's difference follows the sun with
+  (``bridge_shadow.sun.lagged_clear_sky``; ``tau`` equally likely each of ``SUN_LAGS_H``: 0, the
+  sun term's own instantaneous covariate, to 3 h, just above the 0.25 m slab's diffusion time
+  ``h^2 / (pi^2 alpha)`` of 1.9-2.8 h for concrete's ``alpha = lambda / (rho c)`` of
+  EN 1992-1-2, 3.3: ``lambda`` 1.33-1.95 W/(m K), ``c`` 900 J/(kg K), ``rho`` 2300-2400 kg/m^3:
+  an evening record keeps part of the afternoon's difference), ``c`` the day's clearness from
+  the air's warming over the whole day
   (``bridge_shadow.sun.daily_warming``; a day without its morning and afternoon in the data: 0..1
   uniform), and ``g`` the difference at full clear sky under the shadow's own prior of its sun
   term (``sun_gradient_prior_mean_k`` / ``sd_k``: EN 1991-1-5, ``config/shadow.yaml``) held at
@@ -63,9 +69,9 @@ from bridge_shadow.sun import (
     CLEAR_SWING_K,
     LON_DEG,
     OVERCAST_SWING_K,
-    clear_sky,
     clearness_of_warming,
     daily_warming,
+    lagged_clear_sky,
 )
 
 __all__ = [
@@ -83,6 +89,8 @@ NS = 1_000_000_000
 PAPER_SIGMA_E_N = (60.4, 82.7)
 #: Treatments of the baseline's change between two records (see the module docstring).
 BASELINE_CHANGES = ("uncertainty", "linear", "sun")
+#: Lags (h) the deck's vertical difference may follow the sun with, equally likely (module docstring).
+SUN_LAGS_H = (0.0, 1.0, 2.0, 3.0)
 #: sd of a day's clearness read from its warming: the air's irregular wander at the morning's
 #: minimum and at the afternoon's maximum (``sunlight.WANDER_K`` each) over the clear-overcast span.
 CLEARNESS_SD = float(np.sqrt(2.0) * WANDER_K / (CLEAR_SWING_K - OVERCAST_SWING_K))
@@ -127,7 +135,8 @@ class RecordLevel:
         temp_c: mean air temperature over the car-free windows, C (NaN without temperature).
         car: the car detection (intervals, plateaus).
         start_ns, duration_s: the record's first stamp and length.
-        sun: the clear-sky covariate (0..1) averaged over the car-free windows.
+        sun: the clear-sky covariate (0..1) averaged over the car-free windows, through each lag
+            of ``SUN_LAGS_H``.
         clearness: the day's clearness 0..1 from the air's warming over the whole day in the data
             (NaN when the data hold no morning and afternoon of that day).
 
@@ -146,7 +155,7 @@ class RecordLevel:
     car: CarDetection
     start_ns: int
     duration_s: float
-    sun: float = float("nan")
+    sun: tuple[float, ...] = ()
     clearness: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
@@ -167,7 +176,8 @@ class RecordLevel:
             "car_free_fraction": self.car.free_fraction,
             "car_intervals_s": [list(iv) for iv in self.car.intervals_s],
             "plateaus": [p.to_dict() for p in self.car.plateaus],
-            "sun_clear_sky": self.sun,
+            "sun_clear_sky": list(self.sun),
+            "sun_lags_h": list(SUN_LAGS_H),
             "clearness": None if np.isnan(self.clearness) else self.clearness,
         }
 
@@ -229,7 +239,8 @@ def record_level(
     temps = np.concatenate([binned.temp_c[w] for w in wins])
     temp = float(np.nanmean(temps)) if np.isfinite(temps).any() else float("nan")
     t_ns = int(binned.start_ns + round(t_c * NS))
-    sun = float(np.mean(clear_sky(binned.start_ns + np.round(w_t * NS).astype(np.int64))))
+    times = binned.start_ns + np.round(w_t * NS).astype(np.int64)
+    sun = tuple(float(np.mean(lagged_clear_sky(times, tau))) for tau in SUN_LAGS_H)
     return RecordLevel(
         t_ns=t_ns,
         level_n=coef[0].copy(),
@@ -324,11 +335,22 @@ class MeasuredChange:
 
 
 def _exposure_moments(before: RecordLevel, after: RecordLevel) -> tuple[float, float, list[float]]:
-    """``E[D]``, ``E[D^2]`` of ``D = c_a s_a - c_b s_b`` and each record's ``E[c] s``.
+    """``E[D]``, ``E[D^2]`` of ``D = c_a s_a - c_b s_b`` and each record's ``E[c s]``.
 
     A day's clearness read from its air is known to ``CLEARNESS_SD``; unread, it is uniform on
-    0..1. Two records of one solar day share it (the one read, if only one was).
+    0..1. Two records of one solar day share it (the one read, if only one was). The lag of the
+    deck behind the sun is each of ``SUN_LAGS_H`` with equal probability: the moments are the
+    means of the moments under each.
     """
+    moments = [_exposure_moments_at(before, after, j) for j in range(len(SUN_LAGS_H))]
+    e_d, e_d2 = (float(np.mean([m[k] for m in moments])) for k in (0, 1))
+    return e_d, e_d2, [float(np.mean([m[2][k] for m in moments])) for k in (0, 1)]
+
+
+def _exposure_moments_at(
+    before: RecordLevel, after: RecordLevel, lag: int
+) -> tuple[float, float, list[float]]:
+    """``_exposure_moments`` at the lag ``SUN_LAGS_H[lag]``."""
 
     def clearness(level: RecordLevel) -> tuple[float, float]:
         if np.isnan(level.clearness):
@@ -336,7 +358,7 @@ def _exposure_moments(before: RecordLevel, after: RecordLevel) -> tuple[float, f
         return level.clearness, CLEARNESS_SD
 
     (cb, sdb), (ca, sda) = clearness(before), clearness(after)
-    sb, sa = before.sun, after.sun
+    sb, sa = before.sun[lag], after.sun[lag]
     if _solar_day(before.t_ns) == _solar_day(after.t_ns):
         c, sd = (ca, sda) if sda <= sdb else (cb, sdb)
         ds = sa - sb
