@@ -34,6 +34,7 @@ from bridge_shadow.cli import main
 from bridge_shadow.gap.levels import free_steps, level_pairs
 from bridge_shadow.gap.records import Record
 from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.sun import clear_sky, lagged_clear_sky
 from bridge_shadow.twin.loadtest import LoadTestDay, _cut, load_test_day
 
 NS = 1_000_000_000
@@ -108,6 +109,21 @@ def test_the_suns_part_of_a_change_matches_sampling_its_model(case: str) -> None
     np.testing.assert_allclose(
         drifting.parts["baseline_wander"], 0.5 * 720.0**2 * np.array([[1, -1], [-1, 1]])
     )
+
+
+def test_the_lagged_sun_decays_at_night_as_its_lag_says_and_is_the_sun_without_one() -> None:
+    """After sunset the clear sky is 0: a first-order lag decays as exp(-dt / tau) from there."""
+    evening = T0 + 14 * 3600 * NS  # 20:36 local, the sun down (sunset about 20:00 in April)
+    later = evening + 2 * 3600 * NS
+    assert float(clear_sky(evening)) == 0.0
+    for tau in (1.0, 2.0, 3.0):
+        a, b = lagged_clear_sky(np.array([evening, later]), tau)
+        assert a > 1e-3  # the afternoon kept
+        assert b == pytest.approx(a * np.exp(-2.0 / tau), rel=1e-9)
+    noon = T0 + np.arange(0, 6 * 3600, 600) * NS
+    np.testing.assert_allclose(lagged_clear_sky(noon, 0.0), clear_sky(noon), rtol=0, atol=0)
+    # the lag delays and smooths the morning's rise: below the sun while it rises
+    assert np.all(lagged_clear_sky(noon[:12], 2.0) < clear_sky(noon[:12]))
 
 
 def test_the_sun_treatment_needs_the_models_response() -> None:
