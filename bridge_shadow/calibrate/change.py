@@ -13,7 +13,7 @@ Per record (``record_level``):
 
 Between the records (``measured_change``): ``dR = level_after - level_before``. The car-free
 baseline drifts within a record (on 2022-04-11 about +0.07 kN/min on some channels while the air
-warmed), and nothing is measured in the gap between two records. Two treatments:
+warmed), and nothing is measured in the gap between two records. Three treatments:
 
 - ``baseline_change="uncertainty"`` (default): the baseline's change over the time ``dt`` between
   the two levels is unknown with mean zero and covariance ``dt^2 (r_b r_b' + r_a r_a') / 2``, the
@@ -33,18 +33,18 @@ warmed), and nothing is measured in the gap between two records. Two treatments:
   ``h^2 / (pi^2 alpha)`` of 1.9-2.8 h for concrete's ``alpha = lambda / (rho c)`` of
   EN 1992-1-2, 3.3: ``lambda`` 1.33-1.95 W/(m K), ``c`` 900 J/(kg K), ``rho`` 2300-2400 kg/m^3:
   an evening record keeps part of the afternoon's difference), ``c`` the day's clearness from
-  the air's warming over the whole day
-  (``bridge_shadow.sun.daily_warming``; a day without its morning and afternoon in the data: 0..1
-  uniform), and ``g`` the difference at full clear sky under the shadow's own prior of its sun
-  term (``sun_gradient_prior_mean_k`` / ``sd_k``: EN 1991-1-5, ``config/shadow.yaml``) held at
-  ``g >= 0`` as there (a top warmer than the bottom; a truncated normal). Its mean ``v E[X]`` is
-  subtracted and ``v v' Var[X]`` added, ``X = g (c_a s_a - c_b s_b)``. The drift each record
-  shows within itself (relaxation after a step, the bearings' seating, the sun's own course) is
-  added as an uncertainty over that record's own length, ``(D_b^2 r_b r_b' + D_a^2 r_a r_a') / 2``,
-  not over the hours between: such a course is not assumed to go on for hours at the rate twelve
-  minutes showed. What this treatment assumes and the default does not: that the sun's vertical
-  difference is what moves a baseline over hours. The two public records are both from the
-  morning, 44 minutes apart, so only the twin checks it (``test_calibrate_sun.py``).
+  the air's warming over the whole day (``bridge_shadow.sun.daily_warming``; a day without its
+  morning and afternoon in the data: 0..1 uniform), and ``g`` the difference at full clear sky
+  under the shadow's own prior of its sun term (``sun_gradient_prior_mean_k`` / ``sd_k``:
+  EN 1991-1-5, ``config/shadow.yaml``) held at ``g >= 0`` as there (a top warmer than the
+  bottom; a truncated normal). Its mean ``v E[X]`` is subtracted and ``v v' Var[X]`` added,
+  ``X = g (c_a s_a - c_b s_b)``. The drift each record shows within itself (relaxation after a
+  step, the bearings' seating, the sun's own course) is added as an uncertainty over that
+  record's own length, ``(D_b^2 r_b r_b' + D_a^2 r_a r_a') / 2``, not over the hours between:
+  such a course is not assumed to go on for hours at the rate twelve minutes showed. What this
+  treatment assumes and the default does not: that the sun's vertical difference is what moves a
+  baseline over hours. The two public records are both from the morning, 44 minutes apart, so
+  only the twin checks it (``test_calibrate_sun.py``).
 
 The model's own uniform thermal response to the change of the air temperature between the
 records is a modelled term of the forward model, not of this module (``air_temp_change_k``).
