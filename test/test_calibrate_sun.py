@@ -21,8 +21,6 @@ from scipy.stats import norm
 
 from bridge_shadow.calibrate.car import CarDetection
 from bridge_shadow.calibrate.change import (
-    CLEARNESS_SD,
-    SUN_LAGS_H,
     RecordLevel,
     SunBaseline,
     measured_change,
@@ -35,6 +33,7 @@ from bridge_shadow.gap.levels import free_steps, level_pairs
 from bridge_shadow.gap.records import Record
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.sun import clear_sky, lagged_clear_sky
+from bridge_shadow.sun_change import CLEARNESS_SD, SUN_LAGS_H
 from bridge_shadow.twin.loadtest import LoadTestDay, _cut, load_test_day
 
 NS = 1_000_000_000

@@ -28,7 +28,7 @@ warmed), and nothing is measured in the gap between two records. Three treatment
   ``v`` the model's response to one kelvin of it (``thermal["vertical_gradient"]``, N/K), ``s``
   the clear-sky covariate at the bridge (``bridge_shadow.sun.clear_sky``) averaged over each
   record's car-free windows, through a lag ``tau`` the deck's difference follows the sun with
-  (``bridge_shadow.sun.lagged_clear_sky``; ``tau`` equally likely each of ``SUN_LAGS_H``: 0, the
+  (``bridge_shadow.sun.lagged_clear_sky``; ``tau`` equally likely each of ``sun_change.SUN_LAGS_H``: 0, the
   sun term's own instantaneous covariate, to 3 h, just above the 0.25 m slab's diffusion time
   ``h^2 / (pi^2 alpha)`` of 1.9-2.8 h for concrete's ``alpha = lambda / (rho c)`` of
   EN 1992-1-2, 3.3: ``lambda`` 1.33-1.95 W/(m K), ``c`` 900 J/(kg K), ``rho`` 2300-2400 kg/m^3:
@@ -56,22 +56,20 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.stats import truncnorm
 
 from bridge_shadow.calibrate.car import Binned, CarDetection, bin_record, detect_car
 from bridge_shadow.calibrate.errors import CalibrationError
 from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import Moments
-from bridge_shadow.estimate.compensation.sunlight import FIRST_SD, WANDER_K
 from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.series import MonitoringData
-from bridge_shadow.sun import (
-    CLEAR_SWING_K,
-    LON_DEG,
-    OVERCAST_SWING_K,
-    clearness_of_warming,
-    daily_warming,
-    lagged_clear_sky,
+from bridge_shadow.sun import clearness_of_warming, daily_warming
+from bridge_shadow.sun_change import (
+    SUN_LAGS_H,
+    g_moments,
+    lagged_sun,
+    solar_day,
+    sun_change_moments,
 )
 
 __all__ = [
@@ -89,11 +87,6 @@ NS = 1_000_000_000
 PAPER_SIGMA_E_N = (60.4, 82.7)
 #: Treatments of the baseline's change between two records (see the module docstring).
 BASELINE_CHANGES = ("uncertainty", "linear", "sun")
-#: Lags (h) the deck's vertical difference may follow the sun with, equally likely (module docstring).
-SUN_LAGS_H = (0.0, 1.0, 2.0, 3.0)
-#: sd of a day's clearness read from its warming: the air's irregular wander at the morning's
-#: minimum and at the afternoon's maximum (``sunlight.WANDER_K`` each) over the clear-overcast span.
-CLEARNESS_SD = float(np.sqrt(2.0) * WANDER_K / (CLEAR_SWING_K - OVERCAST_SWING_K))
 
 
 @dataclass(frozen=True)
@@ -114,10 +107,7 @@ class SunBaseline:
 
     def moments(self) -> tuple[float, float]:
         """``E[g]`` and ``E[g^2]`` of the prior held at ``g >= 0`` (a truncated normal), K and K^2."""
-        mu, sd = self.prior_mean_k, self.prior_sd_k
-        g = truncnorm(-mu / sd, np.inf, loc=mu, scale=sd)
-        mean = float(g.mean())
-        return mean, float(g.var()) + mean**2
+        return g_moments(self.prior_mean_k, self.prior_sd_k)
 
 
 @dataclass
@@ -239,8 +229,7 @@ def record_level(
     temps = np.concatenate([binned.temp_c[w] for w in wins])
     temp = float(np.nanmean(temps)) if np.isfinite(temps).any() else float("nan")
     t_ns = int(binned.start_ns + round(t_c * NS))
-    times = binned.start_ns + np.round(w_t * NS).astype(np.int64)
-    sun = tuple(float(np.mean(lagged_clear_sky(times, tau))) for tau in SUN_LAGS_H)
+    sun = lagged_sun(binned.start_ns + np.round(w_t * NS).astype(np.int64))
     return RecordLevel(
         t_ns=t_ns,
         level_n=coef[0].copy(),
@@ -260,18 +249,14 @@ def record_level(
     )
 
 
-def _solar_day(t_ns: int) -> int:
-    return int(np.floor((t_ns / NS + LON_DEG / 15.0 * 3600.0) / 86_400.0))
-
-
 def clearness_of_day(data: MonitoringData, t_ns: int) -> float:
     """Return the clearness of the solar day of ``t_ns`` from the air in ``data`` (NaN: not there)."""
     temp = data.temperature
     if temp is None or not len(temp.stamp_ns):
         return float("nan")
     _, days, warming = daily_warming(temp.stamp_ns, temp.temp_c)
-    k = np.searchsorted(days, _solar_day(t_ns))
-    if k == len(days) or days[k] != _solar_day(t_ns) or not np.isfinite(warming[k]):
+    k = np.searchsorted(days, solar_day(t_ns))
+    if k == len(days) or days[k] != solar_day(t_ns) or not np.isfinite(warming[k]):
         return float("nan")
     return float(clearness_of_warming(warming[k]))
 
@@ -334,39 +319,6 @@ class MeasuredChange:
         }
 
 
-def _exposure_moments(before: RecordLevel, after: RecordLevel) -> tuple[float, float, list[float]]:
-    """``E[D]``, ``E[D^2]`` of ``D = c_a s_a - c_b s_b`` and each record's ``E[c s]``.
-
-    A day's clearness read from its air is known to ``CLEARNESS_SD``; unread, it is uniform on
-    0..1. Two records of one solar day share it (the one read, if only one was). The lag of the
-    deck behind the sun is each of ``SUN_LAGS_H`` with equal probability: the moments are the
-    means of the moments under each.
-    """
-    moments = [_exposure_moments_at(before, after, j) for j in range(len(SUN_LAGS_H))]
-    e_d, e_d2 = (float(np.mean([m[k] for m in moments])) for k in (0, 1))
-    return e_d, e_d2, [float(np.mean([m[2][k] for m in moments])) for k in (0, 1)]
-
-
-def _exposure_moments_at(
-    before: RecordLevel, after: RecordLevel, lag: int
-) -> tuple[float, float, list[float]]:
-    """``_exposure_moments`` at the lag ``SUN_LAGS_H[lag]``."""
-
-    def clearness(level: RecordLevel) -> tuple[float, float]:
-        if np.isnan(level.clearness):
-            return 0.5, FIRST_SD
-        return level.clearness, CLEARNESS_SD
-
-    (cb, sdb), (ca, sda) = clearness(before), clearness(after)
-    sb, sa = before.sun[lag], after.sun[lag]
-    if _solar_day(before.t_ns) == _solar_day(after.t_ns):
-        c, sd = (ca, sda) if sda <= sdb else (cb, sdb)
-        ds = sa - sb
-        return c * ds, (c**2 + sd**2) * ds**2, [c * sb, c * sa]
-    mean = ca * sa - cb * sb
-    return mean, mean**2 + (sda * sa) ** 2 + (sdb * sb) ** 2, [cb * sb, ca * sa]
-
-
 def measured_change(
     before: RecordLevel,
     after: RecordLevel,
@@ -401,10 +353,7 @@ def measured_change(
                 "baseline_change sun needs the model's response to the deck's vertical temperature "
                 "difference (thermal vertical_gradient)"
             )
-        e_g, e_g2 = sun.moments()
-        e_d, e_d2, exposure = _exposure_moments(before, after)
-        mean_x = e_g * e_d
-        var_x = max(e_g2 * e_d2 - mean_x**2, 0.0)
+        mean_x, var_x, exposure = sun_change_moments(before, after, sun.prior_mean_k, sun.prior_sd_k)
         v = np.asarray(sun.response_n_per_k, float).reshape(2)
         correction = v * mean_x
         parts["baseline_change"] = np.outer(v, v) * var_x
