@@ -69,6 +69,10 @@ NOT_RUN = {
     "$B calibrate later_pairs.yaml --check config/surrogate.yaml": (
         "later_pairs.yaml is the reader's own file (the README says so)"
     ),
+    "$B calibrate later_pairs.yaml --check config/surrogate.yaml --baseline-change sun": (
+        "the reader's own file; --check --baseline-change sun on the real pair: "
+        "test_calibrate_sun.py::test_cli_check_with_the_sun_on_the_real_pair"
+    ),
     ".venv/bin/bridge_shadow_node --ros-args --params-file config/shadow.yaml": (
         "runs until stopped; started and stopped with these parameters: test_ros_node.py"
     ),
