@@ -14,7 +14,6 @@ mid-March its daily maximum at Neubiberg is about 0.72.
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import lfilter
 
 __all__ = [
     "CLEAR_SWING_K",
@@ -103,6 +102,10 @@ def lagged_clear_sky(t_ns: np.ndarray, tau_h: float, step_s: float = 60.0) -> np
     grid = np.arange(start, int(t_ns.max()) + step_ns, step_ns, dtype=np.int64)
     sun = clear_sky(grid + step_ns // 2)  # the sun over each step
     keep = float(np.exp(-step_s / (tau_h * 3600.0)))
+    # imported here: this module is part of the shadow's start-up (estimate.compensation.sunlight),
+    # scipy.signal is 70 ms of it, and only calibrate and gap lag the sun
+    from scipy.signal import lfilter
+
     lagged = lfilter([1.0 - keep], [1.0, -keep], sun)  # the lag's value at the end of each step
     return np.interp(t_ns.astype(float), (grid + step_ns).astype(float), lagged)
 
