@@ -59,6 +59,7 @@ import numpy as np
 
 from bridge_shadow.calibrate.car import Binned, CarDetection, bin_record, detect_car
 from bridge_shadow.calibrate.errors import CalibrationError
+from bridge_shadow.errors import InputError
 from bridge_shadow.estimate.compensation.noise import NoiseModel
 from bridge_shadow.estimate.compensation.sums import Moments
 from bridge_shadow.estimate.parameters.config import ShadowConfig
@@ -77,6 +78,7 @@ __all__ = [
     "MeasuredChange",
     "RecordLevel",
     "SunBaseline",
+    "clearness_by_day",
     "clearness_of_day",
     "measured_change",
     "record_level",
@@ -104,6 +106,17 @@ class SunBaseline:
     response_n_per_k: np.ndarray
     prior_mean_k: float = ShadowConfig.sun_gradient_prior_mean_k
     prior_sd_k: float = ShadowConfig.sun_gradient_prior_sd_k
+
+    @classmethod
+    def of(cls, surrogate: Any, name: str) -> SunBaseline:
+        """Return ``surrogate``'s sun baseline; InputError (naming it ``name``) without the case."""
+        response = surrogate.thermal.get("vertical_gradient")
+        if response is None:
+            raise InputError(
+                f"baseline change sun: {name} has no thermal vertical_gradient case "
+                "(regenerate it with `bridge-shadow surrogate`)"
+            )
+        return cls(np.asarray(response, float))
 
     def moments(self) -> tuple[float, float]:
         """``E[g]`` and ``E[g^2]`` of the prior held at ``g >= 0`` (a truncated normal), K and K^2."""
@@ -249,16 +262,19 @@ def record_level(
     )
 
 
-def clearness_of_day(data: MonitoringData, t_ns: int) -> float:
-    """Return the clearness of the solar day of ``t_ns`` from the air in ``data`` (NaN: not there)."""
+def clearness_by_day(data: MonitoringData) -> dict[int, float]:
+    """Return each solar day's clearness from the air in ``data`` (days without both parts left out)."""
     temp = data.temperature
     if temp is None or not len(temp.stamp_ns):
-        return float("nan")
+        return {}
     _, days, warming = daily_warming(temp.stamp_ns, temp.temp_c)
-    k = np.searchsorted(days, solar_day(t_ns))
-    if k == len(days) or days[k] != solar_day(t_ns) or not np.isfinite(warming[k]):
-        return float("nan")
-    return float(clearness_of_warming(warming[k]))
+    pairs = zip(days, warming, strict=True)
+    return {int(d): float(clearness_of_warming(w)) for d, w in pairs if np.isfinite(w)}
+
+
+def clearness_of_day(data: MonitoringData, t_ns: int) -> float:
+    """Return the clearness of the solar day of ``t_ns`` from the air in ``data`` (NaN: not there)."""
+    return clearness_by_day(data).get(solar_day(t_ns), float("nan"))
 
 
 def _iso(ns: int) -> str:

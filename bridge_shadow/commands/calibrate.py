@@ -232,12 +232,7 @@ def _check(args: argparse.Namespace, spec: object) -> int:
     if spec.baseline_change == "sun":
         from bridge_shadow.calibrate.change import SunBaseline
 
-        if "vertical_gradient" not in surrogate.thermal:
-            raise InputError(
-                f"--baseline-change sun: {args.check} has no thermal vertical_gradient case "
-                "(regenerate it with `bridge-shadow surrogate`)"
-            )
-        sun = SunBaseline(surrogate.thermal["vertical_gradient"])
+        sun = SunBaseline.of(surrogate, str(args.check))
     pairs = measure_pairs(spec, report=lambda f, s: progress(f, "records"), sun=sun)
     checks = [check_pair(p.name, p.change, surrogate, p.imposed_m, p.imposed_sd_m) for p in pairs]
     require_finite(

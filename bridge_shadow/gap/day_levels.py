@@ -13,7 +13,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bridge_shadow.errors import InputError
 from bridge_shadow.gap.drivers import Drivers
 from bridge_shadow.gap.fit import folds_of
 from bridge_shadow.gap.records import Record
@@ -110,14 +109,7 @@ def read_levels(
     from bridge_shadow.calibrate.change import SunBaseline
     from bridge_shadow.gap.levels import explain_imposed, free_steps, level_pairs
 
-    sun = None
-    if baseline_change == "sun":
-        if "vertical_gradient" not in s.thermal:
-            raise InputError(
-                "baseline change sun: the model has no thermal vertical_gradient case "
-                "(regenerate it with `bridge-shadow surrogate`)"
-            )
-        sun = SunBaseline(np.asarray(s.thermal["vertical_gradient"], float))
+    sun = SunBaseline.of(s, "the model in use") if baseline_change == "sun" else None
     pairs, notes = level_pairs(data, records, imposed, imposed_sd_m, baseline_change, sun)
     analysis = None
     model = s

@@ -39,7 +39,7 @@ import numpy as np
 from bridge_shadow.calibrate.change import (
     MeasuredChange,
     SunBaseline,
-    clearness_of_day,
+    clearness_by_day,
     measured_change,
     record_level,
 )
@@ -55,6 +55,7 @@ from bridge_shadow.model.sensitivities import StiffnessSensitivity
 from bridge_shadow.model.surrogate_file import Discrepancy, Surrogate
 from bridge_shadow.model.sweeps import Sweep
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+from bridge_shadow.sun_change import solar_day
 
 __all__ = [
     "IMPOSED_EXPLANATIONS",
@@ -194,6 +195,7 @@ def level_pairs(
                 bounds.append((t, -1 - r.index, step))
     bounds.sort(key=lambda b: b[0])
     pairs, notes = [], []
+    clearness = clearness_by_day(data)  # each day's, from all of its air in the data
     cumulative = np.zeros(2)
     for k, (t, where, step) in enumerate(bounds):
         if where >= 0:
@@ -213,9 +215,9 @@ def level_pairs(
         try:
             lb = record_level(slice_data(data, *before), window_s=_window_s(data))
             la = record_level(slice_data(data, *after), window_s=_window_s(data))
-            # the day's clearness from all of its air in the data, not from the slices' minutes
-            lb = replace(lb, clearness=clearness_of_day(data, lb.t_ns))
-            la = replace(la, clearness=clearness_of_day(data, la.t_ns))
+            # the day's clearness from all of its air, not from the slices' minutes
+            lb = replace(lb, clearness=clearness.get(solar_day(lb.t_ns), float("nan")))
+            la = replace(la, clearness=clearness.get(solar_day(la.t_ns), float("nan")))
             change = measured_change(lb, la, baseline_change, sun)
         except (CalibrationError, ValueError) as err:
             notes.append(f"{name}: level not measured ({err})")
