@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 from scipy.interpolate import make_smoothing_spline
 
-from bridge_shadow.estimate.compensation.spline import OnlinePSpline, clamped_knots, gram_penalty
+from bridge_shadow.estimate.compensation.spline import (
+    OnlinePSpline,
+    basis_nonzero,
+    clamped_knots,
+    gram_penalty,
+)
 
 
 def _data(n: int = 300, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -159,5 +164,12 @@ def test_few_point_basis_equals_vectorized_basis() -> None:
     step = _SCALAR_PATH_MAX
     few = np.vstack([_basis(sp.knots, x[i : i + step]) for i in range(0, len(x), step)])
     np.testing.assert_allclose(few, many, rtol=0.0, atol=1e-15)
+    # the non-zero part alone (what a closing window's compensation reads), both ways
+    first, values = basis_nonzero(sp.knots, x)
+    parts = [basis_nonzero(sp.knots, x[i : i + step]) for i in range(0, len(x), step)]
+    np.testing.assert_array_equal(np.concatenate([p[0] for p in parts]), first)  # integer indices
+    np.testing.assert_allclose(np.vstack([p[1] for p in parts]), values, rtol=0.0, atol=1e-15)
+    rows = np.arange(len(x))[:, None]
+    np.testing.assert_allclose(many[rows, first[:, None] + np.arange(4)], values, rtol=0.0, atol=1e-15)
     # clamping on the few-point path: outside the range equals the end values
     np.testing.assert_allclose(sp.basis([-50.0, 99.0]), sp.basis([-20.0, 45.0]), rtol=1e-12, atol=1e-15)

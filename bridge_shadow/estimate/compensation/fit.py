@@ -238,7 +238,9 @@ class Compensation:
         """
         t = np.asarray(temp_c, float).reshape(-1, 2)
         ok = np.isfinite(t)
-        i0, bv = basis_nonzero(self.knots, np.clip(np.where(ok, t, self.t_min), self.t_min, self.t_max))
+        i0, bv = basis_nonzero(
+            self.knots, np.minimum(np.maximum(np.where(ok, t, self.t_min), self.t_min), self.t_max)
+        )
         i0 = np.where(ok.ravel(), i0, -1).reshape(-1, 2)
         bv = bv.reshape(-1, 2, 4)
         if not self.sun:

@@ -65,15 +65,26 @@ def _basis(knots: np.ndarray, x: np.ndarray, nu: int = 0) -> np.ndarray:
     return out
 
 
-#: Up to this many points the basis is evaluated point by point in plain floats: a window adds one
-#: temperature per channel, and numpy's per-call overhead made the vectorized recursion 10x slower.
+#: Up to this many points the basis (dense, ``_basis``, or its non-zero part, ``basis_nonzero``) is
+#: evaluated point by point in plain floats: a window adds one temperature per channel, and numpy's
+#: per-call overhead made the vectorized recursion 4-10x slower.
 _SCALAR_PATH_MAX = 4
 
 
 def _basis_few(knots: np.ndarray, xs: list[float], q: int) -> np.ndarray:
-    """``_basis`` for a few points: the same Cox-de Boor recursion on Python floats."""
-    t = knots.tolist()
+    """``_basis`` for a few points (``_nonzero_few`` placed in the dense rows)."""
+    first, values = _nonzero_few(knots, xs, q)
     out = np.zeros((len(xs), q))
+    for row, (i, n) in enumerate(zip(first.tolist(), values, strict=True)):
+        out[row, i : i + _DEGREE + 1] = n
+    return out
+
+
+def _nonzero_few(knots: np.ndarray, xs: list[float], q: int) -> tuple[np.ndarray, np.ndarray]:
+    """``basis_nonzero`` for a few points: the same Cox-de Boor recursion on Python floats."""
+    t = knots.tolist()
+    first = np.empty(len(xs), dtype=np.int64)
+    values = np.empty((len(xs), _DEGREE + 1))
     for row, x in enumerate(xs):
         i = min(max(bisect_right(t, x) - 1, _DEGREE), q - 1)
         n = [1.0, 0.0, 0.0, 0.0]
@@ -88,8 +99,9 @@ def _basis_few(knots: np.ndarray, xs: list[float], q: int) -> np.ndarray:
                 n[r] = saved + right[r + 1] * temp
                 saved = left[j - r] * temp
             n[j] = saved
-        out[row, i - _DEGREE : i + 1] = n
-    return out
+        first[row] = i - _DEGREE
+        values[row] = n
+    return first, values
 
 
 def gram_penalty(knots: np.ndarray) -> np.ndarray:
@@ -221,8 +233,10 @@ def basis_nonzero(knots: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndar
     """
     x = np.asarray(x, dtype=float).ravel()
     q = len(knots) - _DEGREE - 1
+    if len(x) <= _SCALAR_PATH_MAX:
+        return _nonzero_few(knots, x.tolist(), q)
     # interval i with t_i <= x < t_{i+1}; the right end belongs to the last non-empty interval
-    i = np.clip(np.searchsorted(knots, x, side="right") - 1, _DEGREE, q - 1)
+    i = np.minimum(np.maximum(np.searchsorted(knots, x, side="right") - 1, _DEGREE), q - 1)
     n = np.zeros((len(x), _DEGREE + 1))
     n[:, 0] = 1.0
     left = np.empty((len(x), _DEGREE + 1))

@@ -555,8 +555,8 @@ class WindowBuffer:
         limit = np.searchsorted(ts, (k + 1) * self.w_ns + self.horizon_ns, side="left")
         has_l = left >= 0
         has_r = right < limit
-        li = np.clip(left, 0, len(ts) - 1)
-        ri = np.clip(right, 0, len(ts) - 1)
+        li = np.maximum(left, 0)  # right lies in [0, len(ts)]: left is below the end, right above -1
+        ri = np.minimum(right, len(ts) - 1)
         d_left = np.where(has_l, t - ts[li], _NEVER)
         if self.match == "hold":
             temp = np.where(has_l, tv[li], tv[0])

@@ -1,0 +1,121 @@
+"""The gate's batch of regular messages (``TopicGate._regular``) decides as the general path does.
+
+A live node gates a few dozen messages at a time, nearly all of them regular; ``_regular`` takes
+such a batch in a handful of numpy calls. The general path is the definition: a stream with every
+kind of message the gate knows (NaN, inf, out of range, wrong and empty frame ids, duplicates,
+out of order, wild stamps, a clock jump, a gap, value repeats short and long), cut into random
+chunks, must be decided the same message by message, with the same counts, the same held and
+released messages and the same state, whether regular batches take the short way or not.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from itertools import pairwise
+
+import numpy as np
+import pytest
+
+from bridge_shadow.estimate.inputs.gate import FROZEN_S, TopicGate
+
+NS = 1_000_000_000
+STEP = 10_000_000  # 100 Hz
+
+
+def _stream(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return stamps, values and frame ids of a 100 Hz stream with every irregularity in it."""
+    rng = np.random.default_rng(seed)
+    n = 6000
+    stamps = 1_650_000_000 * NS + np.arange(n, dtype=np.int64) * STEP
+    stamps[3000:] += 40 * 60 * NS  # a gap of 40 min (held for one message, then taken)
+    stamps[4500:] += 2 * 3600 * NS  # a clock jump beyond clock_jump_s, confirmed by the stream
+    values = 2.2e5 + 60.0 * rng.standard_normal(n)
+    frames = np.full(n, "frc_01", dtype=object)
+    for k in rng.choice(np.arange(10, n - 10), 60, replace=False):
+        kind = rng.integers(9)
+        if kind == 0:
+            values[k] = np.nan
+        elif kind == 1:
+            values[k] = np.inf
+        elif kind == 2:
+            values[k] = -5.0  # out of range
+        elif kind == 3:
+            frames[k] = "frc_02"
+        elif kind == 4:
+            frames[k] = ""  # unknown: accepted
+        elif kind == 5:
+            stamps[k] = stamps[k - 1]  # duplicate
+        elif kind == 6:
+            stamps[k] = stamps[k - 1] - STEP // 2  # out of order
+        elif kind == 7:
+            stamps[k] += 25 * 60 * NS  # one wild stamp ahead
+        else:
+            values[k : k + 3] = values[k]  # a short repeat (a logger's sample-and-hold)
+    values[1500 : 1500 + 1500] = values[1500]  # a frozen channel for 15 s
+    return stamps, values, frames
+
+
+def _gate() -> TopicGate:
+    return TopicGate("frc_01", 1.0, 5e6, 3600 * NS, 3, round(FROZEN_S * NS))
+
+
+def _run(stamps, values, frames, cuts, regular: bool):
+    gate = _gate()
+    taken = 0
+    if not regular:
+        gate._regular = lambda *args: False  # the general path alone
+    else:
+        original = gate._regular
+
+        def counted(*args):
+            nonlocal taken
+            took = original(*args)
+            taken += took
+            return took
+
+        gate._regular = counted
+    masks, released, counts = [], [], Counter()
+    for a, b in pairwise(cuts):
+        # some chunks give one frame id for all (the node's decode of a uniform block)
+        uniform = len(set(frames[a:b])) == 1 and a % 2 == 0
+        frame = frames[a] if uniform else frames[a:b]
+        masks.append(gate(stamps[a:b], values[a:b], frame, (int(stamps[0]), int(stamps[a])), counts))
+        released.append(gate.pop_released())
+    gate.release_held()
+    released.append(gate.pop_released())
+    return np.concatenate(masks), released, counts, gate.state_dict(), taken
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_regular_batches_decide_as_the_general_path(seed: int) -> None:
+    stamps, values, frames = _stream(seed)
+    rng = np.random.default_rng(100 + seed)
+    cuts = np.unique(np.concatenate([[0, len(stamps)], rng.integers(1, len(stamps), 400)]))
+    fast = _run(stamps, values, frames, cuts, regular=True)
+    slow = _run(stamps, values, frames, cuts, regular=False)
+    np.testing.assert_array_equal(fast[0], slow[0])  # booleans
+    assert len(fast[1]) == len(slow[1])
+    for (s1, v1), (s2, v2) in zip(fast[1], slow[1], strict=True):
+        np.testing.assert_array_equal(s1, s2)  # integer stamps
+        np.testing.assert_allclose(v1, v2, rtol=0.0, atol=0.0)  # values passed through, not computed
+    assert fast[2] == slow[2]
+    assert set(fast[2]) >= {"nonfinite", "out_of_range", "frame_id", "duplicate", "out_of_order", "frozen"}
+    assert fast[2]["clock_jump"] >= 1
+    for key, value in slow[3].items():
+        np.testing.assert_array_equal(np.asarray(fast[3][key]), np.asarray(value), err_msg=key)
+    # the short way was taken for most chunks, and never where the general path rejects
+    assert fast[4] > 0.5 * (len(cuts) - 1)
+    assert slow[4] == 0
+
+
+def test_a_regular_batch_leaves_the_run_and_step_state_of_the_general_path() -> None:
+    stamps = 1_650_000_000 * NS + np.arange(50, dtype=np.int64) * STEP
+    values = 2.2e5 + np.arange(50.0)
+    a, b = _gate(), _gate()
+    b._regular = lambda *args: False
+    for gate in (a, b):
+        assert gate(stamps[:1], values[:1], "frc_01", None, Counter()).all()  # the first: general path
+        assert gate(stamps[1:], values[1:], "frc_01", None, Counter()).all()
+    for key, value in b.state_dict().items():
+        np.testing.assert_array_equal(np.asarray(a.state_dict()[key]), np.asarray(value), err_msg=key)
+    assert (a.last_ns, a.last_step_ns, a.run_count) == (int(stamps[-1]), STEP, 1)
