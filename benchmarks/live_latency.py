@@ -9,14 +9,24 @@ released together) are left out. Baseline in the same run: a bare EventsExecutor
 each frc_02 message straight back (``bridge_shadow.ros.bare --echo``): the same closing messages,
 publish -> echo arrival, i.e. the transport round trip the node cannot beat.
 
-Run: ``.venv/bin/python benchmarks/live_latency.py [SECONDS]`` (default 20).
+``--parts`` also times the node's window-closing drains by part (``_node_parts``: the drain, its
+decode-and-ingest, its start to the window's first posterior message) through DDS, against the same
+node code fed the same messages in one process (its subscription callbacks called directly, no
+DDS: the warm baseline). The ratio is what running among a node's message callbacks, next to the
+player and DDS on two cores, does to the same work.
+
+Run: ``.venv/bin/python benchmarks/live_latency.py [SECONDS] [--parts]`` (default 20 s).
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import os
 import struct
-import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 from geometry_msgs.msg import WrenchStamped
@@ -59,14 +69,19 @@ def messages(n_ticks: int, seed: int, tick_ns: int = TICK_NS) -> tuple[list[byte
     return out[0], out[1], out[2]
 
 
-def run(module: str, args: list[str], seconds: float, echo: bool) -> np.ndarray:
+def run(
+    module: str, args: list[str], seconds: float, echo: bool, env: dict[str, str] | None = None
+) -> np.ndarray:
     """Play ``seconds`` at 1 kHz to one receiver; return the latency (ms) of each window after warm-up."""
     n = int(seconds * 1e9 / TICK_NS)
     f1, f2, temps = messages(n, seed=1)
     forces = [f1, f2]
     closing: dict[int, int] = {}  # window index -> time.time_ns() when its closing message left
     extra = {ECHO_TOPIC: WrenchStamped} if echo else None
-    with Player(record_diagnostics=False, extra=extra) as player, NodeProcess(args, module=module) as node:
+    with (
+        Player(record_diagnostics=False, extra=extra) as player,
+        NodeProcess(args, module=module, env=env) as node,
+    ):
         player.wait_for_node(node, 30.0, outputs=not echo)
         pub_f1, pub_f2, pub_t = (p.publish for p in player.publishers)
         t_start = time.perf_counter()
@@ -99,9 +114,39 @@ def run(module: str, args: list[str], seconds: float, echo: bool) -> np.ndarray:
     return np.array([(arrivals[k] - closing[k]) / 1e6 for k in range(2 * WARMUP, n_windows)])
 
 
+def parts(args: list[str], seconds: float) -> None:
+    """Time the closing drains by part through DDS and in one process; print both and their ratio."""
+    from _node_parts import PARTS, closing_parts_in_process
+
+    n = int(seconds * 1e9 / TICK_NS)
+    here = str(Path(__file__).resolve().parent)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "parts.json"
+        env = dict(os.environ, BRIDGE_SHADOW_PARTS_OUT=str(out))
+        env["PYTHONPATH"] = os.pathsep.join(x for x in (here, env.get("PYTHONPATH")) if x)
+        lat = run("_node_parts", args, seconds, echo=False, env=env)
+        dds = np.array(json.loads(out.read_text())["rows"])[2 * WARMUP :]
+    local = np.array(closing_parts_in_process(PARAMS, messages(n, seed=1), 10, 50))[2 * WARMUP :]
+    print(
+        f"window-closing drains, ms (latency of the timed run: p50 {np.percentile(lat, 50):.2f}, p99 "
+        f"{np.percentile(lat, 99):.2f}):"
+    )
+    print(
+        f"  {'part':18s} {'in-process p50 / p99 (baseline)':>32s} {'node via DDS p50 / p99':>26s}  ratio p50"
+    )
+    for k, name in enumerate(PARTS):
+        a50, a99 = np.percentile(local[:, k], [50, 99])
+        b50, b99 = np.percentile(dds[:, k], [50, 99])
+        print(f"  {name:18s} {a50:21.3f} / {a99:6.3f}    {b50:16.3f} / {b99:6.3f}  x{b50 / a50:.2f}")
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("seconds", nargs="?", type=float, default=20.0)
+    ap.add_argument("--parts", action="store_true", help="also time the node's closing drains by part")
+    opts = ap.parse_args()
     confine_to_loopback()
-    seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 20.0
+    seconds = opts.seconds
     args = ["--ros-args", *[x for p in PARAMS for x in ("-p", p)]]
     print(f"{seconds:g} s at 1 kHz per force channel (temperature 100 Hz), 0.1 s windows, loopback DDS")
     bare = run("bridge_shadow.ros.bare", ["--echo"], seconds, echo=True)
@@ -113,6 +158,8 @@ def main() -> None:
         f"bridge_shadow_node (-> posterior): p50 {n50:6.2f} ms  p99 {n99:6.2f} ms  "
         f"({n50 / b50:.1f}x, {n99 / b99:.1f}x baseline; {len(node)} windows)"
     )
+    if opts.parts:
+        parts(args, seconds)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,98 @@
+"""A live window's ingest and close: the short paths against the general ones, in one process.
+
+The stream of ``live_latency.py`` (two force channels at 1 kHz, the air at 100 Hz, 0.1 s windows)
+is fed to two shadows window by window, alternately (which goes first alternates too), as a node
+feeds them: the air, then each force channel, then ``poll``; the refit a window schedules runs
+after, outside the timing (the node publishes first). One shadow takes the short paths of a live
+window (``TopicGate._regular`` for a batch of regular messages, the B-spline basis on plain floats
+at a few points); the other, the baseline, goes the general way (those disabled). Both must give
+the same window outputs (checked every window). Printed: each one's p50 / p99 per window and the
+ratio, paired window by window, so that the machine's speed, which drifts within minutes, cancels.
+
+Run: ``.venv/bin/python benchmarks/live_window_paths.py [SECONDS]`` (default 60 s of stream).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Any
+
+import numpy as np
+from live_latency import T0_NS, TICK_NS
+
+from bridge_shadow.estimate import Shadow
+from bridge_shadow.estimate.compensation import spline
+from bridge_shadow.estimate.parameters.config import load_config
+from bridge_shadow.model.surrogate_file import load_surrogate
+
+FEW = spline._SCALAR_PATH_MAX
+
+
+def stream(seconds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Stamps (ns), the two force channels (N) and the air (C) of ``live_latency.messages``' stream."""
+    n = int(seconds * 1e9 / TICK_NS)
+    stamps = T0_NS + np.arange(n + 1, dtype=np.int64) * TICK_NS
+    rng = np.random.default_rng(1)
+    f1 = 2.60e5 + 60.0 * rng.standard_normal(n + 1)
+    f2 = 2.21e5 + 60.0 * rng.standard_normal(n + 1)
+    return stamps, f1, f2, 8.0 + 0.5 * np.sin(np.arange(n + 1) / 3000.0)
+
+
+def feed(
+    shadow: Shadow, data: tuple[np.ndarray, ...], a: int, b: int, general: bool
+) -> tuple[float, list[Any]]:
+    """Feed ticks ``a:b`` and poll; return the seconds it took and the outputs."""
+    stamps, f1, f2, air = data
+    spline._SCALAR_PATH_MAX = 0 if general else FEW
+    ticks = np.arange(a, b)
+    t_air = ticks[ticks % 10 == 0]
+    t0 = time.perf_counter()
+    shadow.ingest_temperature(stamps[t_air], air[t_air], "air_temperature")
+    shadow.ingest_forces(0, stamps[a:b], f1[a:b], "frc_01")
+    shadow.ingest_forces(1, stamps[a:b], f2[a:b], "frc_02")
+    out = shadow.poll()
+    dt = time.perf_counter() - t0
+    shadow.settle()
+    spline._SCALAR_PATH_MAX = FEW
+    return dt, out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("seconds", nargs="?", type=float, default=60.0)
+    seconds = ap.parse_args().seconds
+    cfg = load_config().replace(
+        window_s=0.1, window_min_samples=10, topic_timeout_s=0.05, warmup_windows=5, traffic_hold_s=0.0
+    )
+    surrogate = load_surrogate()
+    short, general = Shadow(cfg, surrogate), Shadow(cfg, surrogate)
+    for gate in general.gates:
+        gate._regular = lambda *args: False  # type: ignore[method-assign]
+    data = stream(seconds)
+    per_window = int(cfg.window_s * 1e9) // TICK_NS
+    times: dict[bool, list[float]] = {False: [], True: []}
+    for w in range(len(data[0]) // per_window):
+        a, b = w * per_window + (w > 0), (w + 1) * per_window + 1  # up to and with the closing tick
+        outs = {}
+        for is_general in (w % 2 == 0, w % 2 == 1):
+            dt, outs[is_general] = feed(general if is_general else short, data, a, b, is_general)
+            times[is_general].append(dt)
+        same = len(outs[True]) == len(outs[False]) and all(
+            np.allclose(x.mean_m, y.mean_m, rtol=1e-12, atol=0.0)
+            for x, y in zip(outs[True], outs[False], strict=True)
+        )
+        if not same:
+            raise SystemExit(f"window {w}: the two paths disagree")
+    skip = 2 * cfg.warmup_windows
+    t_short, t_general = (np.array(times[g][skip:]) * 1e3 for g in (False, True))
+    print(
+        f"{seconds:g} s of the live_latency stream, {len(t_short)} windows of 0.1 s; ingest + poll a window:"
+    )
+    for label, t in (("general paths (baseline)", t_general), ("short paths", t_short)):
+        print(f"  {label:26s} p50 {np.percentile(t, 50):6.3f} ms  p99 {np.percentile(t, 99):6.3f} ms")
+    print(f"  ratio, paired by window: median {np.median(t_short / t_general):.2f}")
+
+
+if __name__ == "__main__":
+    main()
