@@ -4,10 +4,11 @@ The stream of ``live_latency.py`` (two force channels at 1 kHz, the air at 100 H
 is fed to two shadows window by window, alternately (which goes first alternates too), as a node
 feeds them: the air, then each force channel, then ``poll``; the refit a window schedules runs
 after, outside the timing (the node publishes first). One shadow takes the short paths of a live
-window (``TopicGate._regular`` for a batch of regular messages, the B-spline basis on plain floats
-at a few points); the other, the baseline, goes the general way (those disabled). Both must give
-the same window outputs (checked every window). Printed: each one's p50 / p99 per window and the
-ratio, paired window by window, so that the machine's speed, which drifts within minutes, cancels.
+window (``TopicGate._regular`` for a batch of regular messages, ``WindowBuffer._one_window`` for
+samples that all fall in one window, the B-spline basis on plain floats at a few points); the
+other, the baseline, goes the general way (those disabled). Both must give the same window
+outputs (checked every window). Printed: each one's p50 / p99 per window and the ratio, paired
+window by window, so that the machine's speed, which drifts within minutes, cancels.
 
 Run: ``.venv/bin/python benchmarks/live_window_paths.py [SECONDS]`` (default 60 s of stream).
 """
@@ -69,6 +70,7 @@ def main() -> None:
     short, general = Shadow(cfg, surrogate), Shadow(cfg, surrogate)
     for gate in general.gates:
         gate._regular = lambda *args: False  # type: ignore[method-assign]
+    general.buffer._one_window = lambda taken: None  # type: ignore[method-assign]
     data = stream(seconds)
     per_window = int(cfg.window_s * 1e9) // TICK_NS
     times: dict[bool, list[float]] = {False: [], True: []}

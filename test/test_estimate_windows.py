@@ -85,3 +85,42 @@ def test_a_held_record_too_long_only_for_a_recording_started_again_is_split_at_t
     two.begin(0)
     two.resume(m)
     assert two.extend(40 * m, 30 * m) == [] and not two.holding  # the piece after it is too long
+
+
+def _one_by_one(match: str, ts: np.ndarray, tv: np.ndarray, one_window: bool, seed: int):
+    """Close the windows of ``_data(seed)`` one at a time (a live node's pace); return the batches."""
+    stamps, values, _, _ = _data(seed)
+    buf = WindowBuffer(60.0, 30.0, 120.0, match, min_samples=30)
+    if not one_window:
+        buf._one_window = lambda taken: None  # the general path alone
+    lasts = [int(s[-1]) for s in stamps]
+    for c in range(2):
+        buf.add_forces(c, stamps[c], values[c])
+    buf.add_temperature(ts, tv)
+    out = []
+    while buf.next_k is not None and buf.holds_data:
+        out.append(buf.close_until(buf.next_k + 1, lasts))
+    return out
+
+
+def test_one_window_at_a_time_equals_the_general_aggregate() -> None:
+    """``WindowBuffer._one_window`` (the live pace) gives the general path's sums, NaNs, ages, reasons."""
+    _, _, ts, tv = _data()
+    late = ts >= T0 + 12 * W  # the first reading after the first windows: those are blind to it
+    cases = [("linear", ts, tv), ("hold", ts, tv), ("linear", ts[late], tv[late]), ("linear", ts[:0], tv[:0])]
+    for seed, (match, t, v) in enumerate(cases):
+        fast = _one_by_one(match, t, v, True, seed)
+        slow = _one_by_one(match, t, v, False, seed)
+        assert len(fast) == len(slow) == 30
+        reasons = set()
+        for a, b in zip(fast, slow, strict=True):
+            np.testing.assert_array_equal(a.k, b.k)  # integers
+            np.testing.assert_array_equal(a.samples, b.samples)
+            np.testing.assert_array_equal(a.cut, b.cut)
+            assert list(a.reason) == list(b.reason)
+            reasons.update(a.reason)
+            for field in ("force_n", "temp_c", "temp_age_s"):
+                np.testing.assert_allclose(getattr(a, field), getattr(b, field), rtol=1e-15, atol=0.0)
+        assert reasons == {"", "sparse_window"}  # 30 samples a window on average: both kinds
+        temps = np.concatenate([a.temp_c for a in fast])
+        assert np.isnan(temps).any() == (match == "linear" and len(t) < len(ts))

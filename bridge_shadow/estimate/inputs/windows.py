@@ -503,6 +503,10 @@ class WindowBuffer:
         self.temp.keep_from(int(np.searchsorted(ts, end_ns, side="right")) - 1)
 
     def _aggregate(self, taken: list[tuple[np.ndarray, np.ndarray]], cut: list[np.ndarray]) -> WindowBatch:
+        if not (len(cut[0]) or len(cut[1])):
+            one = self._one_window(taken)
+            if one is not None:
+                return one
         w = self.w_ns
         ks = [window_index(s, w) for s, _ in taken]
         k_cut = [window_index(c, w) for c in cut]
@@ -540,6 +544,49 @@ class WindowBuffer:
         reason[np.any(samples == 0, axis=1)] = "missing_topic"
         reason[sparse & np.any(n_cut > 0, axis=1)] = "traffic"
         return WindowBatch(k_all.astype(np.int64), samples, force, temp, reason, n_cut, age)
+
+    def _one_window(self, taken: list[tuple[np.ndarray, np.ndarray]]) -> WindowBatch | None:
+        """``_aggregate`` of samples that all fall in one window, both channels there (else None).
+
+        A live node closes one window at a time: the same sums in the same order as the general
+        path (``window_stats``' ``bincount``), without its grouping.
+        """
+        s0, s1 = taken[0][0], taken[1][0]
+        if not (len(s0) and len(s1)):
+            return None
+        w = self.w_ns
+        k = int(s0[0]) // w
+        if int(s0[-1]) // w != k or int(s1[0]) // w != k or int(s1[-1]) // w != k:
+            return None
+        samples = np.array([[len(s0), len(s1)]], dtype=np.int64)
+        force = np.full((1, 2), np.nan)
+        temp = np.full((1, 2), np.nan)
+        age = 0.0
+        ts, tv = self.temp.arrays()
+        see = self.temp_first_ns is not None
+        blind = see and (k + 1) * w + self.horizon_ns <= self.temp_first_ns  # no reading visible yet
+        for c, (stamps, values) in enumerate(taken):
+            rows = np.zeros(len(values), dtype=np.intp)
+            force[0, c] = np.bincount(rows, values, minlength=1)[0] / len(values)
+            if not see:
+                continue
+            if blind:
+                temp[0, c] = np.nan
+                continue
+            matched, dist = self._match(stamps, np.int64(k), ts, tv)
+            temp[0, c] = np.bincount(rows, matched, minlength=1)[0] / len(values)
+            age = max(age, float(dist.max()) / 1e9)
+        sparse = bool(samples.min() < self.min_samples)
+        reason = np.array(["sparse_window" if sparse else ""], dtype=object)
+        return WindowBatch(
+            np.array([k], dtype=np.int64),
+            samples,
+            force,
+            temp,
+            reason,
+            np.zeros((1, 2), np.int64),
+            np.array([age]),
+        )
 
     def _match(
         self, t: np.ndarray, k: np.ndarray, ts: np.ndarray, tv: np.ndarray
