@@ -5,7 +5,8 @@ is fed to two shadows window by window, alternately (which goes first alternates
 feeds them: the air, then each force channel, then ``poll``; the refit a window schedules runs
 after, outside the timing (the node publishes first). One shadow takes the short paths of a live
 window (``TopicGate._regular`` for a batch of regular messages, ``WindowBuffer._one_window`` for
-samples that all fall in one window, the B-spline basis on plain floats at a few points); the
+samples that all fall in one window, the curve and its variance for both channels at once where
+every window has a temperature, the B-spline basis on plain floats at a few points); the
 other, the baseline, goes the general way (those disabled). Both must give the same window
 outputs (checked every window). Printed: each one's p50 / p99 per window and the ratio, paired
 window by window, so that the machine's speed, which drifts within minutes, cancels.
@@ -71,6 +72,9 @@ def main() -> None:
     for gate in general.gates:
         gate._regular = lambda *args: False  # type: ignore[method-assign]
     general.buffer._one_window = lambda taken: None  # type: ignore[method-assign]
+    comp = general.compensation
+    comp._curve_rows_known = comp._curve_rows_by_channel  # type: ignore[method-assign]
+    comp._curve_variance_known = comp._curve_variance_by_channel  # type: ignore[method-assign]
     data = stream(seconds)
     per_window = int(cfg.window_s * 1e9) // TICK_NS
     times: dict[bool, list[float]] = {False: [], True: []}

@@ -480,9 +480,17 @@ class Compensation:
     ) -> np.ndarray:
         """``curve`` for rows whose basis is already known: ``b(T)' beta`` (n, 2)."""
         t = np.asarray(temp_c, float).reshape(-1, 2)
-        out = np.zeros(t.shape)
         if self.mode == "none":
-            return out
+            return np.zeros(t.shape)
+        if (i0 >= 0).all():
+            return self._curve_rows_known(fit, t, i0, bv)
+        return self._curve_rows_by_channel(fit, t, i0, bv)
+
+    def _curve_rows_by_channel(
+        self, fit: CompensationFit, t: np.ndarray, i0: np.ndarray, bv: np.ndarray
+    ) -> np.ndarray:
+        """``curve_rows``, channel by channel: rows without a temperature stay 0."""
+        out = np.zeros(t.shape)
         for c in range(2):
             ok = i0[:, c] >= 0
             if not ok.any():
@@ -504,9 +512,15 @@ class Compensation:
         ``sigma^2 = kappa * slope_sd^2`` that weighed the slope prior of this fit: small where days of
         data fix the curve, growing beyond the temperatures seen so far.
         """
-        out = np.zeros(i0.shape, float)
         if self.mode == "none":
-            return out
+            return np.zeros(i0.shape, float)
+        if (i0 >= 0).all():
+            return self._curve_variance_known(fit, i0, bv)
+        return self._curve_variance_by_channel(fit, i0, bv)
+
+    def _curve_variance_by_channel(self, fit: CompensationFit, i0: np.ndarray, bv: np.ndarray) -> np.ndarray:
+        """``curve_variance``, channel by channel: rows without a temperature stay 0."""
+        out = np.zeros(i0.shape, float)
         for c in range(2):
             ok = i0[:, c] >= 0
             if not ok.any():
@@ -517,3 +531,32 @@ class Compensation:
             quad = np.einsum("ni,nij,nj->n", b, block, b) - 2.0 * np.sum(b * fit.mbar[c][cols], axis=1)
             out[ok, c] = fit.kappa[c] * self.slope_sd**2 * np.maximum(quad + fit.sbar[c], 0.0)
         return out
+
+    def _curve_rows_known(
+        self, fit: CompensationFit, t: np.ndarray, i0: np.ndarray, bv: np.ndarray
+    ) -> np.ndarray:
+        """``curve_rows`` where every row has a temperature in both channels: both channels at once.
+
+        The same products and the same sums (each row's four terms in order) as
+        ``_curve_rows_by_channel``, without its masks: a live window is one row.
+        """
+        chans = np.arange(2)[None, :, None]
+        out = np.sum(bv[:, :, :4] * fit.beta[chans, i0[:, :, None] + np.arange(4)], axis=2)
+        if self.sun:
+            out += fit.beta[:, -1] * bv[:, :, 4]
+        beyond = (t < self.t_min) | (t > self.t_max)
+        if beyond.any():
+            out[beyond] += (self.slope_fe * (t - np.clip(t, self.t_min, self.t_max)))[beyond]
+        return out
+
+    def _curve_variance_known(self, fit: CompensationFit, i0: np.ndarray, bv: np.ndarray) -> np.ndarray:
+        """``curve_variance`` where every row has a temperature in both channels: both at once."""
+        n, w = len(i0), self.width
+        cols = row_columns(i0.ravel(), w, self.q).reshape(n, 2, w)
+        chans = np.arange(2)[None, :, None]
+        block = fit.minv[chans[..., None], cols[:, :, :, None], cols[:, :, None, :]]  # (n, 2, w, w)
+        b = bv.reshape(n, 2, w)
+        flat = b.reshape(2 * n, w)
+        quad = np.einsum("ni,nij,nj->n", flat, block.reshape(2 * n, w, w), flat).reshape(n, 2)
+        quad -= 2.0 * np.sum(b * fit.mbar[chans, cols], axis=2)
+        return fit.kappa * self.slope_sd**2 * np.maximum(quad + fit.sbar, 0.0)
