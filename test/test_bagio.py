@@ -182,6 +182,49 @@ def test_a_few_messages_decode_one_by_one_as_the_blocks_do() -> None:
             decode_buffer(np.frombuffer(b"".join(batch), np.uint8), np.cumsum(ln) - ln, ln, 2)
 
 
+def test_a_batch_of_alike_messages_decodes_as_one_block_as_one_by_one() -> None:
+    """``_decode_uniform`` (one length, byte order and frame_id) equals ``_decode_few``, else declines."""
+    from bridge_shadow.bagio.cdr import UNIFORM_MIN, CdrFormatError, _decode_few, _decode_uniform
+
+    ts = get_typestore()
+    Time, Header = ts.types["builtin_interfaces/msg/Time"], ts.types["std_msgs/msg/Header"]
+    rng = np.random.default_rng(5)
+
+    def wrench(frame: str, little: bool) -> bytes:
+        header = Header(
+            stamp=Time(sec=int(rng.integers(-5, 2**31 - 1)), nanosec=int(rng.integers(0, 10**9))),
+            frame_id=frame,
+        )
+        vec = ts.types["geometry_msgs/msg/Vector3"]
+        w = ts.types["geometry_msgs/msg/Wrench"](
+            force=vec(x=rng.normal(), y=rng.normal(), z=2e5 * rng.random()), torque=vec(x=0.0, y=0.0, z=-1.5)
+        )
+        return bytes(
+            ts.serialize_cdr(ts.types[FORCE_TYPE](header=header, wrench=w), FORCE_TYPE, little_endian=little)
+        )
+
+    for little in (True, False):
+        for frame in ("frc_01", "ü", "a_long_frame_identifier"):
+            raws = [wrench(frame, little) for _ in range(UNIFORM_MIN + 7)]
+            block = _decode_uniform(raws, 6)
+            assert block is not None
+            one_by_one = _decode_few(raws, 6)
+            np.testing.assert_array_equal(block[0], one_by_one[0])  # exact: integer stamps from the bytes
+            assert list(block[1]) == list(one_by_one[1]) == [frame] * len(raws)
+            np.testing.assert_array_equal(block[2], one_by_one[2])  # float64s copied, no arithmetic
+            assert block[2].dtype == np.float64 and block[2].dtype.isnative
+            np.testing.assert_array_equal(decode_stamped_floats(raws, 6)[0], one_by_one[0])
+    raws = [wrench("frc_01", True) for _ in range(UNIFORM_MIN)]
+    for odd in (wrench("frc_02", True), wrench("frc_01", False), wrench("frc_001", True)):
+        mixed = [*raws[:-1], odd]  # another frame_id, byte order, length: not alike
+        assert _decode_uniform(mixed, 6) is None
+        np.testing.assert_array_equal(decode_stamped_floats(mixed, 6)[2], _decode_few(mixed, 6)[2])
+    broken = [r[:20] for r in raws]  # alike, and all too short: declined, then refused as before
+    assert _decode_uniform(broken, 6) is None
+    with pytest.raises(CdrFormatError, match="too short"):
+        decode_stamped_floats(broken, 6)
+
+
 def test_optional_topics_and_missing_topic(tmp_path: Path) -> None:
     data = _data(50)
     with BagOutputWriter(tmp_path / "forces_only") as bag:

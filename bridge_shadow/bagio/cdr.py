@@ -45,6 +45,9 @@ _HEADER_BYTES = 16  # encapsulation + sec + nanosec + string length
 #: Batches of at most this many messages are decoded one by one (``_decode_few``): fewer numpy
 #: calls than the vectorized blocks' fixed ~50 (a live node's drains hold a few messages).
 SMALL_BATCH = 32
+#: From this many messages a batch whose messages differ only in stamp and values is decoded as one
+#: block (``_decode_uniform``): a dozen numpy calls, cheaper than ``_decode_few`` from about ten.
+UNIFORM_MIN = 10
 _NS = 1_000_000_000
 
 
@@ -179,12 +182,45 @@ def decode_stamped_floats(raws: Sequence[bytes], n_floats: int) -> tuple[np.ndar
             inconsistent string length.
 
     """
+    if UNIFORM_MIN <= len(raws):
+        uniform = _decode_uniform(raws, n_floats)
+        if uniform is not None:
+            return uniform
     if len(raws) <= SMALL_BATCH:
         return _decode_few(raws, n_floats)
     lengths = np.fromiter(map(len, raws), dtype=np.int64, count=len(raws))
     starts = np.cumsum(lengths) - lengths
     buf = np.frombuffer(b"".join(raws), dtype=np.uint8)
     return decode_buffer(buf, starts, lengths, n_floats)
+
+
+def _decode_uniform(raws: Sequence[bytes], n_floats: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``decode_stamped_floats`` of messages alike in all but stamp and values, or None.
+
+    Alike: one length, one encapsulation, one frame_id (a topic's messages from one publisher, as a
+    live node drains them). The first message is checked as ``_decode_few`` checks each; the others
+    must repeat its bytes there, so they pass the same checks. A dozen numpy calls whatever the
+    batch, where ``_decode_few`` costs a few microseconds a message.
+    """
+    first = raws[0]
+    size = len(first)
+    if size < _HEADER_BYTES + 8 * n_floats or first[0] != 0 or first[1] > 1:
+        return None
+    order = "<" if first[1] == 1 else ">"
+    slen = struct.unpack_from(order + "I", first, 12)[0]
+    offset = 4 + (12 + slen + 7) // 8 * 8
+    if slen < 1 or offset + 8 * n_floats > size or any(len(r) != size for r in raws):
+        return None
+    rows = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), size)
+    if not (
+        (rows[:, :2] == rows[0, :2]).all() and (rows[:, 12 : 16 + slen] == rows[0, 12 : 16 + slen]).all()
+    ):
+        return None
+    sec = np.ascontiguousarray(rows[:, 4:8]).view(order + "i4").ravel().astype(np.int64)
+    nsec = np.ascontiguousarray(rows[:, 8:12]).view(order + "u4").ravel()
+    values = np.ascontiguousarray(rows[:, offset : offset + 8 * n_floats]).view(order + "f8")
+    frame = first[_HEADER_BYTES:offset].rstrip(b"\0").decode("utf-8", errors="replace")
+    return sec * _NS + nsec, uniform_frames(frame, len(raws)), values.astype(np.float64)
 
 
 def _decode_few(raws: Sequence[bytes], n_floats: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
