@@ -219,6 +219,11 @@ def test_a_batch_of_alike_messages_decodes_as_one_block_as_one_by_one() -> None:
         mixed = [*raws[:-1], odd]  # another frame_id, byte order, length: not alike
         assert _decode_uniform(mixed, 6) is None
         np.testing.assert_array_equal(decode_stamped_floats(mixed, 6)[2], _decode_few(mixed, 6)[2])
+    padded = bytearray(raws[-1])
+    padded[16 + len("frc_01") + 1] = 0xAB  # the alignment byte after the frame_id's NUL
+    mixed = [*raws[:-1], bytes(padded)]  # read one by one up to the floats: not alike either
+    assert _decode_uniform(mixed, 6) is None
+    assert list(decode_stamped_floats(mixed, 6)[1]) == list(_decode_few(mixed, 6)[1])
     broken = [r[:20] for r in raws]  # alike, and all too short: declined, then refused as before
     assert _decode_uniform(broken, 6) is None
     with pytest.raises(CdrFormatError, match="too short"):

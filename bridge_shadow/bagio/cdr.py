@@ -212,9 +212,8 @@ def _decode_uniform(raws: Sequence[bytes], n_floats: int) -> tuple[np.ndarray, n
     if slen < 1 or offset + 8 * n_floats > size or any(len(r) != size for r in raws):
         return None
     rows = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), size)
-    if not (
-        (rows[:, :2] == rows[0, :2]).all() and (rows[:, 12 : 16 + slen] == rows[0, 12 : 16 + slen]).all()
-    ):
+    # the string's length, bytes and padding: the frame_id one by one is read up to the floats
+    if not ((rows[:, :2] == rows[0, :2]).all() and (rows[:, 12:offset] == rows[0, 12:offset]).all()):
         return None
     sec = np.ascontiguousarray(rows[:, 4:8]).view(order + "i4").ravel().astype(np.int64)
     nsec = np.ascontiguousarray(rows[:, 8:12]).view(order + "u4").ravel()
