@@ -7,6 +7,7 @@ to loopback). The bundled bag has 3 force samples per 60 s window, so the tests 
 
 from __future__ import annotations
 
+import os
 import signal
 import tempfile
 from pathlib import Path
@@ -213,6 +214,39 @@ def test_sigterm_writes_checkpoint_and_restart_resumes(short_bag: Path, short_di
     assert inputs["frc_01 used"] == str(direct.used["frc_01"])
     _, comp = diag["bridge_shadow: compensation"]
     assert comp["frc_01 edf"] == f"{direct.spline['frc_01']['edf']:.2f}"
+
+
+def test_a_child_that_ignores_sigint_is_killed_and_the_kill_recorded(tmp_path: Path) -> None:
+    """``NodeProcess.stop``: SIGINT, the grace, then SIGKILL, and ``killed_after_s`` says so."""
+    (tmp_path / "stubborn.py").write_text(
+        "import signal, time\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\nprint('ready', flush=True)\n"
+        "time.sleep(60)\n"
+    )
+    (tmp_path / "polite.py").write_text("import time\nprint('ready', flush=True)\ntime.sleep(60)\n")
+    env = dict(os.environ, PYTHONPATH=str(tmp_path))
+    with NodeProcess(module="stubborn", env=env) as stubborn, NodeProcess(module="polite", env=env) as polite:
+        for child in (stubborn, polite):
+            wait_until(lambda c=child: "ready" in c.output(), TIMEOUT_S, "the child to start")
+        assert stubborn.stop(timeout_s=0.5) == -signal.SIGKILL and stubborn.killed_after_s == 0.5
+        assert polite.stop(timeout_s=10.0) != -signal.SIGKILL and polite.killed_after_s is None
+
+
+def test_a_node_killed_after_the_flush_leaves_the_replay_whole_with_a_warning(
+    short_bag: Path, short_direct, monkeypatch
+) -> None:
+    """Once the flush has answered the replay is complete: a node that will not exit is said, not fatal."""
+    stop = NodeProcess.stop
+
+    def hung(self, sig=signal.SIGINT, timeout_s=10.0):  # the node stops, as if it had to be killed
+        stop(self, sig, timeout_s)
+        self.killed_after_s = timeout_s
+        return -signal.SIGKILL
+
+    monkeypatch.setattr(NodeProcess, "stop", hung)
+    live = run_live(short_bag, overrides=OVERRIDES, timeout_s=TIMEOUT_S)
+    np.testing.assert_allclose(live["posterior"]["mean_m"], short_direct.mean_m, rtol=1e-12, atol=0)
+    assert live["warnings"][:-1] == short_direct.to_json()["warnings"]
+    assert "did not exit within 10 s of SIGINT" in live["warnings"][-1] and "nothing" in live["warnings"][-1]
 
 
 def test_bad_parameter_exits_2_with_one_line() -> None:

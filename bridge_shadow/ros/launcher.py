@@ -55,6 +55,7 @@ class NodeProcess:
         args: arguments after ``python -m module`` (e.g. ``--ros-args -p name:=value``).
         env: the child's environment (loopback discovery, ``ROS_DOMAIN_ID`` of the caller).
         proc: the ``subprocess.Popen`` once started.
+        killed_after_s: the grace ``stop`` gave before it had to SIGKILL the child (None: it exited).
 
     """
 
@@ -73,6 +74,7 @@ class NodeProcess:
         self.env.setdefault("AMENT_PREFIX_PATH", sys.prefix)
         self.env.setdefault("PYTHONUNBUFFERED", "1")
         self.proc: subprocess.Popen[bytes] | None = None
+        self.killed_after_s: float | None = None
         self._log = tempfile.NamedTemporaryFile(prefix="bridge_shadow_node_", suffix=".log", delete=False)
 
     @property
@@ -117,6 +119,7 @@ class NodeProcess:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
+                self.killed_after_s = timeout_s
         return int(self.proc.returncode)
 
     def close(self) -> None:

@@ -464,7 +464,16 @@ def run_live(
                 _plot_live(plots, history, report, node_config, surrogate) if plots is not None else []
             )
             code = node.stop()
-            if code != 0:
+            if node.killed_after_s is not None:
+                # the flush has answered and written the checkpoint, the outputs and history are in:
+                # nothing of the replay is lost, but a node that does not stop is said
+                report["warnings"] = [
+                    *report["warnings"],
+                    f"bridge_shadow_node did not exit within {node.killed_after_s:g} s of SIGINT after the "
+                    "replay's flush and was killed (its flush had answered and written the checkpoint: "
+                    "nothing of this replay is lost)",
+                ]
+            elif code != 0:
                 raise NodeError(f"bridge_shadow_node exited with code {code}: {node.output().strip()[-300:]}")
             records = player.records
         finally:
