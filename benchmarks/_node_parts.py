@@ -60,25 +60,26 @@ def time_closing_drains(node_class: type[ShadowNode] = ShadowNode) -> list[tuple
 
 
 def closing_parts_in_process(
-    params: Sequence[str], streams: Sequence[Sequence[bytes]], temp_every: int, drain_every: int
+    args: Sequence[str], streams: Sequence[Sequence[bytes]], temp_every: int, drain_every: int
 ) -> list[tuple[float, float, float]]:
     """Feed ``streams`` (frc_01, frc_02, air) through one node's callbacks in-process; return the rows.
+
+    ``args``: the node's command line (``--ros-args -p name:=value ...``), read by rclpy as the node
+    process reads it.
 
     Tick ``j`` delivers the air message ``j // temp_every`` when ``j % temp_every == 0``, then
     frc_01 and frc_02 of tick ``j``; the drain timer runs every ``drain_every`` ticks (half-way
     between window ends).
     """
     import rclpy
-    from rclpy.parameter import Parameter
 
     class Timed(ShadowNode):
         pass
 
     rows = time_closing_drains(Timed)
-    rclpy.init()
+    rclpy.init(args=["_node_parts", *args])
     try:
-        overrides = [Parameter(name, value=_value(v)) for name, v in (p.split(":=") for p in params)]
-        node = Timed(parameter_overrides=overrides)
+        node = Timed()
         f1, f2, air = (sub.callback for sub in node._subs)
         for j in range(len(streams[0])):
             if j % temp_every == 0:
@@ -91,15 +92,6 @@ def closing_parts_in_process(
     finally:
         rclpy.try_shutdown()
     return rows
-
-
-def _value(text: str) -> Any:
-    for cast in (int, float):
-        try:
-            return cast(text)
-        except ValueError:
-            pass
-    return text
 
 
 if __name__ == "__main__":

@@ -53,16 +53,23 @@ PARAMS = [
 ]
 
 
-def messages(n_ticks: int, seed: int, tick_ns: int = TICK_NS) -> tuple[list[bytes], list[bytes], list[bytes]]:
-    """Return serialized messages of ``n_ticks + 1`` ticks: two force channels (60 N noise), the air."""
+def stream(n_ticks: int, seed: int, tick_ns: int = TICK_NS) -> tuple[np.ndarray, ...]:
+    """Return ``n_ticks + 1`` ticks: stamps (ns), the two force channels (N, 60 N noise), the air (C)."""
     stamps = T0_NS + np.arange(n_ticks + 1, dtype=np.int64) * tick_ns
     rng = np.random.default_rng(seed)
+    f1 = 2.60e5 + 60.0 * rng.standard_normal(n_ticks + 1)
+    f2 = 2.21e5 + 60.0 * rng.standard_normal(n_ticks + 1)
+    return stamps, f1, f2, 8.0 + 0.5 * np.sin(np.arange(n_ticks + 1) / 3000.0)
+
+
+def messages(n_ticks: int, seed: int, tick_ns: int = TICK_NS) -> tuple[list[bytes], list[bytes], list[bytes]]:
+    """Return ``stream`` serialized: frc_01, frc_02 (``WrenchStamped``), the air (``Temperature``)."""
+    stamps, f1, f2, temp = stream(n_ticks, seed, tick_ns)
     out = []
-    for base, frame in ((2.60e5, "frc_01"), (2.21e5, "frc_02")):
+    for force, frame in ((f1, "frc_01"), (f2, "frc_02")):
         values = np.zeros((n_ticks + 1, 6))
-        values[:, 2] = base + 60.0 * rng.standard_normal(n_ticks + 1)
+        values[:, 2] = force
         out.append(encode_stamped_floats(stamps, frame, values))
-    temp = 8.0 + 0.5 * np.sin(np.arange(n_ticks + 1) / 3000.0)
     out.append(
         encode_stamped_floats(stamps, "air_temperature", np.column_stack([temp, np.zeros(n_ticks + 1)]))
     )
@@ -126,7 +133,7 @@ def parts(args: list[str], seconds: float) -> None:
         env["PYTHONPATH"] = os.pathsep.join(x for x in (here, env.get("PYTHONPATH")) if x)
         lat = run("_node_parts", args, seconds, echo=False, env=env)
         dds = np.array(json.loads(out.read_text())["rows"])[2 * WARMUP :]
-    local = np.array(closing_parts_in_process(PARAMS, messages(n, seed=1), 10, 50))[2 * WARMUP :]
+    local = np.array(closing_parts_in_process(args, messages(n, seed=1), 10, 50))[2 * WARMUP :]
     print(
         f"window-closing drains, ms (latency of the timed run: p50 {np.percentile(lat, 50):.2f}, p99 "
         f"{np.percentile(lat, 99):.2f}):"

@@ -21,7 +21,7 @@ import time
 from typing import Any
 
 import numpy as np
-from live_latency import T0_NS, TICK_NS
+from live_latency import TICK_NS, stream
 
 from bridge_shadow.estimate import Shadow
 from bridge_shadow.estimate.compensation import spline
@@ -29,16 +29,6 @@ from bridge_shadow.estimate.parameters.config import load_config
 from bridge_shadow.model.surrogate_file import load_surrogate
 
 FEW = spline._SCALAR_PATH_MAX
-
-
-def stream(seconds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Stamps (ns), the two force channels (N) and the air (C) of ``live_latency.messages``' stream."""
-    n = int(seconds * 1e9 / TICK_NS)
-    stamps = T0_NS + np.arange(n + 1, dtype=np.int64) * TICK_NS
-    rng = np.random.default_rng(1)
-    f1 = 2.60e5 + 60.0 * rng.standard_normal(n + 1)
-    f2 = 2.21e5 + 60.0 * rng.standard_normal(n + 1)
-    return stamps, f1, f2, 8.0 + 0.5 * np.sin(np.arange(n + 1) / 3000.0)
 
 
 def feed(
@@ -75,7 +65,7 @@ def main() -> None:
     comp = general.compensation
     comp._curve_rows_known = comp._curve_rows_by_channel  # type: ignore[method-assign]
     comp._curve_variance_known = comp._curve_variance_by_channel  # type: ignore[method-assign]
-    data = stream(seconds)
+    data = stream(int(seconds * 1e9 / TICK_NS), seed=1)
     per_window = int(cfg.window_s * 1e9) // TICK_NS
     times: dict[bool, list[float]] = {False: [], True: []}
     for w in range(len(data[0]) // per_window):

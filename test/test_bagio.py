@@ -218,6 +218,7 @@ def test_a_batch_of_alike_messages_decodes_as_one_block_as_one_by_one() -> None:
     for odd in (wrench("frc_02", True), wrench("frc_01", False), wrench("frc_001", True)):
         mixed = [*raws[:-1], odd]  # another frame_id, byte order, length: not alike
         assert _decode_uniform(mixed, 6) is None
+        # float64s copied from the same bytes by both paths, no arithmetic: exact
         np.testing.assert_array_equal(decode_stamped_floats(mixed, 6)[2], _decode_few(mixed, 6)[2])
     padded = bytearray(raws[-1])
     padded[16 + len("frc_01") + 1] = 0xAB  # the alignment byte after the frame_id's NUL

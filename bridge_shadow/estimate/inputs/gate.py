@@ -154,11 +154,7 @@ class TopicGate:
             counts["out_of_range"] += bad
         ok &= in_range
         if self.frame_id is not None and frame_id is not None:
-            if isinstance(frame_id, str):
-                good_frame = np.full(len(stamps), frame_id in (self.frame_id, ""))
-            else:
-                frames = np.asarray(frame_id, dtype=object)
-                good_frame = (frames == self.frame_id) | (frames == "")
+            good_frame = self._good_frames(frame_id, len(stamps))
             bad = int(np.count_nonzero(ok & ~good_frame))
             if bad:
                 counts["frame_id"] += bad
@@ -190,14 +186,12 @@ class TopicGate:
         lo, hi = float(v.min()), float(v.max())  # NaN if any is NaN
         if not (math.isfinite(lo) and math.isfinite(hi) and self.lo <= lo and hi <= self.hi):
             return False
-        if self.frame_id is not None and frame_id is not None:
-            if isinstance(frame_id, str):
-                if frame_id not in (self.frame_id, ""):
-                    return False
-            else:
-                frames = np.asarray(frame_id, dtype=object)
-                if not bool(np.all((frames == self.frame_id) | (frames == ""))):
-                    return False
+        if (
+            self.frame_id is not None
+            and frame_id is not None
+            and not self._good_frames(frame_id, len(v)).all()
+        ):
+            return False
         if self.frozen_ns is not None and (v[0] == self.run_value or bool(np.any(v[1:] == v[:-1]))):
             return False
         assert self.last_ns is not None
@@ -214,6 +208,13 @@ class TopicGate:
             self.run_value, self.run_since_ns, self.run_count = float(v[-1]), int(s[-1]), 1
         self.last_ns, self.last_step_ns = int(s[-1]), int(ds[-1])
         return True
+
+    def _good_frames(self, frame_id: np.ndarray | str, n: int) -> np.ndarray:
+        """Mask of the ``n`` messages whose frame_id is the expected one or empty (unknown)."""
+        if isinstance(frame_id, str):
+            return np.full(n, frame_id in (self.frame_id, ""))
+        frames = np.asarray(frame_id, dtype=object)
+        return (frames == self.frame_id) | (frames == "")
 
     def _frozen(self, s: np.ndarray, v: np.ndarray, frozen_ns: int) -> np.ndarray:
         """Mark the messages that repeat their run's value longer than ``frozen_ns`` after its start.

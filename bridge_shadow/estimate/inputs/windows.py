@@ -563,15 +563,13 @@ class WindowBuffer:
         temp = np.full((1, 2), np.nan)
         age = 0.0
         ts, tv = self.temp.arrays()
-        see = self.temp_first_ns is not None
-        blind = see and (k + 1) * w + self.horizon_ns <= self.temp_first_ns  # no reading visible yet
+        # no reading at all, or none visible yet: the temperature stays NaN and the age 0
+        first = self.temp_first_ns
+        matching = first is not None and (k + 1) * w + self.horizon_ns > first
         for c, (stamps, values) in enumerate(taken):
             rows = np.zeros(len(values), dtype=np.intp)
             force[0, c] = np.bincount(rows, values, minlength=1)[0] / len(values)
-            if not see:
-                continue
-            if blind:
-                temp[0, c] = np.nan
+            if not matching:
                 continue
             matched, dist = self._match(stamps, np.int64(k), ts, tv)
             temp[0, c] = np.bincount(rows, matched, minlength=1)[0] / len(values)
