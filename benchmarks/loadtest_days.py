@@ -44,12 +44,16 @@ four records (every new state creeping more, or only the two after the 10 mm rec
 ``--only pauses`` is a sixth: the later record's logger silent for 1 to 8 minutes while the test
 car stands (``pause_streams``), then the reference record paused too, or the later record twice
 (``more_pause_streams``), and one load cell silent for minutes of the later record
-(``with_silence``).
+(``with_silence``). ``--only sweep`` is a seventh: ``--seeds`` random streams of the two records
+(``twin.real_records.random_streams``: either order, the later record 0.9-72 h on with the air of
+its own or another hour, no change or a common change of 5-40 mm, raised or lowered, with a
+difference between the bearings of up to 10 mm, as the last record, in the middle or after the old
+state), scored as the real study.
 
 Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200]
-        [--only real|twin|continuous|minutes|creep|pauses]
+        [--only real|twin|continuous|minutes|creep|pauses|sweep]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term]
         [--sun-prior MEAN SD] [--sun-fit per_bearing|deck] [--monitor-days N] [--creep FACTOR]
 
@@ -76,7 +80,7 @@ from bridge_shadow.paths import config_file, shared_data_dir
 from bridge_shadow.series import ForceSeries, MonitoringData
 from bridge_shadow.twin.loadtest import LoadTestDay, creeping, load_test_day, scheduled_day
 from bridge_shadow.twin.loadtest_score import score_day, score_stream
-from bridge_shadow.twin.real_records import Piece, build, with_creep, with_silence
+from bridge_shadow.twin.real_records import Piece, build, random_streams, with_creep, with_silence
 
 W = 60 * 10**9
 #: Length of one public record (12 minutes) and a margin, ns.
@@ -234,6 +238,33 @@ def real_study(
     print_streams(results, f"real records, test car {car}, u0 {u0}, {over}", t0, verbose)
     widths = np.array([w for _, _, _, w in results])
     print(f"  final 95 % half-width, median {np.round(np.median(widths, axis=0), 2)} mm")
+
+
+def sweep_study(
+    mapper: Callable[..., list[Any]],
+    n: int,
+    cut_share: float,
+    verbose: bool,
+    car: str = "recorded",
+    over: dict[str, Any] | None = None,
+    u0: str = "model",
+) -> None:
+    """Score ``n`` random streams of the two records; the rates for whole and cut later records apart."""
+    t0 = time.perf_counter()
+    over = over or {}
+    sur = load_surrogate()
+    streams = list(random_streams(n, sur.A, sur.u0, cut_share=cut_share))
+    results = mapper(real_stream, [(name, pieces, car, over, u0) for name, pieces in streams])
+    groups = {
+        "the later record whole": lambda cut: cut is None,
+        "its first minutes (the test car on the bridge at their end)": lambda cut: bool(cut and cut[0] == 0),
+        "its last minutes (the test car on the bridge at their start)": lambda cut: bool(cut and cut[0] > 0),
+    }
+    cuts = [next((p.cut_min for p in pieces if p.cut_min), None) for _, pieces in streams]
+    for title, member in groups.items():
+        part = [r for r, cut in zip(results, cuts, strict=True) if member(cut)]
+        if part:
+            print_streams(part, f"random streams of the two records, {title}, {over}", t0, verbose)
 
 
 def minutes_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
@@ -474,12 +505,13 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument(
         "--only",
-        choices=("real", "twin", "schedule", "continuous", "minutes", "creep", "pauses"),
+        choices=("real", "twin", "schedule", "continuous", "minutes", "creep", "pauses", "sweep"),
         help="one study (continuous: three sunny days of monitoring, sun term off and on; minutes: the "
         "two records minutes apart or cut short, in 30 s, 1 min and 2 min windows; creep: the new "
         "states' reactions creeping after the lowering, 1 to 4 times the 10 mm record's own; pauses: a "
         "logger pause of minutes inside the later record; schedule: the twin's day cut to 2022-04-11's "
-        "own recordings, with its lowering and three-hour ambient records; none of these by default)",
+        "own recordings, with its lowering and three-hour ambient records; sweep: --seeds random streams "
+        "of the two records, any order, spacing and step; none of these by default)",
     )
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
     ap.add_argument(
@@ -532,6 +564,13 @@ def main() -> None:
         default=0.2,
         help="schedule study: force samples per second per channel (default 0.2; the real 100)",
     )
+    ap.add_argument(
+        "--cut-share",
+        type=float,
+        default=0.25,
+        help="sweep study: share of the later records cut to their first or last 6-10 minutes (default "
+        "0.25; the rates are printed for whole and cut records apart)",
+    )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
     over: dict[str, Any] = {}
@@ -563,6 +602,8 @@ def main() -> None:
             creep_study(mapper, over)
         if args.only == "pauses":
             pause_study(mapper, over)
+        if args.only == "sweep":
+            sweep_study(mapper, args.seeds, args.cut_share, args.verbose, args.car, over, args.u0)
 
 
 if __name__ == "__main__":

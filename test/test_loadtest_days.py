@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -21,7 +22,7 @@ from bridge_shadow.estimate.result import ReplayResult
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.series import MonitoringData
 from bridge_shadow.twin.loadtest_score import score_stream
-from bridge_shadow.twin.real_records import Piece, Scenario, build, with_creep, with_silence
+from bridge_shadow.twin.real_records import Piece, Scenario, build, random_streams, with_creep, with_silence
 
 W = 60 * 10**9
 #: (hour the later record is placed at, hour whose air temperature it gets; None: its own)
@@ -135,6 +136,38 @@ def test_the_two_records_in_either_order_end_at_the_right_state(munich_data: Pat
     scores = [r for _, r in results]
     assert all(r["event"] for r in scores)
     assert all(r["within"] for r in scores)
+
+
+def _random_case(item: tuple[str, list[Piece]]) -> tuple[str, Any]:
+    """One random stream, scored (a Dask task); the score, or what failed."""
+    from bridge_shadow.paths import shared_data_dir
+
+    name, pieces = item
+    surrogate = load_surrogate()
+    sc = build(shared_data_dir() / "Settlements", surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    return name, score_stream(sc, res)
+
+
+@pytest.mark.realdata
+def test_random_streams_of_the_two_records_lose_nothing_and_end_at_the_truth(engine) -> None:
+    """30 random streams of the two records: every change an event, nothing lost, the truth held.
+
+    ``random_streams``: any order, 0.9-72 h apart, another hour's air, changes of 5-40 mm raised or
+    lowered with up to 10 mm between the bearings, last, in the middle or after the old state. In
+    every one: every change an event at its record, no window of a changed record lost, the
+    final estimate within 10 % (or 1 mm) and its 95 % interval holding it. Not asserted: that no
+    extra event comes. 9 of 1,000 such streams (``benchmarks/loadtest_days.py --only sweep --seeds
+    1000``) report a second, +0.1 mm event after the test car when the reference record follows
+    the lowered one with the morning's air: the compensation fitted on the first record takes
+    that record's own creep for temperature (README, "Where it falls short").
+    """
+    surrogate = load_surrogate()
+    results = engine(_random_case, list(random_streams(30, surrogate.A, surrogate.u0, seed=1)))
+    failed = [
+        f"{name}: {s}" for name, s in results if s.missed or s.lost_windows or not s.within or not s.covered
+    ]
+    assert not failed, "\n".join(failed)
 
 
 @pytest.mark.realdata

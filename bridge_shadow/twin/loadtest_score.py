@@ -10,7 +10,7 @@ within 10 % of the truth, and whether the 95 % interval holds it (a rate over se
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import Any
 
@@ -104,6 +104,8 @@ class StreamScore:
         within: the final estimate within 10 % of the truth, or 1 mm (per support).
         covered: the final 95 % interval holds the truth (per support).
         error_m: (2,) final estimate minus truth, m; sigma_m: (2,) its published sd, m.
+        missed: changed records (their first used window) without an event there, whether or not
+            an unconfirmed change reports them.
 
     """
 
@@ -115,6 +117,7 @@ class StreamScore:
     covered: bool
     error_m: np.ndarray
     sigma_m: np.ndarray
+    missed: list[int] = field(default_factory=list)
 
 
 def score_stream(sc: Any, res: ReplayResult, window_s: float = 60.0) -> StreamScore:
@@ -148,4 +151,5 @@ def score_stream(sc: Any, res: ReplayResult, window_s: float = 60.0) -> StreamSc
         bool(np.all(np.abs(err) <= 1.96 * sd)),
         err,
         sd,
+        sorted(set(want) - set(events)),
     )

@@ -18,6 +18,7 @@ bearings for the lowered record) plus the added step.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -30,10 +31,13 @@ from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 __all__ = [
     "CREEP_N_PER_S",
     "RECORDS",
+    "SWEEP_MIN_CHANGE_M",
+    "SWEEP_MIN_LOAD_SHARE",
     "Piece",
     "Scenario",
     "build",
     "load_records",
+    "random_streams",
     "with_creep",
     "with_silence",
 ]
@@ -194,3 +198,75 @@ def with_silence(
         gone = (c == channel) & (t >= start_ns + a_min * 60 * NS) & (t < start_ns + b_min * 60 * NS)
         forces[ch] = ForceSeries(t[~gone], s.force_n[~gone], s.frame_id[~gone])
     return MonitoringData(forces, data.temperature)
+
+
+#: Hours of the day's air-temperature record a 12-minute copy can take its temperature from.
+_TEMP_WINDOWS = tuple((a, b - 0.25) for a, b in Scenario.TEMPERATURE_HOURS)
+#: ``random_streams``' smallest change of state: a change the size of the model's own error
+#: between the two real records (5-7 kN per bearing) has no settlement truth.
+SWEEP_MIN_CHANGE_M = 0.005
+#: ``random_streams`` stays where both bearings keep at least this share of their dead load (``u0``): the
+#: two bearings of the support are stiff against each other (10 mm between them moves 200 kN),
+#: and a state beyond lift-off is outside the linear model (the gate then rejects the cell's
+#: negative readings and says so: ``out_of_range``, a warning naming a lifted bearing).
+SWEEP_MIN_LOAD_SHARE = 0.25
+
+
+def random_streams(
+    n: int, A: np.ndarray, u0: np.ndarray, seed: int = 0, cut_share: float = 0.0
+) -> Iterator[tuple[str, list[Piece]]]:
+    """Yield ``n`` random streams (name, pieces) of the two records: any order, spacing and step.
+
+    Each draws the first and later record, the later one's start log-uniform in 0.9-72 h, the air
+    temperature of its own hour (where the day's file has it) or of a random hour, and its change
+    of state against the first: none (one in six, only when both are the same record), or a common
+    settlement of 5-40 mm (one in five raised) with, one in three, a difference of up to 10 mm
+    between the bearings, added through the calibrated A, as long as both bearings keep a quarter
+    of their dead load (``SWEEP_MIN_LOAD_SHARE``); a share ``cut_share`` of the later records cut
+    to their first or last 6-10 minutes (the test car then on the bridge at the cut's end or
+    start). The new state is the last record, in the middle
+    (again 1-1.5 h later), or after a record of the old state. ``A`` (2, 2) N/m and ``u0`` (2,) N
+    are the surrogate's (the step's forces, the dead load).
+    """
+    rng = np.random.default_rng(seed)
+    A, u0 = np.asarray(A, float), np.asarray(u0, float)
+    i = 0
+    while i < n:
+        first, later = (str(x) for x in rng.choice(["ref", "lowered"], 2))
+        at = float(np.exp(rng.uniform(np.log(0.9), np.log(72.0))))
+        own = any(a <= at <= b for a, b in _TEMP_WINDOWS)
+        if own and rng.random() < 0.5:
+            temp_at = None
+        else:
+            a, b = _TEMP_WINDOWS[rng.integers(len(_TEMP_WINDOWS))]
+            temp_at = float(rng.uniform(a, b))
+        if first == later and rng.random() < 1 / 6:
+            change = np.zeros(2)
+        else:
+            common = rng.uniform(SWEEP_MIN_CHANGE_M, 0.04) * (1 if rng.random() < 0.2 else -1)
+            diff = rng.uniform(-0.01, 0.01) if rng.random() < 1 / 3 else 0.0
+            change = common + np.array([diff / 2, -diff / 2])
+            if np.max(np.abs(change)) < SWEEP_MIN_CHANGE_M:
+                change *= SWEEP_MIN_CHANGE_M / np.max(np.abs(change))
+        if np.any(u0 + A @ (np.asarray(RECORDS[first][1]) + change) < SWEEP_MIN_LOAD_SHARE * u0):
+            continue  # beyond lift-off (SWEEP_MIN_LOAD_SHARE): drawn again
+        step = tuple(float(x) for x in np.subtract(RECORDS[first][1], RECORDS[later][1]) + change)
+        cut = None
+        if rng.random() < cut_share:  # its first or last 6-10 minutes only
+            keep = float(rng.uniform(6.0, 10.0))
+            cut = (0.0, keep) if rng.random() < 0.5 else (13.0 - keep, 13.0)
+        new = Piece(later, at, step, temp_at, cut)
+        layout = ("last", "middle", "old between")[rng.integers(3)]
+        d = np.round(1e3 * change, 1)
+        temp = "own" if temp_at is None else f"{temp_at:.2f} h"
+        part = "" if cut is None else f" min {cut[0]:.1f}-{cut[1]:.1f}"
+        name = f"#{i} {first} > {later}{part} {d} mm at {at:.2f} h (air {temp}), {layout}"
+        if layout == "last":
+            yield name, [Piece(first, 0.0), new]
+        elif layout == "middle":
+            again_at = at + float(rng.uniform(1.0, 1.5))
+            a, b = _TEMP_WINDOWS[rng.integers(len(_TEMP_WINDOWS))]
+            yield name, [Piece(first, 0.0), new, Piece(later, again_at, step, float(rng.uniform(a, b)))]
+        else:
+            yield name, [Piece(first, 0.0), Piece(first, 0.45), new]
+        i += 1
