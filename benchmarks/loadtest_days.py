@@ -48,7 +48,8 @@ car stands (``pause_streams``), then the reference record paused too, or the lat
 (``twin.real_records.random_streams``: either order, the later record 0.9-72 h on with the air of
 its own or another hour, no change or a common change of 5-40 mm, raised or lowered, with a
 difference between the bearings of up to 10 mm, as the last record, in the middle or after the old
-state), scored as the real study.
+state; ``--cut-share`` of them cut to their first minutes or to begin at minute 3-7, under the
+parked test car), scored as the real study.
 
 Usage::
 
@@ -231,34 +232,29 @@ def real_study(
     car: str = "recorded",
     over: dict[str, Any] | None = None,
     u0: str = "model",
+    sweep: tuple[int, float] | None = None,
 ) -> None:
+    """Score the grid of real-record streams, or ``sweep`` = (n, cut share) random ones (``random_streams``).
+
+    The sweep's rates are printed for whole and cut later records apart.
+    """
     t0 = time.perf_counter()
     over = over or {}
-    results = mapper(real_stream, [(name, pieces, car, over, u0) for name, pieces in real_streams()])
-    print_streams(results, f"real records, test car {car}, u0 {u0}, {over}", t0, verbose)
-    widths = np.array([w for _, _, _, w in results])
-    print(f"  final 95 % half-width, median {np.round(np.median(widths, axis=0), 2)} mm")
-
-
-def sweep_study(
-    mapper: Callable[..., list[Any]],
-    n: int,
-    cut_share: float,
-    verbose: bool,
-    car: str = "recorded",
-    over: dict[str, Any] | None = None,
-    u0: str = "model",
-) -> None:
-    """Score ``n`` random streams of the two records; the rates for whole and cut later records apart."""
-    t0 = time.perf_counter()
-    over = over or {}
-    sur = load_surrogate()
-    streams = list(random_streams(n, sur.A, sur.u0, cut_share=cut_share))
+    if sweep is None:
+        streams = list(real_streams())
+    else:
+        sur = load_surrogate()
+        streams = list(random_streams(sweep[0], sur.A, sur.u0, cut_share=sweep[1]))
     results = mapper(real_stream, [(name, pieces, car, over, u0) for name, pieces in streams])
+    if sweep is None:
+        print_streams(results, f"real records, test car {car}, u0 {u0}, {over}", t0, verbose)
+        widths = np.array([w for _, _, _, w in results])
+        print(f"  final 95 % half-width, median {np.round(np.median(widths, axis=0), 2)} mm")
+        return
     groups = {
         "the later record whole": lambda cut: cut is None,
-        "its first minutes (the test car on the bridge at their end)": lambda cut: bool(cut and cut[0] == 0),
-        "its last minutes (the test car on the bridge at their start)": lambda cut: bool(cut and cut[0] > 0),
+        "cut to its first minutes (ending under the test car)": lambda cut: bool(cut and cut[0] == 0),
+        "cut to begin at minute 3-7 (under the test car)": lambda cut: bool(cut and cut[0] > 0),
     }
     cuts = [next((p.cut_min for p in pieces if p.cut_min), None) for _, pieces in streams]
     for title, member in groups.items():
@@ -568,8 +564,8 @@ def main() -> None:
         "--cut-share",
         type=float,
         default=0.25,
-        help="sweep study: share of the later records cut to their first or last 6-10 minutes (default "
-        "0.25; the rates are printed for whole and cut records apart)",
+        help="sweep study: share of the later records cut to their first 6-10 minutes or to begin at "
+        "minute 3-7 (default 0.25; the rates are printed for whole and cut records apart)",
     )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
@@ -603,7 +599,7 @@ def main() -> None:
         if args.only == "pauses":
             pause_study(mapper, over)
         if args.only == "sweep":
-            sweep_study(mapper, args.seeds, args.cut_share, args.verbose, args.car, over, args.u0)
+            real_study(mapper, args.verbose, args.car, over, args.u0, (args.seeds, args.cut_share))
 
 
 if __name__ == "__main__":

@@ -205,10 +205,10 @@ _TEMP_WINDOWS = tuple((a, b - 0.25) for a, b in Scenario.TEMPERATURE_HOURS)
 #: ``random_streams``' smallest change of state: a change the size of the model's own error
 #: between the two real records (5-7 kN per bearing) has no settlement truth.
 SWEEP_MIN_CHANGE_M = 0.005
-#: ``random_streams`` stays where both bearings keep at least this share of their dead load (``u0``): the
-#: two bearings of the support are stiff against each other (10 mm between them moves 200 kN),
-#: and a state beyond lift-off is outside the linear model (the gate then rejects the cell's
-#: negative readings and says so: ``out_of_range``, a warning naming a lifted bearing).
+#: ``random_streams`` stays where both bearings keep at least this share of their dead load
+#: (``u0``): the two bearings of the support are stiff against each other (10 mm between them
+#: moves 200 kN), and a state beyond lift-off is outside the linear model (the gate then rejects
+#: the cell's negative readings and says so: ``out_of_range``, a warning naming a lifted bearing).
 SWEEP_MIN_LOAD_SHARE = 0.25
 
 
@@ -223,10 +223,10 @@ def random_streams(
     settlement of 5-40 mm (one in five raised) with, one in three, a difference of up to 10 mm
     between the bearings, added through the calibrated A, as long as both bearings keep a quarter
     of their dead load (``SWEEP_MIN_LOAD_SHARE``); a share ``cut_share`` of the later records cut
-    to their first or last 6-10 minutes (the test car then on the bridge at the cut's end or
-    start). The new state is the last record, in the middle
-    (again 1-1.5 h later), or after a record of the old state. ``A`` (2, 2) N/m and ``u0`` (2,) N
-    are the surrogate's (the step's forces, the dead load).
+    to their first 6-10 minutes or to begin at minute 3-7 (the 12-minute records' test car then on
+    the bridge at the cut's end or start). The new state is the last record, in the middle (again
+    1-1.5 h later), or after a record of the old state. ``A`` (2, 2) N/m and ``u0`` (2,) N are the
+    surrogate's (the step's forces, the dead load).
     """
     rng = np.random.default_rng(seed)
     A, u0 = np.asarray(A, float), np.asarray(u0, float)
@@ -252,7 +252,7 @@ def random_streams(
             continue  # beyond lift-off (SWEEP_MIN_LOAD_SHARE): drawn again
         step = tuple(float(x) for x in np.subtract(RECORDS[first][1], RECORDS[later][1]) + change)
         cut = None
-        if rng.random() < cut_share:  # its first or last 6-10 minutes only
+        if rng.random() < cut_share:  # its first 6-10 minutes, or from minute 3-7 on
             keep = float(rng.uniform(6.0, 10.0))
             cut = (0.0, keep) if rng.random() < 0.5 else (13.0 - keep, 13.0)
         new = Piece(later, at, step, temp_at, cut)
