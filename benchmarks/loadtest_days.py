@@ -49,12 +49,14 @@ car stands (``pause_streams``), then the reference record paused too, or the lat
 its own or another hour, no change or a common change of 5-40 mm, raised or lowered, with a
 difference between the bearings of up to 10 mm, as the last record, in the middle or after the old
 state; ``--cut-share`` of them cut to their first minutes or to begin at minute 3-7, under the
-parked test car), scored as the real study.
+parked test car), scored as the real study. ``--only inside`` is an eighth: ``--seeds`` random
+streams with one or two settlements of 3-20 mm inside the later record
+(``twin.real_records.random_inside_streams``).
 
 Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200]
-        [--only real|twin|continuous|minutes|creep|pauses|sweep]
+        [--only real|twin|continuous|minutes|creep|pauses|sweep|inside]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term]
         [--sun-prior MEAN SD] [--sun-fit per_bearing|deck] [--monitor-days N] [--creep FACTOR]
 
@@ -81,7 +83,14 @@ from bridge_shadow.paths import config_file, shared_data_dir
 from bridge_shadow.series import ForceSeries, MonitoringData
 from bridge_shadow.twin.loadtest import LoadTestDay, creeping, load_test_day, scheduled_day
 from bridge_shadow.twin.loadtest_score import score_day, score_stream
-from bridge_shadow.twin.real_records import Piece, build, random_streams, with_creep, with_silence
+from bridge_shadow.twin.real_records import (
+    Piece,
+    build,
+    random_inside_streams,
+    random_streams,
+    with_creep,
+    with_silence,
+)
 
 W = 60 * 10**9
 #: Length of one public record (12 minutes) and a margin, ns.
@@ -242,6 +251,12 @@ def real_study(
     over = over or {}
     if sweep is None:
         streams = list(real_streams())
+    elif sweep[1] < 0:  # the settlements inside the later record
+        sur = load_surrogate()
+        streams = list(random_inside_streams(sweep[0], sur.A, sur.u0))
+        results = mapper(real_stream, [(name, pieces, car, over, u0) for name, pieces in streams])
+        print_streams(results, f"settlements inside a record, {over}", t0, verbose)
+        return
     else:
         sur = load_surrogate()
         streams = list(random_streams(sweep[0], sur.A, sur.u0, cut_share=sweep[1]))
@@ -501,13 +516,14 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument(
         "--only",
-        choices=("real", "twin", "schedule", "continuous", "minutes", "creep", "pauses", "sweep"),
+        choices=("real", "twin", "schedule", "continuous", "minutes", "creep", "pauses", "sweep", "inside"),
         help="one study (continuous: three sunny days of monitoring, sun term off and on; minutes: the "
         "two records minutes apart or cut short, in 30 s, 1 min and 2 min windows; creep: the new "
         "states' reactions creeping after the lowering, 1 to 4 times the 10 mm record's own; pauses: a "
         "logger pause of minutes inside the later record; schedule: the twin's day cut to 2022-04-11's "
         "own recordings, with its lowering and three-hour ambient records; sweep: --seeds random streams "
-        "of the two records, any order, spacing and step; none of these by default)",
+        "of the two records, any order, spacing and step; inside: --seeds random streams with one or two "
+        "settlements inside the later record; none of these by default)",
     )
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
     ap.add_argument(
@@ -598,6 +614,8 @@ def main() -> None:
             creep_study(mapper, over)
         if args.only == "pauses":
             pause_study(mapper, over)
+        if args.only == "inside":
+            real_study(mapper, args.verbose, args.car, over, args.u0, (args.seeds, -1.0))
         if args.only == "sweep":
             real_study(mapper, args.verbose, args.car, over, args.u0, (args.seeds, args.cut_share))
 

@@ -37,6 +37,7 @@ __all__ = [
     "Scenario",
     "build",
     "load_records",
+    "random_inside_streams",
     "random_streams",
     "with_creep",
     "with_silence",
@@ -269,4 +270,51 @@ def random_streams(
             yield name, [Piece(first, 0.0), new, Piece(later, again_at, step, float(rng.uniform(a, b)))]
         else:
             yield name, [Piece(first, 0.0), Piece(first, 0.45), new]
+        i += 1
+
+
+def random_inside_streams(
+    n: int, A: np.ndarray, u0: np.ndarray, seed: int = 0
+) -> Iterator[tuple[str, list[Piece]]]:
+    """Yield ``n`` random streams (name, pieces) with one or two settlements inside the later record.
+
+    The first record whole; the same record again 1-72 h on, in the same state, with the air of a
+    random hour (the other record there would differ from it by the model's error, not by a
+    settlement: ``SWEEP_MIN_CHANGE_M``) and, from one or two random minutes (1-11, at least two
+    apart), further changes of 3-20 mm each, lowered (four in five) or raised, a third with up to
+    a third of it between the bearings, added through ``A`` to the rest of the record (the
+    record's pieces share its placement: one recording, the step while it runs, the test car's
+    minutes as they were). States beyond
+    ``SWEEP_MIN_LOAD_SHARE`` of the dead load are drawn again.
+    """
+    rng = np.random.default_rng(seed)
+    A, u0 = np.asarray(A, float), np.asarray(u0, float)
+    i = 0
+    while i < n:
+        first = later = str(rng.choice(["ref", "lowered"]))
+        at = float(np.exp(rng.uniform(np.log(1.0), np.log(72.0))))
+        a, b = _TEMP_WINDOWS[rng.integers(len(_TEMP_WINDOWS))]
+        temp_at = float(rng.uniform(a, b))
+        n_steps = 1 + int(rng.random() < 0.5)
+        minutes = np.sort(rng.choice(np.arange(1, 12), n_steps, replace=False)).tolist()
+        if n_steps == 2 and minutes[1] - minutes[0] < 2:
+            continue
+        state = np.zeros(2)  # the later record begins in the first one's state
+        steps, sizes = [state.copy()], []
+        for _ in minutes:
+            size = rng.uniform(0.003, 0.02) * (1 if rng.random() < 0.2 else -1)
+            diff = rng.uniform(-abs(size), abs(size)) / 3 if rng.random() < 1 / 3 else 0.0
+            change = size + np.array([diff / 2, -diff / 2])
+            state = state + change
+            steps.append(state.copy())
+            sizes.append(np.round(1e3 * change, 1).tolist())
+        truths = [np.asarray(RECORDS[later][1]) + st for st in steps]
+        if any(np.any(u0 + A @ t < SWEEP_MIN_LOAD_SHARE * u0) for t in truths):
+            continue
+        bounds = [0.0, *map(float, minutes), 13.0]
+        pieces = [Piece(first, 0.0)]
+        for k, st in enumerate(steps):
+            pieces.append(Piece(later, at, tuple(map(float, st)), temp_at, (bounds[k], bounds[k + 1])))
+        name = f"#{i} {first} again at {at:.2f} h (air {temp_at:.2f} h), {sizes} mm from minutes {minutes}"
+        yield name, pieces
         i += 1
