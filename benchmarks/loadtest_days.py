@@ -241,41 +241,42 @@ def real_study(
     car: str = "recorded",
     over: dict[str, Any] | None = None,
     u0: str = "model",
-    sweep: tuple[int, float] | None = None,
+    groups: dict[str, list[tuple[str, list[Piece]]]] | None = None,
 ) -> None:
-    """Score the grid of real-record streams, or ``sweep`` = (n, cut share) random ones (``random_streams``).
-
-    The sweep's rates are printed for whole and cut later records apart.
-    """
+    """Score the grid of real-record streams, or the streams of ``groups`` (title -> streams) apart."""
     t0 = time.perf_counter()
     over = over or {}
-    if sweep is None:
-        streams = list(real_streams())
-    elif sweep[1] < 0:  # the settlements inside the later record
-        sur = load_surrogate()
-        streams = list(random_inside_streams(sweep[0], sur.A, sur.u0))
-        results = mapper(real_stream, [(name, pieces, car, over, u0) for name, pieces in streams])
-        print_streams(results, f"settlements inside a record, {over}", t0, verbose)
-        return
-    else:
-        sur = load_surrogate()
-        streams = list(random_streams(sweep[0], sur.A, sur.u0, cut_share=sweep[1]))
-    results = mapper(real_stream, [(name, pieces, car, over, u0) for name, pieces in streams])
-    if sweep is None:
+    if groups is None:
+        results = mapper(real_stream, [(name, pieces, car, over, u0) for name, pieces in real_streams()])
         print_streams(results, f"real records, test car {car}, u0 {u0}, {over}", t0, verbose)
         widths = np.array([w for _, _, _, w in results])
         print(f"  final 95 % half-width, median {np.round(np.median(widths, axis=0), 2)} mm")
         return
-    groups = {
-        "the later record whole": lambda cut: cut is None,
-        "cut to its first minutes (ending under the test car)": lambda cut: bool(cut and cut[0] == 0),
-        "cut to begin at minute 3-7 (under the test car)": lambda cut: bool(cut and cut[0] > 0),
-    }
-    cuts = [next((p.cut_min for p in pieces if p.cut_min), None) for _, pieces in streams]
-    for title, member in groups.items():
-        part = [r for r, cut in zip(results, cuts, strict=True) if member(cut)]
+    items = [
+        (title, (name, pieces, car, over, u0))
+        for title, streams in groups.items()
+        for name, pieces in streams
+    ]
+    results = mapper(real_stream, [item for _, item in items])
+    for title in groups:
+        part = [r for r, (t, _) in zip(results, items, strict=True) if t == title]
         if part:
-            print_streams(part, f"random streams of the two records, {title}, {over}", t0, verbose)
+            print_streams(part, f"{title}, {over}", t0, verbose)
+
+
+def sweep_groups(n: int, cut_share: float) -> dict[str, list[tuple[str, list[Piece]]]]:
+    """``random_streams`` by how the later record is cut (whole, its first minutes, from minute 3-7)."""
+    sur = load_surrogate()
+    groups: dict[str, list[tuple[str, list[Piece]]]] = {
+        "random streams of the two records, the later record whole": [],
+        "random streams of the two records, cut to its first minutes (ending under the test car)": [],
+        "random streams of the two records, cut to begin at minute 3-7 (under the test car)": [],
+    }
+    titles = list(groups)
+    for name, pieces in random_streams(n, sur.A, sur.u0, cut_share=cut_share):
+        cut = next((p.cut_min for p in pieces if p.cut_min), None)
+        groups[titles[0 if cut is None else 1 if cut[0] == 0 else 2]].append((name, pieces))
+    return groups
 
 
 def minutes_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
@@ -615,9 +616,13 @@ def main() -> None:
         if args.only == "pauses":
             pause_study(mapper, over)
         if args.only == "inside":
-            real_study(mapper, args.verbose, args.car, over, args.u0, (args.seeds, -1.0))
+            sur = load_surrogate()
+            inside = {"settlements inside a record": list(random_inside_streams(args.seeds, sur.A, sur.u0))}
+            real_study(mapper, args.verbose, args.car, over, args.u0, inside)
         if args.only == "sweep":
-            real_study(mapper, args.verbose, args.car, over, args.u0, (args.seeds, args.cut_share))
+            real_study(
+                mapper, args.verbose, args.car, over, args.u0, sweep_groups(args.seeds, args.cut_share)
+            )
 
 
 if __name__ == "__main__":

@@ -348,7 +348,7 @@ def test_output_writer_messages_deserialize(tmp_path: Path, storage: str) -> Non
     assert [d.label for d in msgs[MEAN_TOPIC].layout.dim] == ["support"]
     c = msgs[COVARIANCE_TOPIC]
     assert [(d.label, d.size, d.stride) for d in c.layout.dim] == [("row", 2, 4), ("col", 2, 2)]
-    np.testing.assert_array_equal(np.asarray(c.data).reshape(2, 2), cov)
+    np.testing.assert_array_equal(np.asarray(c.data).reshape(2, 2), cov)  # written, read back: a copy
     (status,) = msgs[DIAGNOSTICS_TOPIC].status
     assert (status.level, status.message, status.values[0].key, status.values[0].value) == (
         1,

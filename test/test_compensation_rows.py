@@ -57,6 +57,7 @@ def test_a_row_without_temperature_goes_down_the_channel_loop(fitted: Shadow) ->
     assert (i0 < 0).sum() == 2
     rows = comp.curve_rows(fit, temps, i0, bv)
     var = comp.curve_variance(fit, i0, bv)
+    # exact: a channel without a temperature is set to 0, not computed
     assert rows[1, 0] == 0.0 and rows[2, 1] == 0.0 and var[1, 0] == 0.0 and var[2, 1] == 0.0
     known = comp.curve_rows(fit, temps[:1], i0[:1], bv[:1])
     np.testing.assert_allclose(rows[:1], known, rtol=1e-15, atol=0.0)

@@ -24,7 +24,7 @@ def test_rule_from_the_fe_surrogate_and_the_override() -> None:
         np.testing.assert_allclose(both, 14.1e-3, rtol=0.01)
     np.testing.assert_allclose(Shadow(ShadowConfig(), sur).prior_sigma_m, one, rtol=1e-12)
     paper = Shadow(ShadowConfig(prior_sigma_m=[3e-4, 3e-4]), sur)
-    assert (
+    assert (  # exact: the configured values passed through
         np.array_equal(paper.prior_sigma_m, [3e-4, 3e-4]) and paper.prior_info()["source"] == "prior_sigma_m"
     )
     with pytest.raises(ConfigError):

@@ -61,7 +61,7 @@ def test_a_bag_appears_whole_or_not_at_all(tmp_path: Path) -> None:
     (orphan / "bag").mkdir(parents=True)
     extra = {"truth.yaml": "a: 1\n"}
     write_monitoring(tmp_path / "bag", _data(level=3.0e5), overwrite=True, extra_files=extra)
-    np.testing.assert_array_equal(read_monitoring(old).forces["frc_01"].force_n, 3.0e5)
+    np.testing.assert_array_equal(read_monitoring(old).forces["frc_01"].force_n, 3.0e5)  # written, read back
     assert (tmp_path / "bag" / "truth.yaml").read_text() == "a: 1\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bag"]
     with pytest.raises(BagExistsError):

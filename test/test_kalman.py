@@ -86,7 +86,7 @@ def test_nonfinite_and_outlier_measurements_are_gated() -> None:
     assert f.update(np.array([np.nan, 1.0]), SIGMA_E).reason == "nonfinite"
     assert f.update(np.array([1.0, np.inf]), SIGMA_E).reason == "nonfinite"
     assert f.update(np.array([1e6, -1e6]), SIGMA_E).reason == "outlier"
-    assert np.array_equal(f.x, before[0]) and np.array_equal(f.P, before[1])
+    assert np.array_equal(f.x, before[0]) and np.array_equal(f.P, before[1])  # exact: untouched copies
     assert f.update(np.array([100.0, -50.0]), SIGMA_E).accepted
 
 

@@ -63,4 +63,4 @@ def test_support_spring_leaves_u0_and_an_absent_spring_has_no_sensitivity(case) 
     np.testing.assert_array_equal(derivs["support_spring_south"].u0, 0.0)  # set, not computed (adjoint)
     rigid = cfg.with_overrides({"support_spring_north": np.inf})
     d = parameter_derivatives(rigid, base, ("support_spring_north",), "coarse")["support_spring_north"]
-    assert np.all(d.A == 0.0) and np.isinf(d.value)
+    assert np.all(d.A == 0.0) and np.isinf(d.value)  # set, not computed: an absent spring

@@ -47,7 +47,7 @@ def test_sweep_interpolates_the_fe_between_its_points(swept) -> None:
     cfg, surrogate, sweeps = swept
     sw = sweeps[NAME]
     # exact at the built value and at a solved point
-    assert np.all(sw.change(1.6e9)[0] == 0.0)
+    assert np.all(sw.change(1.6e9)[0] == 0.0)  # exact: the same spline at the same point, less itself
     k = 2
     change = sw.change(sw.values[k])[0]
     np.testing.assert_allclose(surrogate.A.ravel() + change[:4], sw.A[k].ravel(), rtol=1e-9)

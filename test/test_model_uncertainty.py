@@ -57,7 +57,7 @@ def test_the_float_hot_path_equals_the_matrix_formula(kind: str) -> None:
 
 
 def test_no_model_uncertainty_adds_nothing_and_round_trips(tmp_path: Path) -> None:
-    assert np.all(Surrogate(A, U0).model_covariance(np.ones(2)) == 0.0)
+    assert np.all(Surrogate(A, U0).model_covariance(np.ones(2)) == 0.0)  # exact: no terms to add
     s = Surrogate(A, U0, model_cov=_cov(np.random.default_rng(1)))
     back = load_surrogate(save_surrogate(s, tmp_path / "s.yaml"))
     np.testing.assert_allclose(back.model_cov, s.model_cov, rtol=1e-12)

@@ -46,7 +46,7 @@ def test_the_creep_coefficient_follows_b7_and_is_a_few_percent_in_the_first_hour
     for t_s in (60.0, 720.0, 3600.0, 86400.0):
         t = t_s / 86400.0
         assert creep_coefficient(t_s) == pytest.approx(RELAXATION_PHI0 * (t / (BETA_H_DAYS + t)) ** 0.3)
-    assert creep_coefficient(0.0) == 0.0
+    assert creep_coefficient(0.0) == 0.0  # exact: 0 ** 0.3
     assert 0.01 < creep_coefficient(60.0) < creep_coefficient(720.0) < creep_coefficient(3600.0) < 0.05
 
 
@@ -57,4 +57,4 @@ def test_the_variance_lies_along_the_change_only() -> None:
     assert np.linalg.matrix_rank(m, tol=1e-9 * a) == 1
     rho = creep_coefficient(720.0)
     np.testing.assert_allclose(m @ np.array(change), rho**2 * np.dot(change, change) * np.array(change))
-    assert relaxation_variance(change, 720.0, 0.0) == (0.0, 0.0, 0.0)
+    assert relaxation_variance(change, 720.0, 0.0) == (0.0, 0.0, 0.0)  # exact: phi_0 = 0 scales to 0

@@ -213,6 +213,11 @@ SWEEP_MIN_CHANGE_M = 0.005
 SWEEP_MIN_LOAD_SHARE = 0.25
 
 
+def _near_lift_off(A: np.ndarray, u0: np.ndarray, settlement_m: np.ndarray) -> bool:
+    """Whether a bearing keeps less than ``SWEEP_MIN_LOAD_SHARE`` of its dead load at this state."""
+    return bool(np.any(u0 + A @ settlement_m < SWEEP_MIN_LOAD_SHARE * u0))
+
+
 def random_streams(
     n: int, A: np.ndarray, u0: np.ndarray, seed: int = 0, cut_share: float = 0.0
 ) -> Iterator[tuple[str, list[Piece]]]:
@@ -249,7 +254,7 @@ def random_streams(
             change = common + np.array([diff / 2, -diff / 2])
             if np.max(np.abs(change)) < SWEEP_MIN_CHANGE_M:
                 change *= SWEEP_MIN_CHANGE_M / np.max(np.abs(change))
-        if np.any(u0 + A @ (np.asarray(RECORDS[first][1]) + change) < SWEEP_MIN_LOAD_SHARE * u0):
+        if _near_lift_off(A, u0, np.asarray(RECORDS[first][1]) + change):
             continue  # beyond lift-off (SWEEP_MIN_LOAD_SHARE): drawn again
         step = tuple(float(x) for x in np.subtract(RECORDS[first][1], RECORDS[later][1]) + change)
         cut = None
@@ -309,7 +314,7 @@ def random_inside_streams(
             steps.append(state.copy())
             sizes.append(np.round(1e3 * change, 1).tolist())
         truths = [np.asarray(RECORDS[later][1]) + st for st in steps]
-        if any(np.any(u0 + A @ t < SWEEP_MIN_LOAD_SHARE * u0) for t in truths):
+        if any(_near_lift_off(A, u0, t) for t in truths):
             continue
         bounds = [0.0, *map(float, minutes), 13.0]
         pieces = [Piece(first, 0.0)]
