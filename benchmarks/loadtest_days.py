@@ -26,9 +26,11 @@ the screen: before the shadow sees a stream, the samples that ``calibrate``'s te
 ``zero: before`` in ``config/calibration.yaml``) by the as-built FE's dead-load reactions (the
 previous stops' ``u0``).
 
-``--sun-term`` runs the shadow with its sun term (``sun_gradient: true``), ``--sun-prior MEAN SD``
-with another prior of its ``g`` (K; the shipped one is 0 and 6.75), ``--sun-fit deck`` with one
-``g`` of the deck, in as its evidence says (``sun_gradient_fit``); ``--monitor-days N``
+The shipped shadow has its sun term (``sun_gradient: true``, one ``g`` of the deck averaged over
+its explanations by evidence: ``sun_gradient_fit: average``); ``--sun-off`` runs it without,
+``--sun-term`` with (for the other fits), ``--sun-prior MEAN SD`` with another prior of its ``g``
+(K; the shipped one is 0 and 6.75), ``--sun-fit deck`` with one ``g`` of the deck, in where its
+Bayes factor reaches 3, ``per_bearing`` with a ``g`` of each bearing's own; ``--monitor-days N``
 gives the twin's load-test day N days of continuous monitoring (no car, no step) before it.
 ``--only continuous`` is a third study, not run by default: three sunny days of continuous twin
 monitoring (0.1 Hz, a 0.7 mm offset, 4 K at full sun), the sun term off and on: days without a
@@ -57,8 +59,8 @@ Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200]
         [--only real|twin|continuous|minutes|creep|pauses|sweep|inside]
-        [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term]
-        [--sun-prior MEAN SD] [--sun-fit per_bearing|deck] [--monitor-days N] [--creep FACTOR]
+        [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term|--sun-off]
+        [--sun-prior MEAN SD] [--sun-fit average|deck|per_bearing] [--monitor-days N] [--creep FACTOR]
 
 Streams and seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers``
 processes, default one per core).
@@ -542,21 +544,27 @@ def main() -> None:
         default="model",
         help="real study: the surrogate's u0 (the reference record's car-free level) or the as-built FE's",
     )
-    ap.add_argument(
-        "--sun-term", action="store_true", help="the shadow with its sun term (sun_gradient: true)"
+    sun = ap.add_mutually_exclusive_group()
+    sun.add_argument(
+        "--sun-term", action="store_true", help="the shadow with its sun term (sun_gradient: true, shipped)"
+    )
+    sun.add_argument(
+        "--sun-off", action="store_true", help="the shadow without its sun term (sun_gradient: false)"
     )
     ap.add_argument(
         "--sun-prior",
         nargs=2,
         type=float,
         metavar=("MEAN", "SD"),
-        help="with --sun-term: the prior of g in K (default: shipped, 0 and 6.75)",
+        help="the prior of the sun term's g in K (default: shipped, 0 and 6.75)",
     )
     ap.add_argument(
         "--sun-fit",
-        choices=("per_bearing", "deck"),
-        help="with --sun-term (and the continuous study): the term's fit, sun_gradient_fit (default: "
-        "shipped, per_bearing; deck: one g of the deck, as its evidence says)",
+        choices=("average", "deck", "per_bearing"),
+        help="the sun term's fit, sun_gradient_fit (default: shipped, average: one g of the deck, "
+        "averaged over no term, the deck's g and a g of each bearing's own by their evidence; deck: "
+        "one g of the deck where its Bayes factor reaches sun_gradient_min_bayes_factor; per_bearing: "
+        "a g of each bearing's own, always in)",
     )
     ap.add_argument(
         "--monitor-days",
@@ -589,15 +597,13 @@ def main() -> None:
     over: dict[str, Any] = {}
     if args.hold is not None:
         over["traffic_hold_s"] = args.hold
-    if args.sun_term:
-        over["sun_gradient"] = True
+    if args.sun_term or args.sun_off:
+        over["sun_gradient"] = bool(args.sun_term)
+    if args.sun_off and (args.sun_prior or args.sun_fit):
+        ap.error("--sun-prior and --sun-fit set the sun term, which --sun-off leaves out")
     if args.sun_prior:
-        if not args.sun_term:
-            ap.error("--sun-prior needs --sun-term")
         over["sun_gradient_prior_mean_k"], over["sun_gradient_prior_sd_k"] = args.sun_prior
     if args.sun_fit:
-        if not args.sun_term and args.only != "continuous":
-            ap.error("--sun-fit needs --sun-term (or --only continuous)")
         over["sun_gradient_fit"] = args.sun_fit
     with dask_client(workers=args.workers) as client:
         mapper = client_mapper(client)
@@ -608,7 +614,7 @@ def main() -> None:
         if args.only == "schedule":
             twin_study(mapper, args.seeds, args.verbose, over, schedule=args.rate)
         if args.only == "continuous":
-            continuous_study(mapper, args.seeds, args.sun_fit or "per_bearing")
+            continuous_study(mapper, args.seeds, args.sun_fit or load_config().sun_gradient_fit)
         if args.only == "minutes":
             minutes_study(mapper, over)
         if args.only == "creep":

@@ -3,8 +3,8 @@
 The public records of 2022-04-11 are both from the morning (08:36 and 09:20 local); the records
 after 20 mm and 30 mm (13:39 and 17:37) are withheld. A sunny afternoon warms the deck's top: a
 linear vertical temperature difference loads the two bearings exactly as a lowering of both does
-(the surrogate's ``thermal.vertical_gradient`` and ``A [1, 1]`` in the same ratio), so the shipped
-shadow (sun term off) reads it as settlement. This prints, before those records are read, how far:
+(the surrogate's ``thermal.vertical_gradient`` and ``A [1, 1]`` in the same ratio), so a shadow
+without its sun term reads it as settlement. This prints, before those records are read, how far:
 
 - the common mode's reading per kelvin of vertical difference, ``A^-1 vertical_gradient`` (mm/K);
 - on the twin's day as its loggers ran (``twin.loadtest.scheduled_day``: a 10 mm step inside each
@@ -16,13 +16,13 @@ shadow (sun term off) reads it as settlement. This prints, before those records 
 - ``--day records``: the same on the four load records alone at their real times (08:36, 09:20,
   13:39, 17:37; ``twin.loadtest.load_test_day``, nothing between them): the stream a user has who
   was given the load records and not the ambient hours between them;
-- ``--sun-term``: read with the shadow's sun term (``sun_gradient: true``) instead of the shipped
-  defaults.
+- ``--sun off|average|deck|per_bearing``: read without the shadow's sun term, or with the fit
+  named (``sun_gradient_fit``), instead of the shipped defaults (the term on, ``average``).
 
 Usage::
 
     .venv/bin/python benchmarks/withheld_states.py [--seeds 50] [--suns 0 2 4 6 8] [--workers N]
-        [--day schedule|records] [--sun-term]
+        [--day schedule|records] [--sun off|average|deck|per_bearing]
 
 Seeds run as tasks on Dask (``bridge_shadow.engine``: a local cluster of ``--workers`` processes,
 default one per core).
@@ -60,9 +60,12 @@ RECORD_H = tuple(
 ONES = np.ones(2) / 2.0  # the common mode: the mean of the two supports
 
 
-def read_states(item: tuple[int, float, str, bool]) -> np.ndarray:
-    """One seed: (records, 3) common-mode error (m), its 95 % half-width (m), the truth (m)."""
-    seed, sun, day, sun_term = item
+def read_states(item: tuple[int, float, str, str | None]) -> np.ndarray:
+    """One seed: (records, 3) common-mode error (m), its 95 % half-width (m), the truth (m).
+
+    ``item``: seed, the twin's sun (K), the day, the sun term's fit (``off``: none; None: shipped).
+    """
+    seed, sun, day, fit = item
     sur = load_surrogate()
     if day == "records":
         data, truth = load_test_day(seed, LoadTestDay(record_h=RECORD_H, vertical_gradient_k=sun), sur)
@@ -71,8 +74,10 @@ def read_states(item: tuple[int, float, str, bool]) -> np.ndarray:
         data, truth = scheduled_day(seed, LoadTestDay(vertical_gradient_k=sun, rate_hz=0.2), sur)
         records = STATE_RECORDS
     config = load_config()
-    if sun_term:
-        config = config.replace(sun_gradient=True)
+    if fit == "off":
+        config = config.replace(sun_gradient=False)
+    elif fit is not None:
+        config = config.replace(sun_gradient=True, sun_gradient_fit=fit)
     res = Shadow(config, sur).run(data)
     out = []
     for i in records:
@@ -95,7 +100,12 @@ def main() -> None:
         default="schedule",
         help="the day as its loggers ran (default), or its four load records alone",
     )
-    ap.add_argument("--sun-term", action="store_true", help="the shadow with its sun term (sun_gradient)")
+    ap.add_argument(
+        "--sun",
+        choices=("off", "average", "deck", "per_bearing"),
+        default=None,
+        help="the shadow's sun term: off, or its fit (sun_gradient_fit; default: shipped, average)",
+    )
     args = ap.parse_args()
     sur = load_surrogate()
     per_k = np.linalg.solve(sur.A, np.asarray(sur.thermal["vertical_gradient"], float))
@@ -108,11 +118,11 @@ def main() -> None:
         mapper = client_mapper(client)
         for sun in args.suns:
             t0 = time.perf_counter()
-            items = [(seed, sun, args.day, args.sun_term) for seed in range(args.seeds)]
+            items = [(seed, sun, args.day, args.sun) for seed in range(args.seeds)]
             r = np.array(mapper(read_states, items))
             took = time.perf_counter() - t0
             what = "the day as its loggers ran" if args.day == "schedule" else "the four load records alone"
-            term = ", the sun term" if args.sun_term else ""
+            term = f", sun term {args.sun}" if args.sun else ", shipped"
             print(f"twin sun {sun:g} K at full clear sky, {what}{term}, {args.seeds} seeds in {took:.0f} s")
             for j, name in enumerate(names):
                 err, half, x = r[:, j, 0], r[:, j, 1], r[:, j, 2]

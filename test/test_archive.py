@@ -346,9 +346,10 @@ def test_a_synth_fleet_equals_serial_replay_per_bridge(tmp_path: Path) -> None:
     fleet = tmp_path / "fleet"
     argv = ["synth", "--archive", str(fleet), "--bridges", "2", "--days", "1.5", "--rate", "0.05"]
     assert main([*argv, "--step", "0.8:-0.001:-0.0005"]) == 0
-    # the second bridge runs the sun term: its covariate's state crosses the daily seams too
+    # the second bridge runs without the (shipped) sun term; the first with it: its covariate's
+    # state crosses the daily seams too
     sun = fleet / "bridge_01" / "shadow.yaml"
-    sun.write_text("bridge_shadow:\n  ros__parameters:\n    sun_gradient: true\n")
+    sun.write_text("bridge_shadow:\n  ros__parameters:\n    sun_gradient: false\n")
     plans = plan_bridges(archive_sources(str(fleet)))
     assert [p.source.name for p in plans] == ["bridge_00", "bridge_01"]
     with dask_client(workers=2, processes=False) as client:
@@ -356,7 +357,7 @@ def test_a_synth_fleet_equals_serial_replay_per_bridge(tmp_path: Path) -> None:
     for bridge, plan in zip(run.bridges, plans, strict=True):
         whole = _concatenated(sorted(plan.source.bags), tmp_path / f"whole_{bridge.name}")
         config = load_config(sun) if bridge.name == "bridge_01" else load_config()
-        assert config.sun_gradient == (bridge.name == "bridge_01")
+        assert config.sun_gradient == (bridge.name == "bridge_00")
         ref, _ = replay_bag(whole, Shadow(config, load_surrogate()))
         assert_same_result(bridge.result, ref.to_json())
         assert len(bridge.result["events"]) >= 1  # the step, through a seam-free day

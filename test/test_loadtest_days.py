@@ -402,7 +402,9 @@ def test_a_new_state_whose_reactions_creep_is_one_event(
     1.5 and 2 times its own), or as they are after a second record of the old state. Without the
     relaxation allowance the rise across the car's minutes is raised as a +0.2 to +0.5 mm event
     after the lowering's (pinned below; before ``SegmentChain.windows_changed`` the lowering then
-    kept two windows and stayed an unconfirmed change).
+    kept two windows and stayed an unconfirmed change). The premise is pinned without the sun term
+    too: the shipped one (``sun_gradient_fit: average``) reads part of a creep inside a record as
+    sun, the two loading the bearings alike (README, "The sun term, averaged by its evidence").
     """
     if name == "pair":
         pieces = [Piece("ref", 0.0), Piece("lowered", 0.73)]
@@ -412,7 +414,7 @@ def test_a_new_state_whose_reactions_creep_is_one_event(
     sc.data = with_creep(sc.data, sc.starts_ns, [len(pieces) - 1], factor)
     res = _one_event_at_the_later_record(sc, surrogate, len(pieces) - 1)
     assert not res.changes  # and no unconfirmed one
-    off = Shadow(load_config().replace(relaxation_phi0=0.0), surrogate).run(sc.data)
+    off = Shadow(load_config().replace(relaxation_phi0=0.0, sun_gradient=False), surrogate).run(sc.data)
     assert len(off.events) == 2 and not off.changes  # the split: the lowering, and the creep
     assert off.events[1].time_ns > sc.starts_ns[-1] + 5 * W  # the creep's "event" after the car
     assert np.all(np.abs(off.events[1].size_m) < 1e-3)
@@ -541,15 +543,16 @@ def test_every_rejected_window_is_listed_with_its_time_and_reason(folder: Path, 
         assert w["time"].endswith("Z") and w["time"][:4] == "2022"
 
 
-def _twin_day(seed_sun: tuple[int, float, bool, float]):
-    """Score one twin load-test day (``seed``, sun in K, the sun term on, days monitored before): a task."""
+def _twin_day(seed_sun: tuple[int, float, str | None, float]):
+    """Score one twin load-test day (``seed``, sun K, the sun term's fit or None, days monitored): a task."""
     from bridge_shadow.twin.loadtest import LoadTestDay, load_test_day
     from bridge_shadow.twin.loadtest_score import score_day
 
-    seed, sun_k, term, monitored = seed_sun
+    seed, sun_k, fit, monitored = seed_sun
     sur = load_surrogate()
     data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=sun_k, monitor_days=monitored), sur)
-    return score_day(Shadow(load_config().replace(sun_gradient=term), sur).run(data), truth)
+    term = {"sun_gradient": False} if fit is None else {"sun_gradient": True, "sun_gradient_fit": fit}
+    return score_day(Shadow(load_config().replace(**term), sur).run(data), truth)
 
 
 @pytest.mark.slow
@@ -560,24 +563,33 @@ def test_twin_load_test_days_find_every_step_and_keep_every_window(engine) -> No
     parked at two or three places in every record, the sun on the deck (a 4 K vertical difference
     at full clear sky). Every step is an event at its record, no car-free window of a new state is
     rejected, the final 95 % interval holds the truth in at least 90 % of the days. Without the
-    sun the final estimate is within 10 % of the truth on every day; with it, the afternoon records
-    carry the sun's unmodelled reaction (2-3 mm at -30 mm), which the interval holds but the 10 %
-    does not always (``benchmarks/loadtest_days.py`` prints both). The shadow's sun term
-    (``sun_gradient``) learns enough of the sun from the day itself to pass every criterion on
-    every day (the curve's and the sun's error, common to every record's level, is carried once,
-    not counted against each step; the clearness of a day whose data begin after sunrise is read
-    over the rise left; measured worst error 2.4 mm of the 3 mm allowed).
-    After two days of monitoring the term knows the sun: 20 such days pass every criterion.
+    sun term the afternoon records carry the sun's unmodelled reaction (2-3 mm at -30 mm), which
+    the interval holds but the 10 % does not always (56 of 100 days within). The shipped term,
+    one ``g`` of the deck averaged over its explanations by evidence (``sun_gradient_fit:
+    average``), ends within 10 % on 99 of 100 days (the other 3.05 mm off of the 3 allowed;
+    ``benchmarks/loadtest_days.py --only twin``); a ``g`` of each bearing's own on every day (the
+    curve's and the sun's error, common to every record's level, is carried once, not counted
+    against each step; the clearness of a day whose data begin after sunrise is read over the rise
+    left; measured worst error 2.4 mm of the 3 mm allowed). Without sun the shipped shadow passes
+    every day; after two days of monitoring the term knows the sun: 20 such days pass every
+    criterion.
     """
-    runs = [(seed, 4.0, False, 0.0) for seed in range(100)] + [(seed, 0.0, False, 0.0) for seed in range(30)]
-    runs += [(seed, 4.0, True, 0.0) for seed in range(100)] + [(seed, 4.0, True, 2.0) for seed in range(20)]
+    runs = [(seed, 4.0, None, 0.0) for seed in range(100)]
+    runs += [(seed, 0.0, "average", 0.0) for seed in range(30)]
+    runs += [(seed, 4.0, "average", 0.0) for seed in range(100)]
+    runs += [(seed, 4.0, "per_bearing", 0.0) for seed in range(100)]
+    runs += [(seed, 4.0, "average", 2.0) for seed in range(20)]
     days = engine(_twin_day, runs)
-    sunny, clear, term, monitored = days[:100], days[100:130], days[130:230], days[230:]
+    sunny, clear, shipped = days[:100], days[100:130], days[130:230]
+    apart, monitored = days[230:330], days[330:]
     bad = [i for i, s in enumerate(monitored) if not (s.passed and s.covered)]
     assert not bad, bad
-    assert all(s.passed for s in term), [i for i, s in enumerate(term) if not s.passed]
+    assert all(s.passed for s in apart), [i for i, s in enumerate(apart) if not s.passed]
+    assert np.mean([s.covered for s in apart]) >= 0.9
+    assert all(s.events_right and not s.lost_windows for s in shipped)
+    assert np.mean([s.within_10pct for s in shipped]) >= 0.95
+    assert np.mean([s.covered for s in shipped]) >= 0.9
     assert np.mean([s.within_10pct for s in sunny]) < 0.9  # without the term the sun stays in
-    assert np.mean([s.covered for s in term]) >= 0.9
     assert all(s.events_right for s in sunny), [i for i, s in enumerate(sunny) if not s.events_right]
     assert not any(s.lost_windows for s in sunny)
     assert np.mean([s.covered for s in sunny]) >= 0.9
@@ -602,7 +614,7 @@ def test_twin_days_on_the_real_days_schedule_end_within_10_percent_in_the_sun(en
 
     Four load records with the car, three lowering records (10 mm each, a step at the middle),
     two three-hour ambient records between, the later records starting minutes after the earlier
-    ones stopped: the shape of the withheld records. The shipped shadow, without its sun term,
+    ones stopped: the shape of the withheld records. Without its sun term the shadow
     ends within 10 % of -30 mm on every day (the ambient hours show the sun's course, which the
     four-record day does not), loses no window of a new state, and dates every step inside its
     lowering record, and nothing else is an event: the detector's step of about +1 mm while the
@@ -610,11 +622,11 @@ def test_twin_days_on_the_real_days_schedule_end_within_10_percent_in_the_sun(en
     loadtest_days.py --only schedule``) is one the data do not tell from none (the test above).
     Before, the load record three minutes after the afternoon lowering was never
     screened (a recording after a silence went on from one longer than the hold), and a drift
-    held before a step was rejected as outliers. With the sun term every day passes every
-    criterion.
+    held before a step was rejected as outliers. With the shipped sun term (one ``g`` of the deck,
+    averaged by evidence) every day passes every criterion, and no such step is found.
     """
     runs = [(seed, 4.0, False) for seed in range(40)] + [(seed, 0.0, False) for seed in range(10)]
-    days = engine(_scheduled_twin_day, runs + [(seed, 4.0, True) for seed in range(30)])
+    days = engine(_scheduled_twin_day, runs + [(seed, 4.0, True) for seed in range(30)])  # True: shipped
     days, term = days[:50], days[50:]
     sunny = days[:40]
     # with the sun term every criterion on every day (2 and 23 of these lost a lowering to the
@@ -638,13 +650,17 @@ def test_a_step_the_data_cannot_tell_from_none_is_no_event(surrogate, seed: int,
     (their difference against its covariance, the curve's error as far as they read it differently:
     chi-square 25.7 and 3.6 against the same 27.6, ``change_chi2``; the day's true steps 250 and
     more). They are reported as possible changes, not significant (kind ``step``, no warning), the
-    estimate keeping their jump; every step of the day is one event at its record.
+    estimate keeping their jump; every step of the day is one event at its record. Without the sun
+    term: the shipped one (``sun_gradient_fit: average``) reads the sun leaving the deck as sun, and
+    finds no such step on either day.
     """
     from bridge_shadow.twin.loadtest import LoadTestDay, scheduled_day
     from bridge_shadow.twin.loadtest_score import score_day
 
     data, truth = scheduled_day(seed, LoadTestDay(vertical_gradient_k=sun_k), surrogate)
-    shadow = Shadow(load_config(), surrogate)
+    shipped = Shadow(load_config(), surrogate).run(data)
+    assert score_day(shipped, truth).passed and not [c for c in shipped.changes if c.kind == "step"]
+    shadow = Shadow(load_config().replace(sun_gradient=False), surrogate)
     res = shadow.run(data)
     score = score_day(res, truth)
     assert score.events_right and score.within_10pct and score.covered
@@ -736,7 +752,9 @@ def _creeping_twin_day(item: tuple[int, float]):
     sur = load_surrogate()
     data, truth = load_test_day(seed, LoadTestDay(vertical_gradient_k=0.0), sur)
     data = creeping(data, truth, 1.0)
-    res = Shadow(load_config().replace(relaxation_phi0=phi0), sur).run(data)
+    # without the allowance, the premise without the sun term too (which reads part of a creep as sun)
+    cfg = load_config().replace(relaxation_phi0=phi0, **({} if phi0 else {"sun_gradient": False}))
+    res = Shadow(cfg, sur).run(data)
     return score_day(res, truth), sum(c.kind == "step" for c in res.changes)
 
 

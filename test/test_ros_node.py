@@ -479,8 +479,9 @@ def test_a_quiet_input_close_inside_a_record_is_undone_when_the_record_goes_on()
         try:
             _feed(node, stream, 0, len(stamp), quiet_at=tuple(pauses))
             node.close_open_windows()
-            np.testing.assert_allclose(node._last_posterior[0], whole.mean_m, rtol=1e-12, atol=0)
-            np.testing.assert_allclose(node._last_posterior[1], whole.covariance_m2, rtol=1e-12, atol=0)
+            # the same code on the same windows, in another order of calls: rounding only
+            np.testing.assert_allclose(node._last_posterior[0], whole.mean_m, rtol=1e-9, atol=0)
+            np.testing.assert_allclose(node._last_posterior[1], whole.covariance_m2, rtol=1e-9, atol=0)
             assert (node.quiet_flushes, node.quiet_flushes_undone) == (2, 1)
             shown = [out.index for out in node.history]
             assert len(shown) == len(set(shown)), "the undone close's outputs left the history"
@@ -536,7 +537,7 @@ def test_a_node_stopped_after_a_quiet_close_resumes_the_record_as_the_offline_re
             _feed(node, stream, pause, len(stream["stamp"]), quiet_at=(stream["pauses"][1],))
             node.close_open_windows()
             whole = stream["whole"]
-            np.testing.assert_allclose(node._last_posterior[0], whole.mean_m, rtol=1e-12, atol=0)
+            np.testing.assert_allclose(node._last_posterior[0], whole.mean_m, rtol=1e-9, atol=0)  # rounding
             assert node.quiet_flushes_undone == 1
         finally:
             node.destroy_node()

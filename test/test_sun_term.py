@@ -181,16 +181,19 @@ def test_a_day_whose_data_begin_partway_up_the_rise_reads_its_clearness() -> Non
 def test_the_default_sun_prior_is_half_the_standards_range() -> None:
     """The prior's sd is the top of ``vertical_gradient``'s plausible range (EN 1991-1-5) over two."""
     cfg = load_config()
-    assert cfg.sun_gradient is False and cfg.sun_gradient_prior_mean_k == 0.0
+    assert cfg.sun_gradient_prior_mean_k == 0.0  # the shipped value
     assert cfg.sun_gradient_prior_sd_k == pytest.approx(plausible_range("vertical_gradient")[1] / 2.0)
 
 
 @pytest.fixture(scope="module")
 def gradient_runs():
-    """Three days of monitoring (0.1 Hz), with the sun (4 K) and without; with and without the term."""
+    """Three days of monitoring (0.1 Hz), with the sun (4 K) and without; with and without the term.
+
+    The term of each bearing's own (``per_bearing``); the shipped average is in ``test_sun_average``.
+    """
     from bridge_shadow.twin.simulate import simulate
 
-    sur, cfg = load_surrogate(), load_config()
+    sur, cfg = load_surrogate(), load_config().replace(sun_gradient_fit="per_bearing")
     out = {}
     for g in (4.0, 0.0):
         data, truth = simulate(3.0, 0.1, 2, {"settlement_offset": 7e-4, "vertical_gradient": g})
@@ -221,7 +224,9 @@ def test_the_sun_term_learns_the_gradient_and_removes_the_suns_bias(gradient_run
 
 def test_sun_term_chunking_and_checkpoint_change_nothing(gradient_runs, tmp_path: Path) -> None:
     _, whole, _, data = gradient_runs[4.0, True]
-    cfg = load_config().replace(sun_gradient=True, checkpoint_path=str(tmp_path / "s.npz"))
+    cfg = load_config().replace(
+        sun_gradient=True, sun_gradient_fit="per_bearing", checkpoint_path=str(tmp_path / "s.npz")
+    )
     assert_chunks_and_checkpoint_change_nothing(cfg, load_surrogate(), data, whole, tmp_path)
 
 
@@ -242,7 +247,9 @@ def test_the_bundled_demo_with_the_sun_term_reads_the_twins_offset(root: Path, t
     from bridge_shadow.cli import main
 
     params = tmp_path / "sun.yaml"
-    params.write_text("bridge_shadow:\n  ros__parameters:\n    sun_gradient: true\n")
+    params.write_text(
+        "bridge_shadow:\n  ros__parameters:\n    sun_gradient: true\n    sun_gradient_fit: per_bearing\n"
+    )
     bag = root / "bags" / "demo_3d"
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
@@ -285,7 +292,7 @@ def test_a_surrogate_without_the_vertical_gradient_case_is_refused_by_name() -> 
     bare = Surrogate(sur.A, sur.u0, {"uniform": sur.thermal["uniform"]})
     with pytest.raises(ConfigError, match=r"thermal\.vertical_gradient"):
         Shadow(load_config().replace(sun_gradient=True), bare)
-    Shadow(load_config(), bare)  # without the term the case is not needed
+    Shadow(load_config().replace(sun_gradient=False), bare)  # without the term the case is not needed
 
 
 @pytest.mark.realdata
@@ -350,7 +357,8 @@ def test_the_morning_pair_fits_no_negative_sun_and_ends_where_it_does_without_th
     )
 
     def run(term: bool) -> tuple[Shadow, object]:
-        shadow = Shadow(load_config().replace(sun_gradient=term), load_surrogate())
+        cfg = load_config().replace(sun_gradient=term, sun_gradient_fit="per_bearing")
+        shadow = Shadow(cfg, load_surrogate())
         return shadow, shadow.run(april)
 
     (on, res), (_, off) = run(True), run(False)

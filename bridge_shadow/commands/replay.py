@@ -184,6 +184,13 @@ def _summary(js: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _factor(lbf: float | None) -> str:
+    """``Bayes factor 1.3`` (``e^60`` when large) of a natural log; a note when none was computed."""
+    if lbf is None or not math.isfinite(lbf):
+        return "no Bayes factor yet"
+    return f"Bayes factor {math.exp(lbf):.3g}" if lbf < 50.0 else f"Bayes factor e^{lbf:.0f}"
+
+
 def _sun_text(sp: dict[str, Any]) -> str:
     """``, sun term ...``: the sun term's difference at full sun and its Bayes factor, or why it is out."""
     if "sun_gradient_k" not in sp:
@@ -191,9 +198,14 @@ def _sun_text(sp: dict[str, Any]) -> str:
     deck, apart = sp.get("sun_gradient_log_bf"), sp.get("sun_gradient_log_bf_per_bearing")
     lbf = deck if sp.get("sun_gradient_fit") == "deck" else apart  # the factor of the term in use
     known = lbf is not None and math.isfinite(lbf)  # (JSON: null where not computed)
-    bf = "no Bayes factor yet"
-    if known:
-        bf = f"Bayes factor {math.exp(lbf):.3g}" if lbf < 50.0 else f"Bayes factor e^{lbf:.0f}"
+    bf = _factor(lbf)
+    weight = sp.get("sun_gradient_weight")
+    if sp.get("sun_gradient_fit") == "average" and weight is not None and math.isfinite(weight):
+        half = 1.96 * sp["sun_gradient_sd_k"]
+        return (
+            f", sun term {sp['sun_gradient_k']:.2f} ± {half:.2f} K at full sun (the deck's g averaged "
+            f"in with probability {weight:.2f}; {_factor(deck)} for one g, {_factor(apart)} for one each)"
+        )
     if not sp.get("sun_gradient_used", True):
         if known and apart is not None and apart > lbf:
             return f", sun term not used ({bf}; a g of each bearing's own fits better: not the deck's sun)"

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bridge_shadow.contract import CHANNELS, SUPPORTS
+from bridge_shadow.estimate.compensation.fit import deck_sun_weight
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS
 from bridge_shadow.estimate.result import ChangeRecord, EventRecord, ReplayResult, WindowOutput
 from bridge_shadow.timefmt import iso_utc
@@ -353,7 +354,9 @@ def spline_info(shadow: Shadow) -> dict[str, dict[str, Any]]:
     the evidence carried it, ``Compensation._sun_carried``), ``ln`` of the Bayes factor of one ``g``
     of the deck against no term (``sun_gradient_log_bf``) and of a ``g`` of each bearing's own
     against none (``sun_gradient_log_bf_per_bearing``: above the first, ``deck`` leaves it out),
-    and which fit it is (``sun_gradient_fit``).
+    and which fit it is (``sun_gradient_fit``); with ``average`` (shipped) the probability of one
+    ``g`` of the deck among no term, it and a ``g`` of each bearing's own (``sun_gradient_weight``:
+    ``sun_gradient_k`` and its sd are the average's).
     """
     info: dict[str, dict[str, Any]] = {}
     fit = shadow.fit
@@ -375,6 +378,8 @@ def spline_info(shadow: Shadow) -> dict[str, dict[str, Any]]:
             info[ch]["sun_gradient_k"] = float(fit.beta[c, -1]) / slope + 0.0  # (no -0.0 at the bound)
             if comp.sun_fit == "deck":  # one g from both bearings
                 sd = fit.sun_evidence[3] if np.isfinite(fit.sun_evidence[3]) else comp.sun_prior_k[1]
+            elif comp.sun_fit == "average" and np.all(np.isfinite(fit.sun_evidence)):  # the mixture's
+                sd = comp.averaged_sun(fit.sun_evidence)[1] * float(fit.sun_evidence[3])
             else:  # the bearing's own, with the noise's long-run (AR(1)) variance, as the levels take it
                 var = float(shadow.noise.long_run_cov()[c, c]) * float(fit.minv[c, -1, -1])
                 sd = float(np.sqrt(max(var, 0.0))) / abs(slope)
@@ -383,6 +388,8 @@ def spline_info(shadow: Shadow) -> dict[str, dict[str, Any]]:
             info[ch]["sun_gradient_used"] = fit.sun_used
             info[ch]["sun_gradient_log_bf"] = fit.sun_log_bf
             info[ch]["sun_gradient_log_bf_per_bearing"] = float(fit.sun_evidence[1])
+            if comp.sun_fit == "average":  # the deck's g in with this probability (``deck_sun_weight``)
+                info[ch]["sun_gradient_weight"] = deck_sun_weight(fit.sun_evidence)
     return info
 
 

@@ -111,6 +111,8 @@ def _compensation(diag: Mapping[str, Any]) -> Status:
             values[f"{ch} sun term used"] = str(bool(sp.get("sun_gradient_used", True))).lower()
             log_bf = sp.get("sun_gradient_log_bf", float("nan"))
             values[f"{ch} sun term log Bayes factor"] = _num(log_bf, ".2f")
+            if "sun_gradient_weight" in sp:  # average: the deck's g in with this probability
+                values[f"{ch} sun term probability"] = _num(sp["sun_gradient_weight"], ".2f")
     noise = diag["noise"]
     values["noise mode"] = str(noise["mode"])
     for ch, phi, sd in zip(CHANNELS, noise["phi"], noise["sigma_n"], strict=True):

@@ -33,6 +33,7 @@ segment level through ``v_s = sb_s / W_s - sb / W`` (zero with one segment):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,7 +49,7 @@ from bridge_shadow.estimate.compensation.spline import (
 )
 from bridge_shadow.estimate.compensation.sums import FitSums, row_columns
 
-__all__ = ["Compensation", "CompensationFit"]
+__all__ = ["Compensation", "CompensationFit", "deck_sun_weight"]
 
 
 def _log_savage_dickey(m0: float, s0: float, mu: float, sd: float) -> float:
@@ -60,6 +61,20 @@ def _log_savage_dickey(m0: float, s0: float, mu: float, sd: float) -> float:
 def _no_evidence() -> np.ndarray:
     """Return the sun evidence of a fit that has none (``CompensationFit.sun_evidence``): four NaNs."""
     return np.full(4, np.nan)
+
+
+def deck_sun_weight(evidence: np.ndarray) -> float:
+    """Return the probability of one ``g`` of the deck among three explanations (NaN: no evidence).
+
+    No sun term, one ``g`` of the deck, a ``g`` of each bearing's own, equally likely before the
+    data; ``evidence`` is ``CompensationFit.sun_evidence`` (``ln`` of the Bayes factors of the
+    latter two against none first): ``B_d / (1 + B_d + B_s)``.
+    """
+    log_d, log_s = float(evidence[0]), float(evidence[1])
+    if not (math.isfinite(log_d) and math.isfinite(log_s)):
+        return float("nan")
+    top = max(0.0, log_d, log_s)
+    return math.exp(log_d - top) / (math.exp(-top) + math.exp(log_d - top) + math.exp(log_s - top))
 
 
 @dataclass
@@ -169,7 +184,10 @@ class Compensation:
     (their priors divided out) with one prior, and only where the evidence carries it
     (``sun_evidence``: its Bayes factor at least ``sun_min_bf`` and one ``g`` at least as likely
     as one per channel); else the fit is the one without the sun column. ``minv`` stays each
-    channel's own (its sun variance that of the channel's data alone: on the generous side).
+    channel's own (its sun variance that of the channel's data alone: on the generous side). Or
+    ``average`` (shipped): one ``g`` for both channels averaged over no term, the deck's ``g`` and
+    one per channel by their Bayes factors (``averaged_sun``): ``gamma_c = sun_slope_c w m``, the
+    sun's row and column of each channel's ``minv`` scaled to the mixture's sd.
     """
 
     def __init__(
@@ -219,8 +237,8 @@ class Compensation:
         q_spl, _ = np.linalg.qr(np.column_stack([np.ones(qs), np.eye(qs)[:, : qs - 1]]))
         self._z_spline = q_spl[:, 1:]
         self.sun_min_log_bf = float(np.log(sun_min_bf)) if sun_min_bf > 0 else -np.inf
-        if sun_fit not in ("deck", "per_bearing"):
-            raise ConfigError(f"sun_gradient_fit must be deck or per_bearing (now {sun_fit!r})")
+        if sun_fit not in ("average", "deck", "per_bearing"):
+            raise ConfigError(f"sun_gradient_fit must be average, deck or per_bearing (now {sun_fit!r})")
         self.sun_fit = sun_fit
 
     def _pad(self, mat: np.ndarray) -> np.ndarray:
@@ -296,13 +314,21 @@ class Compensation:
         evidence = self.sun_evidence(post) if self.sun else _no_evidence()
         # per_bearing: each channel's own g (its truncated mode, ``_fit_channel``), always in
         deck = self.sun and self.sun_fit == "deck"
+        average = self.sun and self.sun_fit == "average"
         if deck and self._sun_carried(evidence):
             if np.isfinite(evidence[2]):  # one g for the deck, at its posterior's mode truncated at g >= 0
                 g = max(float(evidence[2]), 0.0)
                 for c, system in enumerate(systems):
                     if system is not None:
                         beta[c] = self._given_sun(c, *system, g)
-        elif deck:
+        elif average and np.all(np.isfinite(evidence)):  # one g of the deck, averaged by evidence
+            g, scale = self.averaged_sun(evidence)
+            for c, system in enumerate(systems):
+                if system is not None:
+                    beta[c] = self._given_sun(c, *system, g)
+                    minv[c, -1, :] *= scale
+                    minv[c, :, -1] *= scale
+        elif deck or average:  # not carried, or no evidence yet (no noise model to weigh it on)
             for c in range(2):
                 beta[c], lams[c], edf[c], minv[c], _, _ = self._fit_channel(
                     c, sums, n_levels, lam, kappa, long_run, False
@@ -428,6 +454,23 @@ class Compensation:
         mu, sd = num / prec, prec**-0.5
         separate = sum(_log_savage_dickey(m0, s0, m, v) for m, v in post[ok])
         return np.array([_log_savage_dickey(m0, s0, mu, sd), separate, mu, sd])
+
+    @staticmethod
+    def averaged_sun(evidence: np.ndarray) -> tuple[float, float]:
+        """Return the deck's ``g`` (K) averaged over the explanations by evidence, and its sd's scale.
+
+        Three explanations of the pattern that follows the sun, equally likely before the data: no
+        sun term, one ``g`` of the deck, a ``g`` of each bearing's own (not the deck's sun). The
+        deck's term is in with probability ``w = B_d / (1 + B_d + B_s)`` (``sun_evidence``'s Bayes
+        factors); the average of ``g`` over them is ``w m`` (``m`` its posterior mode, ``g >= 0``)
+        and its variance ``w (s^2 + m^2) - (w m)^2``. The scale multiplies the sun's row and column
+        of the fit's inverse (its sd ``s`` under the term) so that its variance is the average's.
+        """
+        _, _, mean, sd = map(float, evidence)
+        w = deck_sun_weight(evidence)
+        m = max(mean, 0.0)
+        var = w * (sd**2 + m**2) - (w * m) ** 2
+        return w * m, (math.sqrt(max(var, 0.0)) / sd if sd > 0 else 1.0)
 
     def _sun_carried(self, evidence: np.ndarray) -> bool:
         """Return whether the sun term is in the fit: always (``sun_min_bf`` 0), or as its evidence says.

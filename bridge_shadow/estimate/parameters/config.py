@@ -94,11 +94,11 @@ class ShadowConfig:
     spline_t_max_c: float = 45.0
     spline_segments: int = 13
     thermal_prior_sd_n_per_k: float = 500.0
-    sun_gradient: bool = False
+    sun_gradient: bool = True
     sun_gradient_prior_mean_k: float = 0.0
     sun_gradient_prior_sd_k: float = 6.75
     sun_gradient_min_bayes_factor: float = 3.0
-    sun_gradient_fit: str = "per_bearing"
+    sun_gradient_fit: str = "average"
     relaxation_phi0: float = 0.663
     relaxation_horizon_s: float = 3600.0
     warmup_windows: int = 10

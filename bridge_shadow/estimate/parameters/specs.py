@@ -148,7 +148,7 @@ SPECS: dict[str, ParamSpec] = {
     "sun_gradient_prior_sd_k": _gt0("K", 30.0),
     # a Bayes factor (0: the term always in); 1e6 is beyond any day's evidence of a few kelvin
     "sun_gradient_min_bayes_factor": _ge(0.0, 1.0e6, "-"),
-    "sun_gradient_fit": ParamSpec(choices=("deck", "per_bearing")),
+    "sun_gradient_fit": ParamSpec(choices=("average", "deck", "per_bearing")),
     # EN 1992-1-1 Annex B: phi_0 is 0.5-4 for any concrete, age and climate (0 switches it off)
     "relaxation_phi0": _ge(0.0, 5.0, "-"),
     "relaxation_horizon_s": _ge(0.0, DAY_S, "s"),
