@@ -623,7 +623,8 @@ def test_twin_days_on_the_real_days_schedule_end_within_10_percent_in_the_sun(en
     Before, the load record three minutes after the afternoon lowering was never
     screened (a recording after a silence went on from one longer than the hold), and a drift
     held before a step was rejected as outliers. With the shipped sun term (one ``g`` of the deck,
-    averaged by evidence) every day passes every criterion, and no such step is found.
+    averaged by evidence) every day passes every criterion (and the two days of the test below
+    have no such step).
     """
     runs = [(seed, 4.0, False) for seed in range(40)] + [(seed, 0.0, False) for seed in range(10)]
     days = engine(_scheduled_twin_day, runs + [(seed, 4.0, True) for seed in range(30)])  # True: shipped
