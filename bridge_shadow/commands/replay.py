@@ -196,21 +196,20 @@ def _sun_text(sp: dict[str, Any]) -> str:
     if "sun_gradient_k" not in sp:
         return ""
     deck, apart = sp.get("sun_gradient_log_bf"), sp.get("sun_gradient_log_bf_per_bearing")
-    lbf = deck if sp.get("sun_gradient_fit") == "deck" else apart  # the factor of the term in use
-    known = lbf is not None and math.isfinite(lbf)  # (JSON: null where not computed)
-    bf = _factor(lbf)
+    half = 1.96 * sp["sun_gradient_sd_k"]
     weight = sp.get("sun_gradient_weight")
     if sp.get("sun_gradient_fit") == "average" and weight is not None and math.isfinite(weight):
-        half = 1.96 * sp["sun_gradient_sd_k"]
         return (
             f", sun term {sp['sun_gradient_k']:.2f} ± {half:.2f} K at full sun (the deck's g averaged "
             f"in with probability {weight:.2f}; {_factor(deck)} for one g, {_factor(apart)} for one each)"
         )
+    lbf = deck if sp.get("sun_gradient_fit") == "deck" else apart  # the factor of the term in use
+    known = lbf is not None and math.isfinite(lbf)  # (JSON: null where not computed)
+    bf = _factor(lbf)
     if not sp.get("sun_gradient_used", True):
         if known and apart is not None and apart > lbf:
             return f", sun term not used ({bf}; a g of each bearing's own fits better: not the deck's sun)"
         return f", sun term not used ({bf}, below sun_gradient_min_bayes_factor)"
-    half = 1.96 * sp["sun_gradient_sd_k"]
     return f", sun term {sp['sun_gradient_k']:.2f} ± {half:.2f} K at full sun ({bf})"
 
 

@@ -315,19 +315,17 @@ class Compensation:
         # per_bearing: each channel's own g (its truncated mode, ``_fit_channel``), always in
         deck = self.sun and self.sun_fit == "deck"
         average = self.sun and self.sun_fit == "average"
-        if deck and self._sun_carried(evidence):
-            if np.isfinite(evidence[2]):  # one g for the deck, at its posterior's mode truncated at g >= 0
-                g = max(float(evidence[2]), 0.0)
+        carried = deck and self._sun_carried(evidence)
+        if carried or (average and np.all(np.isfinite(evidence))):
+            # one g of the deck for both channels: deck, its posterior's mode truncated at g >= 0
+            # (NaN without one: each channel's own stays); average, the mixture's (its sd scaled)
+            g, scale = self.averaged_sun(evidence) if average else (max(float(evidence[2]), 0.0), 1.0)
+            if np.isfinite(g):
                 for c, system in enumerate(systems):
                     if system is not None:
                         beta[c] = self._given_sun(c, *system, g)
-        elif average and np.all(np.isfinite(evidence)):  # one g of the deck, averaged by evidence
-            g, scale = self.averaged_sun(evidence)
-            for c, system in enumerate(systems):
-                if system is not None:
-                    beta[c] = self._given_sun(c, *system, g)
-                    minv[c, -1, :] *= scale
-                    minv[c, :, -1] *= scale
+                        minv[c, -1, :] *= scale
+                        minv[c, :, -1] *= scale
         elif deck or average:  # not carried, or no evidence yet (no noise model to weigh it on)
             for c in range(2):
                 beta[c], lams[c], edf[c], minv[c], _, _ = self._fit_channel(
