@@ -122,6 +122,37 @@ def test_chunking_and_a_checkpoint_while_a_record_is_held_change_nothing(munich_
     assert np.allclose(rest["posterior"]["mean_m"], whole["posterior"]["mean_m"], rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.realdata
+def test_a_car_parked_at_the_end_of_a_real_record_is_cut_reported_and_kept_across_a_checkpoint(
+    munich_data: Path,
+) -> None:
+    """The 10 mm record cut at minute 7, the test car on the bridge to its end (``parked_start``).
+
+    The car is cut from its arrival on and reported (``traffic.parked``: its time, +4 to +8 kN per
+    bearing, the change it would be), the same replayed in one piece or in 997-message chunks,
+    and the report survives a checkpoint (``state_dict``). A report whose load could not be
+    measured says so (``load_n`` null, the warning without a size).
+    """
+    data = _head(load_record([munich_data / "Settlements" / RECORDS[1]]), 7 * 60 * 100)
+    config, sur = load_config(), load_surrogate()
+    shadow = Shadow(config, sur)
+    whole = shadow.run(data).to_json()
+    (parked,) = whole["traffic"]["parked"]
+    t0 = int(data.forces[CHANNELS[0]].stamp_ns[0])
+    assert t0 + 60 * NS < parked["since_ns"] < parked["until_ns"] < t0 + 7 * 60 * NS
+    assert all(4e3 < x < 8e3 for x in parked["load_n"])
+    assert np.allclose(parked["as_change_m"], np.linalg.solve(sur.A, parked["load_n"]), rtol=1e-9)
+    assert Shadow(config, sur).run(data, chunk=997).to_json()["traffic"] == whole["traffic"]
+    resumed = Shadow.from_state_dict(shadow.state_dict(), config, sur)
+    assert resumed.diagnostics()["traffic"]["parked"] == whole["traffic"]["parked"]
+    resumed.parked[0][3] = float("nan")
+    diag = resumed.diagnostics()
+    assert (
+        diag["traffic"]["parked"][0]["load_n"] is None and diag["traffic"]["parked"][0]["as_change_m"] is None
+    )
+    assert "their load not measured" in diag["message"]
+
+
 def _head(data: MonitoringData, n: int) -> MonitoringData:
     return _part(data, slice(0, n))
 
@@ -412,23 +443,91 @@ def test_a_raise_heavier_than_any_vehicle_splits_the_record_and_the_car_before_i
             assert np.all(np.abs(mean - level) < 100.0), (k - k0, mean - level)
 
 
-def test_a_vehicle_that_comes_to_stay_is_no_raise_and_stays_data() -> None:
+def _roll_on(n: int, at: int, load_n: float, seconds: int) -> np.ndarray:
+    """A load of ``load_n`` arriving at sample ``at`` of ``n`` (1 Hz), rising linearly over ``seconds``."""
+    x = np.clip((np.arange(n) - at + 1) / max(seconds, 1), 0.0, 1.0)
+    return load_n * x
+
+
+@pytest.mark.parametrize("seconds", [0, 9])
+def test_a_load_that_comes_to_stay_is_cut_as_parked_when_it_rolled_on(seconds: int) -> None:
     """The same record with a 21 kN rise at minute 12 (two test cars parked to the end).
 
-    No heavier than ``traffic_vehicle_max_n``, the rise stays one stretch with the rest of the
-    record, as before the limit: the parked vehicles are kept as data (a run that does not come
-    back), the car over minutes 3-8 cut against the record's baseline.
+    No heavier than ``traffic_vehicle_max_n``, the rise stays to the record's end: the record
+    cannot show it leave. Rolled on over 9 s, as a car coming to a stop does (the test car on
+    2022-04-11: 7 s from 10 to 90 %), it is vehicles parked at the end (``parked_start``): cut from
+    their arrival on, less the margin, and reported with its stamp. Within one sample it is a step
+    (a support raised, or one added to a record) and stays data, as every rise did before the rule.
     """
+    from bridge_shadow.estimate.inputs.traffic import screen_record
+
     t, f = _record(20.0)
     f[:, 180:480] += 3000.0
-    f[:, 720:] += 10500.0
+    f += _roll_on(len(t), 720, 10500.0, seconds)
     assert load_config().traffic_vehicle_max_n == pytest.approx(30000.0)
     got = _windows(_data(t, f), 1800.0)
     k0 = int(t[0] // W)
-    assert not any(c.sum() for k, (_, _, c) in got.items() if k - k0 >= 12)
-    late = [mean for k, (mean, _, _) in got.items() if k - k0 >= 13]
     u0 = load_surrogate().u0
-    assert late and all(np.all(np.abs(m - u0 - 10500.0) < 100.0) for m in late)
+    late = [(k - k0, mean) for k, (mean, _, _) in got.items() if k - k0 >= 13]
+    parked: list[int] = []
+    keep = screen_record([t, t], [f[0], f[1]], 300.0, 10.0, 30000.0, parked)
+    if seconds:  # parked: nothing from its arrival on is data, and the report says when it came
+        assert len(parked) == 1 and abs((parked[0] - t[0]) / NS - 720) <= 6
+        assert not keep[0][716:].any() and keep[0][600:700].all()
+        assert all(np.all(np.isnan(m)) for _, m in late)
+    else:  # a step: data, as before
+        assert not parked and keep[0][720:].all()
+        assert late and all(np.all(np.abs(m - u0 - 10500.0) < 100.0) for _, m in late)
+    for k, (mean, _, _) in got.items():  # the car-free minutes before are data either way
+        if 9 <= k - k0 <= 11:
+            assert np.all(np.abs(mean - u0) < 100.0), (k - k0, mean - u0)
+
+
+def test_parked_start_tells_a_parked_vehicle_from_a_drift_a_step_a_departure_and_two_states() -> None:
+    """``traffic.parked_start`` on 1 s bin sums of a 10-minute record (400 kN, noise 20 N).
+
+    A car rolling on at minute 4 (10 kN over 9 s) and staying: found where it arrived. Not a parked
+    vehicle: the same load arriving within one bin (a step); a drift of 1.5 kN through the record;
+    a car that leaves before the end; a load heavier than any vehicle (40 kN); a state raised by
+    80 kN under the car and lowered again, the record ending 8 kN above its start (a state between
+    two steps, heavier than a vehicle). A second car parking at minute 6 and leaving at minute 8
+    leaves the first car's arrival as the answer. The last four cases each fail without one of
+    the rule's tests (the lightest parked load, the quiet bins, the load that arrived against the
+    one at the end, the search repeated before the arrival found first).
+    """
+    from bridge_shadow.estimate.inputs.traffic import parked_start
+
+    rng = np.random.default_rng(5)
+    n = 600
+    base = 400e3 + rng.normal(0.0, 20.0, n)
+    car = _roll_on(n, 240, 10e3, 9)
+
+    def found(s: np.ndarray) -> int | None:
+        return parked_start(s, 300.0, 30000.0, 10)
+
+    p = found(base + car)
+    assert p is not None and abs(p - 244) <= 3  # half of the load reached
+    assert found(base + _roll_on(n, 240, 10e3, 0)) is None
+    assert found(base + np.linspace(0.0, 1500.0, n)) is None
+    gone = base + car
+    gone[480:] -= 10e3 * np.clip((np.arange(480, n) - 479) / 9, 0.0, 1.0)
+    assert found(gone) is None
+    assert found(base + _roll_on(n, 240, 40e3, 9)) is None
+    two = base + car + _roll_on(n, 300, 80e3, 0) - _roll_on(n, 420, 82e3, 0)
+    assert found(two) is None
+    second = base + car + _roll_on(n, 360, 8e3, 9) - _roll_on(n, 480, 8e3, 9)
+    p = found(second)
+    assert p is not None and abs(p - 244) <= 3
+    # each test on its own: a load of 2 kN that stays is no lighter than a record's drift
+    assert found(base + _roll_on(n, 240, 2e3, 5)) is None
+    # a raise by jacks over 40 s moves no bin like a vehicle driving on
+    assert found(base + _roll_on(n, 220, 10e3, 40)) is None
+    # the car parked at minute 4 and the support lowered by 4 kN under it at minute 7: the load
+    # that arrived is not the one at the end
+    assert found(base + car - _roll_on(n, 420, 4e3, 0)) is None
+    # a light car at minute 4, a heavier one at minute 6, both to the end: the first one's arrival
+    p = found(base + _roll_on(n, 240, 4e3, 9) + _roll_on(n, 360, 10e3, 9))
+    assert p is not None and abs(p - 242) <= 3
 
 
 def test_a_second_vehicle_arriving_just_before_a_drop_is_cut_with_the_first() -> None:

@@ -316,6 +316,17 @@ def warnings(shadow: Shadow) -> list[str]:
     out.extend(silent_channel_lines(shadow))
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")
+    for p in parked_loads(shadow):
+        if p["load_n"] is None:
+            size = "their load not measured (no kept sample before them)"
+        else:
+            load = " / ".join(f"{1e-3 * x:+.1f}" for x in p["load_n"])
+            change = " / ".join(f"{1e3 * x:+.2f}" for x in p["as_change_m"])
+            size = f"{load} kN (south / north); were it a change of the supports, {change} mm"
+        out.append(
+            f"vehicles parked at the end of a record from {p['since']} until it ended at {p['until']}, "
+            f"cut as traffic: {size}, which the next record will show"
+        )
     for c in unconfirmed_changes(shadow):
         if not c.likely:
             continue
@@ -504,7 +515,33 @@ def traffic_info(shadow: Shadow) -> dict[str, Any]:
             {"time_ns": r[0] * w, "time": iso_utc(r[0] * w), "window": r[0], "cut": r[1:3], "kept": r[3:5]}
             for r in rows
         ],
+        "parked": parked_loads(shadow),
     }
+
+
+def parked_loads(shadow: Shadow) -> list[dict[str, Any]]:
+    """Vehicles parked at a record's end, cut from their arrival on (``inputs.traffic.parked_start``).
+
+    Per record: when they arrived and when the record ended, their load per channel (N), and the
+    change of the supports (m) that would put the same load on the bearings (``A^-1`` load): the
+    screen cannot tell the two apart at a record's end, and takes the load as vehicles. Both None
+    where the record kept no sample before them to measure the load from.
+    """
+    out = []
+    for _, since, until, a, b in shadow.parked:
+        load = np.array([a, b], float)
+        known = bool(np.all(np.isfinite(load)))
+        out.append(
+            {
+                "since_ns": int(since),
+                "since": iso_utc(int(since)),
+                "until_ns": int(until),
+                "until": iso_utc(int(until)),
+                "load_n": load.tolist() if known else None,
+                "as_change_m": np.linalg.solve(shadow.A, load).tolist() if known else None,
+            }
+        )
+    return out
 
 
 def replay_result(shadow: Shadow, outputs: list[WindowOutput], messages: int, seconds: float) -> ReplayResult:

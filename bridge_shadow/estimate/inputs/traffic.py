@@ -21,7 +21,11 @@ it is at most ``traffic_hold_s`` long, screens it here before its windows close:
    A run that touches the record's end is looked at again: the record is split where its
    car-free level drops (a settlement inside the record), or rises by more than the heaviest
    vehicle (``traffic_vehicle_max_n``: a support raised inside it), and each side is screened
-   against its own baseline (``split_bin``).
+   against its own baseline (``split_bin``);
+4. a load that arrived as a vehicle does and stayed to the record's end, no heavier than the
+   heaviest vehicle, is a vehicle *parked at the end* (``parked_start``): cut from its arrival on
+   and reported (``screen_record``'s ``parked``), since the record cannot show it leave; the
+   screen cannot tell it from a raise of the support at that moment, which the report names.
 
 A record whose recording stopped and started again inside it (a silence of ``PIECE_SILENCE_NS``)
 is screened in pieces where the car-free level changes across a silence, and as one stretch with
@@ -52,6 +56,7 @@ __all__ = [
     "MIN_SIDE_BINS",
     "PIECE_SILENCE_NS",
     "first_free",
+    "parked_start",
     "screen_record",
     "split_bin",
     "support_start",
@@ -70,6 +75,22 @@ PIECE_SILENCE_NS = 60 * BIN_NS
 #: state has no window of its own: the detector reads it), and at most this many times per piece.
 MIN_SIDE_BINS = 60
 MAX_SPLITS = 3
+#: A vehicle parked at a record's end drove on: its load rose over at least this many 1 s bins from
+#: 10 to 90 % of it (``parked_start``). A step (a support that slipped, or a step added to a record)
+#: falls inside one bin and shows in at most two, the one it fell in holding part of it; a car that
+#: comes to a stop on the bridge rolls onto it over seconds (the test car on 2022-04-11's reference
+#: record, 10 to 90 % of its 10.7 kN: 7 s).
+PARKED_RISE_BINS = 3
+#: How far, in ``threshold_n``, the load that arrived may exceed the load still there at the
+#: record's end (``parked_start``): the car-free level drifts by up to about 1 kN through a record
+#: (``first_free``), 3 x 300 N, while a vehicle that left on top of a change (a car gone, a state
+#: raised by about its load) takes at least the lightest parked plateau, 3 kN, ten thresholds.
+PARKED_DRIFT_THRESHOLDS = 3.0
+#: The lightest load, in ``threshold_n``, taken as vehicles parked at a record's end: ten, the
+#: lightest parked plateau of the test car (3 kN; ``traffic_threshold_n`` is a tenth of it). A
+#: record's car-free level drifts by up to 1-2 kN through it (the sun on the deck, a warming
+#: morning), and a lighter rise that stays is that drift as often as a vehicle: data, as before.
+PARKED_MIN_THRESHOLDS = 10.0
 
 
 def screen_record(
@@ -78,6 +99,7 @@ def screen_record(
     threshold_n: float,
     margin_s: float,
     vehicle_max_n: float,
+    parked: list[int] | None = None,
 ) -> list[np.ndarray]:
     """Screen the samples of one record (per channel, sorted stamps in ns and forces in N).
 
@@ -86,19 +108,25 @@ def screen_record(
     apart, shorter than ``gap_s``) and the car-free level changes across the silence, each piece is
     screened on its own: a settlement between them would otherwise tilt the baseline under both,
     and neither car would be cut. Pieces on one level are screened together (``_state_bounds``).
+    ``parked``: where given, the stamp (ns) of the first bin cut as vehicles parked at the
+    record's end (``parked_start``) is appended to it.
     """
     if any(not len(s) for s in stamps):
         return [np.ones(len(s), bool) for s in stamps]
     both = np.unique(np.concatenate(stamps))
     cuts = both[1:][np.diff(both) >= PIECE_SILENCE_NS]
-    if not len(cuts):
-        return _screen_piece(stamps, values, threshold_n, margin_s, vehicle_max_n)
-    bounds = _state_bounds(
-        stamps, values, [int(both[0]), *map(int, cuts), int(both[-1]) + 1], threshold_n, vehicle_max_n
-    )
-    if len(bounds) == 2:
-        return _screen_piece(stamps, values, threshold_n, margin_s, vehicle_max_n)
-    return _screen_states(stamps, values, bounds, (threshold_n, margin_s, vehicle_max_n))
+    bounds = [int(both[0]), int(both[-1]) + 1]
+    if len(cuts):
+        bounds = _state_bounds(
+            stamps, values, [bounds[0], *map(int, cuts), bounds[1]], threshold_n, vehicle_max_n
+        )
+    if len(bounds) > 2:
+        return _screen_states(stamps, values, bounds, (threshold_n, margin_s, vehicle_max_n), parked)
+    idx, total = _bin_total(stamps, values)
+    done = _screen_bins(total, threshold_n, round(margin_s * 1e9 / BIN_NS), vehicle_max_n)
+    if parked is not None and done.parked >= 0:
+        parked.append(int(bounds[0]) + done.parked * BIN_NS)
+    return [~done.cut[i] for i in idx]
 
 
 def _screen_states(
@@ -106,6 +134,7 @@ def _screen_states(
     values: list[np.ndarray],
     bounds: list[int],
     rule: tuple[float, float, float],
+    parked: list[int] | None = None,
 ) -> list[np.ndarray]:
     """Screen the pieces of a record whose car-free level changes across silences (``_state_bounds``).
 
@@ -155,6 +184,8 @@ def _screen_states(
         idx = bins[i][0]
         for c, m in enumerate(sel):
             keep[c][m] = ~done.cut[idx[c]]
+        if parked is not None and done.parked >= 0:  # bins from the piece's first stamp
+            parked.append(min(int(s[m][0]) for s, m in zip(stamps, sel, strict=True)) + done.parked * BIN_NS)
     return keep
 
 
@@ -212,27 +243,13 @@ def _bin_total(stamps: list[np.ndarray], values: list[np.ndarray]) -> tuple[list
     return idx, total
 
 
-def _screen_piece(
-    stamps: list[np.ndarray],
-    values: list[np.ndarray],
-    threshold_n: float,
-    margin_s: float,
-    vehicle_max_n: float,
-) -> list[np.ndarray]:
-    """Screen one continuous piece of a record (``screen_record``)."""
-    if any(not len(s) for s in stamps):
-        return [np.ones(len(s), bool) for s in stamps]
-    idx, total = _bin_total(stamps, values)
-    cut = _screen_bins(total, threshold_n, round(margin_s * 1e9 / BIN_NS), vehicle_max_n).cut
-    return [~cut[i] for i in idx]
-
-
 class _Screened(NamedTuple):
     """The screen of a stretch of bins: bins cut, its baseline at its first and last bin (N), bins free.
 
     ``head_n`` / ``tail_n``: the load (N above the baseline; the median of its half minute next to
     the bin) of a run cut where it touches the stretch's first / last bin when that bin is a split,
-    NaN when none is.
+    NaN when none is. ``parked``: the first bin cut as vehicles parked at the record's end (-1:
+    none).
     """
 
     cut: np.ndarray
@@ -241,6 +258,7 @@ class _Screened(NamedTuple):
     free: int
     head_n: float = np.nan
     tail_n: float = np.nan
+    parked: int = -1
 
 
 def _screen_bins(
@@ -267,10 +285,19 @@ def _screen_bins(
     otherwise hide) and each side shows car-free bins, at least the margin's worth (noise
     larger than the threshold flags every bin, and the rule has nothing to stand on); a split
     inside a vehicle's excursion leaves baselines that agree (the car-free level on both sides),
-    and the stretch is screened whole.
+    and the stretch is screened whole. A stretch that ends the record with vehicles parked at
+    its end (``parked_start``) is cut from their arrival on (less the margin), the bins before it
+    screened as the side of a split.
     """
     n = len(total)
     valid = np.flatnonzero(np.isfinite(total))  # bins with both channels (sparse data leaves gaps)
+    if ends[1] and depth < MAX_SPLITS:
+        p = parked_start(total[valid], threshold_n, vehicle_max_n, margin)
+        if p is not None:
+            k = int(valid[max(p - margin, 0)])
+            left = _screen_bins(total[:k], threshold_n, margin, vehicle_max_n, depth + 1, (ends[0], False))
+            cut = np.concatenate([left.cut, np.ones(n - k, bool)])
+            return _Screened(cut, left.first_n, left.last_n, left.free, left.head_n, np.nan, k)
     t = np.arange(n) + 0.5
     start = first_free(total, threshold_n) if all(ends) else support_start(total, threshold_n)
     flags = flag_car(t, total, threshold_n, margin, empty_is_car=False, start=start)
@@ -311,7 +338,10 @@ def _screen_bins(
     if _holds_a_further_state(left.tail_n, right.head_n, vehicle_max_n):
         right = _screen_bins(total[k:], *more, (True, ends[1]))
     both = np.concatenate([left.cut, right.cut])
-    return _Screened(both, left.first_n, right.last_n, left.free + right.free, left.head_n, right.tail_n)
+    parked = right.parked + k if right.parked >= 0 else -1
+    return _Screened(
+        both, left.first_n, right.last_n, left.free + right.free, left.head_n, right.tail_n, parked
+    )
 
 
 def _holds_a_further_state(tail_n: float, head_n: float, vehicle_max_n: float) -> bool:
@@ -437,3 +467,58 @@ def split_bin(s: np.ndarray, threshold_n: float, vehicle_max_n: float = np.inf) 
     if rise > max(threshold_n, vehicle_max_n, drop.max()):
         return int(np.flatnonzero(-drop >= rise - threshold_n)[0]) + MIN_SIDE_BINS
     return None
+
+
+def parked_start(s: np.ndarray, threshold_n: float, vehicle_max_n: float, margin: int) -> int | None:
+    """Return the bin where the vehicles parked at the end of ``s`` arrived (None: none).
+
+    ``s``: a record's 1 s bin sums (N), its last bin the record's end. A vehicle only adds load,
+    so the load that stays from a split ``k`` to the end is ``min(s[k:]) - min(s[:k])``; its
+    largest value, ``top``, is the load at the end above the car-free level before it (when it
+    is at least ``PARKED_MIN_THRESHOLDS threshold_n`` and exceeds every drop of that kind: a
+    lowered state is no vehicle). The
+    vehicles arrived where half of it was first reached, ``k``, and are taken as parked there
+    when
+
+    - they arrived as vehicles do: the bins around ``k`` (``margin`` each side) are not all
+      ``quiet`` (a vehicle driving on moves a 1 s bin by kN within seconds, a drift never), and
+      the load rose from 10 to 90 % over at least ``PARKED_RISE_BINS`` bins (a step falls in one);
+    - the load that arrived is the one still there: the level's rise over the half minutes either
+      side of ``k`` lies between ``top / 2`` and ``top + PARKED_DRIFT_THRESHOLDS threshold_n`` (a
+      vehicle that left on top of a change is none);
+    - from ``k`` to the end no bin carries more than ``vehicle_max_n`` above the car-free level
+      (the heaviest load the bridge's traffic puts on the support; a state between two steps
+      inside the record is heavier).
+
+    Several vehicles may have come (a second car parked, then gone): the search repeats on the
+    bins before ``k``, at most ``MAX_SPLITS`` times, each side at least ``MIN_SIDE_BINS`` long.
+    """
+    end, start = len(s), None
+    calm = quiet(s, threshold_n)
+    span = 3 * margin  # the half minutes either side of an arrival
+    for _ in range(MAX_SPLITS):
+        part = s[:end]
+        n = len(part)
+        if n < 2 * MIN_SIDE_BINS:
+            break
+        before = np.minimum.accumulate(part)[MIN_SIDE_BINS - 1 : n - MIN_SIDE_BINS]  # min of s[:k]
+        after = np.minimum.accumulate(part[::-1])[::-1][MIN_SIDE_BINS : n - MIN_SIDE_BINS + 1]
+        load = after - before  # min of s[k:] over min of s[:k]
+        top = float(load.max())
+        if top < PARKED_MIN_THRESHOLDS * threshold_n or top <= float((-load).max()):
+            break  # lighter than any parked vehicle (a drift), or a lowered state
+        k = int(np.flatnonzero(load >= 0.5 * top)[0]) + MIN_SIDE_BINS
+        if calm[max(k - margin, 0) : k + margin].all():
+            break  # nothing drove on there: a drift
+        lo = float(np.median(part[max(k - span, 0) : k]))
+        rise = float(np.median(part[k : k + span])) - lo
+        if not 0.5 * top <= rise <= top + PARKED_DRIFT_THRESHOLDS * threshold_n:
+            break  # the load that arrived there is not the one at the end
+        near = part[max(k - span, 0) : k + span]
+        rolled = int(np.argmax(near >= lo + 0.9 * rise)) - int(np.argmax(near >= lo + 0.1 * rise))
+        if rolled < PARKED_RISE_BINS:
+            break  # within a bin or two: a step, not a vehicle rolling on
+        start = end = k
+    if start is None or float(np.max(s[start:]) - np.min(s[:start])) > vehicle_max_n:
+        return None
+    return start

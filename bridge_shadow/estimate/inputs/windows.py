@@ -27,7 +27,7 @@ later record with temperature arrives before its windows close (the traffic scre
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -244,6 +244,11 @@ class WindowBatch:
             reading its matched temperature rests on (0 without a matched temperature); beyond
             ``temperature_stale_s`` the window's temperature is *stale* (``Shadow`` widens its
             compensation by what the air can do in that time).
+        parked: per record screened into these windows that ended with vehicles parked on the
+            bridge (``traffic.parked_start``): the window of the record's end, the stamp (ns)
+            from which they were cut, the record's end (ns) and their load per channel (N: the
+            median of the cut samples over the median of the last kept minute before them; NaN
+            without a kept sample before them).
 
     """
 
@@ -254,6 +259,7 @@ class WindowBatch:
     reason: np.ndarray
     cut: np.ndarray
     temp_age_s: np.ndarray
+    parked: list[tuple[int, int, int, float, float]] = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.k)
@@ -272,15 +278,18 @@ class WindowBatch:
         )
 
     def select(self, rows: np.ndarray) -> WindowBatch:
-        """Return the windows at ``rows`` (a boolean mask or indices)."""
+        """Return the windows at ``rows`` (a boolean mask or indices), with their records' parked."""
+        k = self.k[rows]
+        kept = set(k.tolist())
         return WindowBatch(
-            self.k[rows],
+            k,
             self.samples[rows],
             self.force_n[rows],
             self.temp_c[rows],
             self.reason[rows],
             self.cut[rows],
             self.temp_age_s[rows],
+            [p for p in self.parked if p[0] in kept],
         )
 
     @classmethod
@@ -288,7 +297,9 @@ class WindowBatch:
         """Return the windows of ``batches`` one after the other."""
         if not batches:
             return cls.empty()
-        return cls(*(np.concatenate([getattr(b, f) for b in batches]) for f in _FIELDS))
+        out = cls(*(np.concatenate([getattr(b, f) for b in batches]) for f in _FIELDS))
+        out.parked = [p for b in batches for p in b.parked]
+        return out
 
 
 _FIELDS = ("k", "samples", "force_n", "temp_c", "reason", "cut", "temp_age_s")
@@ -404,9 +415,11 @@ class WindowBuffer:
         end_ns = k_end * self.w_ns
         taken = [b.take_before(end_ns) for b in self.force]
         cut: list[np.ndarray] = [np.empty(0, np.int64), np.empty(0, np.int64)]
+        parked: list[tuple[int, int, int, float, float]] = []
         for start, last in screened:
-            taken, cut = self._screen(taken, cut, start, last)
+            taken, cut = self._screen(taken, cut, start, last, parked)
         batch = self._aggregate(taken, cut)
+        batch.parked = parked
         self.next_k = self._next_window(k_end, force_last_ns)
         self._prune_temperature(self.next_k * self.w_ns)
         first = self.temp_first_ns
@@ -469,18 +482,39 @@ class WindowBuffer:
         return ended
 
     def _screen(
-        self, taken: list[tuple[np.ndarray, np.ndarray]], cut: list[np.ndarray], first: int, last: int
+        self,
+        taken: list[tuple[np.ndarray, np.ndarray]],
+        cut: list[np.ndarray],
+        first: int,
+        last: int,
+        parked: list[tuple[int, int, int, float, float]],
     ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[np.ndarray]]:
-        """Cut the traffic of the record ``[first, last]`` (stamps) from the samples ``taken``."""
+        """Cut the traffic of the record ``[first, last]`` (stamps) from the samples ``taken``.
+
+        Vehicles parked at the record's end are appended to ``parked`` (``WindowBatch.parked``).
+        """
         lo = [int(np.searchsorted(s, first, side="left")) for s, _ in taken]
         hi = [int(np.searchsorted(s, last, side="right")) for s, _ in taken]
+        since: list[int] = []
         keeps = screen_record(
             [s[a:b] for (s, _), a, b in zip(taken, lo, hi, strict=True)],
             [v[a:b] for (_, v), a, b in zip(taken, lo, hi, strict=True)],
             self.traffic_threshold_n,
             self.traffic_margin_s,
             self.traffic_vehicle_max_n,
+            since,
         )
+        for t in since:
+            loads = []
+            for (s, v), a, b, keep in zip(taken, lo, hi, keeps, strict=True):
+                rs, rv = s[a:b], v[a:b]
+                on, ahead = rs >= t, keep & (rs < t)
+                if on.any() and ahead.any():  # the last kept minute before them
+                    ahead &= rs >= rs[ahead][-1] - 60 * 10**9
+                    loads.append(float(np.median(rv[on]) - np.median(rv[ahead])))
+                else:
+                    loads.append(float("nan"))
+            parked.append((int(last) // self.w_ns, int(t), int(last), loads[0], loads[1]))
         out, gone = [], []
         for (s, v), a, b, keep, c in zip(taken, lo, hi, keeps, cut, strict=True):
             mask = np.ones(len(s), bool)

@@ -176,6 +176,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "unconfirmed_runs": json.dumps(shadow.unconfirmed_runs),
         "recent_rejected": json.dumps(list(shadow.recent_rejected)),
         "traffic_windows": json.dumps(shadow.traffic_windows),
+        "parked": json.dumps(shadow.parked),
         "silence": json.dumps(shadow.silence.state_dict()),
         "relax": json.dumps(shadow._relax),
         "scalars": {
@@ -319,6 +320,10 @@ def restore_shadow(
     shadow.unconfirmed_runs = list(json.loads(str(state["unconfirmed_runs"])))
     shadow.recent_rejected.extend((int(k), str(r)) for k, r in json.loads(str(state["recent_rejected"])))
     shadow.traffic_windows = [[int(v) for v in row] for row in json.loads(str(state["traffic_windows"]))]
+    if "parked" in state:  # checkpoints written before vehicles parked at a record's end were cut have none
+        shadow.parked = [
+            [int(k), int(t), int(e), float(a), float(b)] for k, t, e, a, b in json.loads(str(state["parked"]))
+        ]
     if "silence" in state:  # checkpoints written before the silence was followed have none
         shadow.silence.load_state_dict(json.loads(str(state["silence"])))
     if "relax" in state:  # checkpoints written before the relaxation allowance have none
