@@ -483,6 +483,27 @@ def test_a_load_that_comes_to_stay_is_cut_as_parked_when_it_rolled_on(seconds: i
             assert np.all(np.abs(mean - u0) < 100.0), (k - k0, mean - u0)
 
 
+@pytest.mark.parametrize("seconds", [0, 9])
+def test_a_load_on_the_bridge_when_the_record_began_is_cut_when_it_rolled_off(seconds: int) -> None:
+    """A 12-minute record beginning under a 10 kN load that leaves at minute 3 (``parked_start`` reversed).
+
+    Rolled off over 9 s, as a car drives away, it is the vehicle on the bridge when the recording
+    began (a record cut under the test car): cut up to its departure and the margin, the rest data.
+    Gone within one sample it is a lowering inside the record (a step): every minute is data.
+    """
+    from bridge_shadow.estimate.inputs.traffic import screen_record
+
+    t, f = _record(12.0)
+    f += 10e3 - _roll_on(len(t), 180, 10e3, seconds)
+    parked: list[int] = []
+    keep = screen_record([t, t], [f[0], f[1]], 300.0, 10.0, 30000.0, parked)
+    assert not parked  # (only vehicles at a record's end are reported)
+    if seconds:
+        assert not keep[0][:185].any() and keep[0][200:].all()
+    else:
+        assert keep[0].all()
+
+
 def test_parked_start_tells_a_parked_vehicle_from_a_drift_a_step_a_departure_and_two_states() -> None:
     """``traffic.parked_start`` on 1 s bin sums of a 10-minute record (400 kN, noise 20 N).
 

@@ -25,7 +25,10 @@ it is at most ``traffic_hold_s`` long, screens it here before its windows close:
 4. a load that arrived as a vehicle does and stayed to the record's end, no heavier than the
    heaviest vehicle, is a vehicle *parked at the end* (``parked_start``): cut from its arrival on
    and reported (``screen_record``'s ``parked``), since the record cannot show it leave; the
-   screen cannot tell it from a raise of the support at that moment, which the report names.
+   screen cannot tell it from a raise of the support at that moment, which the report names;
+5. so, in time reversed, is a load on the bridge when the record began that rolled off as a
+   vehicle does: cut up to its departure (the minutes of the state before a lowering that
+   happened so, were it one: the state after it keeps every window).
 
 A record whose recording stopped and started again inside it (a silence of ``PIECE_SILENCE_NS``)
 is screened in pieces where the car-free level changes across a silence, and as one stretch with
@@ -287,10 +290,20 @@ def _screen_bins(
     inside a vehicle's excursion leaves baselines that agree (the car-free level on both sides),
     and the stretch is screened whole. A stretch that ends the record with vehicles parked at
     its end (``parked_start``) is cut from their arrival on (less the margin), the bins before it
-    screened as the side of a split.
+    screened as the side of a split. So, reversed, is one that begins the record with vehicles
+    on the bridge that then left: cut up to their departure (and the margin), the rest screened
+    as the side of a split.
     """
     n = len(total)
     valid = np.flatnonzero(np.isfinite(total))  # bins with both channels (sparse data leaves gaps)
+    if ends[0] and depth < MAX_SPLITS:
+        p = parked_start(total[valid][::-1], threshold_n, vehicle_max_n, margin)
+        if p is not None:  # on the bridge when the recording began, gone at bin len - p
+            k = int(valid[min(len(valid) - p + margin, len(valid) - 1)])
+            right = _screen_bins(total[k:], threshold_n, margin, vehicle_max_n, depth + 1, (False, ends[1]))
+            cut = np.concatenate([np.ones(k, bool), right.cut])
+            parked = right.parked + k if right.parked >= 0 else -1
+            return _Screened(cut, right.first_n, right.last_n, right.free, np.nan, right.tail_n, parked)
     if ends[1] and depth < MAX_SPLITS:
         p = parked_start(total[valid], threshold_n, vehicle_max_n, margin)
         if p is not None:
@@ -492,6 +505,8 @@ def parked_start(s: np.ndarray, threshold_n: float, vehicle_max_n: float, margin
 
     Several vehicles may have come (a second car parked, then gone): the search repeats on the
     bins before ``k``, at most ``MAX_SPLITS`` times, each side at least ``MIN_SIDE_BINS`` long.
+    On ``s`` reversed it finds vehicles on the bridge when a record began that left as vehicles do
+    (``len(s) - k``: the first bin after they left).
     """
     end, start = len(s), None
     calm = quiet(s, threshold_n)
