@@ -244,6 +244,13 @@ def test_a_record_cut_under_the_test_car_ends_at_the_new_state_with_the_car_repo
     assert parked["since"] in line and parked["until"] in line
     diag = shadow.diagnostics()
     assert diag["level"] == "WARN" and "vehicles parked" in diag["message"]
+    # a record after it shows what it was: still in the JSON, no longer a warning
+    again = build(folder, surrogate.A, [Piece(first, 0.0), later, Piece("lowered", 6.0, (-0.01, -0.01), 7.5)])
+    _, res = replay(again, surrogate)
+    js = res.to_json()
+    assert js["traffic"]["parked"] == [parked]
+    assert not any(w.startswith("vehicles parked") for w in js["warnings"])
+    assert score_stream(again, res).events_right
 
 
 def _jacking(folder: Path, surrogate, minutes: tuple[int, int], size: float, then: bool = True) -> Scenario:

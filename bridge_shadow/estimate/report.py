@@ -316,7 +316,10 @@ def warnings(shadow: Shadow) -> list[str]:
     out.extend(silent_channel_lines(shadow))
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")
-    for p in parked_loads(shadow):
+    last = shadow._last_data_k
+    for p, row in zip(parked_loads(shadow), shadow.parked, strict=True):
+        if last is not None and last > row[0]:
+            continue  # data came after that record: the next record has shown what it was
         if p["load_n"] is None:
             size = "their load not measured (no kept sample before them)"
         else:
