@@ -248,7 +248,7 @@ def test_a_record_cut_under_the_test_car_ends_at_the_new_state_with_the_car_repo
     again = build(folder, surrogate.A, [Piece(first, 0.0), later, Piece("lowered", 6.0, (-0.01, -0.01), 7.5)])
     _, res = replay(again, surrogate)
     js = res.to_json()
-    assert js["traffic"]["parked"] == [parked]
+    assert js["traffic"]["parked"] == [parked]  # exact: the same record's samples, screened alike
     assert not any(w.startswith("vehicles parked") for w in js["warnings"])
     assert score_stream(again, res).events_right
 

@@ -317,8 +317,8 @@ def warnings(shadow: Shadow) -> list[str]:
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")
     last = shadow._last_data_k
-    for p, row in zip(parked_loads(shadow), shadow.parked, strict=True):
-        if last is not None and last > row[0]:
+    for p in parked_loads(shadow):
+        if last is not None and last > p["until_ns"] // shadow._w_ns:
             continue  # data came after that record: the next record has shown what it was
         if p["load_n"] is None:
             size = "their load not measured (no kept sample before them)"
@@ -531,7 +531,7 @@ def parked_loads(shadow: Shadow) -> list[dict[str, Any]]:
     where the record kept no sample before them to measure the load from.
     """
     out = []
-    for _, since, until, a, b in shadow.parked:
+    for since, until, a, b in shadow.parked:
         load = np.array([a, b], float)
         known = bool(np.all(np.isfinite(load)))
         out.append(

@@ -229,7 +229,7 @@ class Shadow:
         # windows the traffic screen cut samples from: [k, cut south, cut north, kept south, kept north]
         self.traffic_windows: list[list[int]] = []
         # records that ended with vehicles parked on the bridge (``WindowBatch.parked``), cut from
-        # their arrival on: [window of the record's end, cut from (ns), end (ns), load S, load N (N)]
+        # their arrival on: [cut from (ns), the record's end (ns), load S, load N (N)]
         self.parked: list[list[float]] = []
         self.silence = ChannelSilence()  # stretches of windows one force channel missed alone
         self.warm = False
@@ -405,7 +405,7 @@ class Shadow:
         for j in np.flatnonzero(batch.cut.sum(axis=1) > 0):
             row = [int(batch.k[j]), *map(int, batch.cut[j]), *map(int, batch.samples[j])]
             self.traffic_windows.append(row)
-        self.parked.extend([int(k), int(t), int(end), float(a), float(b)] for k, t, end, a, b in batch.parked)
+        self.parked.extend([int(t), int(end), float(a), float(b)] for _, t, end, a, b in batch.parked)
         sun, svar = None, np.zeros(n)
         if self.sun is not None:  # one air temperature for both channels: the first one known
             temp = np.where(np.isfinite(batch.temp_c[:, 0]), batch.temp_c[:, 0], batch.temp_c[:, 1])

@@ -322,7 +322,7 @@ def restore_shadow(
     shadow.traffic_windows = [[int(v) for v in row] for row in json.loads(str(state["traffic_windows"]))]
     if "parked" in state:  # checkpoints written before vehicles parked at a record's end were cut have none
         shadow.parked = [
-            [int(k), int(t), int(e), float(a), float(b)] for k, t, e, a, b in json.loads(str(state["parked"]))
+            [int(t), int(e), float(a), float(b)] for t, e, a, b in json.loads(str(state["parked"]))
         ]
     if "silence" in state:  # checkpoints written before the silence was followed have none
         shadow.silence.load_state_dict(json.loads(str(state["silence"])))
