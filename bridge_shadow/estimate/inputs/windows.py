@@ -452,11 +452,12 @@ class WindowBuffer:
         """
         rec = self.record
         parts = []
-        for b in self.force:
+        for b in self.force if end_ns > rec.scan_ns else ():
             for st in reversed(b.stamps):  # the unscanned samples are in the last chunks
                 if st[-1] < rec.scan_ns:
                     break
-                parts.append(st[(st >= rec.scan_ns) & (st < end_ns)])
+                if st[0] < end_ns:  # (a chunk of the windows not due yet holds none of them)
+                    parts.append(st[(st >= rec.scan_ns) & (st < end_ns)])
         rec.scan_ns = max(rec.scan_ns, end_ns)
         new = np.sort(np.concatenate(parts)) if parts else np.empty(0, np.int64)
         ended: list[tuple[int, int]] = []
