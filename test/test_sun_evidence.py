@@ -74,6 +74,19 @@ def _dense_reference(comp: Compensation, rows: WindowRows, s: np.ndarray, lam: f
     return chans, sol[2 * p]
 
 
+@pytest.mark.parametrize("mean", [-40.0, -3.0, -0.5, 0.0, 0.7, 5.0, 60.0])
+def test_the_truncated_density_at_zero_is_scipy_stats_norm(mean: float) -> None:
+    """The Savage-Dickey ratio's density, on ``scipy.special``, is ``scipy.stats.norm``'s (deep tails too)."""
+    from scipy import stats
+
+    from bridge_shadow.estimate.compensation.fit import _log_truncated_density_at_zero
+
+    for sd in (1e-3, 0.2, 1.0, 7.5, 300.0):
+        ref = stats.norm.logpdf(0.0, mean, sd) - stats.norm.logsf(0.0, mean, sd)
+        assert np.isfinite(ref)
+        np.testing.assert_allclose(_log_truncated_density_at_zero(mean, sd), ref, rtol=1e-13, atol=1e-13)
+
+
 def test_one_g_of_the_deck_equals_a_joint_dense_constrained_solve() -> None:
     """One ``g`` of the deck for both bearings: the fit equals the joint dense solve, levels and all."""
     slope = np.array([-4000.0, -5000.0])
