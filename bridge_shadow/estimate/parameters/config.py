@@ -47,7 +47,7 @@ _TOPIC_FIELDS = (
 )
 
 
-class _Loader(yaml.SafeLoader):
+class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
     """PyYAML's safe loader with YAML 1.2 floats, as the ROS parameter parser reads them.
 
     PyYAML (YAML 1.1) reads ``5.0e6`` and ``1e-4`` as strings; rcl reads them as doubles, so the
