@@ -62,7 +62,7 @@ def _is_type_checking(test: ast.expr) -> bool:
 
 
 def _runtime_nodes(tree: ast.AST) -> Iterable[ast.AST]:
-    """Walk the tree like ``ast.walk``, skipping the bodies of ``if TYPE_CHECKING:``."""
+    """Walk the tree's statements like ``ast.walk``, skipping the bodies of ``if TYPE_CHECKING:``."""
     todo = [tree]
     while todo:
         node = todo.pop()
@@ -70,7 +70,8 @@ def _runtime_nodes(tree: ast.AST) -> Iterable[ast.AST]:
         if isinstance(node, ast.If) and _is_type_checking(node.test):
             todo.extend(node.orelse)
             continue
-        todo.extend(ast.iter_child_nodes(node))
+        if not isinstance(node, ast.expr):  # (an expression holds no statement, so no import)
+            todo.extend(ast.iter_child_nodes(node))
 
 
 def module_imports(root: Path = ROOT, package: str = PACKAGE) -> dict[str, set[str]]:
