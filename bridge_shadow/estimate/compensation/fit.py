@@ -61,7 +61,7 @@ def _log_truncated_density_at_zero(mean: float, sd: float) -> float:
 
     ``scipy.stats.norm.logpdf(0, mean, sd) - scipy.stats.norm.logsf(0, mean, sd)`` with its own
     formulas on its own ``scipy.special`` kernel, without its argument checks (a hundred
-    microseconds a call, on every refit; ``test_compensation_fit`` compares the two).
+    microseconds a call, on every refit; ``test_sun_evidence`` compares the two).
     """
     z = (0.0 - mean) / sd
     return float((-z * z / 2.0 - _LOG_SQRT_2PI - math.log(sd)) - special.log_ndtr(-z))
