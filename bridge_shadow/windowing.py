@@ -13,12 +13,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["WindowStats", "window_index", "window_stats"]
+__all__ = ["WindowStats", "sorted_union", "window_index", "window_stats"]
 
 
 def window_index(stamps_ns: np.ndarray, width_ns: int) -> np.ndarray:
     """Return the window index ``k`` of each stamp (window ``[k W, (k + 1) W)``)."""
     return stamps_ns // width_ns
+
+
+def sorted_union(parts: list[np.ndarray]) -> np.ndarray:
+    """Return ``np.unique(np.concatenate(parts))``, collapsing each part's runs of equal neighbours first.
+
+    The set of values is the same whatever the order; parts that are sorted (stamps, their window
+    indices) collapse to their distinct values in one pass, so the sort is over those only: a
+    record's 100 Hz samples fall in tens of windows, where ``np.unique`` of every sample's index
+    took 6 ms.
+    """
+    kept = []
+    for p in parts:
+        first = np.ones(len(p), bool)
+        np.not_equal(p[1:], p[:-1], out=first[1:])
+        kept.append(p[first])
+    return np.unique(np.concatenate(kept))
 
 
 @dataclass

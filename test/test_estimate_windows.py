@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from bridge_shadow.estimate.inputs.windows import WindowBuffer
+from bridge_shadow.windowing import sorted_union
 
 W = 60 * 10**9
 T0 = 1_700_000_040 * 10**9
@@ -124,3 +125,17 @@ def test_one_window_at_a_time_equals_the_general_aggregate() -> None:
         assert reasons == {"", "sparse_window"}  # 30 samples a window on average: both kinds
         temps = np.concatenate([a.temp_c for a in fast])
         assert np.isnan(temps).any() == (match == "linear" and len(t) < len(ts))
+
+
+def test_sorted_union_is_numpys_unique_of_the_concatenation() -> None:
+    """``sorted_union`` (runs collapsed first) equals ``np.unique`` of the parts, sorted or not, empty too."""
+    rng = np.random.default_rng(5)
+    for _ in range(500):
+        parts = []
+        for _ in range(int(rng.integers(1, 5))):
+            part = rng.integers(-5, 20, int(rng.integers(0, 40)))
+            parts.append(np.sort(part) if rng.random() < 0.7 else part)
+        expected = np.unique(np.concatenate(parts))
+        got = sorted_union(parts)
+        assert got.dtype == expected.dtype
+        np.testing.assert_array_equal(got, expected)  # exact: integers

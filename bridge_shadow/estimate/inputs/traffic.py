@@ -51,7 +51,7 @@ from typing import NamedTuple
 import numpy as np
 
 from bridge_shadow.traffic import flag_car, runs
-from bridge_shadow.windowing import window_stats
+from bridge_shadow.windowing import sorted_union, window_stats
 
 __all__ = [
     "BIN_NS",
@@ -116,7 +116,7 @@ def screen_record(
     """
     if any(not len(s) for s in stamps):
         return [np.ones(len(s), bool) for s in stamps]
-    both = np.unique(np.concatenate(stamps))
+    both = sorted_union(stamps)
     cuts = both[1:][np.diff(both) >= PIECE_SILENCE_NS]
     bounds = [int(both[0]), int(both[-1]) + 1]
     if len(cuts):

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bridge_shadow.estimate.inputs.traffic import PIECE_SILENCE_NS, screen_record
-from bridge_shadow.windowing import window_index, window_stats
+from bridge_shadow.windowing import sorted_union, window_index, window_stats
 
 __all__ = [
     "AIR_DRIFT_K_PER_S",
@@ -545,7 +545,7 @@ class WindowBuffer:
         w = self.w_ns
         ks = [window_index(s, w) for s, _ in taken]
         k_cut = [window_index(c, w) for c in cut]
-        k_all = np.unique(np.concatenate([*ks, *k_cut]))
+        k_all = sorted_union([*ks, *k_cut])
         n = len(k_all)
         if not n:
             return WindowBatch.empty()
