@@ -445,6 +445,18 @@ def support_start(s: np.ndarray, threshold_n: float) -> np.ndarray:
     return out
 
 
+def _side_minima(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``min(s[:k])`` and ``min(s[k:])`` for every split ``k`` leaving ``MIN_SIDE_BINS`` on each side.
+
+    Index ``i`` is the split ``k = i + MIN_SIDE_BINS``; a vehicle only adds load, so these are the
+    car-free levels of the two sides while each has a car-free bin (``split_bin``, ``parked_start``).
+    """
+    n = len(s)
+    before = np.minimum.accumulate(s)[MIN_SIDE_BINS - 1 : n - MIN_SIDE_BINS]
+    after = np.minimum.accumulate(s[::-1])[::-1][MIN_SIDE_BINS : n - MIN_SIDE_BINS + 1]
+    return before, after
+
+
 def split_bin(s: np.ndarray, threshold_n: float, vehicle_max_n: float = np.inf) -> int | None:
     """Return ``k`` (``MIN_SIDE_BINS <= k <= len(s) - MIN_SIDE_BINS``) where the car-free level changes.
 
@@ -468,9 +480,7 @@ def split_bin(s: np.ndarray, threshold_n: float, vehicle_max_n: float = np.inf) 
     raises is cut with the vehicles before the split (a vehicle only adds load, so under a parked
     vehicle no car-free bin tells a raised state from the vehicle on the old one).
     """
-    n = len(s)
-    before = np.minimum.accumulate(s)[MIN_SIDE_BINS - 1 : n - MIN_SIDE_BINS]  # min of s[:k]
-    after = np.minimum.accumulate(s[::-1])[::-1][MIN_SIDE_BINS : n - MIN_SIDE_BINS + 1]  # min of s[k:]
+    before, after = _side_minima(s)
     drop = before - after
     if not len(drop):
         return None
@@ -516,8 +526,7 @@ def parked_start(s: np.ndarray, threshold_n: float, vehicle_max_n: float, margin
         n = len(part)
         if n < 2 * MIN_SIDE_BINS:
             break
-        before = np.minimum.accumulate(part)[MIN_SIDE_BINS - 1 : n - MIN_SIDE_BINS]  # min of s[:k]
-        after = np.minimum.accumulate(part[::-1])[::-1][MIN_SIDE_BINS : n - MIN_SIDE_BINS + 1]
+        before, after = _side_minima(part)
         load = after - before  # min of s[k:] over min of s[:k]
         top = float(load.max())
         if top < PARKED_MIN_THRESHOLDS * threshold_n or top <= float((-load).max()):
