@@ -11,6 +11,7 @@ at the old state, every window of the new state rejected as an outlier, exit 0.
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +74,34 @@ def test_the_new_state_four_hours_later_is_never_outliers(folder: Path, surrogat
     js = res.to_json()
     assert js["gaps"][0]["duration_s"] > 3 * 3600 and not js["gaps"][0]["merged"]
     assert np.all(np.abs(res.mean_m - sc.truth_m) <= 0.1 * np.abs(sc.truth_m))
+
+
+@pytest.mark.realdata
+def test_a_record_drifting_across_the_test_cars_minutes_is_one_change(folder: Path, surrogate) -> None:
+    """The reference record 20 mm lower after two 10 mm records, under the night's air (sweep #724).
+
+    Its south bearing rises 0.06 kN a minute through the record, which the air of another hour
+    does not explain. The test car's minutes, cut by the traffic screen, leave a hole that the
+    trend goes on across: read as a jump, it was a second event of +0.1 mm after the car. Against
+    the rate the windows after the car show, it is none (``ChangeDetector._drift_jump``): one
+    event, the run reported as a change not significant, its windows data, nothing lost.
+    """
+    step = -0.03038400749807109  # the lowered record's -10 mm and 20.4 mm more
+    late = Piece("ref", 19.697683915385245, (step, step), temp_at_h=0.017612894630856652)
+    sc = build(folder, surrogate.A, [Piece("lowered", 0.0), Piece("lowered", 0.45), late])
+    _, res = replay(sc, surrogate)
+    assert check(sc, res) == {"event": True, "within": True}
+    (event,) = res.events
+    assert event.kind == "gap" and np.all(np.abs(event.size_m + 0.0204) < 0.1 * 0.0204)
+    assert not any(c.likely for c in res.changes)
+    (run,) = [c for c in res.changes if c.kind == "run_in_data"]
+    assert run.time_ns > event.time_ns + 6 * W and np.all(np.abs(run.size_m) < 2e-4)  # +0.1 mm south
+    assert res.rejected["outlier"] == 0
+    # 8 s later the car's minutes fall otherwise: the run then ends the data unconfirmed, as unlikely
+    sc = build(folder, surrogate.A, [Piece("lowered", 0.0), Piece("lowered", 0.45), replace(late, at_h=19.7)])
+    _, res = replay(sc, surrogate)
+    assert check(sc, res) == {"event": True, "within": True}
+    assert len(res.events) == 1 and not any(c.likely for c in res.changes)
 
 
 def _variants(first: str, spacing: str, step: str) -> dict[str, list[Piece]]:
@@ -156,31 +185,33 @@ def test_random_streams_of_the_two_records_lose_nothing_and_end_at_the_truth(eng
     ``random_streams``: any order, 0.9-72 h apart, another hour's air, changes of 5-40 mm raised or
     lowered with up to 10 mm between the bearings, last, in the middle or after the old state. In
     every one: every change an event at its record, no window of a changed record lost, the
-    final estimate within 10 % (or 1 mm) and its 95 % interval holding it. Not asserted: that no
-    extra event comes. 5 of 766 such streams (``benchmarks/loadtest_days.py --only sweep --seeds
-    1000``) report a second, +0.1 mm event after the test car when the reference record follows
-    the lowered one with the morning's air: the reference record's own drift across the car's
-    minutes, against a noise model learned on the lowered record (README, "Any order, any
-    spacing, any step").
+    final estimate within 10 % (or 1 mm) and its 95 % interval holding it, and no other event.
+    (Until 2026-11-29, 2 to 5 of 766 such streams of ``benchmarks/loadtest_days.py --only sweep
+    --seeds 1000`` reported a second, +0.1 mm event after the test car: the reference record's own
+    drift across the car's minutes, read as a jump; ``ChangeDetector._drift_jump``.)
     """
     surrogate = load_surrogate()
     results = engine(_random_case, list(random_streams(30, surrogate.A, surrogate.u0, seed=1)))
     failed = [
-        f"{name}: {s}" for name, s in results if s.missed or s.lost_windows or not s.within or not s.covered
+        f"{name}: {s}"
+        for name, s in results
+        if s.missed or s.spurious or s.lost_windows or not s.within or not s.covered
     ]
     assert not failed, "\n".join(failed)
 
 
 @pytest.mark.realdata
-@pytest.mark.parametrize("size", [-0.02, 0.02])
+@pytest.mark.parametrize("size", [-0.02, 0.02, 0.004])
 def test_a_new_state_too_short_to_confirm_is_an_unconfirmed_change(
     folder: Path, surrogate, size: float
 ) -> None:
     """The data end two minutes into the new state: reported with its size, never thrown away.
 
-    Raised, the state adds load as a parked car would: two windows do not confirm it
-    (``event_confirm_windows``), it is an unconfirmed change. Lowered, it takes load off, which no
-    vehicle does: across the gap its two windows confirm it (``GAP_LOWERING_WINDOWS``).
+    Raised by 4 mm (27 kN on the sum), the state adds load as parked cars would: two windows do
+    not confirm it (``event_confirm_windows``), it is an unconfirmed change. Lowered, it takes load
+    off, which no vehicle does, and raised by 20 mm it adds 136 kN, more than any vehicle
+    (``traffic_vehicle_max_n``, 30 kN): across the gap its two windows confirm it
+    (``GAP_LOWERING_WINDOWS``). (Before the vehicle limit, the 20 mm raise stayed unconfirmed.)
     """
     short = Piece("ref", 4.0, (size, size), 6.5, cut_min=(0.0, 2.5))
     sc = build(folder, surrogate.A, [Piece("ref", 0.0), short])
@@ -188,7 +219,7 @@ def test_a_new_state_too_short_to_confirm_is_an_unconfirmed_change(
     assert res.rejected["outlier"] == 0
     sd = np.sqrt(np.diag(res.covariance_m2))
     assert np.all(np.abs(res.mean_m - sc.truth_m) <= 1.96 * sd)
-    if size < 0:
+    if abs(size) > 0.01:
         (event,) = res.events
         assert event.kind == "gap" and event.time_ns < sc.starts_ns[1] + 3 * W
         assert np.all(np.abs(event.size_m - size) < 0.1 * abs(size)) and not res.changes
@@ -196,8 +227,9 @@ def test_a_new_state_too_short_to_confirm_is_an_unconfirmed_change(
     assert not res.events
     js = res.to_json()
     (change,) = js["unconfirmed_changes"]
-    # likely (the car cut, the few car-free windows read clearly) but too short to confirm
-    assert change["kind"] == "gap" and 0.5 < change["change_probability"] <= 1.0 and change["windows"] < 4
+    # likely (the car cut, the two car-free windows read clearly across four hours of the curve's
+    # error: 0.69) but too short to confirm
+    assert change["kind"] == "gap" and 0.5 < change["change_probability"] < 1.0 and change["windows"] < 4
     lo, hi = np.array(change["interval95_m"]).T
     assert np.all((lo < size) & (size < hi))  # its size interval holds the 20 mm
     assert any("unconfirmed settlement change" in w for w in js["warnings"])
@@ -251,6 +283,29 @@ def test_a_record_cut_under_the_test_car_ends_at_the_new_state_with_the_car_repo
     assert js["traffic"]["parked"] == [parked]  # exact: the same record's samples, screened alike
     assert not any(w.startswith("vehicles parked") for w in js["warnings"])
     assert score_stream(again, res).events_right
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("cut", [(0.0, 6.0), (5.714234735417476, 13.0)])  # the latter: sweep #661
+def test_the_reference_record_cut_under_its_two_cars_is_one_event(
+    folder: Path, surrogate, cut: tuple[float, float]
+) -> None:
+    """The reference record 3.4 h on, 17.6 / 9.8 mm lower, cut where its two test cars stand, and again.
+
+    Cut to its first 6 minutes it ends under both (10.3 kN each on the sum, arriving at minutes 2
+    and 4): half of their load is reached on the first car's plateau, where nothing drove on, and
+    neither was cut (``parked_start``: the arrival that completed it is the second's). Cut to
+    begin at minute 5.7 it starts under both, and the second leaves within 3 s (two bins from 10
+    to 90 % of its load, ``PARKED_RISE_BINS``): read as no vehicle, it stayed, and its leaving
+    was a second event of -3 mm. Now the cars are cut, and the lowering is one event.
+    """
+    step = (-0.017640358552211976, -0.009798220892471909)
+    later = Piece("ref", 3.4118505163228066, step, 7.74148650610718, cut_min=cut)
+    again = Piece("ref", 4.542373911245169, step, 0.12264607213835349)  # the new state once more
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0), later, again])
+    _, res = replay(sc, surrogate)
+    assert check(sc, res) == {"event": True, "within": True}
+    assert res.rejected["traffic"] >= 3 and not res.changes
 
 
 def _jacking(folder: Path, surrogate, minutes: tuple[int, int], size: float, then: bool = True) -> Scenario:
@@ -325,6 +380,8 @@ def _split_record(
 
 #: The first record 10 mm below the 10 mm record's state: the gap's change is a 10 mm raise.
 BELOW = Piece("lowered", 0.0, (-0.01, -0.01))
+#: ... 3 mm below it: a 3 mm raise (20 kN on the sum, lighter than a vehicle).
+LIGHT = Piece("lowered", 0.0, (-0.003, -0.003))
 
 
 @pytest.mark.realdata
@@ -335,11 +392,13 @@ def test_a_change_while_the_logger_paused_with_three_windows_left(
     """The reference record 1.25 h on, its logger silent over minutes 6-10, 10 mm moved after it.
 
     The change happened while nothing was recorded, and its three car-free windows end the data.
-    Lowered, it took load off, which no vehicle does: two windows confirm it, as across a gap
-    (``GAP_LOWERING_WINDOWS``, ``SegmentChain.mark_outage``), one event after the pause. Raised,
-    it adds load as a parked car would: three windows do not confirm it
-    (``event_confirm_windows``), it is an unconfirmed change, likely, and the estimate holds it.
-    (The minutes before the pause, the test car standing, leave small unconfirmed raises.)
+    Lowered, it took load off, which no vehicle does; raised, it adds 68 kN to the sum, more than
+    any vehicle (``traffic_vehicle_max_n``, 30 kN; the two test cars put 21 kN on it): either way
+    two windows confirm it, as across a gap (``GAP_LOWERING_WINDOWS``,
+    ``SegmentChain.mark_outage``), one event after the pause. (Before the vehicle limit, the
+    raise stayed an unconfirmed change: three windows short of ``event_confirm_windows``. A raise
+    of the test cars' own load is what they look like standing across the pause: the screen cuts
+    its windows with them.)
     """
     sc = _split_record(folder, surrogate, Piece("ref", 0.0), size, "ref", (6.0, 10.0))
     shadow, res = replay(sc, surrogate)
@@ -348,17 +407,11 @@ def test_a_change_while_the_logger_paused_with_three_windows_left(
     assert sc.starts_ns[2] // W in shadow.filter.outage_starts  # the first window after the pause
     sd = np.sqrt(np.diag(res.covariance_m2))
     assert np.all(np.abs(res.mean_m - sc.truth_m) <= 1.96 * sd)
-    if size < 0:
-        (event,) = res.events
-        assert event.time_ns >= after and event.kind != "gap"
-        assert np.all(np.asarray(event.size_m) < -0.005)  # from the car's raises before the pause
-        assert not [c for c in res.changes if c.time_ns >= after]
-        assert np.all(np.abs(res.mean_m - sc.truth_m) <= 0.1 * np.abs(sc.truth_m))
-        return
-    assert not res.events
-    (change,) = [c for c in res.changes if c.time_ns >= after]
-    assert change.kind != "gap" and change.change_probability > 0.5 and change.windows == 3
-    assert np.all(np.asarray(change.size_m) > 0.005)  # the raise, mostly (the car's minutes before it)
+    (event,) = res.events
+    assert event.time_ns >= after and event.kind != "gap"
+    assert np.all(np.abs(np.asarray(event.size_m) - size) < 0.1 * abs(size))
+    assert not [c for c in res.changes if c.time_ns >= after]
+    assert np.all(np.abs(res.mean_m - sc.truth_m) <= 0.1 * np.abs(sc.truth_m))
 
 
 @pytest.mark.realdata
@@ -369,8 +422,9 @@ def test_checkpoint_and_resume_keep_a_logger_pause(folder: Path, surrogate, tmp_
     whole_shadow = Shadow(cfg, surrogate)
     whole = whole_shadow.run(sc.data)
     (event,) = whole.events
-    # the first windows after the gap and after the pause (the gap's segment is still provisional)
-    assert whole_shadow.filter.outage_starts == {sc.starts_ns[1] // W, sc.starts_ns[2] // W}
+    # the first window after the pause (the gap's mark is kept while its segment is provisional;
+    # the record after it, its two test cars cut where the data pause, says no change there)
+    assert whole_shadow.filter.outage_starts == {sc.starts_ns[2] // W}
     whole_shadow.save_checkpoint()
     again = Shadow.resume(tmp_path / "shadow.npz", cfg, surrogate)
     assert again.filter.outage_starts == whole_shadow.filter.outage_starts
@@ -412,21 +466,23 @@ def test_a_lowering_inside_continuous_data_with_three_windows_left_is_not_confir
 def test_a_change_the_data_left_for_another_state_says_when(folder: Path, surrogate) -> None:
     """An unconfirmed change followed by another state names it: its few windows are not the data's end.
 
-    The 10 mm record 1.25 h on, 10 mm above the record before it, raised 10 mm more while the test
-    car stands: its two windows before the car are left as an unconfirmed change (probability 1)
-    when the state after the further step begins. (A lowering there is confirmed by its two
-    windows, ``GAP_LOWERING_WINDOWS``, and so was the jacking record's ramp this test first used.)
+    The 10 mm record 1.25 h on, 3 mm above the record before it, raised 10 mm more while the test
+    car stands: its two windows before the car are left as an unconfirmed change (probability
+    0.73) when the state after the further step begins. (A lowering there, or a raise heavier than any
+    vehicle, is confirmed by its two windows, ``GAP_LOWERING_WINDOWS``, and so was the jacking
+    record's ramp this test first used.)
     """
-    _, res = replay(_split_record(folder, surrogate, BELOW, 0.01), surrogate)
+    _, res = replay(_split_record(folder, surrogate, LIGHT, 0.01), surrogate)
     js = res.to_json()
     (change,) = js["unconfirmed_changes"]
     later = [e for e in js["events"] if e["time_ns"] > change["time_ns"]]
-    assert change["change_probability"] > 0.99 and later
+    assert change["change_probability"] > 0.5 and later
     assert change["next_state_ns"] == later[0]["time_ns"]
     (line,) = [w for w in js["warnings"] if w.startswith("unconfirmed settlement change")]
     assert f"windows before the next state from {later[0]['time']}" in line
-    # a change the data end in says "since" (raised: a lowering there is an event, ``GAP_LOWERING_WINDOWS``)
-    short = Piece("ref", 4.0, (0.02, 0.02), 6.5, cut_min=(0.0, 2.5))
+    # a change the data end in says "since" (raised by less than a vehicle: a lowering there is an
+    # event, ``GAP_LOWERING_WINDOWS``)
+    short = Piece("ref", 4.0, (0.004, 0.004), 6.5, cut_min=(0.0, 2.5))
     _, res = replay(build(folder, surrogate.A, [Piece("ref", 0.0), short]), surrogate)
     (change,) = res.to_json()["unconfirmed_changes"]
     assert "next_state_ns" not in change
@@ -444,11 +500,14 @@ def test_a_new_state_whose_reactions_creep_is_one_event(
 
     The 10 mm record's car-free windows rise by 0.05 / 0.1 kN a minute; here more (``with_creep``:
     1.5 and 2 times its own), or as they are after a second record of the old state. Without the
-    relaxation allowance the rise across the car's minutes is raised as a +0.2 to +0.5 mm event
-    after the lowering's (pinned below; before ``SegmentChain.windows_changed`` the lowering then
-    kept two windows and stayed an unconfirmed change). The premise is pinned without the sun term
-    too: the shipped one (``sun_gradient_fit: average``) reads part of a creep inside a record as
-    sun, the two loading the bearings alike (README, "The sun term, averaged by its evidence").
+    relaxation allowance the rise across the car's minutes was raised as a +0.2 to +0.5 mm event
+    after the lowering's (before ``SegmentChain.windows_changed`` the lowering then kept two
+    windows and stayed an unconfirmed change); since the jump test reads a held run's own rate
+    over a hole (``ChangeDetector._drift_jump``) it is a run used as data, reported as not
+    significant (pinned below); with the allowance it is not even that. The premise is pinned
+    without the sun term too: the shipped one (``sun_gradient_fit: average``) reads part of a
+    creep inside a record as sun, the two loading the bearings alike (README, "The sun term,
+    averaged by its evidence").
     """
     if name == "pair":
         pieces = [Piece("ref", 0.0), Piece("lowered", 0.73)]
@@ -459,15 +518,16 @@ def test_a_new_state_whose_reactions_creep_is_one_event(
     res = _one_event_at_the_later_record(sc, surrogate, len(pieces) - 1)
     assert not res.changes  # and no unconfirmed one
     off = Shadow(load_config().replace(relaxation_phi0=0.0, sun_gradient=False), surrogate).run(sc.data)
-    assert len(off.events) == 2 and not off.changes  # the split: the lowering, and the creep
-    assert off.events[1].time_ns > sc.starts_ns[-1] + 5 * W  # the creep's "event" after the car
-    assert np.all(np.abs(off.events[1].size_m) < 1e-3)
+    assert len(off.events) == 1  # the lowering; the creep a drift:
+    (run,) = off.changes
+    assert run.kind == "run_in_data" and not run.likely
+    assert run.time_ns > sc.starts_ns[-1] + 5 * W and np.all(np.abs(run.size_m) < 1e-3)  # after the car
 
 
 @pytest.mark.realdata
 @pytest.mark.parametrize(
     ("first", "size", "confirmed"),
-    [(Piece("ref", 0.0), -0.01, True), (BELOW, -0.003, True), (BELOW, 0.01, False)],
+    [(Piece("ref", 0.0), -0.01, True), (BELOW, -0.003, True), (BELOW, 0.01, True), (LIGHT, 0.01, False)],
 )
 def test_a_change_left_by_a_further_step_after_two_windows_is_confirmed_by_the_state_after_it(
     folder: Path, surrogate, first: Piece, size: float, confirmed: bool
@@ -475,12 +535,13 @@ def test_a_change_left_by_a_further_step_after_two_windows_is_confirmed_by_the_s
     """The 10 mm record 1.25 h on (10 mm from the first), moved ``size`` more at minute 4.5.
 
     The gap's change keeps two windows before the test car, and the further step comes while the
-    car stands: a raise could not gather ``event_confirm_windows`` windows of its own and stayed
-    unconfirmed. The windows after the further step confirm it when they stay within half the
-    change of its state (``SegmentChain.windows_changed``): 3 mm back, yes; 10 mm more says
-    nothing of the first 10 mm, and it stays an unconfirmed change, reported with its probability.
-    A lowering takes load off, which no parked car does: its two windows confirm it
-    (``GAP_LOWERING_WINDOWS``), whatever comes after.
+    car stands: a raise lighter than a vehicle cannot gather ``event_confirm_windows`` windows of
+    its own. The windows after the further step confirm it when they stay within half the change
+    of its state (``SegmentChain.windows_changed``): 3 mm back, yes; 10 mm more says nothing of a
+    first 3 mm, and it stays an unconfirmed change, reported with its probability. A lowering
+    takes load off, which no parked car does, and a 10 mm raise adds more than any vehicle
+    (``traffic_vehicle_max_n``): their two windows confirm them (``GAP_LOWERING_WINDOWS``),
+    whatever comes after.
     """
     sc = _split_record(folder, surrogate, first, size)
     _, res = replay(sc, surrogate)
@@ -493,7 +554,7 @@ def test_a_change_left_by_a_further_step_after_two_windows_is_confirmed_by_the_s
     gap = [c for c in res.changes if c.kind == "gap"]
     assert (len(first), len(gap)) == ((1, 0) if confirmed else (0, 1))
     if not confirmed:
-        assert gap[0].change_probability > 0.99 and gap[0].next_ns == later[0].time_ns
+        assert gap[0].change_probability > 0.5 and gap[0].next_ns == later[0].time_ns
 
 
 def _one_event_at_the_later_record(sc: Scenario, surrogate, at: int = 1) -> ReplayResult:
@@ -802,7 +863,10 @@ def _creeping_twin_day(item: tuple[int, float]):
     # without the allowance, the premise without the sun term too (which reads part of a creep as sun)
     cfg = load_config().replace(relaxation_phi0=phi0, **({} if phi0 else {"sun_gradient": False}))
     res = Shadow(cfg, sur).run(data)
-    return score_day(res, truth), sum(c.kind == "step" for c in res.changes)
+    # the detector's small second steps: a step the levels do not show, or a drift run used as data
+    small = [c for c in res.changes if c.kind in ("step", "run_in_data")]
+    assert not any(c.likely for c in small)  # none warned of
+    return score_day(res, truth), len(small)
 
 
 @pytest.mark.slow
@@ -811,10 +875,13 @@ def test_twin_load_test_days_whose_new_states_creep_find_every_step(engine) -> N
 
     The twin had no creep and passed where the real records failed. With it, every step is one
     event at its record on every day thanks to the relaxation allowance; without the allowance
-    the detector reads the creep across the test car's minutes as a second, small step on about a
+    the detector read the creep across the test car's minutes as a second, small step on about a
     third of the days (62 of 100 right before an event had to be a change the levels show,
     ``benchmarks/loadtest_days.py --only twin --creep 1``), which the segments' levels do not
     show: listed as a possible change, not significant, every event right on those days too.
+    Since the jump test reads a held run's own rate over a hole (``ChangeDetector._drift_jump``)
+    that creep is a drift run used as data, reported as not significant, on 28 of 50 days without
+    the allowance and 1 of 50 with it.
     """
     # with the allowance on 100 days, the contrast without it on 50
     runs = engine(_creeping_twin_day, [(seed, 0.663) for seed in range(100)] + [(s, 0.0) for s in range(50)])

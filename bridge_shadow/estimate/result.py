@@ -130,7 +130,8 @@ class ChangeRecord:
     Attributes:
         window: first window after the possible change; time_ns: its start, ns (UTC).
         kind: ``gap``, ``held_run``, ``warmup`` (a provisional segment), ``run_in_data`` (a run that reached
-            ``event_max_pending`` without a step's jump: used as ordinary data and reported) or
+            ``event_max_pending`` without a step's jump, or ended the data or met a gap with no jump
+            beyond its own rate: used as ordinary data and reported) or
             ``step`` (a step the detector found whose size the data, as they now say, do not tell
             from no change at ``event_probability``: not an event; the estimate keeps its jump).
         change_probability: posterior probability that the settlement changed there (NaN for a
@@ -139,8 +140,9 @@ class ChangeRecord:
         size_m: (2,) m, the change if there was one (the segment's data minus the state before).
         covariance_m2: (2, 2) m^2, its covariance.
         gap_s: length of the gap before it, s (0 for a held run).
-        significant: for a ``run_in_data``: its GLR passed the event threshold; False for a
-            ``step`` (None otherwise).
+        significant: for a ``run_in_data``: its GLR passed the event threshold, and its jump
+            is one against the rate its own windows show (not a drift's progress over a hole:
+            ``ChangeDetector._drift_jump``); False for a ``step`` (None otherwise).
         until_ns: for a ``run_in_data``: the end of its last window, ns (None otherwise).
         next_ns: for a provisional segment the data left for another state (an event or a further
             possible change after it): that state's start, ns (None when the data end in it).

@@ -193,7 +193,7 @@ class Shadow:
             else prior_sigma(self.A, self.u0, config.event_jump_rule)
         )
         self.jump_sigma_m = jump_sd
-        self.filter = SegmentChain(self.A, prior_cov, np.diag(jump_sd**2))
+        self.filter = SegmentChain(self.A, prior_cov, np.diag(jump_sd**2), config.traffic_vehicle_max_n)
         self.detector = ChangeDetector(
             config.event_trigger_probability,
             config.event_probability,
@@ -782,6 +782,7 @@ class Shadow:
             "detected_window": self._last_judged,
             "until_window": run[-1].k,
             "glr": float(decision.glr),
+            "drift": bool(decision.drift),
             "step_n": np.asarray(decision.step_n, float).tolist(),
             "step_cov_n2": np.asarray(decision.step_cov_n2, float).tolist(),
         }

@@ -27,8 +27,9 @@ freedom.
      the window before ``j`` is read as holding part of it) to one of the next ``JUMP_LOOKAHEAD``
      windows, ``v_b - v_a`` exceeds ``h_jump`` under its AR(1) covariance (variance
      ``2 (1 - phi^d) R`` per channel, the channels correlated as in ``R``) and ``JUMP_OVER_SEEN``
-     times the largest jump seen between ordinary neighbouring windows lately. A slow wander of
-     autocorrelated noise drifts, a step jumps;
+     times the largest jump seen between ordinary neighbouring windows lately; across a hole
+     also after the progress the held windows' own rate makes over it (``_drift_jump``). A slow
+     wander of autocorrelated noise drifts, a steady trend moves at its rate, a step jumps;
    - *event*: among the qualifying candidates, the change time is the one under which the whole
      run is most likely (windows before it scatter around no change, windows from it on around
      the step: the smallest ``sum_{i<j} d2(v_i, 0) + sum_{i>=j} d2(v_i, step_j)``; the window just
@@ -189,6 +190,8 @@ class Decision:
         accept: payloads that are ordinary windows after the event (or without one).
         moving: payloads of a run's windows that moved from the old state to the new one over
             several windows (a ramp, ``ChangeDetector._ramp_split``): neither state.
+        drift: the ``unconfirmed`` run jumped over a hole only as far as its own rate carried it
+            (``ChangeDetector._drift_jump``): a drift, reported as not significant.
 
     """
 
@@ -202,6 +205,7 @@ class Decision:
     glr: float = float("nan")
     accept: list[Any] = field(default_factory=list)
     moving: list[Any] = field(default_factory=list)
+    drift: bool = False
 
 
 @dataclass
@@ -339,9 +343,11 @@ class ChangeDetector:
 
         A run that is held has not come back (its last window was closer to the step than to no
         change), so it is an event if a candidate qualifies, and an unconfirmed change otherwise:
-        never outliers. A lone window within the trigger, held for its jump, is data as before the
-        jump rule (the real reference record cut at 2.5 minutes, 4 h on and 20 mm lower: its last
-        window, half of one, jumped 1.1 mm and was a change at probability 1).
+        never outliers. When the likeliest change time jumps only as far as the held windows' own
+        rate carries them over a hole (``_drift_jump``), the run is a drift: ordinary data, the
+        change reported (``Decision.drift``). A lone window within the trigger, held for its jump,
+        is data as before the jump rule (the real reference record cut at 2.5 minutes, 4 h on and
+        20 mm lower: its last window, half of one, jumped 1.1 mm and was a change at probability 1).
         """
         if not self.pending:
             return Decision()
@@ -357,6 +363,9 @@ class ChangeDetector:
         split = self._ramp_split(self._run_series())
         if best is not None and (split is None or len(self.pending) - split[1] >= self.confirm):
             return self._event(best, split)  # (a ramp's new state too short to confirm: a change)
+        c = min(cands, key=lambda c: c.cost)
+        if split is None and c.jump > self._jump_bound() >= self._drift_jump(c.j):
+            return self._unconfirmed(cands, provisional=False, drift=True)  # a drift: data, reported
         return self._unconfirmed(cands, provisional=True, split=split)
 
     def flush(self) -> Decision:
@@ -371,7 +380,49 @@ class ChangeDetector:
             and c.n_after >= self.confirm
             and c.glr > self.h_event
             and c.jump > self._jump_bound()
+            and self._drift_jump(c.j) > self._jump_bound()
         )
+
+    def _drift_jump(self, j: int) -> float:
+        """Return ``_jump`` from the window before ``j`` against the rate the held windows show.
+
+        A step is a jump; a drift moves by its rate times the windows between. Without a hole the
+        jump test compares neighbours, which a drift moves little; across a hole (the test car's
+        minutes cut by the traffic screen) a steady trend moves far, and the AR(1) wander, slow
+        where it was learned, cannot follow it: the trend's progress over the hole read as a jump
+        (the real reference record 20 mm lower after the 10 mm record, under the air of another
+        hour: its south bearing rising 0.06 kN a minute through the record, a +0.1 mm step after
+        the car; 2 of 766 whole streams of ``benchmarks/loadtest_days.py --only sweep``). So the
+        jump is also measured from where the rate of the held run's neighbouring windows (each
+        side of ``j``, not across it; held windows share one estimate) would have taken the
+        window before ``j``: ``v_b - v_a - d r``, with the covariance of the jump plus ``d^2`` that
+        of ``r`` (the lag-one jump covariance over the number of neighbour pairs). Infinite where
+        ``j`` follows the window before it without a hole (a ramp in continuous data moves at a
+        rate too, and ``_ramp_split`` reads it) or without a neighbour pair (no rate is read): the
+        jump test alone decides.
+        """
+        ref = self._reference(j)
+        if ref is None or self.pending[j].k - ref.k <= 1:
+            return np.inf
+        pairs = [
+            self.pending[i].v - self.pending[i - 1].v
+            for i in range(1, len(self.pending))
+            if i != j and self.pending[i].k - self.pending[i - 1].k == 1
+        ]
+        if not pairs:
+            return np.inf
+        rate = np.mean(pairs, axis=0)
+        best = 0.0
+        for b in self.pending[j : j + JUMP_LOOKAHEAD]:
+            r = ref.r_window + b.r_window
+            sd = np.sqrt(np.diag(r))
+            corr = r / np.outer(sd, sd)
+            d = b.k - ref.k
+            lag = sd * np.sqrt(np.maximum(1.0 - self.phi**d, 1e-6))
+            one = sd * np.sqrt(np.maximum(1.0 - self.phi, 1e-6))
+            V = corr * (np.outer(lag, lag) + d * d * np.outer(one, one) / len(pairs))
+            best = max(best, _quad(V, b.v - ref.v - d * rate))
+        return best
 
     def _jump_bound(self) -> float:
         """Return the jump an event's change time must exceed (``_qualifies``)."""
@@ -674,7 +725,11 @@ class ChangeDetector:
         return max(found[0] - h, 0), found[1] - h
 
     def _unconfirmed(
-        self, cands: list[_Candidate], provisional: bool, split: tuple[int, int] | None = None
+        self,
+        cands: list[_Candidate],
+        provisional: bool,
+        split: tuple[int, int] | None = None,
+        drift: bool = False,
     ) -> Decision:
         """Decide a run that stayed away without qualifying: an unconfirmed change at its likeliest start.
 
@@ -703,7 +758,7 @@ class ChangeDetector:
             self.prev = None  # innovations after the change refer to a new estimate
             return Decision(accept_before=ordinary, change=run, moving=moved, **common)
         self.prev = after[-1]
-        return Decision(accept_before=ordinary + run, unconfirmed=run, **common)
+        return Decision(accept_before=ordinary + run, unconfirmed=run, drift=drift, **common)
 
     def _step_cov(self, c: _Candidate) -> np.ndarray:
         """Covariance (2, 2) N^2 of candidate ``c``'s step (the mean of its windows' innovations)."""

@@ -88,9 +88,10 @@ __all__ = ["SegmentChain", "SegmentData", "SegmentSummary", "mixture_update"]
 _NO_CROSS: Mat = (0.0, 0.0, 0.0, 0.0)
 
 
-#: Windows that confirm a change that lowered the reactions' sum where the data had stopped (across
-#: a gap, or right after a logger outage inside a record: ``SegmentChain.confirms``): not a parked
-#: vehicle (it only adds load), so not ``event_confirm_windows``; two, because one window alone at
+#: Windows that confirm a change where the data had stopped (across a gap, or right after a logger
+#: outage inside a record: ``SegmentChain.confirms``) that no parked vehicle makes: it lowered the
+#: reactions' sum (a vehicle only adds load) or raised it by more than the heaviest vehicle
+#: (``traffic_vehicle_max_n``); so not ``event_confirm_windows``; two, because one window alone at
 #: the end of the data or before a further step is what an outlier looks like.
 GAP_LOWERING_WINDOWS = 2
 
@@ -260,8 +261,11 @@ class SegmentChain:
 
     """
 
-    def __init__(self, A: np.ndarray, prior_cov: np.ndarray, jump_cov: np.ndarray) -> None:
+    def __init__(
+        self, A: np.ndarray, prior_cov: np.ndarray, jump_cov: np.ndarray, vehicle_max_n: float = math.inf
+    ) -> None:
         self.A = np.asarray(A, float).reshape(2, 2)
+        self.vehicle_max_n = float(vehicle_max_n)
         self.a_inv = np.linalg.inv(self.A)
         self.prior_cov = np.asarray(prior_cov, float).reshape(2, 2)
         self.jump_cov = np.asarray(jump_cov, float).reshape(2, 2)
@@ -387,13 +391,13 @@ class SegmentChain:
 
         Its change probability at least ``probability``, its size significant on the data
         (``change_chi2`` at least ``min_chi2``), and at least ``windows`` windows that stayed with
-        it (``windows_changed``); ``GAP_LOWERING_WINDOWS`` for a change that lowered the reactions'
-        sum where the data had stopped (``_lowers_where_data_stopped``).
+        it (``windows_changed``); ``GAP_LOWERING_WINDOWS`` for a change no vehicle makes where the
+        data had stopped (``_no_vehicle_where_data_stopped``).
         """
         p, _ = self.segment_probability(s)
         if p < probability or (min_chi2 > 0.0 and self.change_chi2(s) < min_chi2):
             return False  # (NaN, not refreshed since the segment opened: not known yet, not held against it)
-        need = min(windows, GAP_LOWERING_WINDOWS) if self._lowers_where_data_stopped(s) else windows
+        need = min(windows, GAP_LOWERING_WINDOWS) if self._no_vehicle_where_data_stopped(s) else windows
         return self.windows_changed(s, need) >= need
 
     def change_chi2(self, s: int) -> float:
@@ -412,12 +416,14 @@ class SegmentChain:
         """Note that window ``k`` is the first usable one after a logger outage shorter than a gap."""
         self.outage_starts.add(int(k))
 
-    def _lowers_where_data_stopped(self, s: int) -> bool:
-        """Return whether segment ``s`` starts where the data had stopped and its change lowered the sum.
+    def _no_vehicle_where_data_stopped(self, s: int) -> bool:
+        """Return whether segment ``s`` starts where the data had stopped with a change no vehicle makes.
 
         The windows ``event_confirm_windows`` asks for are there to tell a change from a load that
         stays for minutes (a parked test car); a vehicle only adds load (``inputs.traffic``), so a
-        change that takes load off the bearings is none. Only where the data had stopped: across a
+        change that takes load off the bearings is none, and so is one that adds more to their sum
+        than the heaviest vehicle (``vehicle_max_n``, the traffic screen's own limit of a vehicle:
+        ``traffic_vehicle_max_n``). Only where the data had stopped: across a
         gap, or at the first usable window after a logger outage inside a record (``mark_outage``:
         windows without any force data). There the segment's start is the data's, and the change
         happened while nothing was recorded; inside continuous data a short state can be the
@@ -429,7 +435,7 @@ class SegmentChain:
             return False
         sm = self.summaries[s]
         d = self.A @ (sm.x_data - sm.x_before)
-        return bool(np.all(np.isfinite(d)) and float(d.sum()) < 0.0)
+        return bool(np.all(np.isfinite(d)) and not 0.0 <= float(d.sum()) <= self.vehicle_max_n)
 
     def windows_changed(self, s: int, enough: int | None = None) -> int:
         """Windows from segment ``s``'s start on that stayed away from the state before it.
