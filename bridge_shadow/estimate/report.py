@@ -173,7 +173,7 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         cov = a_inv @ np.asarray(r["step_cov_n2"], float) @ a_inv.T
         cov = cov + shadow.surrogate.model_covariance(size, with_u0=False)
         k, n, until = int(r["window"]), int(r["windows"]), (int(r["until_window"]) + 1) * shadow._w_ns
-        # a run the data read as a drift at least as well as a step is no significant change
+        # a run that jumped over a hole only as far as its own rate carried it is a drift, no change
         significant = bool(r["glr"] > shadow.detector.h_event and not r.get("drift", False))
         t = k * shadow._w_ns
         out.append(ChangeRecord(k, t, "run_in_data", float("nan"), n, size, cov, 0.0, significant, until))

@@ -771,11 +771,12 @@ class Shadow:
         return []
 
     def _note_run(self, decision: Decision) -> None:
-        """Report a run that reached ``event_max_pending`` without a step (its windows are data).
+        """Report a run used as data without a step (its windows are data).
 
+        At ``event_max_pending``, or a drift at the end of the data or a gap (``Decision.drift``).
         A run that starts where the last reported one ended continues the same excursion (a wander
         that went on for hours reaches the forced decision again and again): one report, its
-        window count grown, its size the latest.
+        window count grown, its size the latest, a drift only if every part of it was one.
         """
         run = decision.unconfirmed or []
         record = {
@@ -788,7 +789,10 @@ class Shadow:
         }
         last = self.unconfirmed_runs[-1] if self.unconfirmed_runs else None
         if last is not None and run[0].k - last["until_window"] <= self.detector.confirm:
-            last.update(record, windows=last["windows"] + len(run), glr=max(last["glr"], record["glr"]))
+            drift = bool(last.get("drift", False) and record["drift"])  # a drift only if all of it is
+            last.update(
+                record, windows=last["windows"] + len(run), glr=max(last["glr"], record["glr"]), drift=drift
+            )
         else:
             self.unconfirmed_runs.append({"window": run[0].k, "windows": len(run), **record})
 
