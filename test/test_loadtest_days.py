@@ -308,6 +308,24 @@ def test_the_reference_record_cut_under_its_two_cars_is_one_event(
     assert res.rejected["traffic"] >= 3 and not res.changes
 
 
+@pytest.mark.realdata
+def test_a_record_cut_as_its_last_car_drives_off_ends_at_the_new_state(folder: Path, surrogate) -> None:
+    """The 10 mm record 2.5 h on, 1 mm lower, cut at minute 8.3 as its last test car drives off (sweep #866).
+
+    Its last six seconds hold the car's load going (11.7 kN on the sum, 1.5 kN at the end): the
+    run above the baseline touched the record's end, and the load at the end was not the one
+    that arrived, so the car stayed in the new state's level (2.0 mm off where 1.1 is allowed).
+    The record now ends, for the screen, at its last quiet bin: the car is parked there and cut.
+    """
+    later = Piece(
+        "lowered", 2.509595345615755, (-0.000975, -0.000975), 2.9792553337132808, cut_min=(0.0, 8.33643)
+    )
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0), Piece("ref", 0.45), later])
+    _, res = replay(sc, surrogate)
+    assert check(sc, res) == {"event": True, "within": True}
+    assert len(res.to_json()["traffic"]["parked"]) == 1
+
+
 def _jacking(folder: Path, surrogate, minutes: tuple[int, int], size: float, then: bool = True) -> Scenario:
     """Return the reference and 10 mm records, a jacking record, and one more record after it (``then``).
 

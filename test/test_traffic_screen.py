@@ -505,6 +505,29 @@ def test_a_load_on_the_bridge_when_the_record_began_is_cut_when_it_rolled_off(se
         assert keep[0].all()
 
 
+@pytest.mark.parametrize("left_s", [0, 3, 8])
+def test_a_record_that_ends_as_a_car_drives_off_cuts_the_car(left_s: int) -> None:
+    """A 10-minute record, a car of 10.5 kN from minute 3, the recording stopping as it drives off.
+
+    The car's load is leaving over 9 s and the record ends ``left_s`` seconds into that (0: still
+    parked, as before). Its last bins move (not ``quiet``): what stays cannot be read from a load half gone,
+    so the record ends for the screen at its last quiet bin, the car is parked there, and it is
+    cut from its arrival; the moving bins are cut too. Before, with part of the load gone, the
+    load that arrived was more than the load at the end, and the car stayed as data (the
+    reference record cut at minute 8.3 as its second test car left: sweep #109, #411, #866).
+    """
+    from bridge_shadow.estimate.inputs.traffic import screen_record
+
+    t, f = _record(10.0)
+    n = len(t)
+    f += _roll_on(n, 180, 10500.0, 7) - _roll_on(n, n - left_s, 10500.0, 9)
+    parked: list[int] = []
+    keep = screen_record([t, t], [f[0], f[1]], 300.0, 10.0, 30000.0, parked)
+    # the first bin cut: its arrival (half of it at 183 s) less the margin
+    assert len(parked) == 1 and abs((parked[0] - t[0]) / NS - 173) <= 3
+    assert keep[0][:165].all() and not keep[0][176:].any()
+
+
 def test_parked_start_tells_a_parked_vehicle_from_a_drift_a_step_a_departure_and_two_states() -> None:
     """``traffic.parked_start`` on 1 s bin sums of a 10-minute record (400 kN, noise 20 N).
 

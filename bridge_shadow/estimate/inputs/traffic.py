@@ -299,10 +299,22 @@ def _screen_bins(
     its end (``parked_start``) is cut from their arrival on (less the margin), the bins before it
     screened as the side of a split. So, reversed, is one that begins the record with vehicles
     on the bridge that then left: cut up to their departure (and the margin), the rest screened
-    as the side of a split.
+    as the side of a split. A record that ends while a load still moves (its last bins not
+    ``quiet``, at most the margin's worth: the recording stopped as a vehicle drove off) ends, for
+    the screen, at its last quiet bin, and the moving bins are cut: what stays cannot be read
+    from a load half gone (the reference record cut at minute 8.3, as its second test car
+    left, kept the car as a state of +0.8 mm, or in the new state's level, 2 mm off).
     """
     n = len(total)
     valid = np.flatnonzero(np.isfinite(total))  # bins with both channels (sparse data leaves gaps)
+    if ends[1] and depth < MAX_SPLITS and len(valid) > margin:
+        calm = quiet(total, threshold_n)[valid]
+        moving = len(valid) - 1 - int(np.flatnonzero(calm)[-1]) if calm.any() else len(valid)
+        if 0 < moving <= margin:  # the record ends as a load moves: its end is the last quiet bin
+            k = int(valid[-moving])
+            rest = _screen_bins(total[:k], threshold_n, margin, vehicle_max_n, depth + 1, ends)
+            cut = np.concatenate([rest.cut, np.ones(n - k, bool)])
+            return _Screened(cut, rest.first_n, rest.last_n, rest.free, rest.head_n, rest.tail_n, rest.parked)
     if ends[0] and depth < MAX_SPLITS:
         p = parked_start(total[valid][::-1], threshold_n, vehicle_max_n, margin)
         if p is not None:  # on the bridge when the recording began, gone at bin len - p
