@@ -51,7 +51,8 @@ car stands (``pause_streams``), then the reference record paused too, or the lat
 its own or another hour, no change or a common change of 5-40 mm, raised or lowered, with a
 difference between the bearings of up to 10 mm, as the last record, in the middle or after the old
 state; ``--cut-share`` of them cut to their first minutes or to begin at minute 3-7, under the
-parked test car), scored as the real study. ``--only inside`` is an eighth: ``--seeds`` random
+parked test car; ``--stream-seed`` draws another set), scored as the real study. ``--only
+inside`` is an eighth: ``--seeds`` random
 streams with one or two settlements of 3-20 mm inside the later record
 (``twin.real_records.random_inside_streams``).
 
@@ -266,7 +267,7 @@ def real_study(
             print_streams(part, f"{title}, {over}", t0, verbose)
 
 
-def sweep_groups(n: int, cut_share: float) -> dict[str, list[tuple[str, list[Piece]]]]:
+def sweep_groups(n: int, cut_share: float, seed: int = 0) -> dict[str, list[tuple[str, list[Piece]]]]:
     """``random_streams`` by how the later record is cut (whole, its first minutes, from minute 3-7)."""
     sur = load_surrogate()
     groups: dict[str, list[tuple[str, list[Piece]]]] = {
@@ -275,7 +276,7 @@ def sweep_groups(n: int, cut_share: float) -> dict[str, list[tuple[str, list[Pie
         "random streams of the two records, cut to begin at minute 3-7 (under the test car)": [],
     }
     titles = list(groups)
-    for name, pieces in random_streams(n, sur.A, sur.u0, cut_share=cut_share):
+    for name, pieces in random_streams(n, sur.A, sur.u0, seed=seed, cut_share=cut_share):
         cut = next((p.cut_min for p in pieces if p.cut_min), None)
         groups[titles[0 if cut is None else 1 if cut[0] == 0 else 2]].append((name, pieces))
     return groups
@@ -592,6 +593,13 @@ def main() -> None:
         help="sweep study: share of the later records cut to their first 6-10 minutes or to begin at "
         "minute 3-7 (default 0.25; the rates are printed for whole and cut records apart)",
     )
+    ap.add_argument(
+        "--stream-seed",
+        type=int,
+        default=0,
+        help="sweep study: the random streams' seed (default 0, the streams the rules were read on; "
+        "another draws streams none of them was written on)",
+    )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
     over: dict[str, Any] = {}
@@ -627,7 +635,12 @@ def main() -> None:
             real_study(mapper, args.verbose, args.car, over, args.u0, inside)
         if args.only == "sweep":
             real_study(
-                mapper, args.verbose, args.car, over, args.u0, sweep_groups(args.seeds, args.cut_share)
+                mapper,
+                args.verbose,
+                args.car,
+                over,
+                args.u0,
+                sweep_groups(args.seeds, args.cut_share, args.stream_seed),
             )
 
 
