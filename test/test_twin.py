@@ -289,7 +289,7 @@ def test_settlement_step() -> None:
     _, te = simulate(days=1, rate_hz=0.1, seed=1, steps=[(0.5, -2e-4, 1e-4)], surrogate=SUR)
     x = te["series"]["x_m"]
     n = len(x)
-    assert np.all(x[: n // 2] == 0.0) and np.all(x[n // 2 :] == [-2e-4, 1e-4])
+    assert np.all(x[: n // 2] == 0.0) and np.all(x[n // 2 :] == [-2e-4, 1e-4])  # exact: the step as set
 
 
 def test_uniform_temperature_follows_the_air() -> None:

@@ -411,18 +411,7 @@ class ChangeDetector:
         ]
         if not pairs:
             return np.inf
-        rate = np.mean(pairs, axis=0)
-        best = 0.0
-        for b in self.pending[j : j + JUMP_LOOKAHEAD]:
-            r = ref.r_window + b.r_window
-            sd = np.sqrt(np.diag(r))
-            corr = r / np.outer(sd, sd)
-            d = b.k - ref.k
-            lag = sd * np.sqrt(np.maximum(1.0 - self.phi**d, 1e-6))
-            one = sd * np.sqrt(np.maximum(1.0 - self.phi, 1e-6))
-            V = corr * (np.outer(lag, lag) + d * d * np.outer(one, one) / len(pairs))
-            best = max(best, _quad(V, b.v - ref.v - d * rate))
-        return best
+        return self._jump(j, (np.mean(pairs, axis=0), len(pairs)))
 
     def _jump_bound(self) -> float:
         """Return the jump an event's change time must exceed (``_qualifies``)."""
@@ -477,13 +466,15 @@ class ChangeDetector:
             self.prev = p
         return p
 
-    def _jump(self, j: int) -> float:
+    def _jump(self, j: int, rate: tuple[np.ndarray, int] | None = None) -> float:
         """Largest jump statistic from the window before ``j`` to each of the next ``JUMP_LOOKAHEAD``.
 
         An AR(1) wander moves little between neighbours: on channel ``c``, ``v_b - v_a`` has the
         variance ``(1 - phi_c^d) (R_a + R_b)_cc`` for windows ``d`` apart (the estimate's own error
         cancels), with the channels correlated as in ``R``, while a step jumps by its full size.
-        Without a reference window the test passes.
+        Without a reference window the test passes. ``rate``: a rate per window ``r`` read from that
+        many neighbour pairs, the jump measured from ``d r`` (``_drift_jump``), its covariance
+        ``d^2`` times the lag-one one over the pairs added.
         """
         ref = self._reference(j)
         if ref is None:
@@ -492,9 +483,14 @@ class ChangeDetector:
         for b in self.pending[j : j + JUMP_LOOKAHEAD]:
             r = ref.r_window + b.r_window
             sd = np.sqrt(np.diag(r))
-            scale = sd * np.sqrt(np.maximum(1.0 - self.phi ** (b.k - ref.k), 1e-6))
+            d = b.k - ref.k
+            scale = sd * np.sqrt(np.maximum(1.0 - self.phi**d, 1e-6))
             V = r / np.outer(sd, sd) * np.outer(scale, scale)
             diff = b.v - ref.v
+            if rate is not None:
+                one = sd * np.sqrt(np.maximum(1.0 - self.phi, 1e-6))
+                V = V + r / np.outer(sd, sd) * (d * d * np.outer(one, one) / rate[1])
+                diff = diff - d * rate[0]
             best = max(best, _quad(V, diff))
         return best
 
