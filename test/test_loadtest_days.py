@@ -1143,6 +1143,27 @@ def test_two_settlements_inside_a_record_are_each_a_state(
 
 
 @pytest.mark.realdata
+@pytest.mark.parametrize("minutes", [(4, 11), (6, 11)])
+def test_a_settlement_under_the_test_car_and_one_after_it_end_at_the_final_state(
+    folder: Path, surrogate, minutes: tuple[int, int]
+) -> None:
+    """The reference record 1.25 h later, lowered 10 mm under its test car and again after it left.
+
+    The screen split the record at the first lowering; the state after it, with the car still on
+    it, lay above the last state, so it was screened again as a further state with the split as an
+    end, and the car's minutes after the lowering stayed data. The state between read as a slow
+    drift, the last window's step went unreported, and the stream ended 14.5 / 15.0 mm short of
+    -20 mm with the interval missing it. The left side carried the car at the split, so the right
+    side begins under it: split where its level falls most, the car is cut
+    (``test_traffic_screen.py``, the split's own tests).
+    """
+    sc, res = _lowered_twice(folder, surrogate, minutes)
+    got = check(sc, res)  # nothing spurious, every change reported, nothing lost, covered
+    assert got["within"]
+    assert res.rejected["outlier"] == 0
+
+
+@pytest.mark.realdata
 @pytest.mark.parametrize("minutes", [(4, 8), (5, 8)])
 def test_the_window_a_step_happened_in_is_no_state_and_raises_no_second_event(
     folder: Path, surrogate, minutes: tuple[int, int]

@@ -398,7 +398,14 @@ def test_two_settlements_in_one_record_are_two_states_not_a_vehicle() -> None:
 
 
 def test_a_vehicle_across_the_first_of_two_settlements_is_cut_and_both_states_kept() -> None:
-    """The same record with a 6 kN vehicle parked over minutes 6-10, across the first drop."""
+    """The same record with a 6 kN vehicle parked over minutes 6-10, across the first drop.
+
+    After the drop the right side's baseline runs through the last state, so the run at the split
+    (the state between the drops and the vehicle on it) is heavier than any vehicle: a further
+    state, screened again with the split as an end. The vehicle there was kept as data over
+    minutes 8-9 (+6 kN on the state between); the left side carried it at the split, so where the
+    right side splits again its first piece begins under that vehicle, and it is cut.
+    """
     t, f = _record(24.0)
     f[:, 360:600] += 6000.0
     f[:, 480:] -= 10000.0
@@ -408,12 +415,30 @@ def test_a_vehicle_across_the_first_of_two_settlements_is_cut_and_both_states_ke
     u0 = load_surrogate().u0
     kept = {k - k0 for k, (mean, _, _) in got.items() if np.all(np.isfinite(mean))}
     assert {0, 1, 2, 3, 4}.issubset(kept) and set(range(10, 24)).issubset(kept)  # every state kept
-    assert not kept & {6, 7}  # the vehicle before the drop is cut
+    assert not kept & {6, 7, 8, 9}  # the vehicle is cut before the drop and after it
     for k in kept:
         mean = got[k + k0][0]
         level = u0 - 10000.0 * ((k >= 8) + (k >= 16))
-        car = 6000.0 if 6 <= k < 10 else 0.0  # after the drop it is kept: a run heavier than the
-        assert np.all(np.abs(mean - level - car) < 150.0), (k, mean - level)  # vehicle's (see above)
+        assert np.all(np.abs(mean - level) < 150.0), (k, mean - level)
+
+
+def test_a_stretch_that_begins_under_a_vehicle_splits_where_the_level_falls_most() -> None:
+    """``split_bin`` with ``carried``: a 6 kN vehicle on the bridge from the start, a 20 kN drop.
+
+    The lowest bins before a split are the vehicle's load until it leaves, so the plain rule's
+    difference of the sides' minima falls at the departure first and splits there, leaving the
+    drop to a piece of its own; begun under the vehicle, the split is the largest fall, wherever
+    the vehicle leaves, and a drop in the last minute allowed is one too.
+    """
+    from bridge_shadow.estimate.inputs.traffic import split_bin
+
+    rng = np.random.default_rng(5)
+    for leaves, drops in ((200, 400), (400, 200), (200, 540)):
+        s = 468000.0 + rng.normal(0.0, 30.0, 600)
+        s[:leaves] += 6000.0
+        s[drops:] -= 20000.0
+        assert abs(split_bin(s, 300.0, 30000.0, carried=True) - drops) <= 1, (leaves, drops)
+        assert abs(split_bin(s, 300.0, 30000.0) - min(leaves, drops)) <= 1  # the plain rule: the first
 
 
 def test_a_raise_heavier_than_any_vehicle_splits_the_record_and_the_car_before_it_is_cut() -> None:

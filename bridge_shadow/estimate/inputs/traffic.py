@@ -278,6 +278,7 @@ def _screen_bins(
     vehicle_max_n: float,
     depth: int = 0,
     ends: tuple[bool, bool] = (True, True),
+    carried: bool = False,
 ) -> _Screened:
     """Screen the 1 s bin sums ``total`` (NaN: a bin without both channels); see the module docstring.
 
@@ -289,7 +290,13 @@ def _screen_bins(
     for most of a side leaves too few car-free bins for its lowest fifth); a run above the baseline
     that touches the split is a vehicle on the bridge while the state changed, when the left side
     carries it too (``_holds_a_further_state``: otherwise the right side holds a further state and
-    is screened again with the split as an open end). The split stands when the two
+    is screened again with the split as an open end). A right side screened again so while the
+    left side carried a vehicle at the split (``carried``: a settlement under the test car, a
+    second one after it left) begins under that vehicle: where it splits again (``split_bin``'s
+    rule for a stretch that begins under a vehicle), the split is no end for the first piece,
+    whose run at it is the vehicle and is cut (screened as an open end, the car stayed data over
+    the state between the settlements: 14.5 mm off the final state of two 10 mm lowerings at
+    minutes 6 and 11 of the reference record, the interval missing it). The split stands when the two
     sides' baselines differ at it by more than ``threshold_n`` (one straight baseline could not
     carry both: a state change inside the record, whose vehicles the tilted baseline would
     otherwise hide) and each side shows car-free bins, at least the margin's worth (noise
@@ -355,12 +362,12 @@ def _screen_bins(
     whole = _Screened(cut, float(baseline[valid[0]]), float(baseline[valid[-1]]), free, head_n, tail_n)
     if not open_run or depth >= MAX_SPLITS or len(valid) < 2 * MIN_SIDE_BINS:
         return whole
-    at = split_bin(total[valid], threshold_n, vehicle_max_n)
+    at = split_bin(total[valid], threshold_n, vehicle_max_n, carried)
     if at is None:
         return whole
     k = int(valid[at])
     more = (threshold_n, margin, vehicle_max_n, depth + 1)
-    left = _screen_bins(total[:k], *more, (ends[0], False))
+    left = _screen_bins(total[:k], *more, (ends[0] and not carried, False))
     right = _screen_bins(total[k:], *more, (False, ends[1]))
     step = right.first_n - left.last_n
     if abs(step) <= threshold_n or min(left.free, right.free) < margin:
@@ -368,7 +375,7 @@ def _screen_bins(
     if 0 < step <= vehicle_max_n:
         return whole  # a rise no heavier than a vehicle that came to stay: one stretch, as before
     if _holds_a_further_state(left.tail_n, right.head_n, vehicle_max_n):
-        right = _screen_bins(total[k:], *more, (True, ends[1]))
+        right = _screen_bins(total[k:], *more, (True, ends[1]), carried=bool(np.isfinite(left.tail_n)))
     both = np.concatenate([left.cut, right.cut])
     parked = right.parked + k if right.parked >= 0 else -1
     return _Screened(
@@ -386,10 +393,11 @@ def _holds_a_further_state(tail_n: float, head_n: float, vehicle_max_n: float) -
     when the run is heavier than any vehicle (``vehicle_max_n``), or when the left side carries no
     run at the split (nothing on the bridge there to continue); such a side is screened again with
     the split as an end that does not come back: split further, or kept as data, never cut as a
-    vehicle. A run no heavier than a vehicle, with a vehicle on the left at the split, is vehicles:
-    their number may change there (a second test car arriving 20 s before a step, read as a
-    further state by the loads' mismatch that the rule first asked for, kept both cars in the new
-    state's level, 1.1 to 2.1 mm).
+    vehicle, but for the one the left side carried at the split where the side splits again
+    (``_screen_bins``' ``carried``). A run no heavier than a vehicle, with a vehicle on the left
+    at the split, is vehicles: their number may change there (a second test car arriving 20 s
+    before a step, read as a further state by the loads' mismatch that the rule first asked for,
+    kept both cars in the new state's level, 1.1 to 2.1 mm).
     """
     if np.isnan(head_n):
         return False
@@ -476,7 +484,9 @@ def _side_minima(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return before, after
 
 
-def split_bin(s: np.ndarray, threshold_n: float, vehicle_max_n: float = np.inf) -> int | None:
+def split_bin(
+    s: np.ndarray, threshold_n: float, vehicle_max_n: float = np.inf, carried: bool = False
+) -> int | None:
     """Return ``k`` (``MIN_SIDE_BINS <= k <= len(s) - MIN_SIDE_BINS``) where the car-free level changes.
 
     A vehicle only adds load, so the lowest bin before ``k`` and the lowest from ``k`` on are
@@ -489,6 +499,15 @@ def split_bin(s: np.ndarray, threshold_n: float, vehicle_max_n: float = np.inf) 
     2022-04-11 ones cut after six minutes too), and the screen keeps it as data, as before; a drop
     that stays is not a vehicle (one parked at the start that leaves splits off with its own
     baseline, kept as data too).
+
+    ``carried``: the stretch begins under a vehicle that was on the bridge at a split before it
+    (``_screen_bins``). Its lowest bins before ``k`` are then the vehicle's load until it leaves, and
+    ``D`` falls at its departure too, before the state change: the split is where ``D`` falls most
+    within ``PARKED_RISE_BINS`` bins (a step shows in at most two), the last ``k`` of that fall
+    within ``threshold_n`` of its top; a ``D`` still standing at the last split allowed falls to
+    nothing past it. The largest fall is the state change where that is heavier than the vehicle's
+    departure (the reference record's test cars: 10 kN each, a 10 mm lowering 50 to 60 kN);
+    otherwise the first piece holds the state change and is screened as before.
 
     A rise heavier than ``vehicle_max_n`` (the heaviest load the bridge's traffic puts on the
     support) is no vehicle that came to stay but a support raised inside the record. It splits at
@@ -505,6 +524,11 @@ def split_bin(s: np.ndarray, threshold_n: float, vehicle_max_n: float = np.inf) 
         return None
     rise = -drop.min()
     if drop.max() > max(threshold_n, rise):
+        if carried:
+            ext = np.concatenate([drop, np.zeros(PARKED_RISE_BINS)])
+            i = int(np.argmax(ext[:-PARKED_RISE_BINS] - ext[PARKED_RISE_BINS:]))
+            near = drop[i : i + PARKED_RISE_BINS + 1] >= drop[i] - threshold_n
+            return i + int(np.flatnonzero(near)[-1]) + MIN_SIDE_BINS
         return int(np.flatnonzero(drop >= drop.max() - threshold_n)[-1]) + MIN_SIDE_BINS
     if rise > max(threshold_n, vehicle_max_n, drop.max()):
         return int(np.flatnonzero(-drop >= rise - threshold_n)[0]) + MIN_SIDE_BINS
