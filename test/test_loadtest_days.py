@@ -1122,7 +1122,7 @@ def _every_state_keeps_a_window(sc: Scenario, res: ReplayResult) -> None:
 
 
 @pytest.mark.realdata
-@pytest.mark.parametrize("minutes", [(3, 9), (2, 10)])
+@pytest.mark.parametrize("minutes", [(3, 10), (2, 10)])
 def test_two_settlements_inside_a_record_are_each_a_state(
     folder: Path, surrogate, minutes: tuple[int, int]
 ) -> None:
@@ -1134,12 +1134,44 @@ def test_two_settlements_inside_a_record_are_each_a_state(
     size) and the stream ended 13 mm short, the interval missing the truth. Now the screen keeps
     every state (a run at a split that the other side does not carry is no vehicle parked across
     it) and the windows after the gap are searched for two steps (``events.warmup.warmup_steps``).
+    Since 2026-11-29 the test car on the state between is cut (the test above), and that state
+    keeps the car-free minutes after the car left: (3, 9), this test's first case until then,
+    keeps 42 s of it in two windows, the next test.
     """
     sc, res = _lowered_twice(folder, surrogate, minutes)
     got = check(sc, res)  # nothing spurious, every change reported, nothing lost, covered
     assert got["within"]
     assert res.rejected["outlier"] == 0
     _every_state_keeps_a_window(sc, res)
+    for change in res.changes:  # each 10 mm (before: a third change of -1.3 mm where the car left)
+        assert np.all(np.abs(np.asarray(change.size_m) + 0.01) <= 0.001), change
+
+
+@pytest.mark.realdata
+def test_a_state_the_test_car_covers_but_for_seconds_is_read_with_the_next_step(
+    folder: Path, surrogate
+) -> None:
+    """The same two 10 mm lowerings at minutes 3 and 9: the car covers all but 42 s of the state between.
+
+    The test car is on the state between from its start until 18 s before the window in which the
+    second step falls. The car cut, that state is seen in two windows, 18 s in one and 24 s in the
+    next (with the second step's first 36 s), and the search after the gap reads the three
+    differences of one sign as one gradual change (``events.warmup.ramp_windows``): both windows
+    left out, one change of -20 mm at the first window of the last state. Until 2026-11-29 the car
+    stayed data there: an event of -8.7 mm (the car's load on the 10 mm state), then a change of
+    -11.3 mm. Either way the settlement is reported and nothing is lost; the one change now is the
+    sum, at the second.
+    """
+    sc, res = _lowered_twice(folder, surrogate, (3, 9))
+    s = score_stream(sc, res)
+    assert not s.spurious and not s.lost_windows and s.covered and s.within, s
+    (change,) = [c for c in res.changes if c.likely]
+    assert change.window == sc.starts_ns[3] // W + 1  # the first window wholly in the last state
+    assert np.all(np.abs(np.asarray(change.size_m) + 0.02) <= 0.002), change
+    between = [
+        o.reason for o in res.outputs if sc.starts_ns[2] // W <= o.end_ns // W - 1 <= sc.starts_ns[3] // W
+    ]
+    assert set(between) <= {"traffic", "step_window"}, between
 
 
 @pytest.mark.realdata
