@@ -54,7 +54,7 @@ state; ``--cut-share`` of them cut to their first minutes or to begin at minute 
 parked test car; ``--stream-seed`` draws another set), scored as the real study. ``--only
 inside`` is an eighth: ``--seeds`` random
 streams with one or two settlements of 3-20 mm inside the later record
-(``twin.real_records.random_inside_streams``).
+(``twin.real_records.random_inside_streams``; ``--stream-seed`` too).
 
 Usage::
 
@@ -597,8 +597,8 @@ def main() -> None:
         "--stream-seed",
         type=int,
         default=0,
-        help="sweep study: the random streams' seed (default 0, the streams the rules were read on; "
-        "another draws streams none of them was written on)",
+        help="sweep and inside studies: the random streams' seed (default 0, the streams the rules were "
+        "read on; another draws streams none of them was written on)",
     )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
@@ -631,7 +631,8 @@ def main() -> None:
             pause_study(mapper, over)
         if args.only == "inside":
             sur = load_surrogate()
-            inside = {"settlements inside a record": list(random_inside_streams(args.seeds, sur.A, sur.u0))}
+            streams = random_inside_streams(args.seeds, sur.A, sur.u0, args.stream_seed)
+            inside = {"settlements inside a record": list(streams)}
             real_study(mapper, args.verbose, args.car, over, args.u0, inside)
         if args.only == "sweep":
             real_study(

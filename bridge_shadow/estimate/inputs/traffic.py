@@ -296,7 +296,8 @@ def _screen_bins(
     rule for a stretch that begins under a vehicle), the split is no end for the first piece,
     whose run at it is the vehicle and is cut (screened as an open end, the car stayed data over
     the state between the settlements: 14.5 mm off the final state of two 10 mm lowerings at
-    minutes 6 and 11 of the reference record, the interval missing it). The split stands when the two
+    minutes 6 and 11 of the reference record, the interval missing it); where no split stands
+    there, the side is screened as it was before the rule. The split stands when the two
     sides' baselines differ at it by more than ``threshold_n`` (one straight baseline could not
     carry both: a state change inside the record, whose vehicles the tilted baseline would
     otherwise hide) and each side shows car-free bins, at least the margin's worth (noise
@@ -370,10 +371,10 @@ def _screen_bins(
     left = _screen_bins(total[:k], *more, (ends[0] and not carried, False))
     right = _screen_bins(total[k:], *more, (False, ends[1]))
     step = right.first_n - left.last_n
-    if abs(step) <= threshold_n or min(left.free, right.free) < margin:
-        return whole
-    if 0 < step <= vehicle_max_n:
-        return whole  # a rise no heavier than a vehicle that came to stay: one stretch, as before
+    if abs(step) <= threshold_n or min(left.free, right.free) < margin or 0 < step <= vehicle_max_n:
+        if carried:  # no split stands where the level falls most: the stretch as it was screened
+            return _screen_bins(total, threshold_n, margin, vehicle_max_n, depth, ends)
+        return whole  # (a rise no heavier than a vehicle that came to stay: one stretch, as before)
     if _holds_a_further_state(left.tail_n, right.head_n, vehicle_max_n):
         right = _screen_bins(total[k:], *more, (True, ends[1]), carried=bool(np.isfinite(left.tail_n)))
     both = np.concatenate([left.cut, right.cut])
