@@ -374,7 +374,7 @@ def _screen_bins(
     if abs(step) <= threshold_n or min(left.free, right.free) < margin or 0 < step <= vehicle_max_n:
         if carried:  # no split stands where the level falls most: the stretch as it was screened
             return _screen_bins(total, threshold_n, margin, vehicle_max_n, depth, ends)
-        return whole  # (a rise no heavier than a vehicle that came to stay: one stretch, as before)
+        return whole  # (0 < step: a rise no heavier than a vehicle that came to stay, as before)
     if _holds_a_further_state(left.tail_n, right.head_n, vehicle_max_n):
         right = _screen_bins(total[k:], *more, (True, ends[1]), carried=bool(np.isfinite(left.tail_n)))
     both = np.concatenate([left.cut, right.cut])
@@ -508,7 +508,8 @@ def split_bin(
     within ``threshold_n`` of its top; a ``D`` still standing at the last split allowed falls to
     nothing past it. The largest fall is the state change where that is heavier than the vehicle's
     departure (the reference record's test cars: 10 kN each, a 10 mm lowering 50 to 60 kN);
-    otherwise the first piece holds the state change and is screened as before.
+    otherwise it is the departure, where no split stands (the piece before it has no car-free
+    bin), and ``_screen_bins`` screens the stretch as before.
 
     A rise heavier than ``vehicle_max_n`` (the heaviest load the bridge's traffic puts on the
     support) is no vehicle that came to stay but a support raised inside the record. It splits at
