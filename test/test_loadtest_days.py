@@ -1165,7 +1165,8 @@ def test_two_settlements_inside_a_record_are_each_a_state(
     it) and the windows after the gap are searched for two steps (``events.warmup.warmup_steps``).
     Since 2026-11-29 the test car on the state between is cut (the test above), and that state
     keeps the car-free minutes after the car left: (3, 9), this test's first case until then,
-    keeps 42 s of it in two windows, the next test.
+    keeps 42 s of it in two windows
+    (``test_a_state_the_test_car_covers_but_for_seconds_is_read_with_the_next_step``).
     """
     sc, res = _lowered_twice(folder, surrogate, minutes)
     got = check(sc, res)  # nothing spurious, every change reported, nothing lost, covered
