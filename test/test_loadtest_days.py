@@ -133,6 +133,31 @@ def test_a_lowering_in_a_records_last_minute_after_the_car_is_no_drift(
     assert np.all(np.abs(np.asarray(change.size_m) - size) < 0.2 * abs(size))
 
 
+@pytest.mark.realdata
+@pytest.mark.parametrize("again", [True, False])
+def test_a_record_cut_seconds_after_its_car_left_has_the_car_cut(
+    folder: Path, surrogate, again: bool
+) -> None:
+    """The 10 mm record again 6.34 h on, unchanged, cut 4 s after its last test car left (sweep #784).
+
+    After the lowering the reactions creep back, 1.5 kN in the record's eight minutes, along a
+    curve the car rule's straight baseline does not follow: its last bins, after the car, lay
+    0.8 kN below the line, were flagged, and joined the car's run to the record's end; read as
+    not coming back, the car stayed data. With the record again an hour later, its level back,
+    that read as an event of -2 mm where nothing changed; as the last record, the car's load was
+    read into the state, 1.1 mm off. The run's last bin of a vehicle's weight (3 kN,
+    ``PARKED_MIN_THRESHOLDS``) is followed by bins within that of the baseline: the vehicle left,
+    the run ends there (``traffic._fell_back``), and the car is cut.
+    """
+    pieces = [Piece("lowered", 0.0), Piece("lowered", 6.34, (0.0, 0.0), None, (0.0, 8.409))]
+    if again:
+        pieces.append(Piece("lowered", 7.34, (0.0, 0.0), 6.0))
+    sc = build(folder, surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    assert check(sc, res) == {"event": True, "within": True}  # no event, nothing lost, covered
+    assert not res.events and res.rejected["traffic"] >= 6 * (1 + again)
+
+
 def _variants(first: str, spacing: str, step: str) -> dict[str, list[Piece]]:
     """Three streams of one case: the new state as the last record, in the middle, after the old.
 

@@ -18,7 +18,9 @@ it is at most ``traffic_hold_s`` long, screens it here before its windows close:
 3. a flagged run is *traffic* when it lies above the baseline (a vehicle only adds load) and
    comes back inside the record: it touches neither the first nor the last bin with data. A run
    that does not come back is a change of state and stays data; so does one below the baseline.
-   A run that touches the record's end is looked at again: the record is split where its
+   A run whose vehicle-heavy part ends before the record does, the bins after it no further off
+   the straight baseline than a record's drift, came back (``_fell_back``). A run that touches
+   the record's end is looked at again: the record is split where its
    car-free level drops (a settlement inside the record), or rises by more than the heaviest
    vehicle (``traffic_vehicle_max_n``: a support raised inside it), and each side is screened
    against its own baseline (``split_bin``);
@@ -347,6 +349,8 @@ def _screen_bins(
     head_n = tail_n = np.nan
     near = MIN_SIDE_BINS // 2  # bins next to a split whose median is a run's load there
     for a, b in runs(flags.car[valid]):
+        if b == len(valid) and ends[1] and not (a == 0 and ends[0]):
+            b = _fell_back(flags.residual_n[valid[a:b]], threshold_n, margin, a, b)
         if (a == 0 and ends[0]) or (b == len(valid) and ends[1]):
             open_run = True
             continue  # it does not come back within the record: a change of state (or see above)
@@ -382,6 +386,28 @@ def _screen_bins(
     return _Screened(
         both, left.first_n, right.last_n, left.free + right.free, left.head_n, right.tail_n, parked
     )
+
+
+def _fell_back(residual_n: np.ndarray, threshold_n: float, margin: int, a: int, b: int) -> int:
+    """Return the end of a flagged run ``[a, b)`` that touches the record's end: ``b``, or earlier.
+
+    ``residual_n``: the run's bins above the car rule's baseline (N). The car rule flags bins off
+    its straight baseline either way, and the car-free level of a record drifts by up to 1-2 kN
+    through it (the reactions creeping back after a lowering, the sun: ``first_free``); where the
+    record ends minutes after a vehicle left, that drift bends away from the straight line and the
+    last bins are flagged too, joining the vehicle's run to the end, which is then read as not
+    coming back (a state change; the car stayed data). A vehicle weighs at least the lightest
+    parked plateau (``PARKED_MIN_THRESHOLDS``, 3 kN); where the run's last bin that heavy is
+    followed by bins all within that of the baseline, the vehicle left and the rest is the drift:
+    the run ends at that bin and the margin after it (within the record: the rest stays data).
+    """
+    heavy = PARKED_MIN_THRESHOLDS * threshold_n
+    loaded = np.flatnonzero(residual_n > heavy)
+    if not len(loaded) or loaded[-1] >= len(residual_n) - 1:
+        return b
+    if np.any(np.abs(residual_n[loaded[-1] + 1 :]) > heavy):
+        return b
+    return min(a + int(loaded[-1]) + 1 + margin, b - 1)
 
 
 def _holds_a_further_state(tail_n: float, head_n: float, vehicle_max_n: float) -> bool:
