@@ -432,10 +432,7 @@ class ChangeDetector:
         over ``n``.
         """
         ref = self._reference(j)
-        r = ref.r_window + self.pending[j].r_window
-        sd = np.sqrt(np.diag(r))
-        one = sd * np.sqrt(np.maximum(1.0 - self.phi, 1e-6))
-        return _quad(r / np.outer(sd, sd) * np.outer(one, one) / n, rate)
+        return _quad(self._lag_cov(ref.r_window + self.pending[j].r_window, 1) / n, rate)
 
     def _jump_bound(self) -> float:
         """Return the jump an event's change time must exceed (``_qualifies``)."""
@@ -506,17 +503,20 @@ class ChangeDetector:
         best = 0.0
         for b in self.pending[j : j + JUMP_LOOKAHEAD]:
             r = ref.r_window + b.r_window
-            sd = np.sqrt(np.diag(r))
             d = b.k - ref.k
-            scale = sd * np.sqrt(np.maximum(1.0 - self.phi**d, 1e-6))
-            V = r / np.outer(sd, sd) * np.outer(scale, scale)
+            V = self._lag_cov(r, d)
             diff = b.v - ref.v
             if rate is not None:
-                one = sd * np.sqrt(np.maximum(1.0 - self.phi, 1e-6))
-                V = V + r / np.outer(sd, sd) * (d * d * np.outer(one, one) / rate[1])
+                V = V + self._lag_cov(r, 1) * (d * d / rate[1])
                 diff = diff - d * rate[0]
             best = max(best, _quad(V, diff))
         return best
+
+    def _lag_cov(self, r: np.ndarray, d: int) -> np.ndarray:
+        """Covariance of ``v_b - v_a``, ``d`` windows apart, of an AR(1) wander; ``r = R_a + R_b``."""
+        sd = np.sqrt(np.diag(r))
+        scale = sd * np.sqrt(np.maximum(1.0 - self.phi**d, 1e-6))
+        return r / np.outer(sd, sd) * np.outer(scale, scale)
 
     def _candidates(self) -> list[_Candidate]:
         """Every start ``j`` of the pending run: GLR, step, scatter check, jump test, run likelihood."""
