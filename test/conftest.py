@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -16,6 +17,9 @@ pytest_plugins = ["twin_fixtures"]
 confine_to_loopback(new_domain=True)
 os.environ.setdefault("MPLBACKEND", "Agg")
 os.environ.setdefault("AMENT_PREFIX_PATH", os.sys.prefix)
+# A suite started as a shell's background job inherits SIGINT ignored; the tests that interrupt the
+# command line with SIGINT (test_interrupted_writers.py) need Python's own handler, as in a terminal.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session")

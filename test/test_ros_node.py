@@ -234,6 +234,30 @@ def test_a_child_that_ignores_sigint_is_killed_and_the_kill_recorded(tmp_path: P
         assert polite.stop(timeout_s=10.0) != -signal.SIGKILL and polite.killed_after_s is None
 
 
+def test_a_child_hears_sigint_where_its_launcher_was_started_with_it_ignored(tmp_path: Path) -> None:
+    """A shell's background job starts with SIGINT ignored, and an ignored signal survives ``exec``.
+
+    The child gets Python's own SIGINT handler back, so ``stop`` ends it by SIGINT (a node then
+    writes its checkpoint), not by SIGKILL after the grace; it runs as under ``python -m``.
+    """
+    (tmp_path / "polite.py").write_text(
+        "import sys, time\nprint('ready', __name__, sys.argv[1:], flush=True)\ntime.sleep(60)\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(tmp_path))
+    node = NodeProcess(["--ros-args", "-p", "x:=1"], module="polite", env=env)
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in a background job: inherited
+    try:
+        node.start()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    try:
+        wait_until(lambda: "ready" in node.output(), TIMEOUT_S, "the child to start")
+        assert "ready __main__ ['--ros-args', '-p', 'x:=1']" in node.output()
+        assert node.stop(timeout_s=10.0) == -signal.SIGINT and node.killed_after_s is None
+    finally:
+        node.close()
+
+
 def test_a_node_killed_after_the_flush_leaves_the_replay_whole_with_a_warning(
     short_bag: Path, short_direct, monkeypatch
 ) -> None:

@@ -3,6 +3,9 @@
 ``launch`` is not on PyPI; this is the small piece the live replay, the tests and the benchmarks
 need. The child runs ``python -m <module>`` with the venv's interpreter and an environment confined
 to loopback in the caller's domain, so both ends of the graph meet and nothing leaves the host.
+SIGINT, the stop signal, reaches the child's default handler even where the caller was started
+with SIGINT ignored (a shell's background job, some service managers): an ignored signal is
+inherited across ``exec``, and a node that cannot hear SIGINT would only ever be SIGKILLed.
 """
 
 from __future__ import annotations
@@ -21,6 +24,13 @@ from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.ros.netenv import confine_to_loopback
 
 __all__ = ["NodeError", "NodeProcess", "wait_until"]
+
+#: ``python -m MODULE ARGS`` with SIGINT's default handler restored first (``runpy`` is what ``-m``
+#: runs; ``sys.argv`` becomes the module's path and ARGS, as under ``-m``).
+_RUN_MODULE = (
+    "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    "module = sys.argv.pop(1); runpy.run_module(module, run_name='__main__', alter_sys=True)"
+)
 
 
 class NodeError(BridgeShadowError):
@@ -85,7 +95,7 @@ class NodeProcess:
     def start(self) -> NodeProcess:
         """Start the child (non-blocking); use ``wait_until`` on the graph for readiness."""
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", self.module, *self.args],
+            [sys.executable, "-c", _RUN_MODULE, self.module, *self.args],
             env=self.env,
             stdin=subprocess.DEVNULL,
             stdout=self._log,
