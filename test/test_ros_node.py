@@ -237,8 +237,9 @@ def test_a_child_that_ignores_sigint_is_killed_and_the_kill_recorded(tmp_path: P
 def test_a_child_hears_sigint_where_its_launcher_was_started_with_it_ignored(tmp_path: Path) -> None:
     """A shell's background job starts with SIGINT ignored, and an ignored signal survives ``exec``.
 
-    The child gets Python's own SIGINT handler back, so ``stop`` ends it by SIGINT (a node then
-    writes its checkpoint), not by SIGKILL after the grace; it runs as under ``python -m``.
+    The child gets Python's own SIGINT handler back, so ``stop`` ends it by SIGINT, not by SIGKILL
+    after the grace (rclpy installs its own handler in the node; a plain child relies on Python's).
+    It runs as under ``python -m``.
     """
     (tmp_path / "polite.py").write_text(
         "import sys, time\nprint('ready', __name__, sys.argv[1:], flush=True)\ntime.sleep(60)\n"

@@ -5,7 +5,8 @@ need. The child runs ``python -m <module>`` with the venv's interpreter and an e
 to loopback in the caller's domain, so both ends of the graph meet and nothing leaves the host.
 SIGINT, the stop signal, reaches the child's default handler even where the caller was started
 with SIGINT ignored (a shell's background job, some service managers): an ignored signal is
-inherited across ``exec``, and a node that cannot hear SIGINT would only ever be SIGKILLed.
+inherited across ``exec``, and a child that cannot hear SIGINT is SIGKILLed after the grace (the
+node hears it anyway, rclpy installing its own handler; a plain Python child does not).
 """
 
 from __future__ import annotations
