@@ -22,19 +22,25 @@ def window_index(stamps_ns: np.ndarray, width_ns: int) -> np.ndarray:
 
 
 def sorted_union(parts: list[np.ndarray]) -> np.ndarray:
-    """Return ``np.unique(np.concatenate(parts))``, collapsing each part's runs of equal neighbours first.
+    """Return ``np.unique(np.concatenate(parts))`` of integer parts (stamps, window indices), merged.
 
-    The set of values is the same whatever the order; parts that are sorted (stamps, their window
-    indices) collapse to their distinct values in one pass, so the sort is over those only: a
-    record's 100 Hz samples fall in tens of windows, where ``np.unique`` of every sample's index
-    took 6 ms.
+    The set of values is the same whatever the order; parts that are sorted collapse to their
+    distinct values in one pass (a record's 100 Hz samples fall in tens of windows, where
+    ``np.unique`` of every sample's index took 6 ms), and a stable sort (Timsort for 64-bit
+    integers) merges sorted parts in linear time. ``np.unique`` hashes every value first (numpy
+    2.3 on): on the two channels' 100 Hz stamps of a 12-minute record, 144,000 distinct values,
+    44 ms where the merge takes 1.2 ms, a fifth of a real record's replay.
     """
     kept = []
     for p in parts:
         first = np.ones(len(p), bool)
         np.not_equal(p[1:], p[:-1], out=first[1:])
         kept.append(p[first])
-    return np.unique(np.concatenate(kept))
+    both = np.concatenate(kept)
+    both.sort(kind="stable")
+    distinct = np.ones(len(both), bool)
+    np.not_equal(both[1:], both[:-1], out=distinct[1:])
+    return both[distinct]
 
 
 @dataclass

@@ -139,3 +139,7 @@ def test_sorted_union_is_numpys_unique_of_the_concatenation() -> None:
         got = sorted_union(parts)
         assert got.dtype == expected.dtype
         np.testing.assert_array_equal(got, expected)  # exact: integers
+    # two channels' stamps (ns) of a 12-minute record, distinct, partly shared
+    a = np.sort(rng.integers(1_650_000_000 * 10**9, 1_650_000_720 * 10**9, 20_000))
+    b = np.sort(np.concatenate([a[::3], rng.integers(1_650_000_000 * 10**9, 1_650_000_720 * 10**9, 10_000)]))
+    np.testing.assert_array_equal(sorted_union([a, b]), np.unique(np.concatenate([a, b])))  # exact: integers
