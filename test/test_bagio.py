@@ -119,6 +119,15 @@ def test_numpy_encoder_is_byte_identical_to_rosbags_serializer() -> None:
         temp = ts.types[TEMPERATURE_TYPE](header=header, temperature=v[0], variance=v[1])
         (traw,) = encode_stamped_floats(np.array([stamp]), frame, v[None, :2])
         assert traw == bytes(ts.serialize_cdr(temp, TEMPERATURE_TYPE))
+    # one frame_id for all, as a str or as an array of it (one block, without sorting the strings)
+    one = encode_stamped_floats(stamps, np.array(["frc_01"] * 4, dtype=object), values)
+    assert one == encode_stamped_floats(stamps, "frc_01", values)
+    for raw, stamp, v in zip(one, stamps.tolist(), values, strict=True):
+        header = Header(stamp=Time(sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id="frc_01")
+        wrench = Wrench(force=Vec(x=v[0], y=v[1], z=v[2]), torque=Vec(x=v[3], y=v[4], z=v[5]))
+        assert raw == bytes(ts.serialize_cdr(ts.types[FORCE_TYPE](header=header, wrench=wrench), FORCE_TYPE))
+    assert encode_stamped_floats(stamps[:0], "frc_01", values[:0]) == []
+    assert encode_stamped_floats(stamps[:0], np.array([], dtype=object), values[:0]) == []
 
 
 def test_decoder_reads_big_endian_cdr_and_rejects_garbage() -> None:
