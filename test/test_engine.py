@@ -143,3 +143,39 @@ def test_the_same_items_mapped_again_and_again_are_never_lost() -> None:
         mapper = client_mapper(client)
         for _ in range(300):
             assert mapper(_square, [0, 1, 2]) == [0, 1, 4]
+
+
+def test_a_local_cluster_drops_the_heartbeat_line_of_its_own_close(monkeypatch) -> None:
+    """A heartbeat in flight as the cluster closes logs an ERROR with a traceback (Dask's race).
+
+    Once the job is done, ``dask_client`` filters that one line on its local workers
+    (``HEARTBEAT_AT_CLOSE``); every other line of theirs still shows.
+    """
+    import logging
+
+    from distributed import Client
+
+    from bridge_shadow import engine
+
+    def record(msg: str) -> logging.LogRecord:
+        return logging.LogRecord("distributed.worker", logging.ERROR, __file__, 1, msg, None, None)
+
+    drop = engine._HeartbeatAtClose()
+    assert not drop.filter(record(engine.HEARTBEAT_AT_CLOSE)) and drop.filter(record("Compute Failed"))
+
+    def filters() -> list[str]:
+        return [type(f).__name__ for f in logging.getLogger("distributed.worker").filters]
+
+    seen = []
+    run = Client.run
+
+    def recording(self, fn, *args, **kwargs):
+        out = run(self, fn, *args, **kwargs)
+        seen.append((fn, run(self, filters)))  # on the workers, right after
+        return out
+
+    monkeypatch.setattr(Client, "run", recording)
+    with dask_client(workers=1) as client:
+        assert client.submit(abs, -2).result() == 2
+    assert [fn for fn, _ in seen] == [engine._closing]
+    assert list(seen[0][1].values()) == [["_HeartbeatAtClose"]]
