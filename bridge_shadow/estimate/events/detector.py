@@ -421,18 +421,17 @@ class ChangeDetector:
             return np.inf
         rate = np.mean(pairs, axis=0)
         jump = self._jump(j, (rate, len(pairs)))
-        if jump > self._rate_statistic(j, rate, len(pairs)):
+        if jump > self._rate_statistic(ref.r_window + self.pending[j].r_window, rate, len(pairs)):
             return np.inf  # the rate read is nearer no rate than the one that carries the jump
         return jump
 
-    def _rate_statistic(self, j: int, rate: np.ndarray, n: int) -> float:
-        """Return ``r' C_r^-1 r`` for the rate ``r`` read from ``n`` neighbour pairs (``_drift_jump``).
+    def _rate_statistic(self, r: np.ndarray, rate: np.ndarray, n: int) -> float:
+        """Return ``r' C_r^-1 r`` for the rate read from ``n`` neighbour pairs (``_drift_jump``).
 
-        ``C_r``: the lag-one jump covariance of ``_jump`` (at the window after ``j``'s reference)
-        over ``n``.
+        ``C_r``: the lag-one jump covariance of ``_jump`` over ``n``; ``r``: the window covariances
+        of ``j``'s reference and ``j`` summed, as there.
         """
-        ref = self._reference(j)
-        return _quad(self._lag_cov(ref.r_window + self.pending[j].r_window, 1) / n, rate)
+        return _quad(self._lag_cov(r, 1) / n, rate)
 
     def _jump_bound(self) -> float:
         """Return the jump an event's change time must exceed (``_qualifies``)."""

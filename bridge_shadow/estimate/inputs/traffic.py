@@ -367,18 +367,34 @@ def _screen_bins(
     whole = _Screened(cut, float(baseline[valid[0]]), float(baseline[valid[-1]]), free, head_n, tail_n)
     if not open_run or depth >= MAX_SPLITS or len(valid) < 2 * MIN_SIDE_BINS:
         return whole
+    rule = (threshold_n, margin, vehicle_max_n, depth, ends)
+    split = _split(total, valid, *rule, carried)
+    if split is None and carried:  # no split stands where the level falls most: as before the rule
+        split = _split(total, valid, *rule, False)
+    return whole if split is None else split
+
+
+def _split(
+    total: np.ndarray,
+    valid: np.ndarray,
+    threshold_n: float,
+    margin: int,
+    vehicle_max_n: float,
+    depth: int,
+    ends: tuple[bool, bool],
+    carried: bool,
+) -> _Screened | None:
+    """Screen ``total`` as two sides of ``split_bin``'s split (``_screen_bins``); None where none stands."""
     at = split_bin(total[valid], threshold_n, vehicle_max_n, carried)
     if at is None:
-        return whole
+        return None
     k = int(valid[at])
     more = (threshold_n, margin, vehicle_max_n, depth + 1)
     left = _screen_bins(total[:k], *more, (ends[0] and not carried, False))
     right = _screen_bins(total[k:], *more, (False, ends[1]))
     step = right.first_n - left.last_n
     if abs(step) <= threshold_n or min(left.free, right.free) < margin or 0 < step <= vehicle_max_n:
-        if carried:  # no split stands where the level falls most: the stretch as it was screened
-            return _screen_bins(total, threshold_n, margin, vehicle_max_n, depth, ends)
-        return whole  # (0 < step: a rise no heavier than a vehicle that came to stay, as before)
+        return None  # (0 < step: a rise no heavier than a vehicle that came to stay, as before)
     if _holds_a_further_state(left.tail_n, right.head_n, vehicle_max_n):
         right = _screen_bins(total[k:], *more, (True, ends[1]), carried=bool(np.isfinite(left.tail_n)))
     both = np.concatenate([left.cut, right.cut])
