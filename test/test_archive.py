@@ -511,7 +511,7 @@ def test_what_the_cache_key_leaves_out_leaves_the_reduction_as_it_is(root: Path)
         assert front_key(other) == front_key(config), name
         red = reduce_bag(bag, other, surrogate)
         assert same_behaviour(red.end, ref.end) and red.end.counts == ref.end.counts, name
-        np.testing.assert_array_equal(red.windows.k, ref.windows.k, err_msg=name)
+        np.testing.assert_array_equal(red.windows.k, ref.windows.k, err_msg=name)  # integer indices
         # window means, computed again: to rounding (another CPU or numpy build differs by an ulp)
         np.testing.assert_allclose(red.windows.force_n, ref.windows.force_n, rtol=1e-12, atol=0, err_msg=name)
         np.testing.assert_allclose(red.windows.temp_c, ref.windows.temp_c, rtol=1e-12, atol=0, err_msg=name)

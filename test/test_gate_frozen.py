@@ -65,7 +65,7 @@ def test_a_frozen_channel_keeps_its_first_seconds_whatever_the_chunking() -> Non
     for _ in range(5):
         cuts = sorted(rng.choice(np.arange(1, len(t)), size=7, replace=False).tolist())
         kept, counts = _run(_gate(), t, v, cuts)
-        np.testing.assert_array_equal(kept, want_kept)
+        np.testing.assert_array_equal(kept, want_kept)  # integer stamps kept
         assert counts == want
 
 
@@ -77,7 +77,7 @@ def test_a_checkpoint_inside_the_run_resumes_it() -> None:
     second = _gate()
     second.load_state_dict(first.state_dict())
     kept_b, counts_b = _run(second, t[3000:], v[3000:], [])
-    np.testing.assert_array_equal(np.concatenate([kept_a, kept_b]), want_kept)
+    np.testing.assert_array_equal(np.concatenate([kept_a, kept_b]), want_kept)  # integer stamps kept
     assert counts_a + counts_b == want
 
 

@@ -31,11 +31,11 @@ RTOL_ACROSS_MACHINES = 1e-12
 def _assert_same(a, b, forces: bool = True) -> None:
     close = {"rtol": RTOL_ACROSS_MACHINES, "atol": 0.0, "equal_nan": True}
     for ch in CHANNELS:
-        np.testing.assert_array_equal(a.forces[ch].stamp_ns, b.forces[ch].stamp_ns)
+        np.testing.assert_array_equal(a.forces[ch].stamp_ns, b.forces[ch].stamp_ns)  # integer ns
         if forces:
             np.testing.assert_allclose(a.forces[ch].force_n, b.forces[ch].force_n, **close)
         assert set(a.forces[ch].frame_id) == {ch}
-    np.testing.assert_array_equal(a.temperature.stamp_ns, b.temperature.stamp_ns)
+    np.testing.assert_array_equal(a.temperature.stamp_ns, b.temperature.stamp_ns)  # integer ns
     np.testing.assert_allclose(a.temperature.temp_c, b.temperature.temp_c, **close)
     np.testing.assert_allclose(a.temperature.variance, b.temperature.variance, **close)
 

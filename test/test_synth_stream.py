@@ -56,7 +56,7 @@ def test_a_record_that_fits_one_segment_is_simulate_itself() -> None:
     sur = placeholder_surrogate()
     ((data, truth),) = list(record_segments(DAYS, RATE, seed=4, surrogate=sur))
     ref, _ = simulate(DAYS, RATE, seed=4, surrogate=sur)
-    np.testing.assert_array_equal(data.forces["frc_02"].stamp_ns, ref.forces["frc_02"].stamp_ns)
+    np.testing.assert_array_equal(data.forces["frc_02"].stamp_ns, ref.forces["frc_02"].stamp_ns)  # integer ns
     np.testing.assert_allclose(data.forces["frc_02"].force_n, ref.forces["frc_02"].force_n, rtol=1e-12)
     assert merge_truths([truth]) is truth
 

@@ -229,7 +229,7 @@ def _pair(effects: dict[str, float], days: float = 1.0, rate_hz: float = 0.1, se
     np.testing.assert_allclose(eff.temperature.temp_c, base.temperature.temp_c, rtol=1e-12, atol=0)
     diff = {}
     for ch in ("frc_01", "frc_02"):
-        np.testing.assert_array_equal(eff.forces[ch].stamp_ns, base.forces[ch].stamp_ns)
+        np.testing.assert_array_equal(eff.forces[ch].stamp_ns, base.forces[ch].stamp_ns)  # integer ns
         ok = np.isfinite(base.forces[ch].force_n)
         diff[ch] = (base.forces[ch].stamp_ns[ok], eff.forces[ch].force_n[ok] - base.forces[ch].force_n[ok])
     return tb, te, diff

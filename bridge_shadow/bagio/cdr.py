@@ -406,11 +406,11 @@ def _frame_groups(frame_id: np.ndarray | Sequence[str] | str, n: int) -> list[tu
     One frame_id for all (a str, or an array of one value: the usual case) is one group without
     ``np.unique``, which sorts the strings (a third of encoding 100,000 messages).
     """
-    if isinstance(frame_id, str):
-        return [(frame_id, np.arange(n))] if n else []
-    frames = np.asarray(frame_id, object)
     if not n:
         return []
+    if isinstance(frame_id, str):
+        return [(frame_id, np.arange(n))]
+    frames = np.asarray(frame_id, object)
     if bool(np.all(frames == frames[0])):
         return [(str(frames[0]), np.arange(n))]
     uniq, inverse = np.unique(frames.astype(str), return_inverse=True)
