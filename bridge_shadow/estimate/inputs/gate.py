@@ -214,7 +214,10 @@ class TopicGate:
         if isinstance(frame_id, str):
             return np.full(n, frame_id in (self.frame_id, ""))
         frames = np.asarray(frame_id, dtype=object)
-        return (frames == self.frame_id) | (frames == "")
+        good = frames == self.frame_id
+        if not good.all():  # one comparison per message in the common case, two where any differs
+            good |= frames == ""
+        return good
 
     def _frozen(self, s: np.ndarray, v: np.ndarray, frozen_ns: int) -> np.ndarray:
         """Mark the messages that repeat their run's value longer than ``frozen_ns`` after its start.
