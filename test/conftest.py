@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import contextlib
 import os
 import signal
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from bridge_shadow.engine import Mapper
 from bridge_shadow.paths import repo_root, shared_data_dir
 from bridge_shadow.ros.netenv import confine_to_loopback
 
@@ -36,44 +33,21 @@ def munich_data() -> Path:
     return path
 
 
-@contextlib.contextmanager
-def _engine(processes: bool) -> Iterator[Mapper]:
-    """``engine.client_mapper`` of a local cluster of two workers (processes, or threads of this one)."""
+@pytest.fixture(scope="module")
+def engine():
+    """Two Dask worker processes for the seed studies (``engine.client_mapper``): seeds in parallel.
+
+    One cluster per test file, closed after it: a session's cluster idled through every later
+    file, and an idle local cluster costs 0.13 of a core (0.06 with its event loops' tick monitor
+    every second instead of every 20 ms, which only makes a blocked-loop warning late).
+    """
     import dask
     import distributed  # noqa: F401  (its defaults first: leaving the ``with`` restores the config as found)
 
     from bridge_shadow.engine import client_mapper, dask_client
 
-    with (
-        dask.config.set({"distributed.admin.tick.interval": "1s"}),
-        dask_client(workers=2, processes=processes) as client,
-    ):
+    with dask.config.set({"distributed.admin.tick.interval": "1s"}), dask_client(workers=2) as client:
         yield client_mapper(client)
-
-
-@pytest.fixture(scope="module")
-def engine() -> Iterator[Mapper]:
-    """Dask for the seed studies (``engine.client_mapper``): two workers as threads of the test process.
-
-    The suite's two test processes already keep both cores busy, so worker processes would only
-    compete with them for the cores and add their own start (about 3.5 s of CPU each, importing
-    distributed, scipy and the package). Measured on this 2-core machine, the whole suite with
-    threads and with processes: 377-384 s (704-718 s of CPU) against 399-415 s (765-818 s). The
-    studies' tasks and results are the same either way; ``process_engine`` is for the tests of
-    what crosses a process boundary. One cluster per test file, closed after it: a session's
-    cluster idled through every later file, and an idle local cluster costs 0.13 of a core (0.06
-    with its event loops' tick monitor every second instead of every 20 ms, which only makes a
-    blocked-loop warning late).
-    """
-    with _engine(processes=False) as mapper:
-        yield mapper
-
-
-@pytest.fixture(scope="module")
-def process_engine() -> Iterator[Mapper]:
-    """``engine`` with two worker processes: tasks and results pickled across processes."""
-    with _engine(processes=True) as mapper:
-        yield mapper
 
 
 @pytest.fixture(scope="session")

@@ -128,7 +128,7 @@ def _connections(bag: Path) -> list:
         return list(reader.connections)
 
 
-def test_an_archive_written_on_dask_workers_equals_the_serial_one(tmp_path: Path, process_engine) -> None:
+def test_an_archive_written_on_dask_workers_equals_the_serial_one(tmp_path: Path, engine) -> None:
     """``write_archive`` on the engine's mapper: every bag's messages and truth as written serially."""
     from bridge_shadow.twin.stream import BAGS_PER_CALL, write_archive
 
@@ -136,7 +136,7 @@ def test_an_archive_written_on_dask_workers_equals_the_serial_one(tmp_path: Path
     assert 2 * 10 > BAGS_PER_CALL  # more than one call of the mapper
     seen: list[float] = []
     serial = write_archive(tmp_path / "serial", **args)
-    parallel = write_archive(tmp_path / "dask", mapper=process_engine, progress=seen.append, **args)
+    parallel = write_archive(tmp_path / "dask", mapper=engine, progress=seen.append, **args)
     assert parallel == serial
     assert seen[-1] == 1.0 and seen == sorted(seen) and len(seen) == -(-20 // BAGS_PER_CALL)
     bags = sorted(p.relative_to(tmp_path / "serial") for p in (tmp_path / "serial").glob("bridge_*/day_*"))
