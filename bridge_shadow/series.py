@@ -15,10 +15,10 @@ import numpy as np
 
 from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, TEMPERATURE_FRAME
 
-__all__ = ["ForceSeries", "MonitoringData", "TemperatureSeries"]
+__all__ = ["ForceSeries", "MonitoringData", "TemperatureSeries", "frame_ids"]
 
 
-def _frames(frame_id: np.ndarray | str, n: int) -> np.ndarray:
+def frame_ids(frame_id: np.ndarray | str, n: int) -> np.ndarray:
     """(n,) object array of frame ids: ``frame_id`` as given, or one str repeated ``n`` times.
 
     A repeated id is one str object referenced ``n`` times (``fill``): ``np.full`` with a str
@@ -53,8 +53,8 @@ class ForceSeries:
         self.stamp_ns = np.asarray(self.stamp_ns, dtype=np.int64)
         self.force_n = np.asarray(self.force_n, dtype=np.float64)
         if len(self.frame_id) != len(self.stamp_ns):
-            self.frame_id = _frames("", len(self.stamp_ns)) if not len(self.frame_id) else self.frame_id
-        self.frame_id = _frames(self.frame_id, len(self.stamp_ns))
+            self.frame_id = frame_ids("", len(self.stamp_ns)) if not len(self.frame_id) else self.frame_id
+        self.frame_id = frame_ids(self.frame_id, len(self.stamp_ns))
         self.log_ns = self.stamp_ns.copy() if self.log_ns is None else np.asarray(self.log_ns, np.int64)
         if not (len(self.stamp_ns) == len(self.force_n) == len(self.frame_id) == len(self.log_ns)):
             raise ValueError("ForceSeries arrays must have equal length")
@@ -87,7 +87,7 @@ class TemperatureSeries:
         self.temp_c = np.asarray(self.temp_c, dtype=np.float64)
         n = len(self.stamp_ns)
         self.variance = np.zeros(n) if self.variance is None else np.asarray(self.variance, float)
-        self.frame_id = _frames(TEMPERATURE_FRAME if not len(self.frame_id) else self.frame_id, n)
+        self.frame_id = frame_ids(TEMPERATURE_FRAME if not len(self.frame_id) else self.frame_id, n)
         self.log_ns = self.stamp_ns.copy() if self.log_ns is None else np.asarray(self.log_ns, np.int64)
         if not (n == len(self.temp_c) == len(self.variance) == len(self.frame_id) == len(self.log_ns)):
             raise ValueError("TemperatureSeries arrays must have equal length")

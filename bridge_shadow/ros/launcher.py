@@ -16,6 +16,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -44,10 +45,13 @@ def wait_until(
     what: str,
     alive: Callable[[], None] | None = None,
     period_s: float = 0.01,
+    wake: threading.Event | None = None,
 ) -> float:
     """Poll ``condition`` until true; return the seconds waited.
 
-    ``alive`` is called on every poll and may raise (a dead peer); NodeError on timeout.
+    ``alive`` is called on every poll and may raise (a dead peer); NodeError on timeout. ``wake``:
+    an event whose setting (from another thread) makes the next poll at once rather than after
+    ``period_s``.
     """
     t0 = time.monotonic()
     while not condition():
@@ -55,7 +59,10 @@ def wait_until(
             alive()
         if time.monotonic() - t0 > timeout_s:
             raise NodeError(f"timed out after {timeout_s:g} s waiting for {what}")
-        time.sleep(period_s)
+        if wake is None:
+            time.sleep(period_s)
+        else:
+            wake.wait(period_s)
     return time.monotonic() - t0
 
 

@@ -280,12 +280,8 @@ class Player:
         """Wait for a Trigger answer and parse its JSON (``taken_total`` added when ``taken`` is there)."""
         answered = threading.Event()  # set from the spinning thread: no polling at a fine period
         future.add_done_callback(lambda _future: answered.set())
-        t0 = time.monotonic()
-        while not (answered.wait(0.05) or future.done()):
-            if node is not None:
-                node.check_alive()
-            if time.monotonic() - t0 > timeout_s:
-                raise NodeError(f"timed out after {timeout_s:g} s waiting for an answer from the node")
+        alive = node.check_alive if node is not None else None
+        wait_until(future.done, timeout_s, "an answer from the node", alive, period_s=0.05, wake=answered)
         response = future.result()
         if response is None or not response.success:
             raise NodeError(f"the node's service failed: {getattr(response, 'message', 'no answer')}")

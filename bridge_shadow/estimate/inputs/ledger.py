@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bridge_shadow.contract import CHANNELS
+from bridge_shadow.series import frame_ids
 
 __all__ = ["TOPIC_KEYS", "TopicLedger"]
 
@@ -61,11 +62,7 @@ class TopicLedger:
             return
         bad = ~ok
         if self.expected_frame is not None and frame_id is not None:
-            frames = (
-                np.full(len(ok), frame_id, dtype=object)
-                if isinstance(frame_id, str)
-                else np.asarray(frame_id, object)
-            )
+            frames = frame_ids(frame_id, len(ok))
             wrong = bad & (frames != self.expected_frame) & (frames != "")
             if wrong.any():
                 self.last_frame = str(frames[np.flatnonzero(wrong)[-1]])
