@@ -10,6 +10,7 @@ within 10 % of the truth, and whether the 95 % interval holds it (a rate over se
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import Any
@@ -106,6 +107,8 @@ class StreamScore:
         error_m: (2,) final estimate minus truth, m; sigma_m: (2,) its published sd, m.
         missed: changed records (their first used window) without an event there, whether or not
             an unconfirmed change reports them.
+        lost_under_car: those of ``lost_windows`` that are the recorded test car parked on the state
+            the shadow then held (``_car_excursion``): an excursion rejected, no state lost.
 
     """
 
@@ -118,6 +121,31 @@ class StreamScore:
     error_m: np.ndarray
     sigma_m: np.ndarray
     missed: list[int] = field(default_factory=list)
+    lost_under_car: int = 0
+
+    @property
+    def lost_car_free(self) -> int:
+        """Windows of a changed record rejected as outliers that were no car on a state then held."""
+        return self.lost_windows - self.lost_under_car
+
+
+def _car_excursion(sc: Any, end_ns: int, w: int, used_ends: list[int]) -> bool:
+    """Whether the window ending at ``end_ns`` is the test car parked on the state the shadow then held.
+
+    The recorded car stood in the window (``sc.car_ns``), the window lies in one piece (no change
+    inside it), and the next window the shadow used is in a piece of the same true state: the
+    rejected window was an excursion, not a state of its own.
+    """
+    if not any(a < end_ns and b > end_ns - w for a, b in sc.car_ns):
+        return False
+    piece = bisect.bisect_right(sc.starts_ns, end_ns - w) - 1
+    if piece < 0 or bisect.bisect_right(sc.starts_ns, end_ns - 1) - 1 != piece:
+        return False
+    after = bisect.bisect_right(used_ends, end_ns)
+    if after == len(used_ends):
+        return False
+    held = bisect.bisect_right(sc.starts_ns, used_ends[after] - w) - 1
+    return bool(np.allclose(sc.pieces[held].truth_m(), sc.pieces[piece].truth_m(), rtol=0.0, atol=1e-9))
 
 
 def score_stream(sc: Any, res: ReplayResult, window_s: float = 60.0) -> StreamScore:
@@ -136,9 +164,10 @@ def score_stream(sc: Any, res: ReplayResult, window_s: float = 60.0) -> StreamSc
     likely = {c.window for c in res.changes if c.likely}
     bounds = [*sc.starts_ns, 2**62]
     changed = [(bounds[i], bounds[i + 1]) for i in sc.changes()]
-    lost = sum(
-        1 for o in res.outputs if o.reason == "outlier" and any(a <= o.end_ns < b + w for a, b in changed)
-    )
+    outliers = [o.end_ns for o in res.outputs if o.reason == "outlier"]
+    lost_ends = [t for t in outliers if any(a <= t < b + w for a, b in changed)]
+    used_ends = sorted(o.end_ns for o in res.outputs if not o.reason)
+    under_car = sum(1 for t in lost_ends if _car_excursion(sc, t, w, used_ends))
     truth = np.asarray(sc.truth_m, float)
     err = res.mean_m - truth
     sd = np.sqrt(np.diag(res.covariance_m2))
@@ -146,10 +175,11 @@ def score_stream(sc: Any, res: ReplayResult, window_s: float = 60.0) -> StreamSc
         events == want,
         sorted(set(events) - set(want)),
         sorted(set(want) - set(events) - likely),
-        lost,
+        len(lost_ends),
         bool(np.all(np.abs(err) <= np.maximum(0.1 * np.abs(truth), 1e-3))),
         bool(np.all(np.abs(err) <= 1.96 * sd)),
         err,
         sd,
         sorted(set(want) - set(events)),
+        under_car,
     )

@@ -13,7 +13,8 @@ day). The car's pattern and the bridge's own wander stay as they were recorded: 
 shows them.
 
 Truth of a piece (for scoring only): the record's own state (0 for the reference, -10 mm at both
-bearings for the lowered record) plus the added step.
+bearings for the lowered record) plus the added step; and where the test car stood in it
+(``Scenario.car_ns``: ``calibrate``'s car detector on the record as recorded, placed with the piece).
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ __all__ = [
     "Piece",
     "Scenario",
     "build",
+    "car_stretches_ns",
     "load_records",
     "random_inside_streams",
     "random_streams",
@@ -85,6 +87,8 @@ class Scenario:
     data: MonitoringData
     pieces: tuple[Piece, ...]
     starts_ns: list[int]
+    #: Stretches ``(from, to)`` stamp ns of the stream where the recorded test car stood.
+    car_ns: tuple[tuple[int, int], ...] = ()
 
     #: Hours after the reference record's start with a continuous air-temperature record (the
     #: day's files leave gaps of minutes to half an hour between them).
@@ -114,6 +118,25 @@ def load_records(folder: Path) -> tuple[dict[str, MonitoringData], TemperatureSe
     return recs, temp
 
 
+@lru_cache(maxsize=2)
+def car_stretches_ns(folder: Path) -> dict[str, tuple[tuple[int, int], ...]]:
+    """Return where the test car stood in each record, ``(from, to)`` stamp ns (scoring only).
+
+    ``calibrate.car.detect_car`` on 1 s bins of the record as recorded: a piece's copy has the
+    car at the same minutes, whatever step the piece adds through ``A``.
+    """
+    from bridge_shadow.calibrate.car import bin_record, detect_car
+
+    recs, _ = load_records(Path(folder))
+    out = {}
+    for name, rec in recs.items():
+        binned = bin_record(rec, 1.0)
+        stretches = detect_car(binned).intervals_s
+        t0 = binned.start_ns
+        out[name] = tuple((t0 + round(a * NS), t0 + round(b * NS)) for a, b in stretches)
+    return out
+
+
 def build(
     folder: Path, A: np.ndarray, pieces: tuple[Piece, ...] | list[Piece], require_temperature: bool = True
 ) -> Scenario:
@@ -128,6 +151,7 @@ def build(
     forces: dict[str, list[ForceSeries]] = {ch: [] for ch in CHANNELS}
     t_parts: list[tuple[np.ndarray, np.ndarray]] = []
     starts = []
+    car: list[tuple[int, int]] = []
     for p in pieces:
         rec = recs[p.record]
         t0 = int(rec.forces[CHANNELS[0]].stamp_ns[0])
@@ -142,6 +166,11 @@ def build(
         first = int(forces[CHANNELS[0]][-1].stamp_ns[0])
         last = int(max(f[-1].stamp_ns[-1] for f in forces.values()))
         starts.append(first)
+        car += [
+            (max(a + shift, first), min(b + shift, last))
+            for a, b in car_stretches_ns(Path(folder))[p.record]
+            if a + shift < last and b + shift > first
+        ]
         # the air temperature over the copy (plus a minute either side): its own hour's, or another's
         src = 0 if p.temp_at_h is None else t_ref + round(p.temp_at_h * HOUR_NS) - first
         sel = (temp.stamp_ns >= first - 60 * NS + src) & (temp.stamp_ns <= last + 60 * NS + src)
@@ -153,7 +182,8 @@ def build(
     ts = np.concatenate([t for t, _ in t_parts])
     tv = np.concatenate([v for _, v in t_parts])
     order = np.argsort(ts, kind="stable")
-    return Scenario(MonitoringData(merged, TemperatureSeries(ts[order], tv[order])), tuple(pieces), starts)
+    data = MonitoringData(merged, TemperatureSeries(ts[order], tv[order]))
+    return Scenario(data, tuple(pieces), starts, tuple(car))
 
 
 def _concat(parts: list[ForceSeries]) -> ForceSeries:
