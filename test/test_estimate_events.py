@@ -37,7 +37,8 @@ def run(
     Verdicts: ``accept``, ``reject`` (an outlier), ``event`` (its windows), ``change`` (the windows
     of an unconfirmed change that starts a provisional segment), ``unconfirmed`` (the windows of a
     run that reached ``event_max_pending``: used as data and reported), ``moving`` (a ramp's
-    windows, between the old state and the new).
+    windows, between the old state and the new). A window the detector gives back
+    (``Decision.rejudge``) is judged again against the segment its decision started.
     """
     det = det or ChangeDetector()
     det.set_noise(np.array([PHI, PHI]), 1e6)
@@ -67,13 +68,19 @@ def run(
             verdict[k] = "accept"
             segment.append(k)
 
-    for k, yk in enumerate(y):
+    def judge(k: int) -> None:
+        level = y[segment].mean(axis=0) if segment else np.zeros(2)
+        v = y[k] - level
+        d = det.step(k, (float(v[0]), float(v[1])), R, apa, k)
+        apply(d)
+        for again in d.rejudge:
+            judge(again)
+
+    for k in range(len(y)):
         if k in gaps:
             apply(det.close_run())
             det.prev = None
-        level = y[segment].mean(axis=0) if segment else np.zeros(2)
-        v = yk - level
-        apply(det.step(k, (float(v[0]), float(v[1])), R, apa, k))
+        judge(k)
     apply(det.flush())
     assert sorted(verdict) == list(range(len(y)))  # every window decided once
     return verdict, events
@@ -382,3 +389,23 @@ def test_a_drift_across_a_hole_is_no_step_and_a_step_across_it_is() -> None:
     for after in (np.full((4, 2), drift.mean()), drift + 6.0):  # a step; a step on the drift
         decisions, _ = _across_a_hole(after)
         assert [d.event for d in decisions if d.event] == [[8, 9, 10, 11]], after
+
+
+def test_a_short_state_no_vehicle_makes_left_for_another_level_is_a_change_of_its_own() -> None:
+    """Three windows 40 down, then the data at +15 (``ChangeDetector._moved_on``, ``_short_state``).
+
+    The run is a state in all but its length (one window short of ``event_confirm_windows``), and
+    the data leave it the other way. Its sum moved by 80, beyond the heaviest vehicle (30 here):
+    a provisional change of its own, the window that left it judged again against it, and the
+    level after it an event. With every load a vehicle's (``vehicle_max_n`` infinite, as before)
+    or a run within a vehicle's load, the run is data of the old state, reported (``unconfirmed``).
+    """
+    for level, vehicle_max_n, own in ((-40.0, 30.0, True), (-40.0, np.inf, False), (-12.0, 30.0, False)):
+        y = ar1(70, 3)
+        y[40:43] += level
+        y[43:] += 15.0
+        verdict, events = run(y, det=ChangeDetector(vehicle_max_n=vehicle_max_n))
+        run_ = [verdict[k] for k in range(40, 43)]
+        assert run_ == (["change"] * 3 if own else ["unconfirmed"] * 3), (level, vehicle_max_n, run_)
+        assert "reject" not in verdict.values(), (level, vehicle_max_n)
+        assert [k for k, _ in events] == [43], (level, vehicle_max_n, events)

@@ -1226,6 +1226,46 @@ def test_a_state_between_car_free_for_seconds_keeps_its_windows(folder: Path, su
 
 
 @pytest.mark.realdata
+@pytest.mark.parametrize("rule", [True, False])
+def test_a_short_state_the_data_leave_for_another_keeps_its_level_apart(
+    folder: Path, surrogate, rule: bool
+) -> None:
+    """The 10 mm record 10.6 h later: 17.6 mm lower from minute 6 (under the car), raised 16.8 mm at 11.
+
+    The lowered state shows three car-free windows (the car's minutes are cut), one short of
+    ``event_confirm_windows``; the next window holds the raise. Since 2026-11-29 a run that is a
+    state in all but its length and moved the reactions' sum by more than any vehicle
+    (``traffic_vehicle_max_n``) is a provisional change when the data leave it for another level
+    (``ChangeDetector._moved_on``): the record ends within 1 mm of its last state, the raise's
+    window is the step's, and both changes are reported with their sizes. Before (the detector's
+    rule off: any load a vehicle's), the lowered windows were the old state's data, its level
+    pulled 5 mm down, and the record ended 4.2 mm above its truth, the raise's window an outlier
+    (``benchmarks/loadtest_days.py --only inside``, #271).
+    """
+    pieces = [Piece("lowered", 0.0)]
+    for x, cut in ((0.0, (0.0, 6.0)), (-0.017646, (6.0, 11.0)), (-0.000837, (11.0, 13.0))):
+        pieces.append(Piece("lowered", 10.564, (x, x), 0.51, cut))
+    sc = build(folder, surrogate.A, pieces)
+    shadow = Shadow(load_config(), surrogate)
+    if not rule:
+        shadow.detector.vehicle_max_n = float("inf")
+    res = shadow.run(sc.data)
+    s = score_stream(sc, res)
+    if not rule:  # as before
+        assert s.lost_windows == 1 and not s.within, s
+        return
+    assert not s.lost_windows and s.within and s.covered, s
+    assert np.all(np.abs(s.error_m) <= 1e-3), s
+    sizes = sorted(float(np.mean(c.size_m)) for c in res.changes if c.likely)
+    assert len(sizes) == 2, res.changes
+    assert abs(sizes[0] + 0.0176) <= 0.002 and abs(sizes[1] - 0.0168) <= 0.002, sizes
+    step = [
+        o.reason for o in res.outputs if sc.starts_ns[3] // W <= o.end_ns // W - 1 < sc.starts_ns[3] // W + 1
+    ]
+    assert step == ["step_window"], step
+
+
+@pytest.mark.realdata
 def test_a_state_the_test_car_covers_but_for_seconds_is_read_with_the_next_step(
     folder: Path, surrogate
 ) -> None:

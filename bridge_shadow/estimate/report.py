@@ -336,7 +336,7 @@ def warnings(shadow: Shadow) -> list[str]:
             continue
         where = {
             "gap": f"after a gap of {c.gap_s / 3600.0:.1f} h",
-            "held_run": "a run of held windows at the end of the data or before a gap",
+            "held_run": "a run of held windows at the end of the data, before a gap or before another state",
             "warmup": "a step among the first windows (the warm-up, or those after a gap)",
             "run_in_data": "a run that stayed away without a step's jump",
         }[c.kind]

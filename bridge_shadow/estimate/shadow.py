@@ -203,6 +203,7 @@ class Shadow:
             window_s=config.window_s,
             relaxation_phi0=config.relaxation_phi0,
             relaxation_horizon_s=config.relaxation_horizon_s,
+            vehicle_max_n=config.traffic_vehicle_max_n,
         )
         self.fit: CompensationFit | None = None
         self._fit_id = 0
@@ -466,7 +467,7 @@ class Shadow:
             if w.g_fit != self._fit_id:
                 stop = j + _CURVE_BLOCK
                 self._precompute_curve(windows[j:stop], batch.temp_c[j:stop], i0[j:stop], bv[j:stop])
-            self._judge(w)
+            outputs.extend(self._judge(w))
             outputs.extend(self._drain())
         outputs.extend(self._drain())
         return outputs
@@ -602,7 +603,7 @@ class Shadow:
             if j == 0 or j in steps:
                 w.action = "accept"  # a provisional segment's first window is its data, not judged by it
             else:
-                self._judge(w)
+                outputs.extend(self._judge(w))
             outputs.extend(self._drain())
         return outputs
 
@@ -690,11 +691,13 @@ class Shadow:
             float(w.force[1]) - self._u0f[1] - g1 - (a[2] * x0 + a[3] * x1),
         )
 
-    def _judge(self, w: Window) -> None:
+    def _judge(self, w: Window) -> list[WindowOutput]:
         """Innovation of one usable window against the current estimate, then the detector's verdict.
 
         ``v = y - u0 - g(T) - A x`` with the single-window covariance pieces ``R1 / m`` and
-        ``A P A'`` (plain floats: this runs for every window).
+        ``A P A'`` (plain floats: this runs for every window). Returns the outputs of windows the
+        verdict decided only when the detector gives a window back to be judged against the state
+        it started (``Decision.rejudge``); otherwise they follow in ``_drain``.
         """
         self._last_judged = w.k
         v = self._innovation(w)
@@ -709,8 +712,15 @@ class Shadow:
             infl = self.detector.inflation
             total = (r_window[0] * infl + apa[0], r_window[1] * infl + apa[1], r_window[2] * infl + apa[2])
             w.action = "reject" if quad_inv(total, v) > self.detector.h_outlier else "accept"
-            return
-        self._apply(self.detector.step(w.k, v, r_window, apa, w))
+            return []
+        decision = self.detector.step(w.k, v, r_window, apa, w)
+        self._apply(decision)
+        outputs: list[WindowOutput] = []
+        for again in decision.rejudge:
+            outputs.extend(self._drain())
+            self.settle()
+            outputs.extend(self._judge(again))
+        return outputs
 
     def _relaxation(self, k: int) -> tuple[float, float, float] | None:
         """Variance (N^2) the reactions may have relaxed by at window ``k`` since the current state began.

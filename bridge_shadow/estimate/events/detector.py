@@ -45,7 +45,9 @@ freedom.
      rejected as outliers, the others are ordinary windows; the latest window is judged afresh.
      Only a run that came back loses windows; one whose latest window left it the other way,
      beyond the trigger (a drift, then a step), did not come back: it is decided as a run that
-     stayed away (below), the latest window judged afresh (``_moved_on``);
+     stayed away (below), the latest window judged afresh (``_moved_on``); when that run is a
+     state in all but its length that no vehicle makes (``_short_state``), it starts a
+     provisional segment as at the end of the data, and the latest window is judged against it;
    - *unconfirmed change*: a run that has not come back but must be decided without a qualifying
      candidate (after ``event_max_pending`` windows, at the end of the data, or at the start of a
      gap, see ``close_run``) is never rejected: it starts a *provisional* segment at its most
@@ -84,6 +86,7 @@ __all__ = [
     "JUMP_OVER_SEEN",
     "MIXED_PENALTY",
     "RAMP_HISTORY",
+    "SHORT_STATE_WINDOWS",
     "ChangeDetector",
     "Decision",
     "Pending",
@@ -127,6 +130,11 @@ JUMP_LOOKAHEAD = 3
 #: was used as data of the old state, and the event came 15 windows late (twin, three days at
 #: 1 Hz; ``test_estimate_events`` pins it).
 MIXED_PENALTY = float(stats.chi2.ppf(0.999, 1))
+#: Windows a short state needs from its change time to be kept as a provisional change when the
+#: data leave it the other way (``ChangeDetector._moved_on``): two, as a change no vehicle makes
+#: across a gap (``settlement.segments.GAP_LOWERING_WINDOWS``), because one window alone between
+#: two other levels is what an outlier, or the window a step happened in, looks like.
+SHORT_STATE_WINDOWS = 2
 #: Ordinary windows remembered before a run (the old state's differences, which the ramp rule of
 #: ``events.warmup`` measures a ramp in the run against: at least ``RAMP_MIN_REST`` and a few more).
 RAMP_HISTORY = 4
@@ -192,6 +200,9 @@ class Decision:
             several windows (a ramp, ``ChangeDetector._ramp_split``): neither state.
         drift: the ``unconfirmed`` run jumped over a hole only as far as its own rate carried it
             (``ChangeDetector._drift_jump``): a drift, reported as not significant.
+        rejudge: payloads to judge afresh once the decided windows are applied: their innovation
+            refers to the estimate before the provisional segment this decision starts
+            (``ChangeDetector._moved_on``).
 
     """
 
@@ -206,6 +217,7 @@ class Decision:
     accept: list[Any] = field(default_factory=list)
     moving: list[Any] = field(default_factory=list)
     drift: bool = False
+    rejudge: list[Any] = field(default_factory=list)
 
 
 @dataclass
@@ -230,6 +242,8 @@ class ChangeDetector:
         n_events: events raised; phi: (2,) the noise model's autocorrelation; inflation: see above.
         window_s, relaxation_phi0, relaxation_horizon_s: the creep a candidate's windows may show
             in the scatter test (``_relaxing_scatter``; ``relaxation_phi0`` 0: none).
+        vehicle_max_n: the heaviest vehicle on the reactions' sum, N (``traffic_vehicle_max_n``):
+            a short state that moved the sum by more is no vehicle's (``_moved_on``).
 
     """
 
@@ -244,6 +258,7 @@ class ChangeDetector:
         window_s: float = 60.0,
         relaxation_phi0: float = 0.0,
         relaxation_horizon_s: float = 0.0,
+        vehicle_max_n: float = math.inf,
     ) -> None:
         self.false_trigger = 1.0 - float(trigger_probability)
         self.h_trigger = float(stats.chi2.ppf(trigger_probability, 2))
@@ -258,6 +273,7 @@ class ChangeDetector:
         self.window_s = float(window_s)
         self.relaxation_phi0 = float(relaxation_phi0)
         self.relaxation_horizon_s = float(relaxation_horizon_s)
+        self.vehicle_max_n = float(vehicle_max_n)
         self.pending: list[Pending] = []
         self.prev: Pending | None = None
         self.max_jump = 0.0  # largest jump statistic between ordinary neighbours (slowly forgotten)
@@ -381,6 +397,23 @@ class ChangeDetector:
             and c.glr > self.h_event
             and c.jump > self._jump_bound()
             and self._drift_jump(c.j) > self._jump_bound()
+        )
+
+    def _short_state(self, c: _Candidate) -> bool:
+        """Return whether ``c`` is a state too short to confirm that no vehicle makes.
+
+        Every test of ``_qualifies`` but the count, at least ``SHORT_STATE_WINDOWS`` windows from
+        its change time, and a step whose sum over the two bearings lies beyond the heaviest
+        vehicle either way (more than a vehicle adds, or more than one leaving takes off an
+        estimate made while it stood: ``vehicle_max_n``).
+        """
+        return (
+            c.consistent
+            and c.n_after >= SHORT_STATE_WINDOWS
+            and c.glr > self.h_event
+            and c.jump > self._jump_bound()
+            and self._drift_jump(c.j) > self._jump_bound()
+            and abs(float(c.step[0] + c.step[1])) > self.vehicle_max_n
         )
 
     def _drift_jump(self, j: int) -> float:
@@ -639,12 +672,25 @@ class ChangeDetector:
         one that stayed away without qualifying (ordinary data, the change reported:
         ``_unconfirmed``), as ``_event`` keeps the windows before a step that did not come back;
         one window is an outlier as any. The latest window is judged afresh.
+
+        A run that is a state in all but its length (``_short_state``: its likeliest change time
+        passes every test of an event's but the ``event_confirm_windows`` after it, and it moved
+        the reactions' sum by more than any vehicle) is a provisional change instead, as a run
+        at the end of the data is: taken as the old state's data it pulled that level towards
+        its own (a 17.6 mm lowering of three car-free minutes inside a record, then a raise:
+        the record's final state read 4 mm off). The latest window is then judged against the
+        new state, once the decided windows are applied (``Decision.rejudge``).
         """
         *before, last = self.pending
         if len(before) < 2:
             return self._transient()
         self.pending = before
-        decision = self._unconfirmed(self._candidates(), provisional=False)
+        cands = self._candidates()
+        if self._short_state(min(cands, key=lambda c: c.cost)):
+            decision = self._unconfirmed(cands, provisional=True)
+            decision.rejudge = [last.payload]
+            return decision
+        decision = self._unconfirmed(cands, provisional=False)
         again = self.step(
             last.k, tuple(last.v), _sym(last.r_window / self.inflation), _sym(last.apa), last.payload
         )
