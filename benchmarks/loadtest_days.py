@@ -8,6 +8,7 @@ Two studies, each printed as rates:
   through the calibrated A; the new state as the last record, in the middle (the same record again
   1-1.5 h later), or after a record of the old state. 228 streams: the reference record 10 mm
   lower through A is the lowered state only in the model (the real lowered record differs from it
+  by the model's error, 5-7 kN per bearing with the model average), so the lowered record followed
   by it has no settlement truth and is left out. Per stream: one event at
   each record whose state changed, no window of a changed record rejected (and, apart, none but
   the recorded test car parked on the state the shadow then held: "none lost car-free",

@@ -391,9 +391,12 @@ class ChangeDetector:
     # -- internals ------------------------------------------------------------------------------
     def _qualifies(self, c: _Candidate) -> bool:
         """Return whether ``c`` passes the one rule of an event's change time (module docstring)."""
+        return c.n_after >= self.confirm and self._steps_there(c)
+
+    def _steps_there(self, c: _Candidate) -> bool:
+        """Every test of ``_qualifies`` but the count: consistent, significant, and it jumps."""
         return (
             c.consistent
-            and c.n_after >= self.confirm
             and c.glr > self.h_event
             and c.jump > self._jump_bound()
             and self._drift_jump(c.j) > self._jump_bound()
@@ -408,12 +411,9 @@ class ChangeDetector:
         estimate made while it stood: ``vehicle_max_n``).
         """
         return (
-            c.consistent
-            and c.n_after >= SHORT_STATE_WINDOWS
-            and c.glr > self.h_event
-            and c.jump > self._jump_bound()
-            and self._drift_jump(c.j) > self._jump_bound()
+            c.n_after >= SHORT_STATE_WINDOWS
             and abs(float(c.step[0] + c.step[1])) > self.vehicle_max_n
+            and self._steps_there(c)
         )
 
     def _drift_jump(self, j: int) -> float:
