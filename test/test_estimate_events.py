@@ -409,3 +409,29 @@ def test_a_short_state_no_vehicle_makes_left_for_another_level_is_a_change_of_it
         assert run_ == (["change"] * 3 if own else ["unconfirmed"] * 3), (level, vehicle_max_n, run_)
         assert "reject" not in verdict.values(), (level, vehicle_max_n)
         assert [k for k, _ in events] == [43], (level, vehicle_max_n, events)
+
+
+def test_a_run_that_came_back_heavier_than_any_vehicle_is_reported_as_an_excursion() -> None:
+    """Three windows 40 up, then back (``ChangeDetector._transient``): rejected; reported if no vehicle's.
+
+    The run came back: its windows are outliers either way. Its sum moved by 80, beyond the heaviest
+    vehicle (30 here): the decision carries it as an excursion (``Decision.excursion``: the windows,
+    their mean, its covariance), which the shadow reports. 12 up (24 on the sum) is a vehicle's.
+    """
+    for level, reported in ((40.0, True), (12.0, False), (-40.0, True)):
+        y = ar1(60, 4)
+        y[40:43] += level
+        det = ChangeDetector(vehicle_max_n=30.0)
+        det.set_noise(np.array([PHI, PHI]), 1e6)
+        found = []
+        for k, v in enumerate(y):
+            d = det.step(k, (float(v[0]), float(v[1])), R, APA, k)
+            assert not d.event and not d.change, (level, k)
+            if d.reject:
+                found.append(d)
+        (d,) = found
+        assert d.reject == [40, 41, 42], (level, d.reject)
+        assert (d.excursion == [40, 41, 42]) == reported, (level, d.excursion)
+        if reported:
+            np.testing.assert_allclose(d.excursion_n, y[40:43].mean(axis=0), rtol=1e-9)
+            assert np.all(np.linalg.eigvalsh(d.excursion_cov_n2) > 0)

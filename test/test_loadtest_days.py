@@ -1266,6 +1266,45 @@ def test_a_short_state_the_data_leave_for_another_keeps_its_level_apart(
 
 
 @pytest.mark.realdata
+def test_a_raise_heavier_than_any_vehicle_that_came_back_is_reported(
+    folder: Path, surrogate, tmp_path
+) -> None:
+    """The 10 mm record 11.1 h later, raised 9.5 mm from minute 1 and lowered 11.4 mm more from minute 5.
+
+    The raised state's four minutes are all under the test car, and the level after it is within
+    2 mm of the first: by the detector's rule a run that came back, its windows rejected as an
+    excursion, and the last level holds (0.8 mm off; kept as a change, the lowering after it was
+    dated under the car and the record ended 1.26 mm off). It moved the reactions' sum by 74 kN,
+    more than any vehicle (``traffic_vehicle_max_n``): since 2026-11-29 it is reported with its
+    size and a WARN (``kind: excursion``), and a checkpoint keeps it (``benchmarks/
+    loadtest_days.py --only inside``, #93).
+    """
+    from bridge_shadow.estimate.report import unconfirmed_changes
+
+    pieces = [Piece("lowered", 0.0)]
+    for x, cut in ((0.0, (0.0, 1.0)), (0.00946, (1.0, 5.0)), (-0.001976, (5.0, 13.0))):
+        pieces.append(Piece("lowered", 11.093, (x, x), 0.557, cut))
+    sc = build(folder, surrogate.A, pieces)
+    cfg = load_config(None, {"checkpoint_path": str(tmp_path / "shadow.npz")})
+    shadow = Shadow(cfg, surrogate)
+    res = shadow.run(sc.data)
+    truth = np.asarray(sc.truth_m)
+    assert np.all(np.abs(res.mean_m - truth) <= 0.1 * np.abs(truth))
+    (excursion,) = [c for c in res.changes if c.kind == "excursion"]
+    rejected = [o.end_ns // W - 1 for o in res.outputs if o.reason == "outlier"]
+    assert excursion.windows == 4 and excursion.window == rejected[0] and len(rejected) == 4
+    assert excursion.likely and excursion.until_ns == (rejected[-1] + 1) * W
+    # the raise (+9.5 mm) seen from the state before (-10 mm read 0.6 mm high), with the car's load
+    assert np.all(np.abs(np.asarray(excursion.size_m) - 0.011) <= 0.002), excursion
+    assert sum("heavier than any vehicle" in w for w in res.warnings) == 1, res.warnings
+    shadow.save_checkpoint()
+    again = Shadow.resume(tmp_path / "shadow.npz", cfg, surrogate)
+    (kept,) = [c for c in unconfirmed_changes(again) if c.kind == "excursion"]
+    assert (kept.window, kept.windows) == (excursion.window, excursion.windows)  # integers
+    np.testing.assert_allclose(kept.size_m, excursion.size_m, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.realdata
 def test_a_state_the_test_car_covers_but_for_seconds_is_read_with_the_next_step(
     folder: Path, surrogate
 ) -> None:

@@ -162,6 +162,11 @@ def _summary(js: dict[str, Any]) -> str:
         )
         if c["kind"] == "run_in_data":
             how = f"a run of {c['windows']} windows until {c['until']} without a step's jump, used as data"
+        elif c["kind"] == "excursion":
+            how = (
+                f"a run of {c['windows']} windows until {c['until']} that came back, heavier than any "
+                "vehicle: rejected as an excursion"
+            )
         elif c["kind"] == "step":
             how = "a step the detector found, its size not told from zero on the data: no event"
         else:

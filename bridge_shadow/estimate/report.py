@@ -167,17 +167,23 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         k = int(e["window"])
         t = k * shadow._w_ns
         out.append(ChangeRecord(k, t, "step", float("nan"), int(n), size, cov, significant=False))
-    a_inv = np.linalg.inv(shadow.A)
     for r in shadow.unconfirmed_runs:  # runs used as data: their change read through A
-        size = a_inv @ np.asarray(r["step_n"], float)
-        cov = a_inv @ np.asarray(r["step_cov_n2"], float) @ a_inv.T
-        cov = cov + shadow.surrogate.model_covariance(size, with_u0=False)
-        k, n, until = int(r["window"]), int(r["windows"]), (int(r["until_window"]) + 1) * shadow._w_ns
         # a run that jumped over a hole only as far as its own rate carried it is a drift, no change
         significant = bool(r["glr"] > shadow.detector.h_event and not r.get("drift", False))
-        t = k * shadow._w_ns
-        out.append(ChangeRecord(k, t, "run_in_data", float("nan"), n, size, cov, 0.0, significant, until))
+        out.append(_run_record(shadow, r, "run_in_data", significant))
+    # runs no vehicle makes that came back: rejected as an excursion, reported
+    out.extend(_run_record(shadow, r, "excursion", True) for r in shadow.excursions)
     return sorted(out, key=lambda c: c.window)
+
+
+def _run_record(shadow: Shadow, run: dict[str, Any], kind: str, significant: bool) -> ChangeRecord:
+    """Return a run the detector noted (``unconfirmed_runs``, ``excursions``), its step read through A."""
+    a_inv = np.linalg.inv(shadow.A)
+    size = a_inv @ np.asarray(run["step_n"], float)
+    cov = a_inv @ np.asarray(run["step_cov_n2"], float) @ a_inv.T
+    cov = cov + shadow.surrogate.model_covariance(size, with_u0=False)
+    k, n, until = int(run["window"]), int(run["windows"]), (int(run["until_window"]) + 1) * shadow._w_ns
+    return ChangeRecord(k, k * shadow._w_ns, kind, float("nan"), n, size, cov, 0.0, significant, until)
 
 
 def gaps(shadow: Shadow) -> list[dict[str, Any]]:
@@ -339,6 +345,7 @@ def warnings(shadow: Shadow) -> list[str]:
             "held_run": "a run of held windows at the end of the data, before a gap or before another state",
             "warmup": "a step among the first windows (the warm-up, or those after a gap)",
             "run_in_data": "a run that stayed away without a step's jump",
+            "excursion": "a run that came back, heavier than any vehicle on the supports' sum",
         }[c.kind]
         size = ", ".join(
             f"{side} {1e3 * m:+.2f} ± {1.96e3 * sd:.2f} mm"
@@ -347,6 +354,9 @@ def warnings(shadow: Shadow) -> list[str]:
         if c.kind == "run_in_data":
             until = iso_utc(c.until_ns or c.time_ns)
             how = f"{c.windows} windows until {until}, used as data of the current state"
+        elif c.kind == "excursion":
+            until = iso_utc(c.until_ns or c.time_ns)
+            how = f"{c.windows} windows until {until}, rejected as an excursion: not in the estimate"
         else:
             since = "since" if c.next_ns is None else f"before the next state from {iso_utc(c.next_ns)}"
             windows = f"{c.windows} window{'s' if c.windows != 1 else ''}"

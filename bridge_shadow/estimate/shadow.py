@@ -217,6 +217,7 @@ class Shadow:
         self._model_cov = ModelCovariance(surrogate) if surrogate.model_cov is not None else None
         self.events: list[dict[str, Any]] = []
         self.unconfirmed_runs: list[dict[str, Any]] = []  # runs at event_max_pending, used as data
+        self.excursions: list[dict[str, Any]] = []  # runs no vehicle makes that came back: rejected
         self.recent_rejected: deque[tuple[int, str]] = deque(maxlen=RECENT_REJECTED)  # (window, reason)
         self.confirmed_at: dict[int, int] = {}  # provisional segment start -> window that confirmed it
         self.gaps: list[dict[str, int]] = []  # {"from_k", "to_k", "segment"}: gaps in usable windows
@@ -776,6 +777,16 @@ class Shadow:
                 w.action = "accept"
         if decision.unconfirmed:
             self._note_run(decision)
+        if decision.excursion:
+            self.excursions.append(
+                {
+                    "window": decision.excursion[0].k,
+                    "until_window": decision.excursion[-1].k,
+                    "windows": len(decision.excursion),
+                    "step_n": np.asarray(decision.excursion_n, float).tolist(),
+                    "step_cov_n2": np.asarray(decision.excursion_cov_n2, float).tolist(),
+                }
+            )
         for w in decision.accept:
             w.action = "accept"
         return []

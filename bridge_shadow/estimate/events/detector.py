@@ -131,7 +131,8 @@ JUMP_LOOKAHEAD = 3
 #: 1 Hz; ``test_estimate_events`` pins it).
 MIXED_PENALTY = float(stats.chi2.ppf(0.999, 1))
 #: Windows a short state needs from its change time to be kept as a provisional change when the
-#: data leave it the other way (``ChangeDetector._moved_on``): two, as a change no vehicle makes
+#: data leave it the other way (``ChangeDetector._moved_on``), or to be reported as an excursion
+#: no vehicle makes when they come back (``_transient``): two, as a change no vehicle makes
 #: across a gap (``settlement.segments.GAP_LOWERING_WINDOWS``), because one window alone between
 #: two other levels is what an outlier, or the window a step happened in, looks like.
 SHORT_STATE_WINDOWS = 2
@@ -203,6 +204,10 @@ class Decision:
         rejudge: payloads to judge afresh once the decided windows are applied: their innovation
             refers to the estimate before the provisional segment this decision starts
             (``ChangeDetector._moved_on``).
+        excursion: the payloads of ``reject`` when they are a run that came back after moving the
+            reactions' sum by more than any vehicle (``ChangeDetector._transient``): rejected as
+            an excursion, and reported as a possible short change; ``excursion_n``: (2,) N, its
+            mean innovation, ``excursion_cov_n2``: (2, 2) N^2, that mean's covariance.
 
     """
 
@@ -218,6 +223,9 @@ class Decision:
     moving: list[Any] = field(default_factory=list)
     drift: bool = False
     rejudge: list[Any] = field(default_factory=list)
+    excursion: list[Any] = field(default_factory=list)
+    excursion_n: np.ndarray | None = None
+    excursion_cov_n2: np.ndarray | None = None
 
 
 @dataclass
@@ -635,13 +643,31 @@ class ChangeDetector:
         return reject, ordinary
 
     def _transient(self) -> Decision:
+        """Decide a run whose latest window is back: an excursion (its far windows outliers).
+
+        Rejected windows, at least ``SHORT_STATE_WINDOWS`` of them, whose mean moved the reactions'
+        sum by more than any vehicle (``vehicle_max_n``, either way) were no passing vehicle: they
+        stay rejected (the run came back, and its level is not the state's; kept as a change, the
+        next event was dated under the test car: README, "Settlements inside a record, at random",
+        #93), and the decision carries them as an excursion to report (``Decision.excursion``).
+        """
         *before, last = self.pending
         self.pending = []
+        far = [p for p in before if self._d2(p, np.zeros(2)) > self.h_outlier]
         reject, ordinary = self._split_ordinary(before)
         again = self.step(
             last.k, tuple(last.v), _sym(last.r_window / self.inflation), _sym(last.apa), last.payload
         )
-        return Decision(reject=reject + again.reject, accept_before=ordinary, accept=again.accept)
+        decision = Decision(reject=reject + again.reject, accept_before=ordinary, accept=again.accept)
+        if len(far) >= SHORT_STATE_WINDOWS:
+            mean = np.mean([p.v for p in far], axis=0)
+            if abs(float(mean[0] + mean[1])) > self.vehicle_max_n:
+                decision.excursion = [p.payload for p in far]
+                decision.excursion_n = mean
+                f = ar1_factor(self.phi, len(far))
+                r_mean = np.mean([p.r_window for p in far], axis=0)
+                decision.excursion_cov_n2 = np.sqrt(np.outer(f, f)) * r_mean / len(far) + far[-1].apa
+        return decision
 
     def _forced(self, cands: list[_Candidate]) -> Decision:
         """Decide a run at ``event_max_pending`` without a qualifying candidate.

@@ -174,6 +174,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "gaps": json.dumps(shadow.gaps),
         "confirmed_at": json.dumps([[k, v] for k, v in shadow.confirmed_at.items()]),
         "unconfirmed_runs": json.dumps(shadow.unconfirmed_runs),
+        "excursions": json.dumps(shadow.excursions),
         "recent_rejected": json.dumps(list(shadow.recent_rejected)),
         "traffic_windows": json.dumps(shadow.traffic_windows),
         "parked": json.dumps(shadow.parked),
@@ -318,6 +319,8 @@ def restore_shadow(
     shadow.gaps = [{k: int(v) for k, v in g.items()} for g in json.loads(str(state["gaps"]))]
     shadow.confirmed_at = {int(k): int(v) for k, v in json.loads(str(state["confirmed_at"]))}
     shadow.unconfirmed_runs = list(json.loads(str(state["unconfirmed_runs"])))
+    if "excursions" in state:  # checkpoints written before excursions were reported have none
+        shadow.excursions = list(json.loads(str(state["excursions"])))
     shadow.recent_rejected.extend((int(k), str(r)) for k, r in json.loads(str(state["recent_rejected"])))
     shadow.traffic_windows = [[int(v) for v in row] for row in json.loads(str(state["traffic_windows"]))]
     if "parked" in state:  # checkpoints written before vehicles parked at a record's end were cut have none
