@@ -664,9 +664,7 @@ class ChangeDetector:
             if abs(float(mean[0] + mean[1])) > self.vehicle_max_n:
                 decision.excursion = [p.payload for p in far]
                 decision.excursion_n = mean
-                f = ar1_factor(self.phi, len(far))
-                r_mean = np.mean([p.r_window for p in far], axis=0)
-                decision.excursion_cov_n2 = np.sqrt(np.outer(f, f)) * r_mean / len(far) + far[-1].apa
+                decision.excursion_cov_n2 = self._mean_cov(far)
         return decision
 
     def _forced(self, cands: list[_Candidate]) -> Decision:
@@ -853,7 +851,11 @@ class ChangeDetector:
 
     def _step_cov(self, c: _Candidate) -> np.ndarray:
         """Covariance (2, 2) N^2 of candidate ``c``'s step (the mean of its windows' innovations)."""
-        after = self.pending[c.j :]
-        r_mean = np.mean([p.r_window for p in after], axis=0)
-        f = ar1_factor(self.phi, c.n_after)  # V_j / n_j^2 of the GLR
-        return np.sqrt(np.outer(f, f)) * r_mean / c.n_after + after[-1].apa
+        return self._mean_cov(self.pending[c.j :])
+
+    def _mean_cov(self, items: list[Pending]) -> np.ndarray:
+        """Covariance (2, 2) N^2 of the mean innovation of held windows ``items`` (as consecutive)."""
+        n = len(items)
+        r_mean = np.mean([p.r_window for p in items], axis=0)
+        f = ar1_factor(self.phi, n)  # V_j / n_j^2 of the GLR
+        return np.sqrt(np.outer(f, f)) * r_mean / n + items[-1].apa
