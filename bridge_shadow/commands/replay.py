@@ -28,9 +28,10 @@ pipeline_seconds for the shadow alone (live: publishing to the node's flush).
 Nothing fails silently: a missing air-temperature topic runs uncompensated, windows whose air
 reading is more than temperature_stale_s away are used with their compensation widened, a change
 across a gap or among the first windows (of the data or after a gap) is weighed by the data and
-reported, a topic whose every message is rejected is named with the reason and the expected
-value (WARN lines on stderr and "warnings" in the JSON), and a replay in which no window updated
-the estimate exits with 1.
+reported, a run of windows rejected as an excursion that came back is reported with its size
+when it moved the reactions' sum by more than any vehicle (traffic_vehicle_max_n), a topic whose
+every message is rejected is named with the reason and the expected value (WARN lines on stderr
+and "warnings" in the JSON), and a replay in which no window updated the estimate exits with 1.
 
 --out and --plots work in both modes (live: drawn from the node's history service and final
 checkpoint); --out never replaces an existing bag without --force. The text output's first line
