@@ -399,7 +399,7 @@ def test_mcap_index_fast_path_equals_rosbags_iteration(tmp_path: Path, compress:
         for conn in reader.connections:
             ref = list(reader.messages(connections=[conn]))
             assert blocks[conn.topic].raws() == [raw for _, _, raw in ref]
-            np.testing.assert_array_equal(blocks[conn.topic].log_ns, [t for _, t, _ in ref])
+            np.testing.assert_array_equal(blocks[conn.topic].log_ns, [t for _, t, _ in ref])  # integer ns
 
 
 def test_mcap_fallback_to_rosbags_gives_the_same_data(tmp_path: Path, monkeypatch) -> None:

@@ -289,7 +289,7 @@ def test_swap_decided_per_file_across_midnight(tmp_path: Path) -> None:
         ("2022-11-04", "2022-04-11"),
         ("2022-12-04", "2022-04-12"),
     ]
-    np.testing.assert_array_equal(
+    np.testing.assert_array_equal(  # integer ns
         data.forces["frc_02"].stamp_ns, [_ns("2022-04-11T21:59:59.990"), _ns("2022-04-11T22:00:00")]
     )
     np.testing.assert_allclose(data.forces["frc_02"].force_n, [2500.0, 2750.0], rtol=1e-12)  # kN -> N

@@ -155,7 +155,7 @@ def test_feed_chunks_cut_arrival_order_exactly() -> None:
     for k, c in enumerate(chunks):
         counts = np.bincount(topic[41 * k : 41 * (k + 1)], minlength=3)
         assert [len(c.forces[0][0]), len(c.forces[1][0]), len(c.temperature[0])] == counts.tolist()
-    np.testing.assert_array_equal(
+    np.testing.assert_array_equal(  # integer ns, cut and joined again
         np.concatenate([c.forces[1][0] for c in chunks]), data.forces["frc_02"].stamp_ns
     )
 

@@ -147,6 +147,7 @@ def build(
     hour at a time): the stream then has stale temperature there, as a real one would.
     """
     recs, temp = load_records(Path(folder))
+    cars = car_stretches_ns(Path(folder))
     t_ref = int(recs["ref"].forces[CHANNELS[0]].stamp_ns[0])
     forces: dict[str, list[ForceSeries]] = {ch: [] for ch in CHANNELS}
     t_parts: list[tuple[np.ndarray, np.ndarray]] = []
@@ -168,7 +169,7 @@ def build(
         starts.append(first)
         car += [
             (max(a + shift, first), min(b + shift, last))
-            for a, b in car_stretches_ns(Path(folder))[p.record]
+            for a, b in cars[p.record]
             if a + shift < last and b + shift > first
         ]
         # the air temperature over the copy (plus a minute either side): its own hour's, or another's

@@ -418,11 +418,11 @@ class ChangeDetector:
         vehicle either way (more than a vehicle adds, or more than one leaving takes off an
         estimate made while it stood: ``vehicle_max_n``).
         """
-        return (
-            c.n_after >= SHORT_STATE_WINDOWS
-            and abs(float(c.step[0] + c.step[1])) > self.vehicle_max_n
-            and self._steps_there(c)
-        )
+        return c.n_after >= SHORT_STATE_WINDOWS and self._beyond_any_vehicle(c.step) and self._steps_there(c)
+
+    def _beyond_any_vehicle(self, step: np.ndarray) -> bool:
+        """Whether ``step`` (2,) N moved the reactions' sum by more than any vehicle, either way."""
+        return abs(float(step[0] + step[1])) > self.vehicle_max_n
 
     def _drift_jump(self, j: int) -> float:
         """Return ``_jump`` from the window before ``j`` against the rate the held windows show.
@@ -661,7 +661,7 @@ class ChangeDetector:
         decision = Decision(reject=reject + again.reject, accept_before=ordinary, accept=again.accept)
         if len(far) >= SHORT_STATE_WINDOWS:
             mean = np.mean([p.v for p in far], axis=0)
-            if abs(float(mean[0] + mean[1])) > self.vehicle_max_n:
+            if self._beyond_any_vehicle(mean):
                 decision.excursion = [p.payload for p in far]
                 decision.excursion_n = mean
                 decision.excursion_cov_n2 = self._mean_cov(far)
