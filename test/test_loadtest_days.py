@@ -578,8 +578,8 @@ def test_a_new_state_whose_reactions_creep_is_one_event(
     over a hole (``ChangeDetector._drift_jump``) it is a run used as data, reported as not
     significant (pinned below); with the allowance it is not even that. The premise is pinned
     without the sun term too: the shipped one (``sun_gradient_fit: average``) reads part of a
-    creep inside a record as sun, the two loading the bearings alike (README, "The sun term,
-    averaged by its evidence").
+    creep inside a record as sun, the two loading the bearings alike (docs/loadtest-days.md,
+    "The sun term, averaged by its evidence").
     """
     if name == "pair":
         pieces = [Piece("ref", 0.0), Piece("lowered", 0.73)]

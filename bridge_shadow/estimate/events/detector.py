@@ -648,8 +648,8 @@ class ChangeDetector:
         Rejected windows, at least ``SHORT_STATE_WINDOWS`` of them, whose mean moved the reactions'
         sum by more than any vehicle (``vehicle_max_n``, either way) were no passing vehicle: they
         stay rejected (the run came back, and its level is not the state's; kept as a change, the
-        next event was dated under the test car: README, "Settlements inside a record, at random",
-        #93), and the decision carries them as an excursion to report (``Decision.excursion``).
+        next event was dated under the test car: docs/loadtest-days.md, "Settlements inside a record,
+        at random", #93), and the decision carries them as an excursion to report (``Decision.excursion``).
         """
         *before, last = self.pending
         self.pending = []

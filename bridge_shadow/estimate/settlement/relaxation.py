@@ -33,7 +33,8 @@ studies of 2016 cited by the paper):
 
 So ``phi`` is 1.0 % one minute after a change, 2.2 % after 12 minutes and 3.5 % after an hour.
 Chosen from the standard and the model's own deck before the allowance was tried on the records;
-that the records needed one at all was seen on them (README, "Load-test days").
+that the records needed one at all was seen on them (docs/loadtest-days.md, "The reactions relax
+after a change").
 """
 
 from __future__ import annotations
