@@ -357,3 +357,30 @@ def test_a_file_none_of_whose_rows_can_be_read_is_refused_by_name(tmp_path: Path
     assert main(["import-csv", str(good), "--out", str(out), "--force", "--json"]) == 0
     (source,) = json.loads(capsys.readouterr().out)["inputs"]
     assert (source["rows_read"], source["rows_rejected"]) == (2, 1)
+
+
+def test_a_folder_is_its_csv_and_zip_files(april, munich_data: Path, tmp_path: Path, capsys) -> None:
+    """A folder reads as the CSV and zip files directly in it: not its other files or subfolders."""
+    files, expected = april
+    folder = tmp_path / "Settlements"
+    (folder / "Weather").mkdir(parents=True)
+    for f in files:
+        (folder / Path(f).name).write_bytes(Path(f).read_bytes())
+    (folder / "README.md").write_text("not a table\n")
+    # a table of another format one level down: read, it would refuse the whole import
+    weather = munich_data / "Weather/TemperatureComparisonMUC.csv"
+    (folder / "Weather" / weather.name).write_bytes(weather.read_bytes())
+    got = import_csv([folder])[0]
+    for ch in ("frc_01", "frc_02"):  # the same files imported: the same floats
+        np.testing.assert_array_equal(got.forces[ch].stamp_ns, expected.forces[ch].stamp_ns)
+        np.testing.assert_array_equal(got.forces[ch].force_n, expected.forces[ch].force_n)
+    np.testing.assert_array_equal(got.temperature.stamp_ns, expected.temperature.stamp_ns)
+    np.testing.assert_array_equal(got.temperature.temp_c, expected.temperature.temp_c)
+    # a folder with nothing to read is a one-line user error naming it, and no bag
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    (empty / "notes.txt").write_text("no tables here\n")
+    assert main(["import-csv", str(empty), "--out", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err
+    assert f"{empty}: a folder without CSV or zip files" in err and err.count("\n") == 1
+    assert not (tmp_path / "b").exists()

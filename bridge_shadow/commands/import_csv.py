@@ -11,13 +11,15 @@ DESCRIPTION = """\
 Convert the munich-bridge-data CSV format into a rosbag2 bag with the contract input topics
 (/bridge/frc_01/force, /bridge/frc_02/force: WrenchStamped in N; /bridge/air_temperature:
 Temperature in C). Each FILE is a force or temperature CSV, or a zip holding some, recognized by
-its header. Local time (Europe/Berlin) becomes UTC; kN becomes N; several temperature files are
-merged; sample-and-hold repeats are kept and counted; a swapped month/day in force stamps
-(2022-04-11 written as 2022-11-04) is detected from the file name, the temperature files' dates,
-the file date or a future date, or fixed with --date.
+its header, or a folder: its CSV and zip files (not its subfolders). Local time (Europe/Berlin)
+becomes UTC; kN becomes N; several temperature files are merged; sample-and-hold repeats are kept
+and counted; a swapped month/day in force stamps (2022-04-11 written as 2022-11-04) is detected
+from the file name, the temperature files' dates, the file date or a future date, or fixed with
+--date.
 
-example:
+examples:
   bridge-shadow import-csv ../shared/data/munich-bridge-data/Settlements/*.zip --out /tmp/apr11
+  bridge-shadow import-csv ../shared/data/munich-bridge-data/Settlements --out /tmp/apr11
 """
 
 
@@ -30,7 +32,9 @@ def _date(text: str) -> date:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the arguments."""
-    parser.add_argument("files", nargs="+", metavar="FILE", help="force/temperature CSV or zip")
+    parser.add_argument(
+        "files", nargs="+", metavar="FILE", help="force/temperature CSV or zip, or a folder of them"
+    )
     parser.add_argument("--out", required=True, metavar="BAG", help="output bag directory")
     parser.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3", help="bag storage")
     parser.add_argument(

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from bridge_shadow.errors import InputError
 
-__all__ = ["CsvSource", "classify_header", "find_sources"]
+__all__ = ["TABLE_SUFFIXES", "CsvSource", "classify_header", "find_sources", "folder_files"]
 
 _ZIP_MAGIC = b"PK\x03\x04"
 _TIME = "time (-)"
@@ -99,18 +99,44 @@ def _from_bytes(file: str, member: str, data: bytes, modified: date | None, out:
     out.append(CsvSource(file, member, kind, text, modified))
 
 
-def find_sources(files: list[str | Path]) -> list[CsvSource]:
-    """Read every given CSV or zip and return its tables, recognized by header.
+#: File endings a folder given on the command line is read for (``folder_files``), any case.
+TABLE_SUFFIXES = (".csv", ".zip")
+
+
+def folder_files(folder: Path) -> list[Path]:
+    """Return the CSV and zip files directly in ``folder``, sorted by name (not its subfolders).
+
+    A folder of the data set (``Settlements/``) holds one day's records and its air temperature;
+    its other files (a README) are left alone, as are subfolders, whose tables belong to other
+    days and other formats (``Weather/``).
 
     Raises:
-        InputError: a file is missing, unreadable, a broken zip, or holds a CSV of another format.
+        InputError: the folder cannot be listed or holds no CSV or zip file.
+
+    """
+    try:
+        found = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in TABLE_SUFFIXES)
+    except OSError as err:
+        raise InputError(f"{folder}: cannot list the folder ({err.strerror})") from err
+    if not found:
+        raise InputError(f"{folder}: a folder without CSV or zip files; give the files, or their folder")
+    return found
+
+
+def find_sources(files: list[str | Path]) -> list[CsvSource]:
+    """Read every given CSV or zip (a folder: its CSV and zip files) and return its tables, by header.
+
+    Raises:
+        InputError: a file is missing, unreadable, a broken zip, or holds a CSV of another format;
+            a folder holds no CSV or zip file.
 
     """
     out: list[CsvSource] = []
+    paths: list[Path] = []
     for f in files:
         path = Path(f)
-        if path.is_dir():
-            raise InputError(f"{path}: is a directory; give the CSV or zip files in it")
+        paths.extend(folder_files(path) if path.is_dir() else [path])
+    for path in paths:
         if not path.is_file():
             raise InputError(f"{path}: no such file")
         try:
