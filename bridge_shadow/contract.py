@@ -16,6 +16,7 @@ __all__ = [
     "FORCE_TYPE",
     "MEAN_TOPIC",
     "NODE_NAME",
+    "RECORD_FILE_SUFFIXES",
     "SUPPORTS",
     "TEMPERATURE_FRAME",
     "TEMPERATURE_TOPIC",
@@ -51,6 +52,10 @@ DIAGNOSTICS_TOPIC = "/diagnostics"
 
 MEAN_LAYOUT_LABEL = "support"
 COVARIANCE_LAYOUT_LABELS = ("row", "col")
+
+#: File endings of munich-bridge-data records, which ``import-csv`` turns into a bag (a CSV, or a
+#: zip holding some; a folder given is read for its files with these endings), any case.
+RECORD_FILE_SUFFIXES: tuple[str, str] = (".csv", ".zip")
 
 #: Every input topic with its type, for bag readers and writers.
 INPUT_TOPICS: dict[str, str] = {

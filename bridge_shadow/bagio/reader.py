@@ -36,6 +36,7 @@ from bridge_shadow.contract import (
     FORCE_TOPICS,
     FORCE_TYPE,
     INPUT_TOPICS,
+    RECORD_FILE_SUFFIXES,
     TEMPERATURE_TOPIC,
     TEMPERATURE_TYPE,
 )
@@ -100,19 +101,17 @@ def _translated(path: Path, doing: str) -> Iterator[None]:
         raise CorruptBagError(f"{path}: corrupt or truncated bag while {doing}: {text}") from err
 
 
-#: What a folder of records in the munich-bridge-data format holds (``import-csv`` reads them).
-_CSV_SUFFIXES = (".csv", ".zip")
-
-
 def not_a_bag(path: Path, why: str) -> NotABagError:
     """Return the error for a path that is no bag (for CSV records, with the command that converts them)."""
-    csv = path.is_file() and path.suffix.lower() in _CSV_SUFFIXES
+    csv = path.is_file() and path.suffix.lower() in RECORD_FILE_SUFFIXES
+    given = "FILE..."
     if path.is_dir():
         try:
-            csv = any(p.suffix.lower() in _CSV_SUFFIXES for p in path.iterdir() if p.is_file())
+            csv = any(p.suffix.lower() in RECORD_FILE_SUFFIXES for p in path.iterdir() if p.is_file())
         except OSError:  # an unreadable folder: no hint
             csv = False
-    hint = "; CSV records: make a bag of them with `bridge-shadow import-csv FILE... --out BAG`"
+        given = str(path)  # import-csv reads a folder's records as they are
+    hint = f"; CSV records: make a bag of them with `bridge-shadow import-csv {given} --out BAG`"
     hint = hint if csv else ""
     return NotABagError(f"{path}: not a rosbag2 bag ({why}){hint}")
 

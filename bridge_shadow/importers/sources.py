@@ -8,9 +8,10 @@ from dataclasses import dataclass
 from datetime import date
 from pathlib import Path
 
+from bridge_shadow.contract import RECORD_FILE_SUFFIXES
 from bridge_shadow.errors import InputError
 
-__all__ = ["TABLE_SUFFIXES", "CsvSource", "classify_header", "find_sources", "folder_files"]
+__all__ = ["CsvSource", "classify_header", "find_sources", "folder_files"]
 
 _ZIP_MAGIC = b"PK\x03\x04"
 _TIME = "time (-)"
@@ -99,10 +100,6 @@ def _from_bytes(file: str, member: str, data: bytes, modified: date | None, out:
     out.append(CsvSource(file, member, kind, text, modified))
 
 
-#: File endings a folder given on the command line is read for (``folder_files``), any case.
-TABLE_SUFFIXES = (".csv", ".zip")
-
-
 def folder_files(folder: Path) -> list[Path]:
     """Return the CSV and zip files directly in ``folder``, sorted by name (not its subfolders).
 
@@ -115,7 +112,9 @@ def folder_files(folder: Path) -> list[Path]:
 
     """
     try:
-        found = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in TABLE_SUFFIXES)
+        found = sorted(
+            p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in RECORD_FILE_SUFFIXES
+        )
     except OSError as err:
         raise InputError(f"{folder}: cannot list the folder ({err.strerror})") from err
     if not found:
