@@ -371,11 +371,11 @@ def test_a_folder_is_its_csv_and_zip_files(april, munich_data: Path, tmp_path: P
     weather = munich_data / "Weather/TemperatureComparisonMUC.csv"
     (folder / "Weather" / weather.name).write_bytes(weather.read_bytes())
     got = import_csv([folder])[0]
-    for ch in ("frc_01", "frc_02"):  # the same files imported: the same floats
+    for ch in ("frc_01", "frc_02"):  # the same files imported: stamps (integer ns) exact, values parsed
         np.testing.assert_array_equal(got.forces[ch].stamp_ns, expected.forces[ch].stamp_ns)
-        np.testing.assert_array_equal(got.forces[ch].force_n, expected.forces[ch].force_n)
+        np.testing.assert_allclose(got.forces[ch].force_n, expected.forces[ch].force_n, rtol=1e-12, atol=0)
     np.testing.assert_array_equal(got.temperature.stamp_ns, expected.temperature.stamp_ns)
-    np.testing.assert_array_equal(got.temperature.temp_c, expected.temperature.temp_c)
+    np.testing.assert_allclose(got.temperature.temp_c, expected.temperature.temp_c, rtol=1e-12, atol=0)
     # a folder with nothing to read is a one-line user error naming it, and no bag
     empty = tmp_path / "empty"
     empty.mkdir()
