@@ -178,7 +178,7 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
 
 def _run_record(shadow: Shadow, run: dict[str, Any], kind: str, significant: bool) -> ChangeRecord:
     """Return a run the detector noted (``unconfirmed_runs``, ``excursions``), its step read through A."""
-    a_inv = np.linalg.inv(shadow.A)
+    a_inv = shadow.filter.a_inv
     size = a_inv @ np.asarray(run["step_n"], float)
     cov = a_inv @ np.asarray(run["step_cov_n2"], float) @ a_inv.T
     cov = cov + shadow.surrogate.model_covariance(size, with_u0=False)

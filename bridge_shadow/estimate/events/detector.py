@@ -630,12 +630,13 @@ class ChangeDetector:
         c = min(cands, key=lambda c: c.cost)
         return c if self._qualifies(c) else None
 
-    def _split_ordinary(self, items: list[Pending]) -> tuple[list[Any], list[Any]]:
-        """(rejected, ordinary) payloads among held windows judged as no change."""
-        reject, ordinary = [], []
+    def _split_ordinary(self, items: list[Pending]) -> tuple[list[Pending], list[Any]]:
+        """(rejected windows, ordinary payloads) among held windows judged as no change."""
+        reject: list[Pending] = []
+        ordinary: list[Any] = []
         for p in items:
             if self._d2(p, np.zeros(2)) > self.h_outlier:
-                reject.append(p.payload)
+                reject.append(p)
             else:
                 ordinary.append(p.payload)
                 self._remember(p.k, p.v)
@@ -653,12 +654,12 @@ class ChangeDetector:
         """
         *before, last = self.pending
         self.pending = []
-        far = [p for p in before if self._d2(p, np.zeros(2)) > self.h_outlier]
-        reject, ordinary = self._split_ordinary(before)
+        far, ordinary = self._split_ordinary(before)
         again = self.step(
             last.k, tuple(last.v), _sym(last.r_window / self.inflation), _sym(last.apa), last.payload
         )
-        decision = Decision(reject=reject + again.reject, accept_before=ordinary, accept=again.accept)
+        reject = [p.payload for p in far] + again.reject
+        decision = Decision(reject=reject, accept_before=ordinary, accept=again.accept)
         if len(far) >= SHORT_STATE_WINDOWS:
             mean = np.mean([p.v for p in far], axis=0)
             if self._beyond_any_vehicle(mean):
@@ -747,7 +748,7 @@ class ChangeDetector:
         reject, ordinary = self._split_ordinary(before)
         self.prev = None  # innovations after the event refer to a new estimate
         return Decision(
-            reject=reject,
+            reject=[p.payload for p in reject],
             accept_before=ordinary,
             event=[p.payload for p in after],
             change=change,
