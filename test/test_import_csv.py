@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import zipfile
@@ -384,3 +385,75 @@ def test_a_folder_is_its_csv_and_zip_files(april, munich_data: Path, tmp_path: P
     err = capsys.readouterr().err
     assert f"{empty}: a folder without CSV or zip files" in err and err.count("\n") == 1
     assert not (tmp_path / "b").exists()
+
+
+#: Rows edited the ways exports go wrong (or are merely written otherwise).
+_EDITS = (
+    lambda row: row + ",",  # a trailing comma: read as the row
+    lambda row: row + ",\t",
+    lambda row: "  ",  # a blank line: skipped
+    lambda row: row[: len(row) // 2],  # cut
+    lambda row: row.replace("2", "x", 1),  # an unreadable stamp
+    lambda row: row[: row.rindex(",") + 1] + "#WERT!",  # an unreadable value
+    lambda row: row.replace("0", "\u0660", 1),  # an Arabic-Indic zero (a digit to a regular expression)
+    lambda row: " " + row,  # a space before the stamp: read as the row
+    lambda row: row.replace(".", "", 1),  # a stamp without its fraction's point
+    lambda row: row + ",1",  # a field too many
+    lambda row: row.replace("-11-", "-31-", 1).replace(".04.", ".31.", 1),  # a 31st month
+)
+
+
+def _edited(text: str, edits: list[int], seed: int) -> str:
+    """``text`` with the ``_EDITS`` numbered ``edits`` each made to a random row."""
+    rng = np.random.default_rng(seed)
+    lines = text.split("\n")
+    for k in edits:
+        i = int(rng.integers(1, len(lines) - 1))
+        lines[i] = _EDITS[k](lines[i].rstrip("\r"))
+    return "\n".join(lines)
+
+
+def test_a_uniform_table_is_read_as_the_row_by_row_loop_reads_it(munich_data: Path, monkeypatch) -> None:
+    """``parse_source`` reads a logger's uniform table in whole columns (``_uniform_rows``).
+
+    Its result, on the real records and on them with rows edited (bad stamps and cells, blank
+    lines, trailing commas, impossible dates), equals the row-by-row loop's, which reads any table
+    and is forced here by taking the uniform reader away; the uniform reader must have taken the
+    unedited records and some of the edited ones (a reader that always declined would compare the
+    loop with itself).
+    """
+    from bridge_shadow.importers import munich_csv
+    from bridge_shadow.importers.sources import find_sources
+
+    def both(source):
+        fast = munich_csv.parse_source(source)
+        with monkeypatch.context() as m:
+            m.setattr(munich_csv, "_uniform_rows", lambda *args: None)
+            loop = munich_csv.parse_source(source)
+        for name in ("local_ns", "values", "ok"):
+            a, b = getattr(fast, name), getattr(loop, name)
+            assert a.dtype == b.dtype and a.shape == b.shape, name
+            # the same text through the same float() and datetime64 parsers: exactly the same
+            np.testing.assert_array_equal(a, b, err_msg=name)
+        for name in ("columns", "written_dates", "rejected"):
+            assert getattr(fast, name) == getattr(loop, name), name
+
+    def uniform(source) -> bool:
+        lines = munich_csv._lines(source.text)
+        return munich_csv._uniform_rows(lines, source.kind, 3 if source.kind == "force" else 2) is not None
+
+    sources = list(find_sources([munich_data / APR_FORCE, munich_data / APR_TEMP]))
+    assert {s.kind for s in sources} == {"force", "temperature"}
+    assert all(uniform(s) for s in sources)
+    taken = 0
+    for source in sources:
+        both(source)
+        head = "\n".join(source.text.split("\n")[:400])  # the edits on a short piece of each
+        rng = np.random.default_rng(len(head))
+        edits = [[k] for k in range(len(_EDITS))] + [rng.choice(len(_EDITS), 3).tolist() for _ in range(6)]
+        for seed, ks in enumerate(edits):
+            edited = dataclasses.replace(source, text=_edited(head, ks, seed))
+            taken += uniform(edited)
+            both(edited)
+    # the blank line, the unreadable value and the 31st month of each source at least
+    assert 3 * len(sources) <= taken < len(edits) * len(sources)
