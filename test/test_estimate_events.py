@@ -25,6 +25,29 @@ def ar1(n: int, seed: int) -> np.ndarray:
     return lfilter([np.sqrt(1 - PHI**2)], [1.0, -PHI], e, axis=0)
 
 
+class _Segment:
+    """The current segment's window indices, in the order taken (repeats kept), and their mean.
+
+    ``y[indices].mean(axis=0)`` as of a list of them, without turning a list of thousands into an
+    array at every window (a 6000-window run spent most of its time there).
+    """
+
+    def __init__(self, y: np.ndarray) -> None:
+        self.y, self.idx, self.n = y, np.empty(64, dtype=np.intp), 0
+
+    def append(self, k: int) -> None:
+        if self.n == len(self.idx):
+            self.idx = np.resize(self.idx, 2 * self.n)
+        self.idx[self.n] = k
+        self.n += 1
+
+    def clear(self) -> None:
+        self.n = 0
+
+    def level(self) -> np.ndarray:
+        return self.y[self.idx[: self.n]].mean(axis=0) if self.n else np.zeros(2)
+
+
 def run(
     y: np.ndarray, gaps: tuple[int, ...] = (), det: ChangeDetector | None = None, apa: tuple = APA
 ) -> tuple[dict[int, str], list[tuple[int, float]]]:
@@ -44,7 +67,7 @@ def run(
     det.set_noise(np.array([PHI, PHI]), 1e6)
     verdict: dict[int, str] = {}
     events = []
-    segment: list[int] = []
+    segment = _Segment(y)
 
     def apply(d) -> None:
         for k in d.unconfirmed or []:
@@ -69,7 +92,7 @@ def run(
             segment.append(k)
 
     def judge(k: int) -> None:
-        level = y[segment].mean(axis=0) if segment else np.zeros(2)
+        level = segment.level()
         v = y[k] - level
         d = det.step(k, (float(v[0]), float(v[1])), R, apa, k)
         apply(d)
