@@ -12,6 +12,7 @@ The records are read from ``../shared/data/munich-bridge-data`` (``BRIDGE_SHADOW
 from __future__ import annotations
 
 import argparse
+from datetime import date
 from unittest import mock
 
 import numpy as np
@@ -49,8 +50,6 @@ def _same(a: munich_csv.Parsed, b: munich_csv.Parsed) -> bool:
 
 
 def main() -> None:
-    from datetime import date
-
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("--repeat", type=int, default=3, help="best of R runs of each (default 3)")
     opts = ap.parse_args()

@@ -136,9 +136,9 @@ def _uniform_stamps(stamps: list[str], kind: str) -> np.ndarray | None:
     ASCII digits: then each also matches ``_FORCE_TIME`` / ``_TEMP_TIME`` and the row-by-row loop
     would read it as the result says.
     """
-    text = np.array(stamps)
+    text = np.array(stamps)  # str: a "<U{width}" array
     width = text.dtype.itemsize // 4
-    if text.dtype.kind != "U" or not 19 <= width <= 29 or width == 20:
+    if not 19 <= width <= 29 or width == 20:
         return None
     code = text.view(np.uint32).reshape(len(stamps), width)
     if not bool(np.all(code[:, -1])):  # a shorter stamp, padded with NUL
