@@ -18,15 +18,22 @@ DEMO_BAG ?= bags/demo_3d
 
 venv: $(STAMP)
 
-# pip's own output (hundreds of lines of build warnings on a fresh venv) goes to a log; the
-# terminal gets one line now and the log's tail only if the install fails.
+# The installer's own output (hundreds of lines of build warnings on a fresh venv) goes to a log;
+# the terminal gets one line now and the log's tail only if the install fails. uv (installed into
+# the venv by pip) installs the same versions as pip in 30 s instead of 55 s, compiled to
+# bytecode as pip does (the environment may forbid writing it later, and then every process of
+# the suite would compile numpy and scipy anew: 350 s of tests became 410 s without it); where uv
+# cannot reach an index that only pip is configured for, pip does it all.
 INSTALL_LOG := $(VENV)/install.log
+EXTRAS := .[ros,test,fast]
 
 $(STAMP): setup.py setup.cfg pyproject.toml package.xml
-	@echo "setting up $(VENV): python packages (about a minute, first run only; log $(INSTALL_LOG))"
+	@echo "setting up $(VENV): python packages (under a minute, first run only; log $(INSTALL_LOG))"
 	@$(PYTHON) -m venv $(VENV)
-	@{ $(PY) -m pip install --upgrade pip && $(PY) -m pip install -e ".[ros,test,fast]"; } \
-		> $(INSTALL_LOG) 2>&1 || { tail -n 20 $(INSTALL_LOG); echo "pip failed: see $(INSTALL_LOG)"; exit 1; }
+	@{ { $(PY) -m pip install "uv>=0.4" && $(VENV)/bin/uv pip install --compile-bytecode --python $(PY) -e "$(EXTRAS)"; } \
+		|| { echo "uv failed: installing with pip"; $(PY) -m pip install --upgrade pip \
+		&& $(PY) -m pip install -e "$(EXTRAS)"; }; } \
+		> $(INSTALL_LOG) 2>&1 || { tail -n 20 $(INSTALL_LOG); echo "install failed: see $(INSTALL_LOG)"; exit 1; }
 	@touch $(STAMP)
 
 demo: $(STAMP)
