@@ -35,18 +35,24 @@ def munich_data() -> Path:
 
 @pytest.fixture(scope="module")
 def engine():
-    """Two Dask worker processes for the seed studies (``engine.client_mapper``): seeds in parallel.
+    """A Dask engine for the seed studies (``engine.client_mapper``): one worker thread of this process.
 
-    One cluster per test file, closed after it: a session's cluster idled through every later
-    file, and an idle local cluster costs 0.13 of a core (0.06 with its event loops' tick monitor
-    every second instead of every 20 ms, which only makes a blocked-loop warning late).
+    The suite's two test processes keep both cores busy, so worker processes of its own only
+    contend for them: back to back, ``test_loadtest_days.py`` and ``test_estimate_coverage.py`` in
+    one process took 154 s of CPU with one worker thread against 170 s with two worker processes
+    (2026-11-29; two threads fight for the GIL and took more). The tasks still go through Dask's
+    scatter, map and gather; ``test_engine.py``, ``test_archive.py`` and ``test_synth_stream.py``
+    run worker processes. One cluster per test file, closed after it.
     """
     import dask
     import distributed  # noqa: F401  (its defaults first: leaving the ``with`` restores the config as found)
 
     from bridge_shadow.engine import client_mapper, dask_client
 
-    with dask.config.set({"distributed.admin.tick.interval": "1s"}), dask_client(workers=2) as client:
+    with (
+        dask.config.set({"distributed.admin.tick.interval": "1s"}),
+        dask_client(workers=1, processes=False) as client,
+    ):
         yield client_mapper(client)
 
 
