@@ -145,6 +145,31 @@ def test_the_same_items_mapped_again_and_again_are_never_lost() -> None:
             assert mapper(_square, [0, 1, 2]) == [0, 1, 4]
 
 
+def test_twin_days_on_a_worker_process_are_the_days_of_this_process() -> None:
+    """The seed studies' tasks pickled to a worker process: the same scores as run here.
+
+    The suite maps its seed studies on one worker thread of the test process (``conftest.engine``:
+    the two test processes fill both cores); ``benchmarks/loadtest_days.py --workers N`` and a
+    scheduler send the same tasks, and their items, to other processes. Three sunny twin days with
+    the shipped sun term: the verdicts equal, the final errors and sds to rounding.
+    """
+    from test_loadtest_days import _twin_day
+
+    items = [(seed, 4.0, "average", 0.0) for seed in (3, 11, 49)]
+    with dask_client(workers=1) as client:
+        mapped = client_mapper(client)(_twin_day, items)
+    for got, want in zip(mapped, serial_mapper(_twin_day, items), strict=True):
+        assert (got.events_right, got.lost_windows, got.within_10pct, got.covered) == (
+            want.events_right,
+            want.lost_windows,
+            want.within_10pct,
+            want.covered,
+        )
+        np.testing.assert_allclose(got.error_m, want.error_m, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(got.sigma_m, want.sigma_m, rtol=1e-12, atol=1e-15)
+    assert not all(s.within_10pct for s in mapped)  # seed 49: the one sunny day of 100 beyond 10 %
+
+
 def test_a_local_cluster_drops_the_heartbeat_line_of_its_own_close(monkeypatch) -> None:
     """A heartbeat in flight as the cluster closes logs an ERROR with a traceback (Dask's race).
 
