@@ -20,7 +20,7 @@ venv: $(STAMP)
 
 # The installer's own output (hundreds of lines of build warnings on a fresh venv) goes to a log;
 # the terminal gets one line now and the log's tail only if the install fails. uv (installed into
-# the venv by pip) installs the same versions as pip in 30 s instead of 55 s, compiled to
+# the venv by pip) installs the same versions as pip in about 35 s instead of 55 s, compiled to
 # bytecode as pip does (the environment may forbid writing it later, and then every process of
 # the suite would compile numpy and scipy anew: 350 s of tests became 410 s without it); where uv
 # cannot reach an index that only pip is configured for, pip does it all.

@@ -42,7 +42,8 @@ def engine():
     one process took 154 s of CPU with one worker thread against 170 s with two worker processes
     (2026-11-29; two threads fight for the GIL and took more). The tasks still go through Dask's
     scatter, map and gather; ``test_engine.py``, ``test_archive.py`` and ``test_synth_stream.py``
-    run worker processes. One cluster per test file, closed after it.
+    run worker processes. One cluster per test file, closed after it; its event loop's tick
+    monitor every second instead of every 20 ms (which only makes a blocked-loop warning late).
     """
     import dask
     import distributed  # noqa: F401  (its defaults first: leaving the ``with`` restores the config as found)
