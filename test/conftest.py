@@ -41,8 +41,9 @@ def engine():
     contend for them: back to back, ``test_loadtest_days.py`` and ``test_estimate_coverage.py`` in
     one process took 154 s of CPU with one worker thread against 170 s with two worker processes
     (2026-11-29; two threads fight for the GIL and took more). The tasks still go through Dask's
-    scatter, map and gather; ``test_engine.py``, ``test_archive.py`` and ``test_synth_stream.py``
-    run worker processes. One cluster per test file, closed after it; its event loop's tick
+    scatter, map and gather; worker processes run in ``test_engine.py`` (twin days pickled to one),
+    ``test_archive.py`` (the command's default cluster) and ``test_synth_stream.py`` (an archive
+    written on two). One cluster per test file, closed after it; its event loop's tick
     monitor every second instead of every 20 ms (which only makes a blocked-loop warning late).
     """
     import dask

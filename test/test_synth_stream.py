@@ -128,15 +128,23 @@ def _connections(bag: Path) -> list:
         return list(reader.connections)
 
 
-def test_an_archive_written_on_dask_workers_equals_the_serial_one(tmp_path: Path, engine) -> None:
-    """``write_archive`` on the engine's mapper: every bag's messages and truth as written serially."""
+def test_an_archive_written_on_dask_workers_equals_the_serial_one(tmp_path: Path) -> None:
+    """``write_archive`` on two Dask worker processes: every bag's messages and truth as written serially.
+
+    Worker processes, not the suite's one-thread ``engine``: the bags are simulated and written in
+    other processes, as ``synth --archive`` on a local cluster does.
+    """
+    from bridge_shadow.engine import client_mapper, dask_client
     from bridge_shadow.twin.stream import BAGS_PER_CALL, write_archive
 
     args = {"bridges": 2, "days": 0.5, "rate_hz": 0.5, "seed": 5, "bag_days": 0.05}
     assert 2 * 10 > BAGS_PER_CALL  # more than one call of the mapper
     seen: list[float] = []
     serial = write_archive(tmp_path / "serial", **args)
-    parallel = write_archive(tmp_path / "dask", mapper=engine, progress=seen.append, **args)
+    with dask_client(workers=2) as client:
+        parallel = write_archive(
+            tmp_path / "dask", mapper=client_mapper(client), progress=seen.append, **args
+        )
     assert parallel == serial
     assert seen[-1] == 1.0 and seen == sorted(seen) and len(seen) == -(-20 // BAGS_PER_CALL)
     bags = sorted(p.relative_to(tmp_path / "serial") for p in (tmp_path / "serial").glob("bridge_*/day_*"))
