@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bridge_shadow.errors import InputError
+from bridge_shadow.fileio import load_yaml
 
 __all__ = ["BridgeSource", "archive_sources", "is_bag"]
 
@@ -126,7 +127,7 @@ def _from_manifest(manifest: Path) -> list[BridgeSource]:
     from bridge_shadow.fileio import yaml_problem
 
     try:
-        doc = yaml.safe_load(manifest.read_text(encoding="utf-8"))
+        doc = load_yaml(manifest.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
         raise InputError(f"{manifest}: cannot read the manifest ({yaml_problem(err)})") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("bridges"), dict) or not doc["bridges"]:

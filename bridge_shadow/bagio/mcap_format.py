@@ -17,6 +17,8 @@ from pathlib import Path, PurePath
 import numpy as np
 import yaml
 
+from bridge_shadow.fileio import load_yaml
+
 __all__ = ["McapLayoutError", "mcap_files", "payload_spans"]
 
 _MAGIC = b"\x89MCAP0\r\n"
@@ -57,7 +59,7 @@ def mcap_files(path: Path) -> list[Path] | None:
     if path.is_file():
         return [path] if path.suffix == ".mcap" else None
     try:
-        meta = yaml.safe_load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        meta = load_yaml((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
         if meta["storage_identifier"] != "mcap" or int(meta["version"]) > 9:
             return None
         if str(meta.get("compression_mode") or "").lower() not in ("", "none"):

@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 
 from bridge_shadow.bagio.cdr import RawBlock
+from bridge_shadow.fileio import load_yaml
 
 __all__ = ["plain_sqlite_files", "read_sqlite_topics"]
 
@@ -26,7 +27,7 @@ def plain_sqlite_files(path: Path) -> list[Path] | None:
     if not path.is_dir():
         return None
     try:
-        meta = yaml.safe_load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        meta = load_yaml((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
         if meta["storage_identifier"] != "sqlite3" or int(meta["version"]) > 9:
             return None
         if str(meta.get("compression_mode") or "").lower() not in ("", "none"):

@@ -42,6 +42,7 @@ from bridge_shadow.calibrate.change import BASELINE_CHANGES
 from bridge_shadow.calibrate.errors import CalibrationError
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.estimate.parameters.specs import VALUE_SPECS, check_value
+from bridge_shadow.fileio import load_yaml
 from bridge_shadow.keys import check_keys
 from bridge_shadow.model.config import MESH_LEVELS
 from bridge_shadow.model.parameters import PARAMETERS, PRIOR_SETS
@@ -253,7 +254,7 @@ def load_spec(path: str | Path) -> CalibrationSpec:
     except OSError as err:
         raise CalibrationError(f"{file}: cannot read calibration file ({err.strerror})") from err
     try:
-        data = yaml.safe_load(raw)
+        data = load_yaml(raw)
     except yaml.YAMLError as err:
         raise CalibrationError(f"{file}: not valid YAML ({err})") from err
     try:

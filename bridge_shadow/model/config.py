@@ -21,6 +21,7 @@ from typing import Any
 import yaml
 
 from bridge_shadow.errors import ConfigError
+from bridge_shadow.fileio import load_yaml
 from bridge_shadow.keys import check_keys, did_you_mean
 from bridge_shadow.paths import config_file
 
@@ -264,7 +265,7 @@ def load_bridge_config(
     except OSError as err:
         raise ConfigError(f"{file}: cannot read bridge model ({err.strerror})") from err
     try:
-        data = _floatify(yaml.safe_load(raw))
+        data = _floatify(load_yaml(raw))
     except yaml.YAMLError as err:
         from bridge_shadow.fileio import yaml_problem
 

@@ -32,7 +32,7 @@ import numpy as np
 import yaml
 
 from bridge_shadow.errors import ConfigError, InputError
-from bridge_shadow.fileio import atomic_write_text, check_output_file, output_file, yaml_problem
+from bridge_shadow.fileio import atomic_write_text, check_output_file, load_yaml, output_file, yaml_problem
 from bridge_shadow.keys import check_keys
 from bridge_shadow.paths import config_file
 
@@ -97,14 +97,9 @@ DISCREPANCY_RELATIVE_SD = 0.10
 DISCREPANCY_CORRELATION = 0.5
 
 
-#: libyaml's loader when PyYAML was built with it (a surrogate file with its sweeps and the
-#: calibration's provenance parses about 10x faster), else the pure-Python one; the same data.
-_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-
-
 @functools.lru_cache(maxsize=8)
 def _parsed(path: str, mtime_ns: int, size: int) -> Any:
-    return yaml.load(Path(path).read_text(encoding="utf-8"), Loader=_LOADER)
+    return load_yaml(Path(path).read_text(encoding="utf-8"))
 
 
 def read_surrogate_document(path: str | Path) -> Any:
@@ -506,7 +501,7 @@ def surrogate_target(path: str | Path, *, create: bool = True, force: bool = Fal
     file = output_file(path, "surrogate file") if create else check_output_file(path, "surrogate file")
     if file.exists():
         try:
-            data = yaml.safe_load(file.read_text(encoding="utf-8"))
+            data = load_yaml(file.read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, yaml.YAMLError):
             data = None
         if not (isinstance(data, dict) and "A" in data and "u0" in data):

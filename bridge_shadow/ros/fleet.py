@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from bridge_shadow.errors import BridgeShadowError, InputError
+from bridge_shadow.fileio import load_yaml
 from bridge_shadow.ros.launcher import NodeProcess
 
 __all__ = ["FleetMember", "member_args", "read_fleet", "start_fleet"]
@@ -65,7 +66,7 @@ def read_fleet(path: str | Path) -> list[FleetMember]:
 
     file = Path(path)
     try:
-        doc = yaml.safe_load(file.read_text(encoding="utf-8"))
+        doc = load_yaml(file.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
         raise InputError(f"{file}: cannot read the fleet file ({' '.join(str(err).split())})") from None
     bridges = doc.get("bridges") if isinstance(doc, dict) else None

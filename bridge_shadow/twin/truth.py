@@ -13,6 +13,7 @@ import numpy as np
 import yaml
 
 from bridge_shadow.errors import InputError
+from bridge_shadow.fileio import load_yaml
 
 __all__ = ["TRUTH_FILE", "read_truth", "truth_path", "truth_text", "write_truth"]
 
@@ -62,7 +63,7 @@ def read_truth(bag: str | Path) -> dict[str, Any]:
     if not file.is_file():
         raise InputError(f"{file}: no truth file (is this a bag written by `bridge-shadow synth`?)")
     try:
-        data = yaml.safe_load(file.read_text())
+        data = load_yaml(file.read_text())
     except yaml.YAMLError as err:
         raise InputError(f"{file}: not valid YAML ({err})") from err
     if not isinstance(data, dict):
