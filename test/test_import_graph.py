@@ -6,6 +6,8 @@ import importlib.util
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -21,6 +23,12 @@ def _tool():
 graph_tool = _tool()
 
 
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set[str]]:
+    """The package's imports, read from the sources once for the tests of this file."""
+    return graph_tool.module_imports()
+
+
 def _reachable(graph: dict[str, set[str]], start: str) -> set[str]:
     seen: set[str] = set()
     todo = [start]
@@ -32,13 +40,12 @@ def _reachable(graph: dict[str, set[str]], start: str) -> set[str]:
     return seen
 
 
-def test_no_import_cycles() -> None:
+def test_no_import_cycles(graph: dict[str, set[str]]) -> None:
     """No module imports itself around a circle, and inside no package do two parts import each other.
 
     Parts are a package's modules and its subpackages (each as a whole). Function-level imports
     count; type-only ones (``if TYPE_CHECKING:``) do not.
     """
-    graph = graph_tool.module_imports()
     assert graph_tool.module_cycles(graph) == []
     assert graph_tool.cycles_within_packages(graph) == []
 
@@ -68,29 +75,28 @@ def test_cycle_finder_sees_function_level_imports(tmp_path: Path) -> None:
     assert ["pkg.sub.c", "pkg.sub.inner"] in graph_tool.cycles_within_packages(graph)
 
 
-def test_live_replay_never_reaches_the_commands() -> None:
+def test_live_replay_never_reaches_the_commands(graph: dict[str, set[str]]) -> None:
     """``bridge-shadow replay --live`` calls live replay, never the other way round.
 
     Live replay, the launcher and the node it launches import no command (not even through others).
     """
-    graph = graph_tool.module_imports()
     assert "bridge_shadow.ros.live_replay" in graph["bridge_shadow.commands.replay"]
     for start in ("bridge_shadow.ros.live_replay", "bridge_shadow.ros.main", "bridge_shadow.ros.launcher"):
         reached = _reachable(graph, start)
         assert not {m for m in reached if m.startswith("bridge_shadow.commands") or m == "bridge_shadow.cli"}
 
 
-def test_architecture_doc_is_current() -> None:
+def test_architecture_doc_is_current(graph: dict[str, set[str]]) -> None:
     """docs/architecture.md holds the graph the sources give (``python tools/import_graph.py``)."""
     text = graph_tool.DOC.read_text()
     assert graph_tool.BEGIN in text and graph_tool.END in text
-    assert graph_tool.render(text, graph_tool.generated_block()) == text, "run: python tools/import_graph.py"
+    block = graph_tool.generated_block(graph=graph)
+    assert graph_tool.render(text, block) == text, "run: python tools/import_graph.py"
 
 
-def test_architecture_doc_draws_every_module() -> None:
+def test_architecture_doc_draws_every_module(graph: dict[str, set[str]]) -> None:
     """Every module is a box in its package's graph, and every package has a graph."""
-    graph = graph_tool.module_imports()
-    block = graph_tool.generated_block()
+    block = graph_tool.generated_block(graph=graph)
     for pkg in graph_tool.packages(graph):
         for child in graph_tool.children_graph(graph, pkg):
             assert f'    {child.replace(".", "_")}["' in block

@@ -191,9 +191,15 @@ def mermaid(graph: dict[str, set[str]], package: str, subpackages: set[str]) -> 
     return "\n".join(lines)
 
 
-def generated_block(root: Path = ROOT, package: str = PACKAGE) -> str:
-    """Return the generated part of docs/architecture.md: one graph per package, the top one first."""
-    graph = module_imports(root, package)
+def generated_block(
+    root: Path = ROOT, package: str = PACKAGE, graph: dict[str, set[str]] | None = None
+) -> str:
+    """Return the generated part of docs/architecture.md: one graph per package, the top one first.
+
+    ``graph``: the package's ``module_imports`` when the caller has them (else read here).
+    """
+    if graph is None:
+        graph = module_imports(root, package)
     subpackages = set(packages(graph))
     parts = [BEGIN]
     for pkg in packages(graph):
@@ -234,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
             print(" <-> ".join(cycle))
         return 0
     text = DOC.read_text() if DOC.exists() else ""
-    new = render(text, generated_block())
+    new = render(text, generated_block(graph=graph))
     if args.check:
         if new != text:
             print(f"{DOC} is stale: run python tools/import_graph.py", file=sys.stderr)
