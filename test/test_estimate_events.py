@@ -458,3 +458,53 @@ def test_a_run_that_came_back_heavier_than_any_vehicle_is_reported_as_an_excursi
         if reported:
             np.testing.assert_allclose(d.excursion_n, y[40:43].mean(axis=0), rtol=1e-9)
             assert np.all(np.linalg.eigvalsh(d.excursion_cov_n2) > 0)
+
+
+def test_the_run_statistics_on_arrays_and_floats_are_the_per_window_formulas() -> None:
+    """The run's statistics on arrays and floats are the per-window formulas (rtol 1e-12).
+
+    ``_candidates`` and ``_jump`` (arrays over the held windows, floats per pair, factors cached
+    per ``phi``) give what ``_d2`` summed window by window, the lag covariance ``_lag_cov`` as a
+    2x2 array and ``ar1_factor`` at each count give.
+    """
+    from bridge_shadow.estimate.compensation.noise import ar1_factor
+    from bridge_shadow.estimate.events.detector import Pending, _quad
+
+    def lag_cov(phi: np.ndarray, r: np.ndarray, d: int) -> np.ndarray:
+        sd = np.sqrt(np.diag(r))
+        scale = sd * np.sqrt(np.maximum(1.0 - phi**d, 1e-6))
+        return r / np.outer(sd, sd) * np.outer(scale, scale)
+
+    rng = np.random.default_rng(5)
+    for phi in ((0.3, 0.8), (0.0, 0.95), (0.6, 0.6)):
+        det = ChangeDetector()
+        det.set_noise(np.array(phi), 40.0)
+        for n in (2, 5, 9):
+            ks = np.cumsum(rng.integers(1, 4, n))  # holes between some held windows
+            det.pending = []
+            for k in ks:
+                m = rng.normal(size=(2, 2))
+                r = m @ m.T + np.eye(2)
+                det.pending.append(Pending(int(k), rng.normal(0.0, 3.0, 2) + 5.0, r, 0.1 * np.eye(2), None))
+            before = np.concatenate([[0.0], np.cumsum([det._d2(p, np.zeros(2)) for p in det.pending])])
+            for c in det._candidates():
+                f = ar1_factor(det.phi, c.n_after)
+                np.testing.assert_allclose(
+                    det._run_factor(c.n_after), c.n_after * np.sqrt(np.outer(f, f)), rtol=1e-12
+                )
+                if not c.mixed:
+                    scatter = sum(det._d2(p, c.step) for p in det.pending[c.j :])
+                    np.testing.assert_allclose(c.cost, before[c.j] + scatter, rtol=1e-12)
+            rate = (rng.normal(0.0, 0.5, 2), 3)
+            for j in range(1, n):
+                ref = det.pending[j - 1]
+                for given in (None, rate):
+                    want = 0.0
+                    for b in det.pending[j : j + 3]:
+                        r, d = ref.r_window + b.r_window, b.k - ref.k
+                        V, diff = lag_cov(det.phi, r, d), b.v - ref.v
+                        if given is not None:
+                            V = V + lag_cov(det.phi, r, 1) * (d * d / given[1])
+                            diff = diff - d * given[0]
+                        want = max(want, _quad(V, diff))
+                    np.testing.assert_allclose(det._jump(j, given), want, rtol=1e-12)

@@ -289,6 +289,10 @@ class ChangeDetector:
         self.phi = np.zeros(2)
         self.inflation = 1.0
         self.history: deque[tuple[int, float, float]] = deque(maxlen=RAMP_HISTORY)
+        # factors that depend on ``phi`` and a window count only, by count, for ``_factors_phi``
+        self._factors_phi = (0.0, 0.0)
+        self._lag_factors: dict[int, tuple[float, float]] = {}
+        self._run_factors: dict[int, np.ndarray] = {}
 
     def set_noise(self, phi: np.ndarray, dof: float) -> None:
         """Use the noise model's autocorrelation; inflate its variance while it rests on few windows.
@@ -541,22 +545,67 @@ class ChangeDetector:
         if ref is None:
             return np.inf
         best = 0.0
+        ra, rb, _, rd = ref.r_window.ravel().tolist()
+        x0, y0 = ref.v.tolist()
+        if rate is not None:
+            rx, ry = rate[0].tolist()
         for b in self.pending[j : j + JUMP_LOOKAHEAD]:
-            r = ref.r_window + b.r_window
+            ba, bb, _, bd = b.r_window.ravel().tolist()
+            r = (ra + ba, rb + bb, rd + bd)
             d = b.k - ref.k
-            V = self._lag_cov(r, d)
-            diff = b.v - ref.v
+            va, vb, vd = self._lag_cov_sym(r, d)
+            x1, y1 = b.v.tolist()
+            x, y = x1 - x0, y1 - y0
             if rate is not None:
-                V = V + self._lag_cov(r, 1) * (d * d / rate[1])
-                diff = diff - d * rate[0]
-            best = max(best, _quad(V, diff))
+                la, lb, ld = self._lag_cov_sym(r, 1)
+                c = d * d / rate[1]
+                va, vb, vd = va + la * c, vb + lb * c, vd + ld * c
+                x, y = x - d * rx, y - d * ry
+            best = max(best, quad_inv((va, vb, vd), (x, y)))
         return best
+
+    def _factors_current(self) -> None:
+        """Forget the cached factors of another ``phi`` (they depend on it and a count only)."""
+        phi = (float(self.phi[0]), float(self.phi[1]))
+        if phi != self._factors_phi:
+            self._factors_phi = phi
+            self._lag_factors.clear()
+            self._run_factors.clear()
+
+    def _lag_factor(self, d: int) -> tuple[float, float]:
+        """``sqrt(max(1 - phi^d, 1e-6))`` per channel: the AR(1) wander's share over ``d`` windows."""
+        self._factors_current()
+        g = self._lag_factors.get(d)
+        if g is None:
+            ga, gb = np.sqrt(np.maximum(1.0 - self.phi**d, 1e-6)).tolist()
+            g = self._lag_factors[d] = (ga, gb)
+        return g
+
+    def _lag_cov_sym(self, r: Sym, d: int) -> Sym:
+        """``_lag_cov`` on floats, ``r`` and the result symmetric ``(a, b, d)``.
+
+        The same operations in the same order as the array version, so the same floats (the jump
+        test runs for every candidate start of a held run; numpy's calls on a 2x2 cost more).
+        """
+        ga, gb = self._lag_factor(d)
+        sa, sb = math.sqrt(r[0]), math.sqrt(r[2])
+        ca, cb = sa * ga, sb * gb
+        return (r[0] / (sa * sa) * (ca * ca), r[1] / (sa * sb) * (ca * cb), r[2] / (sb * sb) * (cb * cb))
 
     def _lag_cov(self, r: np.ndarray, d: int) -> np.ndarray:
         """Covariance of ``v_b - v_a``, ``d`` windows apart, of an AR(1) wander; ``r = R_a + R_b``."""
         sd = np.sqrt(np.diag(r))
-        scale = sd * np.sqrt(np.maximum(1.0 - self.phi**d, 1e-6))
+        scale = sd * np.asarray(self._lag_factor(d))
         return r / np.outer(sd, sd) * np.outer(scale, scale)
+
+    def _run_factor(self, n: int) -> np.ndarray:
+        """``n sqrt(f f')``, ``f = ar1_factor(phi, n)``: a run's no-change sum covariance over ``R``."""
+        self._factors_current()
+        w = self._run_factors.get(n)
+        if w is None:
+            f = ar1_factor(self.phi, n)
+            w = self._run_factors[n] = n * np.sqrt(np.outer(f, f))
+        return w
 
     def _candidates(self) -> list[_Candidate]:
         """Every start ``j`` of the pending run: GLR, step, scatter check, jump test, run likelihood."""
@@ -566,15 +615,25 @@ class ChangeDetector:
         r_mean = np.mean([p.r_window for p in self.pending], axis=0)
         apa = self.pending[-1].apa
         sums = np.cumsum(vs[::-1], axis=0)[::-1]  # s_j = sum_{i >= j} v_i
-        before = np.concatenate([[0.0], np.cumsum([self._d2(p, np.zeros(2)) for p in self.pending])])
+        # ``_d2`` of every window at once, the operations of ``small.quad_inv`` in its order, and
+        # summed one window after the other as before (the same floats, without a call per window)
+        cov = np.array([p.r_window + p.apa for p in self.pending])
+        ca, cb, cd = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+        denom = ca * cd - cb * cb
+
+        def d2_sum(j: int, step: np.ndarray) -> np.ndarray:
+            """``_d2(p, step)`` of the windows from ``j`` on, their running sum (``[-1]``: all)."""
+            x, y = vs[j:, 0] - step[0], vs[j:, 1] - step[1]
+            return np.add.accumulate((cd[j:] * x * x - 2.0 * cb[j:] * x * y + ca[j:] * y * y) / denom[j:])
+
+        before = np.concatenate([[0.0], d2_sum(0, np.zeros(2))])
         for j in range(n):
             nj = n - j
-            f = ar1_factor(self.phi, nj)
-            V = nj * np.sqrt(np.outer(f, f)) * r_mean + nj * nj * apa  # cov of s_j without a change
+            V = self._run_factor(nj) * r_mean + nj * nj * apa  # cov of s_j without a change
             s = sums[j]
             t = _quad(V, s)
             step = s / nj
-            scatter = sum(self._d2(p, step) for p in self.pending[j:])
+            scatter = float(d2_sum(j, step)[-1])
             bound = self._chi2_bound[min(nj - 1, len(self._chi2_bound) - 1)]
             consistent = scatter <= bound or self._relaxing_scatter(j, step) <= bound
             cost = float(before[j] + scatter)  # windows before j at no change, from j on at the step
