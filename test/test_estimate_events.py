@@ -468,7 +468,7 @@ def test_the_run_statistics_on_arrays_and_floats_are_the_per_window_formulas() -
     2x2 array and ``ar1_factor`` at each count give.
     """
     from bridge_shadow.estimate.compensation.noise import ar1_factor
-    from bridge_shadow.estimate.events.detector import Pending, _quad
+    from bridge_shadow.estimate.events.detector import Pending, _arr, _quad, _sym
 
     def lag_cov(phi: np.ndarray, r: np.ndarray, d: int) -> np.ndarray:
         sd = np.sqrt(np.diag(r))
@@ -508,3 +508,8 @@ def test_the_run_statistics_on_arrays_and_floats_are_the_per_window_formulas() -
                             diff = diff - d * given[0]
                         want = max(want, _quad(V, diff))
                     np.testing.assert_allclose(det._jump(j, given), want, rtol=1e-12)
+        # a channel without variance: NaN as on the arrays (numpy's 0 / 0), not a ZeroDivisionError
+        with np.errstate(divide="ignore", invalid="ignore"):
+            flat = det._lag_cov_sym((0.0, 0.0, 2.0), 2)
+            assert np.array_equal(flat, _sym(det._lag_cov(_arr((0.0, 0.0, 2.0)), 2)), equal_nan=True)
+        assert np.isnan(flat[0]) and np.isfinite(flat[2])

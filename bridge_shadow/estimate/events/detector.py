@@ -587,6 +587,8 @@ class ChangeDetector:
         The same operations in the same order as the array version, so the same floats (the jump
         test runs for every candidate start of a held run; numpy's calls on a 2x2 cost more).
         """
+        if not (r[0] > 0.0 and r[2] > 0.0):  # no variance on a channel (or NaN): the array's NaN
+            return _sym(self._lag_cov(_arr(r), d))
         ga, gb = self._lag_factor(d)
         sa, sb = math.sqrt(r[0]), math.sqrt(r[2])
         ca, cb = sa * ga, sb * gb
