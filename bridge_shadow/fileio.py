@@ -30,6 +30,7 @@ import yaml
 from bridge_shadow.errors import InputError
 
 __all__ = [
+    "SAFE_LOADER",
     "atomic_write",
     "atomic_write_text",
     "check_output_dir",
@@ -59,13 +60,14 @@ def _blocking_file(path: Path) -> Path | None:
 
 #: libyaml's safe loader where PyYAML was built with it, else the pure-Python one: the same data
 #: (the same resolver and constructors; only the parser is C), parsed 7-30x faster (a bag's
-#: metadata 0.4 instead of 3.5 ms, ``config/bridge.yaml`` 0.9 instead of 16 ms).
-_SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+#: metadata 0.4 instead of 3.5 ms, ``config/bridge.yaml`` 0.9 instead of 16 ms). A loader of other
+#: rules derives from it (``estimate.parameters.config``: YAML 1.2 floats, as rcl reads them).
+SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 def load_yaml(text: str) -> Any:
     """Return the data of a YAML document, as ``yaml.safe_load`` does (raises ``yaml.YAMLError``)."""
-    return yaml.load(text, Loader=_SAFE_LOADER)
+    return yaml.load(text, Loader=SAFE_LOADER)
 
 
 def yaml_problem(err: Exception) -> str:

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bridge_shadow.errors import InputError
-from bridge_shadow.fileio import load_yaml
+from bridge_shadow.fileio import load_yaml, yaml_problem
 
 __all__ = ["BridgeSource", "archive_sources", "is_bag"]
 
@@ -123,8 +123,6 @@ def _manifest_path(base: Path, value: object, what: str, manifest: Path) -> Path
 
 def _from_manifest(manifest: Path) -> list[BridgeSource]:
     import yaml
-
-    from bridge_shadow.fileio import yaml_problem
 
     try:
         doc = load_yaml(manifest.read_text(encoding="utf-8"))

@@ -21,7 +21,7 @@ from typing import Any
 import yaml
 
 from bridge_shadow.errors import ConfigError
-from bridge_shadow.fileio import load_yaml
+from bridge_shadow.fileio import load_yaml, yaml_problem
 from bridge_shadow.keys import check_keys, did_you_mean
 from bridge_shadow.paths import config_file
 
@@ -267,8 +267,6 @@ def load_bridge_config(
     try:
         data = _floatify(load_yaml(raw))
     except yaml.YAMLError as err:
-        from bridge_shadow.fileio import yaml_problem
-
         raise ConfigError(f"{file}: not valid YAML at {yaml_problem(err)}") from None
     if not isinstance(data, dict):
         raise ConfigError(f"{file}: not a bridge model (top level must be a mapping)")

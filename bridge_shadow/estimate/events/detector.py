@@ -286,13 +286,23 @@ class ChangeDetector:
         self.prev: Pending | None = None
         self.max_jump = 0.0  # largest jump statistic between ordinary neighbours (slowly forgotten)
         self.n_events = 0
+        # factors that depend on ``phi`` and a window count only, by count (cleared as ``phi`` is set)
+        self._lag_factors: dict[int, tuple[float, float]] = {}
+        self._run_factors: dict[int, np.ndarray] = {}
         self.phi = np.zeros(2)
         self.inflation = 1.0
         self.history: deque[tuple[int, float, float]] = deque(maxlen=RAMP_HISTORY)
-        # factors that depend on ``phi`` and a window count only, by count, for ``_factors_phi``
-        self._factors_phi = (0.0, 0.0)
-        self._lag_factors: dict[int, tuple[float, float]] = {}
-        self._run_factors: dict[int, np.ndarray] = {}
+
+    @property
+    def phi(self) -> np.ndarray:
+        """(2,) the noise model's lag-one autocorrelation per channel (``set_noise``)."""
+        return self._phi
+
+    @phi.setter
+    def phi(self, value: np.ndarray) -> None:
+        self._phi = value
+        self._lag_factors.clear()
+        self._run_factors.clear()
 
     def set_noise(self, phi: np.ndarray, dof: float) -> None:
         """Use the noise model's autocorrelation; inflate its variance while it rests on few windows.
@@ -564,17 +574,8 @@ class ChangeDetector:
             best = max(best, quad_inv((va, vb, vd), (x, y)))
         return best
 
-    def _factors_current(self) -> None:
-        """Forget the cached factors of another ``phi`` (they depend on it and a count only)."""
-        phi = (float(self.phi[0]), float(self.phi[1]))
-        if phi != self._factors_phi:
-            self._factors_phi = phi
-            self._lag_factors.clear()
-            self._run_factors.clear()
-
     def _lag_factor(self, d: int) -> tuple[float, float]:
         """``sqrt(max(1 - phi^d, 1e-6))`` per channel: the AR(1) wander's share over ``d`` windows."""
-        self._factors_current()
         g = self._lag_factors.get(d)
         if g is None:
             ga, gb = np.sqrt(np.maximum(1.0 - self.phi**d, 1e-6)).tolist()
@@ -602,7 +603,6 @@ class ChangeDetector:
 
     def _run_factor(self, n: int) -> np.ndarray:
         """``n sqrt(f f')``, ``f = ar1_factor(phi, n)``: a run's no-change sum covariance over ``R``."""
-        self._factors_current()
         w = self._run_factors.get(n)
         if w is None:
             f = ar1_factor(self.phi, n)

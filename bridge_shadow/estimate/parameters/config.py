@@ -29,7 +29,7 @@ from bridge_shadow.contract import (
 )
 from bridge_shadow.errors import ConfigError
 from bridge_shadow.estimate.parameters.specs import check_value, kind_of
-from bridge_shadow.fileio import yaml_problem
+from bridge_shadow.fileio import SAFE_LOADER, yaml_problem
 from bridge_shadow.keys import check_keys
 from bridge_shadow.paths import config_file
 
@@ -47,7 +47,7 @@ _TOPIC_FIELDS = (
 )
 
 
-class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+class _Loader(SAFE_LOADER):  # type: ignore[misc]
     """PyYAML's safe loader with YAML 1.2 floats, as the ROS parameter parser reads them.
 
     PyYAML (YAML 1.1) reads ``5.0e6`` and ``1e-4`` as strings; rcl reads them as doubles, so the
