@@ -23,16 +23,17 @@ venv: $(STAMP)
 # the venv by pip) installs the same versions as pip in about 35 s instead of 55 s, compiled to
 # bytecode as pip does (the environment may forbid writing it later, and then every process of
 # the suite would compile numpy and scipy anew: 350 s of tests became 410 s without it); where uv
-# cannot reach an index that only pip is configured for, pip does it all.
+# cannot reach an index that only pip is configured for, pip does it all. Both hold the venv to
+# constraints.txt (scipy before 1.17, whose import costs each process of the shadow half a second).
 INSTALL_LOG := $(VENV)/install.log
 EXTRAS := .[ros,test,fast]
 
-$(STAMP): setup.py setup.cfg pyproject.toml package.xml
+$(STAMP): setup.py setup.cfg pyproject.toml package.xml constraints.txt
 	@echo "setting up $(VENV): python packages (under a minute, first run only; log $(INSTALL_LOG))"
 	@$(PYTHON) -m venv $(VENV)
-	@{ { $(PY) -m pip install "uv>=0.4" && $(VENV)/bin/uv pip install --compile-bytecode --python $(PY) -e "$(EXTRAS)"; } \
+	@{ { $(PY) -m pip install "uv>=0.4" && $(VENV)/bin/uv pip install --compile-bytecode --python $(PY) -c constraints.txt -e "$(EXTRAS)"; } \
 		|| { echo "uv failed: installing with pip"; $(PY) -m pip install --upgrade pip \
-		&& $(PY) -m pip install -e "$(EXTRAS)"; }; } \
+		&& $(PY) -m pip install -c constraints.txt -e "$(EXTRAS)"; }; } \
 		> $(INSTALL_LOG) 2>&1 || { tail -n 20 $(INSTALL_LOG); echo "install failed: see $(INSTALL_LOG)"; exit 1; }
 	@touch $(STAMP)
 
