@@ -24,7 +24,7 @@ venv: $(STAMP)
 # bytecode as pip does (the environment may forbid writing it later, and then every process of
 # the suite would compile numpy and scipy anew: 350 s of tests became 410 s without it); where uv
 # cannot reach an index that only pip is configured for, pip does it all. Both hold the venv to
-# constraints.txt (scipy before 1.17, whose import costs each process of the shadow half a second).
+# constraints.txt (scipy before 1.17, whose import makes each process of the shadow start slower).
 INSTALL_LOG := $(VENV)/install.log
 EXTRAS := .[ros,test,fast]
 
