@@ -12,12 +12,11 @@ from __future__ import annotations
 
 import struct
 import zlib
-from pathlib import Path, PurePath
+from pathlib import Path
 
 import numpy as np
-import yaml
 
-from bridge_shadow.fileio import load_yaml
+from bridge_shadow.bagio.metadata import plain_bag_files
 
 __all__ = ["McapLayoutError", "mcap_files", "payload_spans"]
 
@@ -58,16 +57,8 @@ def mcap_files(path: Path) -> list[Path] | None:
     """Return the MCAP files of a bag (directory without rosbag2 compression, or a bare file)."""
     if path.is_file():
         return [path] if path.suffix == ".mcap" else None
-    try:
-        meta = load_yaml((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
-        if meta["storage_identifier"] != "mcap" or int(meta["version"]) > 9:
-            return None
-        if str(meta.get("compression_mode") or "").lower() not in ("", "none"):
-            return None
-        files = [path / PurePath(x).name for x in meta["relative_file_paths"]]
-    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError, AttributeError):
-        return None
-    return files if files and all(f.is_file() for f in files) else None
+    found = plain_bag_files(path, "mcap")
+    return None if found is None else found[0]
 
 
 def _string(body: bytes, pos: int) -> tuple[str, int]:

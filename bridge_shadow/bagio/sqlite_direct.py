@@ -11,13 +11,12 @@ from __future__ import annotations
 import sqlite3
 from collections.abc import Collection
 from operator import itemgetter
-from pathlib import Path, PurePath
+from pathlib import Path
 
 import numpy as np
-import yaml
 
 from bridge_shadow.bagio.cdr import RawBlock
-from bridge_shadow.fileio import load_yaml
+from bridge_shadow.bagio.metadata import METADATA_ERRORS, plain_bag_files
 
 __all__ = ["plain_sqlite_files", "read_sqlite_topics"]
 
@@ -26,19 +25,15 @@ def plain_sqlite_files(path: Path) -> list[Path] | None:
     """Return the ``.db3`` files of an uncompressed sqlite3 bag directory, or None for anything else."""
     if not path.is_dir():
         return None
+    found = plain_bag_files(path, "sqlite3")
+    if found is None:
+        return None
+    files, meta = found
     try:
-        meta = load_yaml((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
-        if meta["storage_identifier"] != "sqlite3" or int(meta["version"]) > 9:
-            return None
-        if str(meta.get("compression_mode") or "").lower() not in ("", "none"):
-            return None
-        files = [path / PurePath(x).name for x in meta["relative_file_paths"]]
         formats = {t["topic_metadata"].get("serialization_format") for t in meta["topics_with_message_count"]}
-    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError, AttributeError):
+    except METADATA_ERRORS:
         return None
-    if not files or not all(f.is_file() for f in files) or not formats <= {"cdr"}:
-        return None
-    return files
+    return files if formats <= {"cdr"} else None
 
 
 def read_sqlite_topics(
