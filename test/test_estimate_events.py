@@ -514,3 +514,29 @@ def test_the_run_statistics_on_arrays_and_floats_are_the_per_window_formulas() -
             want = _sym(det._lag_cov(_arr((0.0, 0.0, 2.0)), 2))
         np.testing.assert_allclose(flat, want, rtol=1e-12, equal_nan=True)
         assert np.isnan(flat[0]) and np.isfinite(flat[2])
+
+
+def test_a_run_closed_with_two_states_in_it_is_two_changes() -> None:
+    """A run at the end of the data: 30 down under a passing load, then 40 further (``_second_state``).
+
+    The first state's three windows scatter by a load on it (0, +8, +3) and neither state has the
+    windows an event needs: read as one change, one level held both. Its second step moved the
+    sum by 80, beyond the heaviest vehicle (30 here): the first state is a change of its own and
+    the second's windows come back to be judged against it. A second step of 12 (24 on the sum)
+    is a vehicle's, and with every load a vehicle's (``vehicle_max_n`` infinite) nothing splits.
+    """
+    for second, vehicle_max_n, split in ((-40.0, 30.0, True), (-8.0, 30.0, False), (-40.0, np.inf, False)):
+        y = ar1(56, 6)
+        y[50:53] += -30.0 + np.array([0.0, 8.0, 3.0])[:, None]
+        y[53:] += -30.0 + second
+        det = ChangeDetector(vehicle_max_n=vehicle_max_n)
+        det.set_noise(np.array([PHI, PHI]), 1e6)
+        for k, v in enumerate(y):
+            d = det.step(k, (float(v[0]), float(v[1])), R, APA, k)
+            assert not d.event and not d.change and not d.reject, (second, k)
+        assert [p.k for p in det.pending] == list(range(50, 56)), second
+        d = det.close_run()
+        if split:
+            assert d.change == [50, 51, 52] and d.rejudge == [53, 54, 55], (second, d)
+        else:
+            assert not d.rejudge and d.change and d.change[-1] == 55, (second, vehicle_max_n, d)

@@ -1226,6 +1226,48 @@ def test_a_state_between_car_free_for_seconds_keeps_its_windows(folder: Path, su
 
 
 @pytest.mark.realdata
+@pytest.mark.parametrize(
+    ("record", "hours", "air_h", "minutes", "states"),
+    [
+        ("ref", 35.8, 0.07, (1, 5), ((-0.0074, -0.0071), (-0.0128, -0.0125))),
+        ("ref", 35.36, 2.63, (1, 5), ((-0.0053, -0.0053), (-0.0100, -0.0100))),
+        ("ref", 2.12, 0.42, (5, 10), ((-0.0174, -0.0197), (-0.0300, -0.0298))),
+        ("lowered", 2.10, 3.55, (5, 9), ((-0.0080, -0.0080), (-0.0122, -0.0122))),
+    ],
+)
+def test_two_settlements_held_to_the_end_of_the_data_are_two_states(
+    folder: Path, surrogate, record: str, hours: float, air_h: float, minutes: tuple[int, int], states
+) -> None:
+    """A record hours on, lowered twice inside it, the second state its last minutes (``_second_state``).
+
+    Four streams of ``benchmarks/loadtest_days.py --only inside`` (seed 0: #151, #174, #171, #61,
+    their states rounded to 0.1 mm). The detector held the record's windows to the end of the
+    data, the test car between the two lowerings, and read one change: the first state's windows
+    as the old state's data, or one level for both. The residuals carried the second step, the
+    noise model grew a thousandfold, and the streams ended 3.1 to 8.1 mm off (#151 outside its
+    interval, at the record's first state). Read as two states, each ends within 10 % and covered,
+    nothing lost, both changes reported (an event, or an unconfirmed change the data make likely).
+    Where the car leaves over the minutes after the second lowering (#151) or covers the first
+    state but for its last window (#171), the second change is dated after the car's windows or
+    the first is read from that window: the score's "every change at its record's first window"
+    does not hold there, which is why this test does not ask it (``check`` does).
+    """
+    bounds = (0.0, float(minutes[0]), float(minutes[1]), 13.0)
+    pieces = [Piece(record, 0.0)]
+    for i, state in enumerate(((0.0, 0.0), *states)):
+        pieces.append(Piece(record, hours, state, air_h, (bounds[i], bounds[i + 1])))
+    sc = build(folder, surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    s = score_stream(sc, res)
+    assert s.within and s.covered and not s.lost_windows and not s.spurious, s
+    assert res.rejected["outlier"] == 0
+    later = sc.starts_ns[1] // W
+    reported = [e for e in res.events if e.window >= later]
+    reported += [c for c in res.changes if c.likely and c.kind != "gap" and c.window >= later]
+    assert len(reported) == 2, (res.events, res.changes)
+
+
+@pytest.mark.realdata
 @pytest.mark.parametrize("rule", [True, False])
 def test_a_short_state_the_data_leave_for_another_keeps_its_level_apart(
     folder: Path, surrogate, rule: bool

@@ -384,12 +384,12 @@ class Shadow:
                 self.ingest_forces(c, *none) if c < 2 else self.ingest_temperature(*none)
         outputs = self._process(self.buffer.flush([g.last_ns for g in self.gates[:2]]))
         outputs.extend(self._release_fresh())
-        outputs.extend(self._apply(self.detector.flush()))
+        outputs.extend(self._close_run(self.detector.flush()))
         if not self.warm and self._warm:
             self._finish_warmup()
             outputs.extend(self._drain())
             outputs.extend(self._release_fresh())  # the windows after a gap it left held
-            outputs.extend(self._apply(self.detector.flush()))
+            outputs.extend(self._close_run(self.detector.flush()))
         outputs.extend(self._drain())
         if self.warm and self.sums.n + len(self._rows) > 0:
             self._refit(reselect=True)
@@ -515,7 +515,7 @@ class Shadow:
         outputs: list[WindowOutput] = []
         if self.warm:
             outputs.extend(self._release_fresh())
-            outputs.extend(self._apply(self.detector.close_run()))
+            outputs.extend(self._close_run(self.detector.close_run()))
             outputs.extend(self._drain())
         else:
             self._split_warm_segment()
@@ -596,7 +596,7 @@ class Shadow:
                 outputs.extend(self._drain())
                 continue
             if j in steps:
-                outputs.extend(self._apply(self.detector.close_run()))
+                outputs.extend(self._close_run(self.detector.close_run()))
                 outputs.extend(self._drain())
                 prior = self.config.change_prior_probability
                 self.filter.open_segment(w.k, self._drift_jump(w.k), kind="warmup", change_prior=prior)
@@ -722,6 +722,24 @@ class Shadow:
             self.settle()
             outputs.extend(self._judge(again))
         return outputs
+
+    def _close_run(self, decision: Decision) -> list[WindowOutput]:
+        """Apply the detector's decision on a run it closed (a gap, the end of the data); return outputs.
+
+        A run that held two states (``ChangeDetector._second_state``) gives the second one's
+        windows back: they are judged against the first once it is applied, and what they leave
+        held is closed again.
+        """
+        self._apply(decision)
+        if not decision.rejudge:
+            return []
+        outputs = self._drain()
+        for again in decision.rejudge:
+            outputs.extend(self._drain())
+            self.settle()
+            outputs.extend(self._judge(again))
+        outputs.extend(self._drain())
+        return outputs + self._close_run(self.detector.close_run())
 
     def _relaxation(self, k: int) -> tuple[float, float, float] | None:
         """Variance (N^2) the reactions may have relaxed by at window ``k`` since the current state began.

@@ -52,10 +52,11 @@ freedom.
      candidate (after ``event_max_pending`` windows, at the end of the data, or at the start of a
      gap, see ``close_run``) is never rejected: it starts a *provisional* segment at its most
      likely change time, whose jump is uncertain (the shadow weighs "changed" against "not
-     changed" by the data, ``segments``), and the shadow reports it. At ``event_max_pending``
-     inside the data the run is ordinary data, the change reported; when its most likely change
-     time has fewer than ``event_confirm_windows`` windows after it, only the windows before it
-     are decided so and the rest stay held (``_forced``).
+     changed" by the data, ``segments``), and the shadow reports it; a run that holds two
+     states, the second a step no vehicle makes, is two such changes (``_second_state``). At
+     ``event_max_pending`` inside the data the run is ordinary data, the change reported; when
+     its most likely change time has fewer than ``event_confirm_windows`` windows after it, only
+     the windows before it are decided so and the rest stay held (``_forced``).
 
 While the noise model rests on few windows, its variance is uncertain: detection uses it inflated
 by ``dof / chi2_dof(0.05)`` (its one-sided 95 % bound; ``dof`` the fit's residual degrees of
@@ -404,6 +405,15 @@ class ChangeDetector:
         c = min(cands, key=lambda c: c.cost)
         if split is None and c.jump > self._jump_bound() >= self._drift_jump(c.j):
             return self._unconfirmed(cands, provisional=False, drift=True)  # a drift: data, reported
+        second = None if split is not None else self._second_state(c)
+        if second is not None:  # two states held: the first a provisional change, the second judged on it
+            b, mixed = second
+            between = [self.pending[b - 1].payload] if mixed else []
+            self.pending, rest = self.pending[: b - mixed], self.pending[b:]
+            decision = self._unconfirmed(self._candidates(), provisional=True)
+            decision.moving += between  # the window the second step happened in: neither state
+            decision.rejudge = [p.payload for p in rest]
+            return decision
         return self._unconfirmed(cands, provisional=True, split=split)
 
     def flush(self) -> Decision:
@@ -411,6 +421,68 @@ class ChangeDetector:
         return self.close_run()
 
     # -- internals ------------------------------------------------------------------------------
+    def _second_state(self, c: _Candidate) -> tuple[int, bool] | None:
+        """Return where a second state begins in the held run, or None when it holds one at most.
+
+        A run decided where it ends (the end of the data, a gap) is one change at its likeliest
+        change time ``c``, the windows before it the old state's. It may hold two: a lowering in
+        a record's first minute and a further one minutes later, the test car parked between.
+        Read as one, the first state's windows were the old state's data, or one level held both;
+        the residuals carried a step, and the adaptive noise model grew by orders of magnitude
+        (seed 0's streams of ``twin.real_records.random_inside_streams``: 6,400 to 87,000 times
+        its first variance on every stream that ended outside 10 % or its interval), after which
+        no change of the day was significant. The run is read instead as the old state up to
+        ``a``, a first state ``[a, b)`` and a second ``[b, n)`` (each at its mean, at least
+        ``SHORT_STATE_WINDOWS`` windows each; window ``b - 1`` may instead hold the second step
+        for part of its length, as a change time's window before it may: ``MIXED_PENALTY``, and
+        is then neither state), at the ``a, b`` under which it is most likely. Returns ``b`` and
+        whether window ``b - 1`` is that mixed one.
+        That reading stands when it fits better than ``c`` by more than an event's GLR
+        (``h_event``: one change more, by the event's test) and its second step moves the
+        reactions' sum by more than any vehicle (``vehicle_max_n``: the test car parked or
+        leaving shifts a level too, by less). The first state is then decided as a run at its
+        end is (windows that stayed away before a change time are a state of their own, as in
+        ``_event``), and the second's windows are judged against it (``Decision.rejudge``).
+        """
+        n, short = len(self.pending), SHORT_STATE_WINDOWS
+        if n < 2 * short:
+            return None
+        # prefix sums of C^-1, C^-1 v and v' C^-1 v: any range's scatter about any level in O(1)
+        inv = np.linalg.inv(np.array([p.r_window + p.apa for p in self.pending]))
+        vs = np.array([p.v for p in self.pending])
+        wv = np.einsum("nij,nj->ni", inv, vs)
+        cum_w = np.concatenate([np.zeros((1, 2, 2)), np.cumsum(inv, axis=0)])
+        cum_wv = np.concatenate([np.zeros((1, 2)), np.cumsum(wv, axis=0)])
+        cum_q = np.concatenate([[0.0], np.cumsum(np.einsum("ni,ni->n", vs, wv))])
+        cum_v = np.concatenate([np.zeros((1, 2)), np.cumsum(vs, axis=0)])
+
+        def scatter(i: int, j: int) -> tuple[float, np.ndarray]:
+            """Scatter of windows ``[i, j)`` about their mean, and the mean."""
+            m = (cum_v[j] - cum_v[i]) / (j - i)
+            q = cum_q[j] - cum_q[i] - 2.0 * m @ (cum_wv[j] - cum_wv[i]) + m @ (cum_w[j] - cum_w[i]) @ m
+            return float(q), m
+
+        best: tuple[float, int, bool, np.ndarray] | None = None
+        for a in range(n - 2 * short + 1):
+            before = float(cum_q[a])  # windows before ``a`` at no change
+            for b in range(a + short, n - short + 1):
+                q2, m2 = scatter(b, n)
+                q1, m1 = scatter(a, b)
+                options = [(before + q1 + q2, False, m2 - m1)]
+                if b - 1 - a >= short:  # or window ``b - 1`` held the second step (``MIXED_PENALTY``)
+                    q1, m1 = scatter(a, b - 1)
+                    p = self.pending[b - 1]
+                    inside = self._d2_inside(Pending(p.k, p.v - m1, p.r_window, p.apa, None), m2 - m1)
+                    options.append((before + q1 + inside + MIXED_PENALTY + q2, True, m2 - m1))
+                for cost, mixed, step in options:
+                    if best is None or cost < best[0]:
+                        best = (cost, b, mixed, step)
+        assert best is not None
+        cost, b, mixed, step = best
+        if cost < c.cost - self.h_event and self._beyond_any_vehicle(step):
+            return b, mixed
+        return None
+
     def _qualifies(self, c: _Candidate) -> bool:
         """Return whether ``c`` passes the one rule of an event's change time (module docstring)."""
         return c.n_after >= self.confirm and self._steps_there(c)
@@ -888,11 +960,18 @@ class ChangeDetector:
         provisional segment, weighed "changed" against "not changed" by the data. Otherwise (after
         ``event_max_pending`` windows inside the data) they are ordinary windows of the current
         segment, as a long excursion that is not a step is data, and the change is reported.
+        With a ramp ``split``, the held windows right before it that were already away from the
+        old state (beyond ``h_outlier``, as ``_away_tail`` reads them) move with it: taken as the
+        old state's data, one such window 44 kN off (the test car leaving a state the run had
+        just reached) pulled that state's level and the noise with it, and the next state ended
+        9 mm off (``benchmarks/loadtest_days.py --only inside --stream-seed 7``, #199).
         """
         c = min(cands, key=lambda c: c.cost)
         common = {"step_n": c.step, "glr": c.glr, "step_cov_n2": self._step_cov(c)}
         if provisional and split is not None:  # a ramp: its windows neither state (``_ramp_split``)
             before, moving, after, common["step_n"] = self._split_run(split)
+            before, away = self._away_tail(before)  # already away when the ramp began: moving too
+            moving = away + moving
             self.pending = []
             self.prev = None
             payloads = ([p.payload for p in x] for x in (before, after, moving))
