@@ -521,9 +521,10 @@ def test_a_run_closed_with_two_states_in_it_is_two_changes() -> None:
 
     The first state's three windows scatter by a load on it (0, +8, +3) and neither state has the
     windows an event needs: read as one change, one level held both. Its second step moved the
-    sum by 80, beyond the heaviest vehicle (30 here): the first state is a change of its own and
-    the second's windows come back to be judged against it. A second step of 12 (24 on the sum)
-    is a vehicle's, and with every load a vehicle's (``vehicle_max_n`` infinite) nothing splits.
+    sum by about 90, beyond the heaviest vehicle (30 here): the first state is a change of its own
+    and the second's windows come back to be judged against it. A second step of 8 (from the
+    loaded state's mean, about 11.7 a channel and 23 on the sum) is a vehicle's, and with every
+    load a vehicle's (``vehicle_max_n`` infinite) nothing splits.
     """
     for second, vehicle_max_n, split in ((-40.0, 30.0, True), (-8.0, 30.0, False), (-40.0, np.inf, False)):
         y = ar1(56, 6)

@@ -733,7 +733,7 @@ class Shadow:
         self._apply(decision)
         if not decision.rejudge:
             return []
-        outputs = self._drain()
+        outputs: list[WindowOutput] = []
         for again in decision.rejudge:
             outputs.extend(self._drain())
             self.settle()

@@ -409,7 +409,7 @@ class ChangeDetector:
         if second is not None:  # two states held: the first a provisional change, the second judged on it
             b, mixed = second
             between = [self.pending[b - 1].payload] if mixed else []
-            self.pending, rest = self.pending[: b - mixed], self.pending[b:]
+            self.pending, rest = self.pending[: b - int(mixed)], self.pending[b:]
             decision = self._unconfirmed(self._candidates(), provisional=True)
             decision.moving += between  # the window the second step happened in: neither state
             decision.rejudge = [p.payload for p in rest]
@@ -435,14 +435,14 @@ class ChangeDetector:
         ``a``, a first state ``[a, b)`` and a second ``[b, n)`` (each at its mean, at least
         ``SHORT_STATE_WINDOWS`` windows each; window ``b - 1`` may instead hold the second step
         for part of its length, as a change time's window before it may: ``MIXED_PENALTY``, and
-        is then neither state), at the ``a, b`` under which it is most likely. Returns ``b`` and
-        whether window ``b - 1`` is that mixed one.
-        That reading stands when it fits better than ``c`` by more than an event's GLR
-        (``h_event``: one change more, by the event's test) and its second step moves the
-        reactions' sum by more than any vehicle (``vehicle_max_n``: the test car parked or
-        leaving shifts a level too, by less). The first state is then decided as a run at its
-        end is (windows that stayed away before a change time are a state of their own, as in
-        ``_event``), and the second's windows are judged against it (``Decision.rejudge``).
+        is then neither state), at the ``a, b`` under which it is most likely. That reading
+        stands when it fits better than ``c`` by more than an event's GLR (``h_event``: one change
+        more, by the event's test) and its second step moves the reactions' sum by more than any
+        vehicle (``vehicle_max_n``: the test car parked or leaving shifts a level too, by less).
+        The first state is then decided as a run at its end is (windows that stayed away before a
+        change time are a state of their own, as in ``_event``), and the second's windows are
+        judged against it (``Decision.rejudge``). Returns ``b`` and whether window ``b - 1`` is
+        the mixed one, or None.
         """
         n, short = len(self.pending), SHORT_STATE_WINDOWS
         if n < 2 * short:
