@@ -716,8 +716,12 @@ class Shadow:
             return []
         decision = self.detector.step(w.k, v, r_window, apa, w)
         self._apply(decision)
+        return self._rejudge(decision.rejudge) if decision.rejudge else []
+
+    def _rejudge(self, windows: list[Window]) -> list[WindowOutput]:
+        """Judge windows the detector gave back (``Decision.rejudge``) after the decided ones are applied."""
         outputs: list[WindowOutput] = []
-        for again in decision.rejudge:
+        for again in windows:
             outputs.extend(self._drain())
             self.settle()
             outputs.extend(self._judge(again))
@@ -733,11 +737,7 @@ class Shadow:
         self._apply(decision)
         if not decision.rejudge:
             return []
-        outputs: list[WindowOutput] = []
-        for again in decision.rejudge:
-            outputs.extend(self._drain())
-            self.settle()
-            outputs.extend(self._judge(again))
+        outputs = self._rejudge(decision.rejudge)
         outputs.extend(self._drain())
         return outputs + self._close_run(self.detector.close_run())
 
