@@ -579,7 +579,7 @@ class Shadow:
         if len(fresh) > MIN_DIFFERENCES:
             y, ks = self._compensated(fresh)
             probability = 1.0 - self.config.event_trigger_probability
-            for start, mixed in step_windows(y, ks, probability):
+            for start, mixed in step_windows(y, ks, probability, self.config.traffic_vehicle_max_n):
                 if mixed is not None:  # each side keeps a window: its neighbours are its states'
                     both.add(mixed)
                     start = mixed + 1
@@ -953,6 +953,7 @@ class Shadow:
             np.array([w.force for w in run]).reshape(-1, 2),
             np.array([w.k for w in run], np.int64),
             1.0 - self.config.event_trigger_probability,
+            self.config.traffic_vehicle_max_n,
         )
         for i in steps:
             k = run[i].k

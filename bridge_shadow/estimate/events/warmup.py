@@ -49,6 +49,7 @@ an unconfirmed change of low probability, never a window.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable
 from functools import lru_cache
 
@@ -194,15 +195,19 @@ def two_step_ratio(n: int, probability: float) -> float:
     return _ratio_for(false_two_step_probability, n, probability, 2.0)
 
 
-def warmup_steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[int]:
+def warmup_steps(
+    y: np.ndarray, k: np.ndarray, probability: float, vehicle_max_n: float = math.inf
+) -> list[int]:
     """Return the indices of the first windows after every step in window means ``y`` (n, 2) N.
 
     ``step_windows`` without the windows the steps happened in.
     """
-    return [start for start, _ in step_windows(y, k, probability)]
+    return [start for start, _ in step_windows(y, k, probability, vehicle_max_n)]
 
 
-def step_windows(y: np.ndarray, k: np.ndarray, probability: float) -> list[tuple[int, int | None]]:
+def step_windows(
+    y: np.ndarray, k: np.ndarray, probability: float, vehicle_max_n: float = math.inf
+) -> list[tuple[int, int | None]]:
     """Return ``(first window of the new state, window the step happened in or None)`` per step.
 
     A settlement may come in stages (a support lowered twice within minutes: a record the traffic
@@ -211,21 +216,27 @@ def step_windows(y: np.ndarray, k: np.ndarray, probability: float) -> list[tuple
     ``f`` times the second): they are two steps when the smaller of their ``J`` beats
     ``two_step_ratio`` times every other difference's (derived as ``step_ratio``: the same
     false-step probability for noise alone; a step inside a window is two neighbouring differences
-    of one sign, counted as one jump as in ``warmup_step``), with at least one window between
-    them, and their sum beats it too (a vehicle that stayed a few windows and left makes two large
-    jumps that cancel: an excursion, not two steps). A false split costs an unconfirmed change the
-    data merge back (see the module docstring). The window a step happened in (two neighbouring
-    differences of one sign) holds both states: returned with the step (``_mixed_start`` gives
-    which side it is nearer, the first window of the new state or the last of the old) when both
-    its neighbours are next to it; with windows missing around it (cut by the traffic screen) it
-    may be a short state of its own, and None is returned for it.
+    of one sign, counted as one jump as in ``warmup_step``), with at least one window between them,
+    and their sum beats it too (a vehicle that stayed a few windows and left makes two large jumps
+    that cancel: an excursion, not two steps), unless the first moves the reactions' sum by more
+    than any vehicle (``vehicle_max_n``, N, the traffic screen's ``traffic_vehicle_max_n``, either
+    way): a support lowered and raised again minutes later, the state between held for minutes, is
+    two steps however near the second brings the reactions back (the rule's bound does not rest on
+    the sum: it only makes the rule stricter). A false split costs an unconfirmed change the data
+    merge back (see the module docstring). The window a step happened in (two neighbouring
+    differences of one sign) holds both states: returned with the step (``_mixed_start`` gives which
+    side it is nearer, the first window of the new state or the last of the old) when both its
+    neighbours are next to it; with windows missing around it (cut by the traffic screen) it may be
+    a short state of its own, and None is returned for it.
     """
     k = np.asarray(k, np.int64).reshape(-1)
-    found = _steps(y, k, probability)
+    found = _steps(y, k, probability, vehicle_max_n)
     return [(s, m if m is not None and k[m + 1] - k[m - 1] == 2 else None) for s, m in found]
 
 
-def _steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[tuple[int, int | None]]:
+def _steps(
+    y: np.ndarray, k: np.ndarray, probability: float, vehicle_max_n: float
+) -> list[tuple[int, int | None]]:
     """``step_windows`` before the check of the mixed windows' neighbours."""
     one = _one_step(y, k, probability)
     if one is not None:
@@ -262,7 +273,9 @@ def _steps(y: np.ndarray, k: np.ndarray, probability: float) -> list[tuple[int, 
         rest = np.delete(single, both)
         if not len(rest):
             continue
-        ratio = min(p[2], q[2], score(both)) / max(float(np.max(rest)), 1e-300)
+        vehicle = abs(float(raw[p[0] : p[1] + 1].sum())) <= vehicle_max_n  # an excursion a vehicle makes
+        jump = min(p[2], q[2], score(both)) if vehicle else min(p[2], q[2])
+        ratio = jump / max(float(np.max(rest)), 1e-300)
         if ratio > f and ratio > best:
             best, found = ratio, [(p[3], p[4]), (q[3], q[4])]
     return found
