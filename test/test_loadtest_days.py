@@ -1348,6 +1348,36 @@ def test_a_lowering_raised_again_in_the_first_record_after_a_gap_is_two_states(
 
 
 @pytest.mark.realdata
+def test_two_minutes_of_a_state_between_two_steps_are_neither_states_data(folder: Path, surrogate) -> None:
+    """The reference record 33.7 h on, lowered 7.5 mm at minute 9 and raised 18.8 mm at minute 11.
+
+    ``benchmarks/loadtest_days.py --only inside``, #7 of seed 0 (states rounded to 0.1 mm, the
+    record's start kept to the second). The lowered state shows one clean window between the two
+    windows the steps happened in: too short for a state (``SHORT_STATE_WINDOWS``), and the
+    detector read it, once the data moved on to the raised level, as a run that stayed away
+    without qualifying: the old state's data. Its 25 kN pulled that level down and the noise
+    model up, and the stream ended 8.7 mm below its last state, outside its interval. It moved
+    the reactions' sum beyond any vehicle (``traffic_vehicle_max_n``): since 2026-11-30 its windows
+    hold neither state (``ChangeDetector._moved_on``), left out and reported as ``step_window``
+    as a ramp's are, and the record ends within 0.5 mm of its last state (measured 0.08 mm),
+    covered, the change to it reported with its size.
+    """
+    pieces = [Piece("ref", 0.0)]
+    for x, cut in ((0.0, (0.0, 9.0)), (-0.0075, (9.0, 11.0)), (0.0113, (11.0, 13.0))):
+        pieces.append(Piece("ref", 33.6838, (x, x), 6.9304, cut))
+    sc = build(folder, surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    s = score_stream(sc, res)
+    assert s.within and s.covered and not s.lost_windows and res.rejected["outlier"] == 0, s
+    assert np.all(np.abs(s.error_m) <= 0.5e-3), s
+    later = sc.starts_ns[1] // W
+    left_out = [o.end_ns // W - 1 - later for o in res.outputs if o.reason == "step_window"]
+    assert left_out[:2] == [9, 10], left_out  # integers: the record's minutes 9 and 10
+    sizes = [np.asarray(c.size_m) for c in res.changes if c.likely and c.window >= later]
+    assert len(sizes) == 1 and np.all(np.abs(sizes[0] - 0.0113) <= 1e-3), res.changes
+
+
+@pytest.mark.realdata
 def test_a_raise_heavier_than_any_vehicle_that_came_back_is_reported(
     folder: Path, surrogate, tmp_path
 ) -> None:

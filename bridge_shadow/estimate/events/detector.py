@@ -838,17 +838,32 @@ class ChangeDetector:
         its own (a 17.6 mm lowering of three car-free minutes inside a record, then a raise:
         the record's final state read 4 mm off). The latest window is then judged against the
         new state, once the decided windows are applied (``Decision.rejudge``).
+
+        Any other run that moved the sum beyond any vehicle holds neither level: no state of its
+        own (fewer than ``SHORT_STATE_WINDOWS`` from its change time, one window between two
+        levels as the window a step happened in looks, or a change time that fails an event's
+        tests: the windows of a step, or of two, not a level), and no vehicle's load. The supports
+        moved through it (lowered and raised again minutes apart). Its windows are left out
+        (``Decision.moving``), as a ramp's are: taken as the old state's data, one such window
+        25 kN off pulled that level and the noise model, and the record's last state ended
+        8.7 mm off (``benchmarks/loadtest_days.py --only inside``, #7 of seed 0). At most
+        ``event_max_pending`` windows are held, and each left out is reported (``step_window``).
         """
         *before, last = self.pending
         if len(before) < 2:
             return self._transient()
         self.pending = before
         cands = self._candidates()
-        if self._short_state(min(cands, key=lambda c: c.cost)):
+        c = min(cands, key=lambda c: c.cost)
+        if self._short_state(c):
             decision = self._unconfirmed(cands, provisional=True)
             decision.rejudge = [last.payload]
             return decision
-        decision = self._unconfirmed(cands, provisional=False)
+        if self._beyond_any_vehicle(c.step):  # no state of its own, no vehicle's: neither level
+            decision = Decision(moving=[p.payload for p in self.pending])
+            self.pending = []
+        else:
+            decision = self._unconfirmed(cands, provisional=False)
         again = self.step(
             last.k, tuple(last.v), _sym(last.r_window / self.inflation), _sym(last.apa), last.payload
         )
