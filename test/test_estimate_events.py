@@ -442,7 +442,7 @@ def test_one_window_no_vehicle_makes_between_two_levels_holds_neither() -> None:
     heaviest vehicle on the sum (80, the limit 30 here): the supports moved through these windows
     (lowered and raised again minutes apart), so they are left out, as a ramp's are. Taken as
     the old state's data they pulled its level and the noise model with it: the real reference
-    record 33.7 h on, lowered 7.5 mm at minute 9 and raised 18.8 mm at minute 11, ended 8.6 mm
+    record 33.7 h on, lowered 7.5 mm at minute 9 and raised 18.8 mm at minute 11, ended 8.7 mm
     below its last state (``benchmarks/loadtest_days.py --only inside``, #7 of seed 0; 0.1 mm
     since). Within a vehicle's load, or with every load a vehicle's, they are data, reported.
     """

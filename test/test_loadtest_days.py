@@ -1387,7 +1387,9 @@ def test_a_raise_heavier_than_any_vehicle_that_came_back_is_reported(
     2 mm of the first (``benchmarks/loadtest_days.py --only inside``, #93). Since 2026-11-30 the
     search of the windows held after the gap reads the two as steps (the raise moved the
     reactions' sum by 74 kN, more than any vehicle, ``traffic_vehicle_max_n``; ``step_windows``):
-    each an event, no window rejected, the record within 0.6 mm of its last state. Before, the
+    each an event, no window rejected, the record within 0.6 mm of its last state (the test car
+    parked on each new state is reported too: two unconfirmed changes of 1.2 and 1.5 mm, the
+    runs held when the search's segments opened). Before, the
     search read them as an excursion (two jumps that cancel) and the detector as a run that came
     back, its windows rejected, and the last level held (0.8 mm off). A run that comes back
     heavier than any vehicle is reported with its size and a WARN (``kind: excursion``, since
