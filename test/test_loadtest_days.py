@@ -1378,6 +1378,45 @@ def test_two_minutes_of_a_state_between_two_steps_are_neither_states_data(folder
 
 
 @pytest.mark.realdata
+@pytest.mark.parametrize(
+    ("record", "hours", "air_h", "minutes", "states"),
+    [
+        ("lowered", 15.6882, 0.0538, (8, 11), ((0.0118, 0.0087), (0.0060, 0.0030))),
+        ("ref", 7.7745, 1.9503, (1, 11), ((-0.0161, -0.0161), (-0.0217, -0.0221))),
+    ],
+)
+def test_a_second_state_in_the_records_last_two_minutes_is_a_change_of_its_own(
+    folder: Path, surrogate, record: str, hours: float, air_h: float, minutes: tuple[int, int], states
+) -> None:
+    """A record hours on, its second settlement inside minute 11 of 13: one clean window after it.
+
+    ``benchmarks/loadtest_days.py --only inside``, seed 0: #34 (the 10 mm record, raised 11.8 /
+    8.7 mm at minute 8, lowered 5.8 mm at minute 11) and #224 (the reference record, lowered
+    16.1 mm at minute 1 and 5.6 / 6.0 mm more at minute 11), their states rounded to 0.1 mm, the
+    records' starts kept to the second. Each step fell inside a window. The two-state reading of
+    the run held to the end of the data (``ChangeDetector._second_state``) asked the first state
+    to start clean and the second to hold two windows: one change, one level over both states,
+    and the streams ended 4.9 and 4.4 mm off (#34 outside its interval). Either step's window
+    may now be neither state, as a change time's may, and the last state is its one window with
+    the window its step happened in: each stream ends within 1 mm (measured 0.6 and 0.1 mm),
+    covered, nothing lost, both changes reported.
+    """
+    bounds = (0.0, float(minutes[0]), float(minutes[1]), 13.0)
+    pieces = [Piece(record, 0.0)]
+    for i, state in enumerate(((0.0, 0.0), *states)):
+        pieces.append(Piece(record, hours, state, air_h, (bounds[i], bounds[i + 1])))
+    sc = build(folder, surrogate.A, pieces)
+    _, res = replay(sc, surrogate)
+    s = score_stream(sc, res)
+    assert s.within and s.covered and not s.lost_windows and res.rejected["outlier"] == 0, s
+    assert np.all(np.abs(s.error_m) <= 1e-3), s
+    later = sc.starts_ns[1] // W
+    reported = [e for e in res.events if e.window >= later]
+    reported += [c for c in res.changes if c.likely and c.kind != "gap" and c.window >= later]
+    assert len(reported) == 2, (res.events, res.changes)
+
+
+@pytest.mark.realdata
 def test_a_raise_heavier_than_any_vehicle_that_came_back_is_reported(
     folder: Path, surrogate, tmp_path
 ) -> None:
