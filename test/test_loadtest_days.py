@@ -1348,33 +1348,55 @@ def test_a_lowering_raised_again_in_the_first_record_after_a_gap_is_two_states(
 
 
 @pytest.mark.realdata
-def test_two_minutes_of_a_state_between_two_steps_are_neither_states_data(folder: Path, surrogate) -> None:
-    """The reference record 33.7 h on, lowered 7.5 mm at minute 9 and raised 18.8 mm at minute 11.
+@pytest.mark.parametrize(
+    ("record", "hours", "air_h", "minutes", "states", "left_out"),
+    [
+        ("ref", 33.6838, 6.9304, (9, 11), ((-0.0075, -0.0075), (0.0113, 0.0113)), [9, 10]),
+        ("lowered", 3.9718, 6.9400, (7, 9), ((-0.0062, -0.0046), (0.0085, 0.0072)), [7, 8, 9]),
+    ],
+)
+def test_two_minutes_of_a_state_between_two_steps_are_neither_states_data(
+    folder: Path,
+    surrogate,
+    record: str,
+    hours: float,
+    air_h: float,
+    minutes: tuple[int, int],
+    states,
+    left_out: list[int],
+) -> None:
+    """A record hours on, lowered and raised again two minutes later: the state between is no state.
 
-    ``benchmarks/loadtest_days.py --only inside``, #7 of seed 0 (states rounded to 0.1 mm, the
-    record's start kept to the second). The lowered state shows one clean window between the two
-    windows the steps happened in: too short for a state (``SHORT_STATE_WINDOWS``), and the
-    detector read it, once the data moved on to the raised level, as a run that stayed away
-    without qualifying: the old state's data. Its 25 kN pulled that level down and the noise
-    model up, and the stream ended 8.7 mm below its last state, outside its interval. It moved
-    the reactions' sum beyond any vehicle (``traffic_vehicle_max_n``): since 2026-11-30 its windows
-    hold neither state (``ChangeDetector._moved_on``), left out and reported as ``step_window``
-    as a ramp's are, and the record ends within 0.5 mm of its last state (measured 0.08 mm),
-    covered, the change to it reported with its size.
+    ``benchmarks/loadtest_days.py --only inside``, seed 0 (states rounded to 0.1 mm, the records'
+    starts kept to the second): #7, the reference record 33.7 h on, lowered 7.5 mm at minute 9
+    and raised 18.8 mm at minute 11; #102, the 10 mm record 4.0 h on, lowered 6.2 / 4.6 mm at
+    minute 7 and raised 14.7 / 11.8 mm at minute 9. The lowered state shows one clean window
+    between the two windows the steps happened in: too short for a state
+    (``SHORT_STATE_WINDOWS``), and the detector read the run, once the data moved on to the raised
+    level, as one that stayed away without qualifying: the old state's data. Its 25 to 44 kN on
+    the sum pulled that level and the noise model, and the streams ended 8.7 and 4.3 mm from
+    their last states (#7 outside its interval). A window of the run moved the reactions' sum
+    beyond any vehicle (``traffic_vehicle_max_n``): since 2026-11-30 the run holds neither state
+    (``ChangeDetector._moved_on``), its windows left out and reported as ``step_window`` as a
+    ramp's are, and each stream ends within 0.5 mm of its last state (measured 0.08 and 0.49 mm),
+    covered, the change to it reported.
     """
-    pieces = [Piece("ref", 0.0)]
-    for x, cut in ((0.0, (0.0, 9.0)), (-0.0075, (9.0, 11.0)), (0.0113, (11.0, 13.0))):
-        pieces.append(Piece("ref", 33.6838, (x, x), 6.9304, cut))
+    bounds = (0.0, float(minutes[0]), float(minutes[1]), 13.0)
+    pieces = [Piece(record, 0.0)]
+    for i, state in enumerate(((0.0, 0.0), *states)):
+        pieces.append(Piece(record, hours, state, air_h, (bounds[i], bounds[i + 1])))
     sc = build(folder, surrogate.A, pieces)
     _, res = replay(sc, surrogate)
     s = score_stream(sc, res)
     assert s.within and s.covered and not s.lost_windows and res.rejected["outlier"] == 0, s
     assert np.all(np.abs(s.error_m) <= 0.5e-3), s
     later = sc.starts_ns[1] // W
-    left_out = [o.end_ns // W - 1 - later for o in res.outputs if o.reason == "step_window"]
-    assert left_out[:2] == [9, 10], left_out  # integers: the record's minutes 9 and 10
-    sizes = [np.asarray(c.size_m) for c in res.changes if c.likely and c.window >= later]
-    assert len(sizes) == 1 and np.all(np.abs(sizes[0] - 0.0113) <= 1e-3), res.changes
+    left = [o.end_ns // W - 1 - later for o in res.outputs if o.reason == "step_window"]
+    assert left[: len(left_out)] == left_out, left  # integers: the record's minutes
+    last = later + minutes[1]
+    reported = [e for e in res.events if e.window >= last]
+    reported += [c for c in res.changes if c.likely and c.window >= last]
+    assert len(reported) == 1, (res.events, res.changes)
 
 
 @pytest.mark.realdata
