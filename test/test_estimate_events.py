@@ -556,6 +556,16 @@ def test_the_run_statistics_on_arrays_and_floats_are_the_per_window_formulas() -
         assert np.isnan(flat[0]) and np.isfinite(flat[2])
 
 
+def _held_to_the_end(y: np.ndarray, vehicle_max_n: float) -> ChangeDetector:
+    """Feed windows ``y`` to a detector that decides none of them (asserted); return it, the run held."""
+    det = ChangeDetector(vehicle_max_n=vehicle_max_n)
+    det.set_noise(np.array([PHI, PHI]), 1e6)
+    for k, v in enumerate(y):
+        d = det.step(k, (float(v[0]), float(v[1])), R, APA, k)
+        assert not d.event and not d.change and not d.reject, k
+    return det
+
+
 def test_a_run_closed_with_two_states_in_it_is_two_changes() -> None:
     """A run at the end of the data: 30 down under a passing load, then 40 further (``_second_state``).
 
@@ -570,11 +580,7 @@ def test_a_run_closed_with_two_states_in_it_is_two_changes() -> None:
         y = ar1(56, 6)
         y[50:53] += -30.0 + np.array([0.0, 8.0, 3.0])[:, None]
         y[53:] += -30.0 + second
-        det = ChangeDetector(vehicle_max_n=vehicle_max_n)
-        det.set_noise(np.array([PHI, PHI]), 1e6)
-        for k, v in enumerate(y):
-            d = det.step(k, (float(v[0]), float(v[1])), R, APA, k)
-            assert not d.event and not d.change and not d.reject, (second, k)
+        det = _held_to_the_end(y, vehicle_max_n)
         assert [p.k for p in det.pending] == list(range(50, 56)), second
         d = det.close_run()
         if split:
@@ -601,11 +607,7 @@ def test_two_steps_inside_windows_the_second_in_the_last_minutes_are_two_changes
         y[51:53] += -30.0
         y[53] += -30.0 + 0.5 * second  # the second inside window 53
         y[54] += -30.0 + second
-        det = ChangeDetector(vehicle_max_n=30.0)
-        det.set_noise(np.array([PHI, PHI]), 1e6)
-        for k, v in enumerate(y):
-            d = det.step(k, (float(v[0]), float(v[1])), R, APA, k)
-            assert not d.event and not d.change and not d.reject, (second, k)
+        det = _held_to_the_end(y, 30.0)
         assert [p.k for p in det.pending] == list(range(50, 55)), second
         d = det.close_run()
         if split:  # integers: window indices

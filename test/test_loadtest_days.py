@@ -46,6 +46,27 @@ def replay(sc: Scenario, surrogate) -> tuple[Shadow, ReplayResult]:
     return shadow, shadow.run(sc.data)
 
 
+def _settled_twice_inside(
+    folder: Path, surrogate, record: str, hours: float, air_h: float, minutes: tuple[int, int], states
+) -> Scenario:
+    """``record`` whole, then again ``hours`` on under the air of hour ``air_h``, settled twice inside.
+
+    Its 13 minutes at the old state until ``minutes[0]``, at ``states[0]`` until ``minutes[1]``,
+    then at ``states[1]`` (``Piece``'s step on top of the record's own, m).
+    """
+    bounds = (0.0, float(minutes[0]), float(minutes[1]), 13.0)
+    pieces = [Piece(record, 0.0)]
+    for i, state in enumerate(((0.0, 0.0), *states)):
+        pieces.append(Piece(record, hours, state, air_h, (bounds[i], bounds[i + 1])))
+    return build(folder, surrogate.A, pieces)
+
+
+def _reported_from(res: ReplayResult, window: int) -> list:
+    """The events and the likely changes but a gap's from ``window`` on: the changes reported."""
+    reported: list = [e for e in res.events if e.window >= window]
+    return reported + [c for c in res.changes if c.likely and c.kind != "gap" and c.window >= window]
+
+
 def check(sc: Scenario, res: ReplayResult) -> dict[str, bool]:
     """The issue's criteria on one stream (``score_stream``: against the scenario's truth only).
 
@@ -1252,18 +1273,12 @@ def test_two_settlements_held_to_the_end_of_the_data_are_two_states(
     the first is read from that window: the score's "every change at its record's first window"
     does not hold there, which is why this test does not ask it (``check`` does).
     """
-    bounds = (0.0, float(minutes[0]), float(minutes[1]), 13.0)
-    pieces = [Piece(record, 0.0)]
-    for i, state in enumerate(((0.0, 0.0), *states)):
-        pieces.append(Piece(record, hours, state, air_h, (bounds[i], bounds[i + 1])))
-    sc = build(folder, surrogate.A, pieces)
+    sc = _settled_twice_inside(folder, surrogate, record, hours, air_h, minutes, states)
     _, res = replay(sc, surrogate)
     s = score_stream(sc, res)
     assert s.within and s.covered and not s.lost_windows and not s.spurious, s
     assert res.rejected["outlier"] == 0
-    later = sc.starts_ns[1] // W
-    reported = [e for e in res.events if e.window >= later]
-    reported += [c for c in res.changes if c.likely and c.kind != "gap" and c.window >= later]
+    reported = _reported_from(res, sc.starts_ns[1] // W)
     assert len(reported) == 2, (res.events, res.changes)
 
 
@@ -1339,9 +1354,7 @@ def test_a_lowering_raised_again_in_the_first_record_after_a_gap_is_two_states(
     assert s.within and s.covered and not s.lost_windows, s
     assert np.all(np.abs(s.error_m) <= 0.5e-3), s
     assert res.rejected["outlier"] == 0
-    later = sc.starts_ns[1] // W
-    reported = [e for e in res.events if e.window >= later]
-    reported += [c for c in res.changes if c.likely and c.kind != "gap" and c.window >= later]
+    reported = _reported_from(res, sc.starts_ns[1] // W)
     sizes = sorted(float(np.mean(c.size_m)) for c in reported)
     assert len(sizes) == 2, (res.events, res.changes)  # measured -11.7 and +14.2 mm
     assert abs(sizes[0] + 0.0132) <= 0.0025 and abs(sizes[1] - 0.0156) <= 0.0025, sizes
@@ -1381,11 +1394,7 @@ def test_two_minutes_of_a_state_between_two_steps_are_neither_states_data(
     ramp's are, and each stream ends within 0.5 mm of its last state (measured 0.08 and 0.49 mm),
     covered, the change to it reported.
     """
-    bounds = (0.0, float(minutes[0]), float(minutes[1]), 13.0)
-    pieces = [Piece(record, 0.0)]
-    for i, state in enumerate(((0.0, 0.0), *states)):
-        pieces.append(Piece(record, hours, state, air_h, (bounds[i], bounds[i + 1])))
-    sc = build(folder, surrogate.A, pieces)
+    sc = _settled_twice_inside(folder, surrogate, record, hours, air_h, minutes, states)
     _, res = replay(sc, surrogate)
     s = score_stream(sc, res)
     assert s.within and s.covered and not s.lost_windows and res.rejected["outlier"] == 0, s
@@ -1393,9 +1402,7 @@ def test_two_minutes_of_a_state_between_two_steps_are_neither_states_data(
     later = sc.starts_ns[1] // W
     left = [o.end_ns // W - 1 - later for o in res.outputs if o.reason == "step_window"]
     assert left[: len(left_out)] == left_out, left  # integers: the record's minutes
-    last = later + minutes[1]
-    reported = [e for e in res.events if e.window >= last]
-    reported += [c for c in res.changes if c.likely and c.window >= last]
+    reported = _reported_from(res, later + minutes[1])
     assert len(reported) == 1, (res.events, res.changes)
 
 
@@ -1423,18 +1430,12 @@ def test_a_second_state_in_the_records_last_two_minutes_is_a_change_of_its_own(
     the window its step happened in: each stream ends within 1 mm (measured 0.6 and 0.1 mm),
     covered, nothing lost, both changes reported.
     """
-    bounds = (0.0, float(minutes[0]), float(minutes[1]), 13.0)
-    pieces = [Piece(record, 0.0)]
-    for i, state in enumerate(((0.0, 0.0), *states)):
-        pieces.append(Piece(record, hours, state, air_h, (bounds[i], bounds[i + 1])))
-    sc = build(folder, surrogate.A, pieces)
+    sc = _settled_twice_inside(folder, surrogate, record, hours, air_h, minutes, states)
     _, res = replay(sc, surrogate)
     s = score_stream(sc, res)
     assert s.within and s.covered and not s.lost_windows and res.rejected["outlier"] == 0, s
     assert np.all(np.abs(s.error_m) <= 1e-3), s
-    later = sc.starts_ns[1] // W
-    reported = [e for e in res.events if e.window >= later]
-    reported += [c for c in res.changes if c.likely and c.kind != "gap" and c.window >= later]
+    reported = _reported_from(res, sc.starts_ns[1] // W)
     assert len(reported) == 2, (res.events, res.changes)
 
 
