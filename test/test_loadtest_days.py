@@ -1392,10 +1392,14 @@ def test_two_minutes_of_a_state_between_two_steps_are_neither_states_data(
     beyond any vehicle (``traffic_vehicle_max_n``): since 2026-11-30 the run holds neither state
     (``ChangeDetector._moved_on``), its windows left out and reported as ``step_window`` as a
     ramp's are, and each stream ends within 0.5 mm of its last state (measured 0.08 and 0.49 mm),
-    covered, the change to it reported.
+    covered, the change to it reported. The state between is reported as a possible short change
+    (``kind: between_steps``, with a WARN), its level read from its windows beyond any vehicle:
+    -7.47 / -7.49 mm for #7's -7.5, -5.86 / -4.33 mm for #102's -6.2 / -4.6.
     """
+    from bridge_shadow.ros.diagnostics import statuses
+
     sc = _settled_twice_inside(folder, surrogate, record, hours, air_h, minutes, states)
-    _, res = replay(sc, surrogate)
+    shadow, res = replay(sc, surrogate)
     s = score_stream(sc, res)
     assert s.within and s.covered and not s.lost_windows and res.rejected["outlier"] == 0, s
     assert np.all(np.abs(s.error_m) <= 0.5e-3), s
@@ -1404,6 +1408,15 @@ def test_two_minutes_of_a_state_between_two_steps_are_neither_states_data(
     assert left[: len(left_out)] == left_out, left  # integers: the record's minutes
     reported = _reported_from(res, later + minutes[1])
     assert len(reported) == 1, (res.events, res.changes)
+    # the state between, left out, is reported as a possible short change with its level
+    (between,) = [c for c in res.changes if c.kind == "between_steps"]
+    assert between.likely and later + minutes[0] <= between.window < later + minutes[1], between
+    assert np.all(np.abs(np.asarray(between.size_m) - states[0]) <= 1e-3), between  # -7.47, -5.86 mm
+    assert sum("a state held between two steps" in w for w in res.warnings) == 1, res.warnings
+    (js,) = [c for c in res.to_json()["unconfirmed_changes"] if c["kind"] == "between_steps"]
+    assert js["windows"] == between.windows and "until" in js, js
+    events = statuses(shadow.diagnostics(), {"frc_01": 0.1, "frc_02": 0.1, "air_temperature": 0.1})[3]
+    assert events.level == 1 and any("between_steps" in v and "left out" in v for v in events.values.values())
 
 
 @pytest.mark.realdata

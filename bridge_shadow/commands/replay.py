@@ -168,6 +168,11 @@ def _summary(js: dict[str, Any]) -> str:
                 f"a run of {c['windows']} windows until {c['until']} that came back, heavier than any "
                 "vehicle: rejected as an excursion"
             )
+        elif c["kind"] == "between_steps":
+            how = (
+                f"a state of {c['windows']} windows until {c['until']} between two steps, heavier than "
+                "any vehicle: left out"
+            )
         elif c["kind"] == "step":
             how = "a step the detector found, its size not told from zero on the data: no event"
         else:

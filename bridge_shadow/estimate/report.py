@@ -171,8 +171,9 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         # a run that jumped over a hole only as far as its own rate carried it is a drift, no change
         significant = bool(r["glr"] > shadow.detector.h_event and not r.get("drift", False))
         out.append(_run_record(shadow, r, "run_in_data", significant))
-    # runs no vehicle makes that came back: rejected as an excursion, reported
-    out.extend(_run_record(shadow, r, "excursion", True) for r in shadow.excursions)
+    # runs no vehicle makes that came back (rejected as an excursion) or states held between two
+    # steps (left out): reported (a checkpoint written before the kind was kept holds excursions)
+    out.extend(_run_record(shadow, r, r.get("kind", "excursion"), True) for r in shadow.excursions)
     return sorted(out, key=lambda c: c.window)
 
 
@@ -346,6 +347,7 @@ def warnings(shadow: Shadow) -> list[str]:
             "warmup": "a step among the first windows (the warm-up, or those after a gap)",
             "run_in_data": "a run that stayed away without a step's jump",
             "excursion": "a run that came back, heavier than any vehicle on the supports' sum",
+            "between_steps": "a state held between two steps, heavier than any vehicle on the supports' sum",
         }[c.kind]
         size = ", ".join(
             f"{side} {1e3 * m:+.2f} ± {1.96e3 * sd:.2f} mm"
@@ -357,6 +359,9 @@ def warnings(shadow: Shadow) -> list[str]:
         elif c.kind == "excursion":
             until = iso_utc(c.until_ns or c.time_ns)
             how = f"{c.windows} windows until {until}, rejected as an excursion: not in the estimate"
+        elif c.kind == "between_steps":
+            until = iso_utc(c.until_ns or c.time_ns)
+            how = f"{c.windows} windows until {until}, left out as a moving support's: not in the estimate"
         else:
             since = "since" if c.next_ns is None else f"before the next state from {iso_utc(c.next_ns)}"
             windows = f"{c.windows} window{'s' if c.windows != 1 else ''}"

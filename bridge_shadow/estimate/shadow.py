@@ -802,6 +802,7 @@ class Shadow:
                     "windows": len(decision.excursion),
                     "step_n": np.asarray(decision.excursion_n, float).tolist(),
                     "step_cov_n2": np.asarray(decision.excursion_cov_n2, float).tolist(),
+                    "kind": "between_steps" if decision.between_steps else "excursion",
                 }
             )
         for w in decision.accept:

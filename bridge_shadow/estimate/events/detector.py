@@ -208,7 +208,10 @@ class Decision:
         excursion: the payloads of ``reject`` when they are a run that came back after moving the
             reactions' sum by more than any vehicle (``ChangeDetector._transient``): rejected as
             an excursion, and reported as a possible short change; ``excursion_n``: (2,) N, its
-            mean innovation, ``excursion_cov_n2``: (2, 2) N^2, that mean's covariance.
+            mean innovation, ``excursion_cov_n2``: (2, 2) N^2, that mean's covariance. With
+            ``between_steps``: the windows beyond any vehicle of a ``moving`` run the data left
+            for another level (``ChangeDetector._moved_on``), a state held between two steps.
+        between_steps: ``excursion`` is such a state between two steps, not a run that came back.
 
     """
 
@@ -227,6 +230,7 @@ class Decision:
     excursion: list[Any] = field(default_factory=list)
     excursion_n: np.ndarray | None = None
     excursion_cov_n2: np.ndarray | None = None
+    between_steps: bool = False
 
 
 @dataclass
@@ -855,7 +859,9 @@ class ChangeDetector:
         last state ended 8.7 mm off (``benchmarks/loadtest_days.py --only inside``, #7 of seed 0;
         #102: the run's mean within a vehicle's load, its one window between two steps 44 kN off
         on the sum, 4.3 mm). At most ``event_max_pending`` windows are held, and each left out is
-        reported (``step_window``).
+        reported (``step_window``). The state itself is reported as a possible short change
+        (``Decision.between_steps``), its level the mean of the windows beyond any vehicle (the
+        others may hold a step for part of their length).
         """
         *before, last = self.pending
         if len(before) < 2:
@@ -867,8 +873,15 @@ class ChangeDetector:
             decision = self._unconfirmed(cands, provisional=True)
             decision.rejudge = [last.payload]
             return decision
-        if any(self._beyond_any_vehicle(p.v) for p in self.pending):  # neither level (docstring)
-            decision = Decision(moving=[p.payload for p in self.pending])
+        far = [p for p in self.pending if self._beyond_any_vehicle(p.v)]
+        if far:  # neither level (see above); the state's level from the windows beyond any vehicle
+            decision = Decision(
+                moving=[p.payload for p in self.pending],
+                excursion=[p.payload for p in far],
+                excursion_n=np.mean([p.v for p in far], axis=0),
+                excursion_cov_n2=self._mean_cov(far),
+                between_steps=True,
+            )
             self.pending = []
         else:
             decision = self._unconfirmed(cands, provisional=False)
