@@ -928,11 +928,11 @@ class Shadow:
                 for w in tail:
                     w.seg = -1  # judged later, in the segment current then
                 self._fresh, self._fresh_open = tail, True
-        both = self._split_warm_segment()
+        self._split_warm_segment()
         warm, self._warm = self._warm, []
         self.warm = True
         for w in warm:
-            if id(w) in both:
+            if w.action == "invalid":  # a window a step happened in (``_split_warm_segment``)
                 continue
             y = w.force - self.u0
             self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, max(w.seg, 0), _sun_var(w) ** 0.5))
@@ -940,12 +940,10 @@ class Shadow:
         self._refit(reselect=True, online=False)
         self._refit(reselect=True, online=False)  # the slope prior, weighed with the noise just learned
         for w in warm:
-            if id(w) in both:
-                self._leave_out(w)
-            else:
+            if w.action is None:
                 w.action = "warm"
 
-    def _split_warm_segment(self) -> set[int]:
+    def _split_warm_segment(self) -> None:
         """Open a provisional segment where a step shows among the current segment's warm-up windows.
 
         ``events.warmup``: the windows are held before any noise model exists, and would be
@@ -954,8 +952,8 @@ class Shadow:
         in holds both states and is left out, as after a gap (``_release_fresh``): fitted as the
         new state's first window, its part of the old level went into the noise model (the 10 mm
         record whole, then again 20 minutes on, raised 9.5 mm at its minute 1 and lowered at 5:
-        the lowering went unseen and the stream ended 7.8 mm off). Returns the ``id`` of each
-        window left out.
+        the lowering went unseen and the stream ended 7.8 mm off). Also where a gap inside the
+        warm-up closes the segment (``_open_gap``).
         """
         seg = self.filter.segment
         run = [w for w in self._warm if w.seg == seg]
@@ -965,10 +963,9 @@ class Shadow:
             1.0 - self.config.event_trigger_probability,
             self.config.traffic_vehicle_max_n,
         )
-        both: set[int] = set()
         for i, mixed in found:
             if mixed is not None:  # each side keeps a window: its neighbours are its states'
-                both.add(id(run[mixed]))
+                self._leave_out(run[mixed])
                 i = mixed + 1
             k = run[i].k
             self.filter.open_segment(
@@ -976,7 +973,6 @@ class Shadow:
             )
             for w in run[i:]:
                 w.seg = self.filter.segment
-        return both
 
     def _flush_rows(self) -> None:
         """Move the accepted windows' rows into the sums."""

@@ -77,7 +77,7 @@ import numpy as np
 from scipy import special, stats
 
 from bridge_shadow.estimate.compensation.noise import ar1_factor
-from bridge_shadow.estimate.events.warmup import ramp_in_progress, ramp_windows
+from bridge_shadow.estimate.events.warmup import beyond_any_vehicle, ramp_in_progress, ramp_windows
 from bridge_shadow.estimate.settlement.relaxation import relaxation_variance
 from bridge_shadow.estimate.small import Sym, Vec, quad_inv
 
@@ -518,7 +518,7 @@ class ChangeDetector:
 
     def _beyond_any_vehicle(self, step: np.ndarray) -> bool:
         """Whether ``step`` (2,) N moved the reactions' sum by more than any vehicle, either way."""
-        return abs(float(step[0] + step[1])) > self.vehicle_max_n
+        return beyond_any_vehicle(step, self.vehicle_max_n)
 
     def _drift_jump(self, j: int) -> float:
         """Return ``_jump`` from the window before ``j`` against the rate the held windows show.

@@ -59,6 +59,7 @@ from scipy import integrate, optimize, special
 __all__ = [
     "MIN_DIFFERENCES",
     "RAMP_HOLD_FACTOR",
+    "beyond_any_vehicle",
     "false_ramp_probability",
     "false_step_probability",
     "false_two_step_probability",
@@ -195,6 +196,15 @@ def two_step_ratio(n: int, probability: float) -> float:
     return _ratio_for(false_two_step_probability, n, probability, 2.0)
 
 
+def beyond_any_vehicle(step: np.ndarray | tuple[float, float], vehicle_max_n: float) -> bool:
+    """Whether ``step`` (2,) N moved the reactions' sum by more than any vehicle, either way.
+
+    ``vehicle_max_n`` is the traffic screen's ``traffic_vehicle_max_n``: more than a vehicle adds,
+    or more than one leaving takes off an estimate made while it stood.
+    """
+    return abs(float(step[0] + step[1])) > vehicle_max_n
+
+
 def warmup_steps(
     y: np.ndarray, k: np.ndarray, probability: float, vehicle_max_n: float = math.inf
 ) -> list[int]:
@@ -273,8 +283,8 @@ def _steps(
         rest = np.delete(single, both)
         if not len(rest):
             continue
-        vehicle = abs(float(raw[p[0] : p[1] + 1].sum())) <= vehicle_max_n  # an excursion a vehicle makes
-        jump = min(p[2], q[2], score(both)) if vehicle else min(p[2], q[2])
+        first = raw[p[0] : p[1] + 1].sum(axis=0)  # an excursion a vehicle makes, or the first of two steps
+        jump = min(p[2], q[2]) if beyond_any_vehicle(first, vehicle_max_n) else min(p[2], q[2], score(both))
         ratio = jump / max(float(np.max(rest)), 1e-300)
         if ratio > f and ratio > best:
             best, found = ratio, [(p[3], p[4]), (q[3], q[4])]
