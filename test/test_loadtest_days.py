@@ -1482,6 +1482,37 @@ def test_a_step_inside_a_window_of_the_warm_up_is_neither_states_data(folder: Pa
 
 
 @pytest.mark.realdata
+@pytest.mark.parametrize("record", ["ref", "lowered"])
+def test_a_step_in_the_window_before_a_gap_in_the_warm_up_is_neither_states_data(
+    folder: Path, surrogate, record: str
+) -> None:
+    """A record raised 9.5 mm at minute 11.5, then the same record 4 h later in the raised state.
+
+    The first record gives seven usable windows (the test car's minutes cut), fewer than the
+    warm-up's ten, so the gap before the second record ends the warm-up's segment: its step
+    search runs there (``Shadow._open_gap`` -> ``_split_warm_segment``), not at the warm-up's end.
+    The window the raise happened in holds both levels and is left out (``step_window``), the
+    raise is one event at that window, nothing is lost. With that window kept as data (the
+    search's leave-out switched off) the event is dated a window late and the step's window is
+    the old state's data: checked to fail so, on both records.
+    """
+    pieces = [
+        Piece(record, 0.0, cut_min=(0.0, 11.5)),
+        Piece(record, 0.0, (0.0095, 0.0095), cut_min=(11.5, 13.0)),
+        Piece(record, 4.0, (0.0095, 0.0095), temp_at_h=0.5),
+    ]
+    sc = build(folder, surrogate.A, pieces)
+    shadow, res = replay(sc, surrogate)
+    s = score_stream(sc, res)
+    assert s.events_right and s.covered and not s.lost_windows and s.within, s
+    assert res.rejected["outlier"] == 0
+    step = sc.starts_ns[1] // W  # the window the raise happened in (minute 11 of the record)
+    assert [o.index for o in res.outputs if o.reason == "step_window"] == [step]
+    assert shadow.filter.kinds[1] == "warmup" and shadow.filter.starts[1] == step + 1
+    assert [g["segment"] for g in shadow.gaps] == [-1]  # the gap came inside the warm-up
+
+
+@pytest.mark.realdata
 def test_a_raise_heavier_than_any_vehicle_that_came_back_is_reported(
     folder: Path, surrogate, tmp_path
 ) -> None:
