@@ -161,16 +161,17 @@ def _summary(js: dict[str, Any]) -> str:
             f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f} mm"
             for side, m, sd in zip(("south", "north"), c["size_m"], c["sigma_m"], strict=True)
         )
+        windows = f"{c['windows']} window{'s' if c['windows'] != 1 else ''}"
         if c["kind"] == "run_in_data":
-            how = f"a run of {c['windows']} windows until {c['until']} without a step's jump, used as data"
+            how = f"a run of {windows} until {c['until']} without a step's jump, used as data"
         elif c["kind"] == "excursion":
             how = (
-                f"a run of {c['windows']} windows until {c['until']} that came back, heavier than any "
+                f"a run of {windows} until {c['until']} that came back, heavier than any "
                 "vehicle: rejected as an excursion"
             )
         elif c["kind"] == "between_steps":
             how = (
-                f"a state of {c['windows']} windows until {c['until']} between two steps, heavier than "
+                f"a state of {windows} until {c['until']} between two steps, heavier than "
                 "any vehicle: left out"
             )
         elif c["kind"] == "step":

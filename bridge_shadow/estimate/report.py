@@ -353,18 +353,18 @@ def warnings(shadow: Shadow) -> list[str]:
             f"{side} {1e3 * m:+.2f} ± {1.96e3 * sd:.2f} mm"
             for side, m, sd in zip(SUPPORTS, c.size_m, np.sqrt(np.diag(c.covariance_m2)), strict=True)
         )
+        windows = f"{c.windows} window{'s' if c.windows != 1 else ''}"
         if c.kind == "run_in_data":
             until = iso_utc(c.until_ns or c.time_ns)
-            how = f"{c.windows} windows until {until}, used as data of the current state"
+            how = f"{windows} until {until}, used as data of the current state"
         elif c.kind == "excursion":
             until = iso_utc(c.until_ns or c.time_ns)
-            how = f"{c.windows} windows until {until}, rejected as an excursion: not in the estimate"
+            how = f"{windows} until {until}, rejected as an excursion: not in the estimate"
         elif c.kind == "between_steps":
             until = iso_utc(c.until_ns or c.time_ns)
-            how = f"{c.windows} windows until {until}, left out as a moving support's: not in the estimate"
+            how = f"{windows} until {until}, left out as a moving support's: not in the estimate"
         else:
             since = "since" if c.next_ns is None else f"before the next state from {iso_utc(c.next_ns)}"
-            windows = f"{c.windows} window{'s' if c.windows != 1 else ''}"
             how = (
                 f"probability {c.change_probability:.3g}, {windows} {since}; "
                 "the posterior weighs it by that probability"
