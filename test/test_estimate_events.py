@@ -496,6 +496,33 @@ def test_one_window_the_data_left_the_other_way_beyond_any_vehicle_is_no_outlier
         assert [k for k, _ in events] == ([41] if after else []), (level, after, vehicle_max_n, events)
 
 
+def test_the_window_a_second_step_happened_in_after_a_state_left_out_is_no_outlier() -> None:
+    """40 down (a state between two steps, left out), then one window at -12, then the data at +15.
+
+    The -12 lies between the state left out and the level the data went on at: the window the
+    second step happened in, left out as a moving support's (``ChangeDetector._second_step_inside``),
+    as ``_event`` leaves out a window between two states; it was an outlier (within a vehicle's
+    load, 24 on the sum, a window alone). The reference record 2.6 h on, lowered 5.3 mm at minute
+    9 and raised 6.4 mm at minute 11, both steps inside windows (``--only inside --stream-seed 71``,
+    #272). One not right after the state (a window back at the old level between: the -40 came
+    back, an outlier), or with every load a vehicle's (no state left out), stays an outlier.
+    """
+    for gap, vehicle_max_n, first, kind in ((0, 30.0, "moving", "moving"), (1, 30.0, "reject", "reject")):
+        y = ar1(70, 3)
+        y[40] += -40.0
+        y[41 + gap] += -12.0
+        y[42 + gap :] += 15.0
+        verdict, events = run(y, det=ChangeDetector(vehicle_max_n=vehicle_max_n))
+        assert [verdict[40], verdict[41 + gap]] == [first, kind], (gap, vehicle_max_n, verdict)
+        assert [k for k, _ in events] == [42 + gap], (gap, vehicle_max_n, events)
+    y = ar1(70, 3)
+    y[40] += -40.0
+    y[41] += -12.0
+    y[42:] += 15.0
+    verdict, events = run(y, det=ChangeDetector(vehicle_max_n=np.inf))
+    assert [verdict[40], verdict[41]] == ["reject", "reject"] and [k for k, _ in events] == [42]
+
+
 def test_a_run_that_came_back_heavier_than_any_vehicle_is_reported_as_an_excursion() -> None:
     """Three windows 40 up, then back (``ChangeDetector._transient``): rejected; reported if no vehicle's.
 

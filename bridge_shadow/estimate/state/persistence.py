@@ -137,6 +137,8 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "pending_apa": np.array([p.apa for p in det.pending]).reshape(-1, 2, 2),
             "prev": _prev_state(det.prev),
             "history": np.array(list(det.history), float).reshape(-1, 3),
+            "left_k": det.left_k,
+            "left_level": np.asarray(det.left_level, float).reshape(2),
         },
         "last_ok": _window_state(shadow._last_ok),
         "queue": {
@@ -275,6 +277,8 @@ def restore_shadow(
     det.history.clear()
     for k, v0, v1 in np.asarray(d.get("history", np.zeros((0, 3))), float).reshape(-1, 3):
         det.history.append((int(k), float(v0), float(v1)))
+    det.left_k = int(d.get("left_k", -2))
+    det.left_level = np.asarray(d.get("left_level", np.zeros(2)), float).reshape(2)
     lw = state["last_ok"]
     if bool(lw["has"]):
         shadow._last_ok = Window(
