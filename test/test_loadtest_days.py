@@ -1486,7 +1486,7 @@ def test_the_window_a_second_step_happened_in_after_a_state_left_out_is_no_outli
     """
     states = ((-0.0053, -0.0053), (0.0011, 0.0011))
     sc = _settled_twice_inside(folder, surrogate, "ref", 2.5832, 0.5039, (9, 11), states)
-    _, res = replay(sc, surrogate)
+    shadow, res = replay(sc, surrogate)
     s = score_stream(sc, res)
     assert s.within and s.covered and not s.lost_windows and res.rejected["outlier"] == 0, s
     assert np.all(np.abs(s.error_m) <= 0.5e-3), s
@@ -1494,6 +1494,11 @@ def test_the_window_a_second_step_happened_in_after_a_state_left_out_is_no_outli
     assert [o.index - later for o in res.outputs if o.reason == "step_window"] == [9, 10, 11]
     (between,) = [c for c in res.changes if c.kind == "between_steps"]
     assert np.all(np.abs(np.asarray(between.size_m) - states[0]) <= 1e-3), between  # -5.26 mm
+    # the state's last window and level travel in a checkpoint (a window held after it, in
+    # continuous data, is judged on them after a resume)
+    det = Shadow.from_state_dict(shadow.state_dict(), shadow.config, surrogate).detector
+    assert det.left_k == shadow.detector.left_k == later + 10  # integers: window indices
+    np.testing.assert_allclose(det.left_level, shadow.detector.left_level, rtol=1e-12, atol=0.0)
 
 
 @pytest.mark.realdata
