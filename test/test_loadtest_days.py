@@ -1458,17 +1458,29 @@ def test_one_window_of_a_state_between_two_steps_is_no_outlier(folder: Path, sur
     stream ends at its last state (0.04 / 0.02 mm off, a change the data make likely), covered.
     """
     states = ((-0.0069, -0.0069), (-0.0023, -0.0006))
-    sc = _settled_twice_inside(folder, surrogate, "ref", 51.8258, 2.7937, (6, 9), states)
-    _, res = replay(sc, surrogate)
+    _, res, later, between = _left_out_between(folder, surrogate, 51.8258, 2.7937, (6, 9), states, [9])
+    assert between.window == later + 9 and between.windows == 1, between
+    assert sum("1 window until" in w for w in res.warnings) == 1, res.warnings
+
+
+def _left_out_between(folder: Path, surrogate, hours: float, air_h: float, minutes, states, left_out):
+    """The reference record ``hours`` on, settled twice inside: the state between left out, reported.
+
+    Replays it (``_settled_twice_inside``) and checks what both streams share: the last state
+    within 0.5 mm and covered, nothing lost, the windows ``left_out`` (the record's minutes, as
+    integers) left out as ``step_window``, the state between reported within 1 mm of its truth.
+    Returns the shadow, the result, the record's first window and that report.
+    """
+    sc = _settled_twice_inside(folder, surrogate, "ref", hours, air_h, minutes, states)
+    shadow, res = replay(sc, surrogate)
     s = score_stream(sc, res)
     assert s.within and s.covered and not s.lost_windows and res.rejected["outlier"] == 0, s
     assert np.all(np.abs(s.error_m) <= 0.5e-3), s
     later = sc.starts_ns[1] // W
-    assert [o.index - later for o in res.outputs if o.reason == "step_window"] == [9]  # integers
+    assert [o.index - later for o in res.outputs if o.reason == "step_window"] == left_out
     (between,) = [c for c in res.changes if c.kind == "between_steps"]
-    assert between.window == later + 9 and between.windows == 1, between
     assert np.all(np.abs(np.asarray(between.size_m) - states[0]) <= 1e-3), between
-    assert sum("1 window until" in w for w in res.warnings) == 1, res.warnings
+    return shadow, res, later, between
 
 
 @pytest.mark.realdata
@@ -1484,16 +1496,8 @@ def test_the_window_a_second_step_happened_in_after_a_state_left_out_is_no_outli
     window of a changed record lost. It is left out as a moving support's too
     (``ChangeDetector._second_step_inside``), and the stream ends at its last state, covered.
     """
-    states = ((-0.0053, -0.0053), (0.0011, 0.0011))
-    sc = _settled_twice_inside(folder, surrogate, "ref", 2.5832, 0.5039, (9, 11), states)
-    shadow, res = replay(sc, surrogate)
-    s = score_stream(sc, res)
-    assert s.within and s.covered and not s.lost_windows and res.rejected["outlier"] == 0, s
-    assert np.all(np.abs(s.error_m) <= 0.5e-3), s
-    later = sc.starts_ns[1] // W
-    assert [o.index - later for o in res.outputs if o.reason == "step_window"] == [9, 10, 11]
-    (between,) = [c for c in res.changes if c.kind == "between_steps"]
-    assert np.all(np.abs(np.asarray(between.size_m) - states[0]) <= 1e-3), between  # -5.26 mm
+    states = ((-0.0053, -0.0053), (0.0011, 0.0011))  # the state between read -5.26 mm
+    shadow, _, later, _ = _left_out_between(folder, surrogate, 2.5832, 0.5039, (9, 11), states, [9, 10, 11])
     # the state's last window and level travel in a checkpoint (a window held after it, in
     # continuous data, is judged on them after a resume)
     det = Shadow.from_state_dict(shadow.state_dict(), shadow.config, surrogate).detector

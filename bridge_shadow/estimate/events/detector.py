@@ -882,13 +882,7 @@ class ChangeDetector:
         *before, last = self.pending
         if len(before) == 1 and self._second_step_inside(before[0], last.v):
             self.pending = []
-            decision = Decision(moving=[before[0].payload])
-            again = self.step(
-                last.k, tuple(last.v), _sym(last.r_window / self.inflation), _sym(last.apa), last.payload
-            )
-            decision.reject += again.reject
-            decision.accept = again.accept
-            return decision
+            return self._judged_again(Decision(moving=[before[0].payload]), last)
         if len(before) < 2 and not (before and self._beyond_any_vehicle(before[0].v)):
             return self._transient()
         self.pending = before
@@ -911,6 +905,10 @@ class ChangeDetector:
             self.pending = []
         else:
             decision = self._unconfirmed(cands, provisional=False)
+        return self._judged_again(decision, last)
+
+    def _judged_again(self, decision: Decision, last: Pending) -> Decision:
+        """Return ``decision`` with the latest window ``last`` judged afresh (``step``) added."""
         again = self.step(
             last.k, tuple(last.v), _sym(last.r_window / self.inflation), _sym(last.apa), last.payload
         )
