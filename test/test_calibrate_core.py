@@ -148,7 +148,7 @@ def test_spec_errors_are_one_line() -> None:
             }
         ]
     }
-    assert spec_from_dict(good).pairs[0].imposed_m.tolist() == [-0.01, -0.01]
+    assert spec_from_dict(good).pairs[0].imposed_m.tolist() == [-0.01, -0.01]  # exact: passed through
     bad = [
         {"pairs": []},
         {"pairs": [{**good["pairs"][0], "imposed_sd_m": [0, 1e-3]}]},

@@ -556,7 +556,7 @@ class Shadow:
         settlement minutes into the first record after hours (the test car cut leaves a window
         or two of the old state) was taken into that level, half of it lost, no event, and an
         interval that excluded the truth. The held windows are searched as the warm-up's are
-        (``events.warmup.warmup_steps``: on their own scale, compensated by the current curve; one
+        (``events.warmup.step_windows``: on their own scale, compensated by the current curve; one
         step, or two of a size, as when a support is lowered twice within a record); each step
         found opens a provisional segment (``kind: warmup``) at its first window, which the data
         after it decide like the gap's. The first window of either segment is taken as its data, not

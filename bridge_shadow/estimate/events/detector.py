@@ -930,7 +930,7 @@ class ChangeDetector:
         if item.k != self.left_k + 1:
             return False
         shifted = Pending(item.k, item.v - self.left_level, item.r_window, item.apa, None)
-        return 0.0 < self._fraction(shifted, np.asarray(level) - self.left_level) < 1.0
+        return self._between(shifted, np.asarray(level) - self.left_level)
 
     def _event(self, c: _Candidate, split: tuple[int, int] | None = None) -> Decision:
         """Decide an event at ``c``'s change time, or after the ramp ``split`` (its windows moving)."""
