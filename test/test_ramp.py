@@ -20,12 +20,15 @@ import pytest
 
 from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.estimate.events.warmup import (
+    RAMP_MIN_LENGTH,
+    RAMP_MIN_REST,
     false_ramp_probability,
     ramp_in_progress,
     ramp_ratio,
     ramp_windows,
 )
 from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.series import MonitoringData
 from bridge_shadow.twin.real_records import Piece, build
 
 W = 60 * 10**9
@@ -109,6 +112,62 @@ def test_the_ratio_grows_as_fewer_windows_are_left_outside() -> None:
     f = [ramp_ratio(12, length, 1e-3) for length in range(3, 11)]
     assert all(a < b for a, b in itertools.pairwise(f))
     assert ramp_ratio(12, 6, 1e-3, True) < ramp_ratio(12, 6, 1e-3)  # one block, not seven
+
+
+def test_every_ratio_a_held_run_can_ask_for_exists_and_keeps_its_share() -> None:
+    """Every block length of up to ``RAMP_HOLD_FACTOR`` times the warm-up's windows has a ratio.
+
+    A block of all but two of 24 or more differences: its one-sign condition alone is below the
+    share at the rule's smallest ratio (2), which the search then returns; until 2026-11-30 it
+    raised ValueError (a jack lowering a support over 20 of 26 windows held after a gap).
+    """
+    p = 1e-3
+    for n in (13, 24, 29):  # 29: the differences of 30 windows, RAMP_HOLD_FACTOR times 10
+        share = p / max(n - RAMP_MIN_REST - RAMP_MIN_LENGTH + 1, 1)
+        for length in range(RAMP_MIN_LENGTH, n - RAMP_MIN_REST + 1):
+            for open_end in (False, True):
+                f = ramp_ratio(n, length, p, open_end)
+                bound = false_ramp_probability(f, n, length, 1 if open_end else None)
+                assert 2.0 <= f < np.inf and bound <= share * (1 + 1e-6)  # brentq's xtol
+    assert ramp_ratio(26, 24, p) == 2.0  # exact: the floor itself, returned as given
+    rng = np.random.default_rng(3)
+    k = np.arange(27)
+    found = ramp_windows(_ramp(rng, 2, 24, n=27), k, p)
+    assert found is not None and 1 <= found[0] <= 2 and 24 <= found[1] <= 25, found
+    assert ramp_in_progress(_ramp(rng, 4, 40, n=27, size=-300e3), k, p)
+
+
+def _slow_lowering(minutes: float, seed: int) -> tuple[MonitoringData, np.ndarray]:
+    """15 min at 0, then 4 h on: 5 min still, 20 mm lower over ``minutes``, 6 min still.
+
+    At 10 Hz, 150 N of white noise per reading, 8 C (the shipped surrogate's reactions).
+    """
+    sur = load_surrogate()
+    rng = np.random.default_rng(seed)
+    t0 = 1_700_000_000 * 10**9
+    later = 4 * 3600 * 10**9
+    rel = np.concatenate([np.arange(15 * 600), later // 10**8 + np.arange(int((11 + minutes) * 600))]) * 10**8
+    moved = np.clip((rel - later - 5 * 60 * 10**9) / (minutes * 60 * 10**9), 0.0, 1.0) * (rel >= later)
+    truth = np.array([-0.02, -0.02])
+    forces = sur.reactions(np.zeros(2)) + moved[:, None] * (sur.A @ truth) + rng.normal(0, 150, (len(rel), 2))
+    temp = rel[::100]
+    return MonitoringData.from_arrays(t0 + rel, forces, t0 + temp, np.full(len(temp), 8.0)), truth
+
+
+@pytest.mark.parametrize("minutes", [8.0, 20.0])
+def test_a_support_lowered_over_twenty_minutes_after_a_gap_is_one_event(minutes: float) -> None:
+    """The jacks' lowering over 8 or 20 of the record's minutes: one event of its size, nothing lost.
+
+    The 20 minutes raised ValueError in the ramp rule's ratio (the held run's block of all but two
+    differences) until 2026-11-30: the replay or the node stopped with a traceback.
+    """
+    data, truth = _slow_lowering(minutes, 0)
+    res = Shadow(load_config(), load_surrogate()).run(data)
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    assert np.all(np.abs(res.mean_m - truth) <= 0.1 * 0.02), res.mean_m
+    assert np.all(np.abs(res.mean_m - truth) <= 1.96 * sd)
+    assert len(res.events) == 1 and np.allclose(res.events[0].size_m, truth, atol=0.002), res.events
+    assert res.rejected["outlier"] == 0
 
 
 @pytest.fixture(scope="module")

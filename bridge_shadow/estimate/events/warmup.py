@@ -132,7 +132,15 @@ def false_step_probability(f: float, n: int) -> float:
 def _ratio_for(
     false_probability: Callable[[float, int], float], n: int, probability: float, lo: float
 ) -> float:
-    """Return the ratio ``f`` (above ``lo``) at which ``false_probability(f, n)`` is ``probability``."""
+    """Return the ratio ``f`` (above ``lo``) at which ``false_probability(f, n)`` is ``probability``.
+
+    ``lo`` itself where its false probability is already at most ``probability`` (the bound
+    decreases in ``f``, so the rule at ``lo`` keeps it): a ramp of nearly every difference, whose
+    one-sign condition alone is that improbable (``false_ramp_probability``; a jack lowering a
+    support over 20 of 26 one-minute windows held after a gap raised ValueError here).
+    """
+    if false_probability(lo, n) <= probability:
+        return float(lo)
     hi = 2.0 * lo
     while false_probability(hi, n) > probability:
         lo, hi = hi, hi * 2.0
