@@ -532,11 +532,16 @@ class Shadow:
 
         ``events.warmup.ramp_in_progress``, up to ``RAMP_HOLD_FACTOR`` times ``warmup_windows``:
         a support lowered over minutes keeps moving past the tenth window, and the state after it
-        needs windows among the held ones for ``_release_fresh`` to see where the ramp ends.
+        needs windows among the held ones for ``_release_fresh`` to see where the ramp ends. Read
+        against one difference of the still state before it, not the rules' two
+        (``RAMP_MIN_REST``; the same bound, its ratio for one): a hold decides nothing, the held
+        windows are judged by the rules when it ends, and a record whose car was cut may keep
+        only two windows before the jacks move (``test_ramp.py``, the lowering over minutes 3-23).
         """
         if len(self._fresh) >= RAMP_HOLD_FACTOR * self.config.warmup_windows:
             return False
-        return ramp_in_progress(*self._compensated(self._fresh), 1.0 - self.config.event_trigger_probability)
+        y, k = self._compensated(self._fresh)
+        return ramp_in_progress(y, k, 1.0 - self.config.event_trigger_probability, 1)
 
     def _compensated(self, windows: list[Window]) -> tuple[np.ndarray, np.ndarray]:
         """Return the windows' forces less the current curve (n, 2) N and their indices (n,)."""

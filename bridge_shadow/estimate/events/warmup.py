@@ -335,14 +335,16 @@ def false_ramp_probability(f: float, n: int, length: int, blocks: int | None = N
 
 
 @lru_cache(maxsize=1024)
-def ramp_ratio(n: int, length: int, probability: float, open_end: bool = False) -> float:
+def ramp_ratio(
+    n: int, length: int, probability: float, open_end: bool = False, min_rest: int = RAMP_MIN_REST
+) -> float:
     """Return the ratio ``f`` whose ramp false probability (``length`` of ``n``) is ``probability``.
 
-    ``ramp_windows`` tries every block length from ``RAMP_MIN_LENGTH`` to ``n - RAMP_MIN_REST``
+    ``ramp_windows`` tries every block length from ``RAMP_MIN_LENGTH`` to ``n - min_rest``
     (``open_end``: only the block ending at the last difference, ``ramp_in_progress``); the
     probability allowed is shared equally among the lengths.
     """
-    lengths = max(n - RAMP_MIN_REST - RAMP_MIN_LENGTH + 1, 1)
+    lengths = max(n - min_rest - RAMP_MIN_LENGTH + 1, 1)
     share = probability / lengths
     blocks = 1 if open_end else None
     return _ratio_for(lambda f, m: false_ramp_probability(f, m, length, blocks), n, share, 2.0)
@@ -356,6 +358,7 @@ def _ramp_score(
     block: tuple[int, int],
     probability: float,
     open_end: bool = False,
+    min_rest: int = RAMP_MIN_REST,
 ) -> float:
     """Return how many times its ``ramp_ratio`` the block of differences ``block = (a, b)`` beats, or 0.
 
@@ -392,29 +395,31 @@ def _ramp_score(
     rest = d[keep].sum(axis=0)
     if (
         float(rest @ prec @ rest) / float(lags[keep].sum())
-        <= ramp_ratio(m, int(keep.sum()), probability) * top
+        <= ramp_ratio(m, int(keep.sum()), probability, False, min_rest) * top
     ):
         return 0.0
-    f = ramp_ratio(m, b - a, probability, open_end)
+    f = ramp_ratio(m, b - a, probability, open_end, min_rest)
     ratio = float(total @ prec @ total) / float(lags.sum()) / top
     return ratio / f if ratio > f else 0.0
 
 
-def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
+def ramp_in_progress(
+    y: np.ndarray, k: np.ndarray, probability: float, min_rest: int = RAMP_MIN_REST
+) -> bool:
     """Whether the last windows of ``y`` (n, 2) N are a ramp that has not ended (``ramp_windows``).
 
     The test of ``ramp_windows`` for the blocks that end at the last difference, their states
-    before them only: the windows held after a gap are then held on (``Shadow``) until the
-    ramp ends, so that the state after it has windows of its own.
+    before them only (at least ``min_rest`` differences): the windows held after a gap are then
+    held on (``Shadow``) until the ramp ends, so that the state after it has windows of its own.
     """
-    diffs = _differences(y, k, RAMP_MIN_LENGTH + RAMP_MIN_REST)
+    diffs = _differences(y, k, RAMP_MIN_LENGTH + min_rest)
     if diffs is None:
         return False
     raw, lag, _, prec, single = diffs
     m = len(raw)
     return any(
-        _ramp_score(raw, lag, prec, single, (m - length, m), probability, open_end=True) > 0.0
-        for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1)
+        _ramp_score(raw, lag, prec, single, (m - length, m), probability, True, min_rest) > 0.0
+        for length in range(RAMP_MIN_LENGTH, m - min_rest + 1)
     )
 
 
