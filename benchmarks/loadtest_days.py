@@ -56,12 +56,15 @@ state; ``--cut-share`` of them cut to their first minutes or to begin at minute 
 parked test car; ``--stream-seed`` draws another set), scored as the real study. ``--only
 inside`` is an eighth: ``--seeds`` random
 streams with one or two settlements of 3-20 mm inside the later record
-(``twin.real_records.random_inside_streams``; ``--stream-seed`` too).
+(``twin.real_records.random_inside_streams``; ``--stream-seed`` too). ``--only ramps`` is a
+ninth: the real pair, then the 10 mm record at 14:36 lowered 20 mm more over 4 to 30 minutes from
+its minute 0, 3 or 6 (``twin.real_records.lowered_over``: the record copied in a row as long as
+the lowering needs), the test car as recorded and cut (``without_recorded_car``).
 
 Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200]
-        [--only real|twin|continuous|minutes|creep|pauses|sweep|inside]
+        [--only real|twin|continuous|minutes|creep|pauses|sweep|inside|ramps]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term|--sun-off]
         [--sun-prior MEAN SD] [--sun-fit average|deck|per_bearing] [--monitor-days N] [--creep FACTOR]
 
@@ -91,10 +94,12 @@ from bridge_shadow.twin.loadtest_score import score_day, score_stream
 from bridge_shadow.twin.real_records import (
     Piece,
     build,
+    lowered_over,
     random_inside_streams,
     random_streams,
     with_creep,
     with_silence,
+    without_recorded_car,
 )
 
 W = 60 * 10**9
@@ -423,6 +428,58 @@ def creep_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
     print_streams(mapper(real_stream, items), f"new states creeping, {over}", t0)
 
 
+#: The ramp study's later record: the 10 mm record copied to 14:36 (``lowered_over``; the day has
+#: air readings for three copies in a row there), lowered over minutes from a minute of it.
+RAMP_AT_H = 6.0
+RAMP_MINUTES = (4, 8, 12, 16, 20, 24, 30)
+RAMP_STARTS = (0, 3, 6)
+
+
+def ramp_stream(
+    item: tuple[str, float, float, str, dict[str, Any]],
+) -> tuple[str, list[bool], str, list[float]]:
+    """Score one ramp stream (a task): the 10 mm event, the ramp reported, nothing lost, the final state.
+
+    Right: the real 10 mm lowering an event at its record, the changes after it (events, or changes
+    of probability above 0.99) adding up to the ramp's -20 mm within 2 mm, no window an outlier,
+    the final estimate within 10 % of -30 mm and its 95 % interval holding it. Verdicts in
+    ``print_streams``' order (both "lost" columns: outliers).
+    """
+    name, start, minutes, car, over = item
+    sur = load_surrogate()
+    sc = build(shared_data_dir() / "Settlements", sur.A, lowered_over(RAMP_AT_H, start, minutes))
+    if car == "cut":
+        sc.data = without_recorded_car(sc)
+    res = Shadow(_config(over), sur).run(sc.data)
+    k1, k2 = sc.starts_ns[1] // W, sc.starts_ns[2] // W
+    first = [e for e in res.events if e.window == k1]
+    later = [e.size_m for e in res.events if e.window >= k2]
+    later += [c.size_m for c in res.changes if c.window >= k2 and c.change_probability > 0.99]
+    moved = np.sum(later, axis=0) if later else np.zeros(2)
+    truth = sc.truth_m
+    err, sd = res.mean_m - truth, np.sqrt(np.diag(res.covariance_m2))
+    lost = int(res.rejected["outlier"])
+    right = len(first) == 1 and bool(np.all(np.abs(moved + 0.02) <= 0.002))
+    line = (
+        f"  {name:45s} 10 mm event {len(first)}, later {np.round(1e3 * moved, 1)} mm, lost {lost} "
+        f"error {np.round(1e3 * err, 2)} mm, 95 % +-{np.round(1.96e3 * sd, 1)} mm"
+    )
+    within = bool(np.all(np.abs(err) <= 0.1 * np.abs(truth)))
+    verdicts = [right, lost == 0, lost == 0, within, bool(np.all(np.abs(err) <= 1.96 * sd))]
+    return name, verdicts, line, (1.96e3 * sd).tolist()
+
+
+def ramp_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
+    """Score 20 mm lowerings over 4 to 30 minutes of a record hours after the last, the car kept or cut."""
+    t0 = time.perf_counter()
+    for car in ("recorded", "cut"):
+        items = [
+            (f"from minute {a:g}, over {m:g} min [car {car}]", a, m, car, over)
+            for a, m in itertools.product(RAMP_STARTS, RAMP_MINUTES)
+        ]
+        print_streams(mapper(ramp_stream, items), f"a lowering over minutes, test car {car}, {over}", t0)
+
+
 def twin_day(item: tuple[int, float, dict, float, float]) -> Any:
     """Score one twin load-test day (a task); ``creep``: the new states creeping (``with_creep``)."""
     seed, sun, over, monitor_days, creep = item
@@ -524,7 +581,18 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument(
         "--only",
-        choices=("real", "twin", "schedule", "continuous", "minutes", "creep", "pauses", "sweep", "inside"),
+        choices=(
+            "real",
+            "twin",
+            "schedule",
+            "continuous",
+            "minutes",
+            "creep",
+            "pauses",
+            "sweep",
+            "inside",
+            "ramps",
+        ),
         help="one study (continuous: three sunny days of monitoring, sun term off and on; minutes: the "
         "two records minutes apart or cut short, in 30 s, 1 min and 2 min windows; creep: the new "
         "states' reactions creeping after the lowering, 1 to 4 times the 10 mm record's own; pauses: a "
@@ -633,6 +701,8 @@ def main() -> None:
             creep_study(mapper, over)
         if args.only == "pauses":
             pause_study(mapper, over)
+        if args.only == "ramps":
+            ramp_study(mapper, over)
         if args.only == "inside":
             sur = load_surrogate()
             streams = random_inside_streams(args.seeds, sur.A, sur.u0, args.stream_seed)

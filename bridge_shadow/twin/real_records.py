@@ -39,10 +39,12 @@ __all__ = [
     "build",
     "car_stretches_ns",
     "load_records",
+    "lowered_over",
     "random_inside_streams",
     "random_streams",
     "with_creep",
     "with_silence",
+    "without_recorded_car",
 ]
 
 NS = 1_000_000_000
@@ -230,6 +232,38 @@ def with_silence(
         gone = (c == channel) & (t >= start_ns + a_min * 60 * NS) & (t < start_ns + b_min * 60 * NS)
         forces[ch] = ForceSeries(t[~gone], s.force_n[~gone], s.frame_id[~gone])
     return MonitoringData(forces, data.temperature)
+
+
+def lowered_over(at_h: float, start_min: float, minutes: float, size_m: float = -0.02) -> list[Piece]:
+    """Return the real pair, then the 10 mm record at ``at_h`` lowered ``size_m`` more over ``minutes``.
+
+    The jacks' lowering runs from minute ``start_min`` of the later record, in half-minute slices
+    through ``A`` (each at the step its middle has reached), and the record is copied in a row (12
+    minutes each, the test car's pattern in every copy) until three still minutes follow it.
+    ``at_h`` must have the day's air readings for every copy (5.62-8.6 h holds three).
+    """
+    copies = int(np.ceil((start_min + minutes + 3.0) / 12.0))
+    pieces = [Piece("ref", 0.0), Piece("lowered", 0.733)]
+    for u in np.arange(0.0, 12.0 * copies, 0.5):
+        c = int(u // 12)
+        f = float(np.clip((u + 0.25 - start_min) / minutes, 0.0, 1.0))
+        cut = (float(u - 12 * c), float(u + 0.5 - 12 * c))
+        pieces.append(Piece("lowered", at_h + c * 0.2, (size_m * f, size_m * f), cut_min=cut))
+    return pieces
+
+
+def without_recorded_car(sc: Scenario) -> MonitoringData:
+    """Return ``sc.data`` without the force samples where the recorded test car stood (``car_ns``).
+
+    The car as recorded, not as a detector reads it (one would take a ramp's minutes for a car).
+    """
+    forces = {}
+    for ch, s in sc.data.forces.items():
+        keep = np.ones(len(s.stamp_ns), bool)
+        for a, b in sc.car_ns:
+            keep &= (s.stamp_ns < a) | (s.stamp_ns >= b)
+        forces[ch] = ForceSeries(s.stamp_ns[keep], s.force_n[keep], s.frame_id[keep])
+    return MonitoringData(forces, sc.data.temperature)
 
 
 #: Hours of the day's air-temperature record a 12-minute copy can take its temperature from.
