@@ -403,9 +403,7 @@ def _ramp_score(
     return ratio / f if ratio > f else 0.0
 
 
-def ramp_in_progress(
-    y: np.ndarray, k: np.ndarray, probability: float, min_rest: int = RAMP_MIN_REST
-) -> bool:
+def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float, min_rest: int = RAMP_MIN_REST) -> bool:
     """Whether the last windows of ``y`` (n, 2) N are a ramp that has not ended (``ramp_windows``).
 
     The test of ``ramp_windows`` for the blocks that end at the last difference, their states
