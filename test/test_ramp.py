@@ -175,6 +175,16 @@ def folder(munich_data: Path) -> Path:
     return munich_data / "Settlements"
 
 
+def _at_30_mm_with_the_morning_event(sc, res) -> None:
+    """The day's end within 10 % of -30 mm, its interval holding it, the real 10 mm one event of its size."""
+    truth = np.array([-0.03, -0.03])
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    assert np.all(np.abs(res.mean_m - truth) <= 0.1 * 0.03), res.mean_m
+    assert np.all(np.abs(res.mean_m - truth) <= 1.96 * sd)
+    first = [e for e in res.events if e.window == sc.starts_ns[1] // W]
+    assert len(first) == 1 and np.allclose(first[0].size_m, -0.01, atol=0.001), res.events
+
+
 def _jacking_day(folder: Path, surrogate, minutes: tuple[int, int], then: bool):
     """The real pair, then the 10 mm record at 12:47 lowered 20 mm more over ``minutes`` of it.
 
@@ -202,13 +212,7 @@ def test_a_support_lowered_over_minutes_is_followed_and_the_earlier_lowering_sta
 ) -> None:
     sur = load_surrogate()
     sc, res = _jacking_day(folder, sur, minutes, then)
-    truth = np.array([-0.03, -0.03])
-    sd = np.sqrt(np.diag(res.covariance_m2))
-    assert np.all(np.abs(res.mean_m - truth) <= 0.1 * 0.03), res.mean_m  # within 10 %
-    assert np.all(np.abs(res.mean_m - truth) <= 1.96 * sd)  # the interval holds it
-    # the real 10 mm lowering stays an event at its record, of its size
-    first = [e for e in res.events if e.window == sc.starts_ns[1] // W]
-    assert len(first) == 1 and np.allclose(first[0].size_m, -0.01, atol=0.001), res.events
+    _at_30_mm_with_the_morning_event(sc, res)
     # the 20 mm over minutes: reported as changes that add up to it (events, or likely changes;
     # the ramp's first or last minute may come as a change of its own, of a millimetre or two)
     later = [e.size_m for e in res.events if e.window > sc.starts_ns[1] // W]
@@ -238,12 +242,7 @@ def test_a_lowering_over_twenty_minutes_begun_under_the_car_is_held_until_it_end
     sur = load_surrogate()
     sc = build(folder, sur.A, lowered_over(6.0, 3.0, 20.0))
     res = Shadow(load_config(), sur).run(without_recorded_car(sc))
-    truth = np.array([-0.03, -0.03])
-    sd = np.sqrt(np.diag(res.covariance_m2))
-    assert np.all(np.abs(res.mean_m - truth) <= 0.1 * 0.03), res.mean_m
-    assert np.all(np.abs(res.mean_m - truth) <= 1.96 * sd)
-    first = [e for e in res.events if e.window == sc.starts_ns[1] // W]
-    assert len(first) == 1 and np.allclose(first[0].size_m, -0.01, atol=0.001), res.events
+    _at_30_mm_with_the_morning_event(sc, res)
     later = [e.size_m for e in res.events if e.window >= sc.starts_ns[2] // W]
     assert len(later) == 1 and np.allclose(later[0], -0.02, atol=0.002), res.events
     assert res.rejected["outlier"] == 0
@@ -273,12 +272,7 @@ def test_a_support_lowered_over_minutes_in_continuous_data_is_followed(folder: P
     """No gap before the ramp: the detector's run holds it; before, 3.1-5.1 mm short of -30 mm."""
     sur = load_surrogate()
     sc, res = _jacking_in_stream(folder, sur, minutes)
-    truth = np.array([-0.03, -0.03])
-    sd = np.sqrt(np.diag(res.covariance_m2))
-    assert np.all(np.abs(res.mean_m - truth) <= 0.1 * 0.03), res.mean_m
-    assert np.all(np.abs(res.mean_m - truth) <= 1.96 * sd)
-    first = [e for e in res.events if e.window == sc.starts_ns[1] // W]
-    assert len(first) == 1 and np.allclose(first[0].size_m, -0.01, atol=0.001), res.events
+    _at_30_mm_with_the_morning_event(sc, res)
     start = sc.starts_ns[3]
     moving = [(o.end_ns - start) / W for o in res.outputs if o.reason == "step_window"]
     assert moving and all(minutes[0] <= m <= minutes[1] + 1 for m in moving), moving
