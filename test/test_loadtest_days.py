@@ -794,13 +794,13 @@ def test_twin_load_test_days_find_every_step_and_keep_every_window(engine) -> No
     curve's and the sun's error, common to every record's level, is carried once, not counted
     against each step; the clearness of a day whose data begin after sunrise is read over the rise
     left; measured worst error 2.4 mm of the 3 mm allowed). Without sun the shipped shadow passes
-    every day; after two days of monitoring the term knows the sun: 12 such days pass every
+    every day; after two days of monitoring the term knows the sun: 8 such days pass every
     criterion.
     """
     # the shipped term on 100 days; the contrasts (no term, no sun, the option of a g of each
-    # bearing's own, two days monitored before) on 12 (``benchmarks/loadtest_days.py --only twin``
-    # runs them on 100; 20 here until 2026-11-30, the suite's time)
-    n = 12
+    # bearing's own, two days monitored before) on 8 (``benchmarks/loadtest_days.py --only twin``
+    # runs them on 100; 20, then 12 here until 2026-11-30, the suite's time)
+    n = 8
     runs = [(seed, 4.0, None, 0.0) for seed in range(n)]
     runs += [(seed, 0.0, "average", 0.0) for seed in range(n)]
     runs += [(seed, 4.0, "average", 0.0) for seed in range(100)]
@@ -853,13 +853,13 @@ def test_twin_days_on_the_real_days_schedule_end_within_10_percent_in_the_sun(en
     averaged by evidence) every day passes every criterion (and the two days of the test below
     have no such step).
     """
-    # the shipped term on 30 days, without it on 12 sunny and 10 clear ones (``benchmarks/
-    # loadtest_days.py --only schedule [--sun-off]`` runs 100 sunny and 100 clear of each; 20
-    # sunny here until 2026-11-30, the suite's time)
-    runs = [(seed, 4.0, False) for seed in range(12)] + [(seed, 0.0, False) for seed in range(10)]
-    days = engine(_scheduled_twin_day, runs + [(seed, 4.0, True) for seed in range(30)])  # True: shipped
-    days, term = days[:22], days[22:]
-    sunny = days[:12]
+    # the shipped term on 20 days, without it on 8 sunny and 8 clear ones (``benchmarks/
+    # loadtest_days.py --only schedule [--sun-off]`` runs 100 sunny and 100 clear of each; 30, 20
+    # and 10 here until 2026-11-30, the suite's time)
+    runs = [(seed, 4.0, False) for seed in range(8)] + [(seed, 0.0, False) for seed in range(8)]
+    days = engine(_scheduled_twin_day, runs + [(seed, 4.0, True) for seed in range(20)])  # True: shipped
+    days, term = days[:16], days[16:]
+    sunny = days[:8]
     # with the sun term every criterion on every day (2 and 23 of these lost a lowering to the
     # old state before a step's first window was held on its jump; ``ChangeDetector.step``)
     assert all(s.passed for s in term), [i for i, s in enumerate(term) if not s.passed]
@@ -1006,15 +1006,16 @@ def test_twin_load_test_days_whose_new_states_creep_find_every_step(engine) -> N
     that creep is a drift run used as data, reported as not significant, on 28 of 50 days without
     the allowance and 1 of 50 with it.
     """
-    # with the allowance on 100 days, the contrast without it on 50
-    runs = engine(_creeping_twin_day, [(seed, 0.663) for seed in range(100)] + [(s, 0.0) for s in range(50)])
+    # with the allowance on 60 days, the contrast without it on 30 (100 and 50 until 2026-11-30,
+    # the suite's time; ``benchmarks/loadtest_days.py --only twin --creep 1`` runs 100 and more)
+    runs = engine(_creeping_twin_day, [(seed, 0.663) for seed in range(60)] + [(s, 0.0) for s in range(30)])
     days, steps = [d for d, _ in runs], np.array([n for _, n in runs])
-    on, off = days[:100], days[100:]
+    on, off = days[:60], days[60:]
     assert all(s.events_right for s in on), [i for i, s in enumerate(on) if not s.events_right]
     assert not any(s.lost_windows for s in on + off)
     assert all(s.within_10pct and s.covered for s in on)
     assert all(s.events_right for s in off), [i for i, s in enumerate(off) if not s.events_right]
-    assert np.mean(steps[100:] > 0) > 0.2 and np.mean(steps[:100] > 0) < 0.05, (steps[:100], steps[100:])
+    assert np.mean(steps[60:] > 0) > 0.2 and np.mean(steps[:60] > 0) < 0.05, (steps[:60], steps[60:])
 
 
 def _cut(data, t_ns: int, after: bool):
