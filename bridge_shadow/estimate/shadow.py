@@ -56,6 +56,7 @@ from bridge_shadow.estimate.events.detector import ChangeDetector, Decision
 from bridge_shadow.estimate.events.warmup import (
     MIN_DIFFERENCES,
     RAMP_HOLD_FACTOR,
+    moving_on_known_noise,
     ramp_in_progress,
     ramp_windows,
     step_windows,
@@ -532,16 +533,21 @@ class Shadow:
 
         ``events.warmup.ramp_in_progress``, up to ``RAMP_HOLD_FACTOR`` times ``warmup_windows``:
         a support lowered over minutes keeps moving past the tenth window, and the state after it
-        needs windows among the held ones for ``_release_fresh`` to see where the ramp ends. Read
-        against one difference of the still state before it, not the rules' two
-        (``RAMP_MIN_REST``; the same bound, its ratio for one): a hold decides nothing, the held
-        windows are judged by the rules when it ends, and a record whose car was cut may keep
-        only two windows before the jacks move (``test_ramp.py``, the lowering over minutes 3-23).
+        needs windows among the held ones for ``_release_fresh`` to see where the ramp ends. That
+        rule reads the ramp against still differences of the held windows before it; a lowering
+        from the record's first minutes, or a record whose test car was cut, may have none or one.
+        So the windows are held too while they move against the noise model known before the gap
+        (``moving_on_known_noise``). A hold decides nothing: the held windows are judged by the
+        rules when it ends (``benchmarks/loadtest_days.py --only ramps``, ``test_ramp.py``).
         """
         if len(self._fresh) >= RAMP_HOLD_FACTOR * self.config.warmup_windows:
             return False
         y, k = self._compensated(self._fresh)
-        return ramp_in_progress(y, k, 1.0 - self.config.event_trigger_probability, 1)
+        probability = 1.0 - self.config.event_trigger_probability
+        if ramp_in_progress(y, k, probability):
+            return True
+        cov = self.noise.window_cov(np.mean([w.samples for w in self._fresh], axis=0))
+        return moving_on_known_noise(y, k, cov, self.noise.phi, probability)
 
     def _compensated(self, windows: list[Window]) -> tuple[np.ndarray, np.ndarray]:
         """Return the windows' forces less the current curve (n, 2) N and their indices (n,)."""
