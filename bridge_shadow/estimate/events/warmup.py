@@ -438,7 +438,8 @@ def moving_on_known_noise(
     its lag at least ``RAMP_MIN_SPEED`` of their mean (at a pace, as in ``_ramp_score``: a step
     inside a window and a vehicle driving on after it are no ramp). Without a change the signs
     are a pattern independent of the sizes (as in ``false_ramp_probability``), at most
-    ``2 L / 2^L`` of them of one sign, and any one ``J`` beyond ``q`` has ``exp(-q / 2)``: ``q`` is
+    ``2 L / 2^L`` of them of one sign (``L`` the differences), and any one ``J`` beyond ``q`` has
+    ``exp(-q / 2)``: ``q`` is
     set so that the product is ``probability`` (a bound: on AR(1) noise of the model none of
     2,000 draws was held at 1 %, ``test_ramp.py``). Ending one difference before the last as well,
     the windows are held one more: ``ramp_windows`` then has two differences of the state after.
