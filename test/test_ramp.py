@@ -68,12 +68,15 @@ def _noise(rng: np.random.Generator, n: int, phi: float) -> np.ndarray:
 
 @pytest.mark.parametrize("phi", [0.0, 0.99])
 def test_noise_alone_makes_no_ramp_more_often_than_allowed(phi: float) -> None:
-    """Twelve windows of AR(1) noise, 2000 searches at a 1 % allowance: at most 2 % (either rule)."""
+    """Twelve windows of AR(1) noise, 1000 searches at a 1 % allowance: at most 2 % (either rule).
+
+    Measured at 2000 (until 2026-11-30, the suite's time): 0 and 0 (phi 0), 2 and 0 (phi 0.99).
+    """
     rng = np.random.default_rng(17)
     k = np.arange(12)
-    found = sum(ramp_windows(_noise(rng, 12, phi), k, 1e-2) is not None for _ in range(2000))
-    going = sum(ramp_in_progress(_noise(rng, 12, phi), k, 1e-2) for _ in range(2000))
-    assert found <= 40 and going <= 40, (found, going)
+    found = sum(ramp_windows(_noise(rng, 12, phi), k, 1e-2) is not None for _ in range(1000))
+    going = sum(ramp_in_progress(_noise(rng, 12, phi), k, 1e-2) for _ in range(1000))
+    assert found <= 20 and going <= 20, (found, going)
 
 
 def _ramp(rng: np.random.Generator, start: int, end: int, n: int = 13, size: float = -60e3) -> np.ndarray:
@@ -141,10 +144,11 @@ def test_every_ratio_a_held_run_can_ask_for_exists_and_keeps_its_share() -> None
 def test_moving_on_known_noise_holds_a_ramp_and_rarely_noise_a_car_or_a_step() -> None:
     """The hold read against the noise model known before a gap (``moving_on_known_noise``).
 
-    On AR(1) noise of that model (12 windows, 2000 draws at a 1 % allowance) it holds at most
-    that often (none measured: the bound is loose); a ramp of five noise sd a window is held, also
-    across a hole of five windows and one window after it ends; a step, a step inside a window
-    with a car driving on after it, and a car that drives on and off are not.
+    On AR(1) noise of that model (12 windows, 1000 draws at a 1 % allowance) it holds at most
+    that often (none of 4000 measured at phi 0, 0.5 and 0.95: the bound is loose); a ramp of
+    five noise sd a window is held, also across a hole of five windows and one window after it
+    ends; a step, a step inside a window with a car driving on after it, and a car that drives
+    on and off are not.
     """
     cov = np.array([[300.0**2, 0.3 * 300.0 * 400.0], [0.3 * 300.0 * 400.0, 400.0**2]])
     phi = np.array([0.5, 0.5])
@@ -160,8 +164,8 @@ def test_moving_on_known_noise_holds_a_ramp_and_rarely_noise_a_car_or_a_step() -
             x[i] = phi * x[i - 1] + np.sqrt(1.0 - phi**2) * e[i]
         return x @ chol.T
 
-    held = sum(moving_on_known_noise(noise(12), k, cov, phi, 1e-2) for _ in range(2000))
-    assert held <= 20, held
+    held = sum(moving_on_known_noise(noise(12), k, cov, phi, 1e-2) for _ in range(1000))
+    assert held <= 10, held
     ramp = np.outer(np.clip(np.arange(12) - 4.0, 0.0, None), [-5 * 300.0, -5 * 400.0])
     assert moving_on_known_noise(ramp + noise(12), k, cov, phi, 1e-3)
     assert moving_on_known_noise(ramp[:9] + noise(9), k[:9], cov, phi, 1e-3)

@@ -441,7 +441,7 @@ def moving_on_known_noise(
     ``2 L / 2^L`` of them of one sign (``L`` the differences), and any one ``J`` beyond ``q`` has
     ``exp(-q / 2)``: ``q`` is
     set so that the product is ``probability`` (a bound: on AR(1) noise of the model none of
-    2,000 draws was held at 1 %, ``test_ramp.py``). Ending one difference before the last as well,
+    4,000 draws was held at 1 %, at phi 0, 0.5 and 0.95). Ending one difference before the last as well,
     the windows are held one more: ``ramp_windows`` then has two differences of the state after.
     """
     n_l = HOLD_MOVING_DIFFERENCES
