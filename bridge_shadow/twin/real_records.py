@@ -230,7 +230,7 @@ def with_silence(
     for c, (ch, s) in enumerate(data.forces.items()):
         t = s.stamp_ns
         gone = (c == channel) & (t >= start_ns + a_min * 60 * NS) & (t < start_ns + b_min * 60 * NS)
-        forces[ch] = ForceSeries(t[~gone], s.force_n[~gone], s.frame_id[~gone])
+        forces[ch] = _kept(s, ~gone)
     return MonitoringData(forces, data.temperature)
 
 
@@ -262,8 +262,13 @@ def without_recorded_car(sc: Scenario) -> MonitoringData:
         keep = np.ones(len(s.stamp_ns), bool)
         for a, b in sc.car_ns:
             keep &= (s.stamp_ns < a) | (s.stamp_ns >= b)
-        forces[ch] = ForceSeries(s.stamp_ns[keep], s.force_n[keep], s.frame_id[keep])
+        forces[ch] = _kept(s, keep)
     return MonitoringData(forces, sc.data.temperature)
+
+
+def _kept(s: ForceSeries, keep: np.ndarray) -> ForceSeries:
+    """Return the samples of ``s`` where ``keep`` holds (stamps, forces, frames; the air elsewhere)."""
+    return ForceSeries(s.stamp_ns[keep], s.force_n[keep], s.frame_id[keep])
 
 
 #: Hours of the day's air-temperature record a 12-minute copy can take its temperature from.
