@@ -58,6 +58,8 @@ from bridge_shadow.contract import (
     SUPPORTS,
     TEMPERATURE_TOPIC,
 )
+from bridge_shadow.estimate.parameters.config import ShadowConfig
+from bridge_shadow.estimate.parameters.specs import YEAR_S
 from bridge_shadow.estimate.result import rejected_windows
 from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
@@ -358,6 +360,22 @@ def _write_outputs(
     return Path(path)
 
 
+def _node_config(config: ShadowConfig, checkpoint: str | Path | None, tmp: Path) -> ShadowConfig:
+    """Return the node's parameters of a live replay: its checkpoint and how often it is written.
+
+    A fresh checkpoint in ``tmp`` unless one is named: the replay must not resume an earlier run
+    nor overwrite a running node's state (the params file's ``checkpoint_path`` is the node's).
+    That temporary file is read once, after the flush (the plots' curve), and removed with
+    ``tmp``: nothing resumes from a periodic write of it, which in a replay as fast as the node
+    takes it came every ``checkpoint_period_s`` of stamp time (a 1440-window day: 144 writes, a
+    quarter of the node's CPU). It is written at the flush and at exit only (a period of a year
+    of stamp time, the longest the parameter takes). A named checkpoint keeps the period given.
+    """
+    if checkpoint is not None:
+        return config.replace(checkpoint_path=str(checkpoint))
+    return config.replace(checkpoint_path=str(tmp / "checkpoint.npz"), checkpoint_period_s=YEAR_S)
+
+
 def run_live(
     bag: str | Path,
     params_path: str | Path | None = None,
@@ -417,9 +435,7 @@ def run_live(
         MonitoringStream(bag, topics=inputs, required=list(INPUT_TOPICS)[:2]) as stream,
         tempfile.TemporaryDirectory(prefix="bridge_shadow_live_") as tmp,
     ):
-        # a fresh checkpoint unless one is named: the replay must not resume an earlier run nor
-        # overwrite a running node's state (the params file's checkpoint_path is the node's)
-        node_config = config.replace(checkpoint_path=str(checkpoint or Path(tmp) / "checkpoint.npz"))
+        node_config = _node_config(config, checkpoint, Path(tmp))
         params_file = write_params_file(node_config.to_params(), Path(tmp))
         node = NodeProcess(["--ros-args", "--params-file", str(params_file)])
         player = None
