@@ -59,12 +59,14 @@ streams with one or two settlements of 3-20 mm inside the later record
 (``twin.real_records.random_inside_streams``; ``--stream-seed`` too). ``--only ramps`` is a
 ninth: the real pair, then the 10 mm record at 14:36 lowered 20 mm more over 4 to 30 minutes from
 its minute 0, 3 or 6 (``twin.real_records.lowered_over``: the record copied in a row as long as
-the lowering needs), the test car as recorded and cut (``without_recorded_car``).
+the lowering needs), the test car as recorded and cut (``without_recorded_car``). ``--only
+stages`` is a tenth: the same record lowered 20 mm in 2 to 10 equal steps one to three minutes
+apart, from its minute 1, 3 or 6 (``lowered_over``'s ``stages``), scored as the ramps.
 
 Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200]
-        [--only real|twin|continuous|minutes|creep|pauses|sweep|inside|ramps]
+        [--only real|twin|continuous|minutes|creep|pauses|sweep|inside|ramps|stages]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term|--sun-off]
         [--sun-prior MEAN SD] [--sun-fit average|deck|per_bearing] [--monitor-days N] [--creep FACTOR]
 
@@ -433,10 +435,13 @@ def creep_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
 RAMP_AT_H = 6.0
 RAMP_MINUTES = (4, 8, 12, 16, 20, 24, 30)
 RAMP_STARTS = (0, 3, 6)
+#: The staged lowerings (``--only stages``): (steps, minutes between them), from minute 1, 3 or 6.
+STAGES = ((2, 3.0), (4, 2.0), (5, 1.0), (5, 2.0), (10, 1.0))
+STAGE_STARTS = (1, 3, 6)
 
 
 def ramp_stream(
-    item: tuple[str, float, float, str, dict[str, Any]],
+    item: tuple[str, float, float, str, dict[str, Any], int | None],
 ) -> tuple[str, list[bool], str, list[float]]:
     """Score one ramp stream (a task): the 10 mm event, the ramp reported, nothing lost, the final state.
 
@@ -445,9 +450,10 @@ def ramp_stream(
     the final estimate within 10 % of -30 mm and its 95 % interval holding it. Verdicts in
     ``print_streams``' order (both "lost" columns: outliers).
     """
-    name, start, minutes, car, over = item
+    name, start, minutes, car, over, stages = item
     sur = load_surrogate()
-    sc = build(shared_data_dir() / "Settlements", sur.A, lowered_over(RAMP_AT_H, start, minutes))
+    pieces = lowered_over(RAMP_AT_H, start, minutes, stages=stages)
+    sc = build(shared_data_dir() / "Settlements", sur.A, pieces)
     if car == "cut":
         sc.data = without_recorded_car(sc)
     res = Shadow(_config(over), sur).run(sc.data)
@@ -474,10 +480,21 @@ def ramp_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
     t0 = time.perf_counter()
     for car in ("recorded", "cut"):
         items = [
-            (f"from minute {a:g}, over {m:g} min [car {car}]", a, m, car, over)
+            (f"from minute {a:g}, over {m:g} min [car {car}]", a, m, car, over, None)
             for a, m in itertools.product(RAMP_STARTS, RAMP_MINUTES)
         ]
         print_streams(mapper(ramp_stream, items), f"a lowering over minutes, test car {car}, {over}", t0)
+
+
+def stage_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
+    """Score 20 mm lowerings in 2 to 10 equal steps inside a record hours after the last, car kept or cut."""
+    t0 = time.perf_counter()
+    for car in ("recorded", "cut"):
+        items = [
+            (f"{n} steps {every:g} min apart from minute {a:g} [car {car}]", a, n * every, car, over, n)
+            for (n, every), a in itertools.product(STAGES, STAGE_STARTS)
+        ]
+        print_streams(mapper(ramp_stream, items), f"a lowering in steps, test car {car}, {over}", t0)
 
 
 def twin_day(item: tuple[int, float, dict, float, float]) -> Any:
@@ -592,6 +609,7 @@ def main() -> None:
             "sweep",
             "inside",
             "ramps",
+            "stages",
         ),
         help="one study (continuous: three sunny days of monitoring, sun term off and on; minutes: the "
         "two records minutes apart or cut short, in 30 s, 1 min and 2 min windows; creep: the new "
@@ -599,7 +617,8 @@ def main() -> None:
         "logger pause of minutes inside the later record; schedule: the twin's day cut to 2022-04-11's "
         "own recordings, with its lowering and three-hour ambient records; sweep: --seeds random streams "
         "of the two records, any order, spacing and step; inside: --seeds random streams with one or two "
-        "settlements inside the later record; none of these by default)",
+        "settlements inside the later record; ramps: a 20 mm lowering over 4 to 30 minutes of a record "
+        "hours after the last; stages: the same in 2 to 10 equal steps; none of these by default)",
     )
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
     ap.add_argument(
@@ -703,6 +722,8 @@ def main() -> None:
             pause_study(mapper, over)
         if args.only == "ramps":
             ramp_study(mapper, over)
+        if args.only == "stages":
+            stage_study(mapper, over)
         if args.only == "inside":
             sur = load_surrogate()
             streams = random_inside_streams(args.seeds, sur.A, sur.u0, args.stream_seed)

@@ -234,19 +234,25 @@ def with_silence(
     return MonitoringData(forces, data.temperature)
 
 
-def lowered_over(at_h: float, start_min: float, minutes: float, size_m: float = -0.02) -> list[Piece]:
+def lowered_over(
+    at_h: float, start_min: float, minutes: float, size_m: float = -0.02, stages: int | None = None
+) -> list[Piece]:
     """Return the real pair, then the 10 mm record at ``at_h`` lowered ``size_m`` more over ``minutes``.
 
     The jacks' lowering runs from minute ``start_min`` of the later record, in half-minute slices
     through ``A`` (each at the step its middle has reached), and the record is copied in a row (12
     minutes each, the test car's pattern in every copy) until three still minutes follow it.
-    ``at_h`` must have the day's air readings for every copy (5.62-8.6 h holds three).
+    ``at_h`` must have the day's air readings for every copy (5.62-8.6 h holds three). With
+    ``stages`` the lowering comes in that many equal steps instead, ``minutes / stages`` apart,
+    the first at ``start_min`` (the jacks lowered by a few millimetres at a time, then held).
     """
     copies = int(np.ceil((start_min + minutes + 3.0) / 12.0))
     pieces = [Piece("ref", 0.0), Piece("lowered", 0.733)]
     for u in np.arange(0.0, 12.0 * copies, 0.5):
         c = int(u // 12)
         f = float(np.clip((u + 0.25 - start_min) / minutes, 0.0, 1.0))
+        if stages is not None:
+            f = float(min(np.floor(f * stages) + 1.0, stages)) / stages if u + 0.25 >= start_min else 0.0
         cut = (float(u - 12 * c), float(u + 0.5 - 12 * c))
         pieces.append(Piece("lowered", at_h + c * 0.2, (size_m * f, size_m * f), cut_min=cut))
     return pieces
