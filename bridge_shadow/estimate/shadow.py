@@ -56,6 +56,7 @@ from bridge_shadow.estimate.events.detector import ChangeDetector, Decision
 from bridge_shadow.estimate.events.warmup import (
     MIN_DIFFERENCES,
     RAMP_HOLD_FACTOR,
+    moved_then_still,
     moving_on_known_noise,
     ramp_in_progress,
     ramp_windows,
@@ -595,6 +596,10 @@ class Shadow:
                     start = mixed + 1
                 steps.add(start)
             ramp = None if steps else ramp_windows(y, ks, probability)
+            if ramp is None and not steps:  # in stages, or a ramp a vehicle broke: it moved and stopped
+                cov = self.noise.window_cov(np.mean([w.samples for w in fresh], axis=0))
+                vehicle = self.config.traffic_vehicle_max_n
+                ramp = moved_then_still(y, ks, cov, self.noise.phi, probability, vehicle)
             if ramp is not None:  # a gradual change: its moving windows hold neither state
                 both.update(range(*ramp))
                 steps.add(ramp[1])

@@ -64,6 +64,7 @@ __all__ = [
     "false_ramp_probability",
     "false_step_probability",
     "false_two_step_probability",
+    "moved_then_still",
     "moving_on_known_noise",
     "ramp_in_progress",
     "ramp_ratio",
@@ -426,6 +427,39 @@ def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
     )
 
 
+def _known_noise_moves(
+    y: np.ndarray, k: np.ndarray, window_cov: np.ndarray, phi: np.ndarray, probability: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """Differences of ``y`` read against a known noise: ``d`` (m, 2), ``lag`` (m,), ``J`` (m,), cov, ``q``.
+
+    ``J = d' S^-1 d``, ``S`` the AR(1) difference covariance ``2 (1 - phi^lag) o window_cov``
+    (chi-square(2) without a change); ``q`` the level each of ``HOLD_MOVING_DIFFERENCES`` of them
+    must pass (``moving_on_known_noise``).
+    """
+    n_l = HOLD_MOVING_DIFFERENCES
+    q = 2.0 * math.log(2.0 * n_l * 0.5**n_l / probability)
+    k = np.asarray(k, np.int64).reshape(-1)
+    d = np.diff(np.asarray(y, float).reshape(-1, 2), axis=0)
+    lag = np.diff(k).astype(float)
+    phi = np.clip(np.asarray(phi, float).reshape(2), 0.0, 0.999)
+    cov = np.asarray(window_cov, float).reshape(2, 2)
+    js = np.empty(len(d))
+    for i, (di, li) in enumerate(zip(d, lag, strict=True)):
+        f = np.sqrt(2.0 * (1.0 - phi**li))
+        js[i] = float(di @ np.linalg.solve(cov * np.outer(f, f), di))
+    return d, lag, js, cov, q
+
+
+def _moved_block(d: np.ndarray, lag: np.ndarray, js: np.ndarray, cov: np.ndarray, q: float, end: int) -> bool:
+    """Whether the ``HOLD_MOVING_DIFFERENCES`` differences ending at ``end`` moved (see the hold)."""
+    block = slice(end - HOLD_MOVING_DIFFERENCES, end)
+    if block.start < 0 or min(js[block]) <= q:
+        return False
+    total = d[block].sum(axis=0)
+    speed = d[block] @ np.linalg.solve(cov, total) / lag[block]
+    return bool(speed.min() > 0.0 and speed.min() >= RAMP_MIN_SPEED * speed.mean())
+
+
 def moving_on_known_noise(
     y: np.ndarray, k: np.ndarray, window_cov: np.ndarray, phi: np.ndarray, probability: float
 ) -> bool:
@@ -444,26 +478,53 @@ def moving_on_known_noise(
     4,000 draws was held at 1 %, at phi 0, 0.5 and 0.95). Ending one difference before the last as well,
     the windows are held one more: ``ramp_windows`` then has two differences of the state after.
     """
-    n_l = HOLD_MOVING_DIFFERENCES
-    q = 2.0 * math.log(2.0 * n_l * 0.5**n_l / probability)
-    k = np.asarray(k, np.int64).reshape(-1)
-    d = np.diff(np.asarray(y, float).reshape(-1, 2), axis=0)
-    lag = np.diff(k).astype(float)
-    phi = np.clip(np.asarray(phi, float).reshape(2), 0.0, 0.999)
-    cov = np.asarray(window_cov, float).reshape(2, 2)
-    for end in (len(d), len(d) - 1):
-        if end - n_l < 0:
-            continue
-        block = slice(end - n_l, end)
-        js = []
-        for di, li in zip(d[block], lag[block], strict=True):
-            f = np.sqrt(2.0 * (1.0 - phi**li))
-            js.append(float(di @ np.linalg.solve(cov * np.outer(f, f), di)))
-        total = d[block].sum(axis=0)
-        speed = d[block] @ np.linalg.solve(cov, total) / lag[block]
-        if min(js) > q and speed.min() > 0.0 and speed.min() >= RAMP_MIN_SPEED * speed.mean():
-            return True
-    return False
+    d, lag, js, cov, q = _known_noise_moves(y, k, window_cov, phi, probability)
+    return any(_moved_block(d, lag, js, cov, q, end) for end in (len(d), len(d) - 1))
+
+
+def moved_then_still(
+    y: np.ndarray,
+    k: np.ndarray,
+    window_cov: np.ndarray,
+    phi: np.ndarray,
+    probability: float,
+    vehicle_max_n: float,
+) -> tuple[int, int] | None:
+    """Return ``(first window moving, first window of the new state)`` of windows that moved and stopped.
+
+    Where neither step rule nor ``ramp_windows`` reads windows held after a gap, a change the
+    hold saw (``moving_on_known_noise``) is still a change when it stopped: jacks that lowered
+    a support in stages, a few millimetres at a time with holds between (no window dwarfs the
+    others, and the holds break the ramp's pace), or a ramp whose pace the test car's moves
+    broke. Read against the known noise (``_known_noise_moves``): some ``HOLD_MOVING_DIFFERENCES``
+    successive differences moved as the hold asks; every difference beyond ``q`` from the first
+    to the last lies on one side along their sum (a vehicle arriving against it, or a state that
+    went back, is not one change); the last ``RAMP_MIN_REST`` differences are still (each ``J``
+    at most ``q``: the state after has windows); and the still windows' level differs from the
+    window before the first moving difference by more than any vehicle, either way
+    (``beyond_any_vehicle``: a vehicle driving off over minutes moves as a ramp does). The windows
+    between the first moving difference and the last hold neither state; the new state begins
+    after them, and the window before them stays the old state's (as ``ramp_windows`` has it). A stretch this rule reads where
+    nothing changed needs the hold's four moved differences first, whose probability is bounded
+    there, and a level beyond any vehicle after them.
+    """
+    d, lag, js, cov, q = _known_noise_moves(y, k, window_cov, phi, probability)
+    m = len(d)
+    if m < HOLD_MOVING_DIFFERENCES + RAMP_MIN_REST:
+        return None
+    if not any(_moved_block(d, lag, js, cov, q, end) for end in range(HOLD_MOVING_DIFFERENCES, m + 1)):
+        return None
+    moved = np.flatnonzero(js > q)
+    first, last = int(moved[0]), int(moved[-1])
+    if m - 1 - last < RAMP_MIN_REST:
+        return None  # still moving at the last windows held
+    total = d[first : last + 1].sum(axis=0)
+    if np.any(d[moved] @ np.linalg.solve(cov, total) <= 0.0):
+        return None
+    after = np.asarray(y, float).reshape(-1, 2)[last + 1 :].mean(axis=0)
+    if not beyond_any_vehicle(after - np.asarray(y, float).reshape(-1, 2)[first], vehicle_max_n):
+        return None
+    return first + 1, last + 1
 
 
 def ramp_windows(y: np.ndarray, k: np.ndarray, probability: float) -> tuple[int, int] | None:
