@@ -504,9 +504,9 @@ def moved_then_still(
     window before the first moving difference by more than any vehicle, either way
     (``beyond_any_vehicle``: a vehicle driving off over minutes moves as a ramp does). The windows
     between the first moving difference and the last hold neither state; the new state begins
-    after them, and the window before them stays the old state's (as ``ramp_windows`` has it). A stretch this rule reads where
-    nothing changed needs the hold's four moved differences first, whose probability is bounded
-    there, and a level beyond any vehicle after them.
+    after them, and the window before them stays the old state's (as ``ramp_windows`` has it). A
+    stretch this rule reads where nothing changed needs the hold's four moved differences first,
+    whose probability is bounded there, and a level beyond any vehicle after them.
     """
     d, lag, js, cov, q = _known_noise_moves(y, k, window_cov, phi, probability)
     m = len(d)
