@@ -475,26 +475,27 @@ def ramp_stream(
     return name, verdicts, line, (1.96e3 * sd).tolist()
 
 
-def ramp_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
-    """Score 20 mm lowerings over 4 to 30 minutes of a record hours after the last, the car kept or cut."""
+def lowering_study(mapper: Callable[..., list[Any]], over: dict[str, Any], stages: bool = False) -> None:
+    """Score 20 mm lowerings inside a record hours after the last, the car kept or cut.
+
+    Over 4 to 30 minutes (``--only ramps``), or with ``stages`` in 2 to 10 equal steps one to three
+    minutes apart (``--only stages``).
+    """
     t0 = time.perf_counter()
     for car in ("recorded", "cut"):
-        items = [
-            (f"from minute {a:g}, over {m:g} min [car {car}]", a, m, car, over, None)
-            for a, m in itertools.product(RAMP_STARTS, RAMP_MINUTES)
-        ]
-        print_streams(mapper(ramp_stream, items), f"a lowering over minutes, test car {car}, {over}", t0)
-
-
-def stage_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
-    """Score 20 mm lowerings in 2 to 10 equal steps inside a record hours after the last, car kept or cut."""
-    t0 = time.perf_counter()
-    for car in ("recorded", "cut"):
-        items = [
-            (f"{n} steps {every:g} min apart from minute {a:g} [car {car}]", a, n * every, car, over, n)
-            for (n, every), a in itertools.product(STAGES, STAGE_STARTS)
-        ]
-        print_streams(mapper(ramp_stream, items), f"a lowering in steps, test car {car}, {over}", t0)
+        if stages:
+            title = "a lowering in steps"
+            items = [
+                (f"{n} steps {every:g} min apart from minute {a:g} [car {car}]", a, n * every, car, over, n)
+                for (n, every), a in itertools.product(STAGES, STAGE_STARTS)
+            ]
+        else:
+            title = "a lowering over minutes"
+            items = [
+                (f"from minute {a:g}, over {m:g} min [car {car}]", a, m, car, over, None)
+                for a, m in itertools.product(RAMP_STARTS, RAMP_MINUTES)
+            ]
+        print_streams(mapper(ramp_stream, items), f"{title}, test car {car}, {over}", t0)
 
 
 def twin_day(item: tuple[int, float, dict, float, float]) -> Any:
@@ -720,10 +721,8 @@ def main() -> None:
             creep_study(mapper, over)
         if args.only == "pauses":
             pause_study(mapper, over)
-        if args.only == "ramps":
-            ramp_study(mapper, over)
-        if args.only == "stages":
-            stage_study(mapper, over)
+        if args.only in ("ramps", "stages"):
+            lowering_study(mapper, over, stages=args.only == "stages")
         if args.only == "inside":
             sur = load_surrogate()
             streams = random_inside_streams(args.seeds, sur.A, sur.u0, args.stream_seed)

@@ -547,8 +547,11 @@ class Shadow:
         probability = 1.0 - self.config.event_trigger_probability
         if ramp_in_progress(y, k, probability):
             return True
-        cov = self.noise.window_cov(np.mean([w.samples for w in self._fresh], axis=0))
-        return moving_on_known_noise(y, k, cov, self.noise.phi, probability)
+        return moving_on_known_noise(y, k, self._known_window_cov(self._fresh), self.noise.phi, probability)
+
+    def _known_window_cov(self, windows: list[Window]) -> np.ndarray:
+        """Return the noise model's covariance (2, 2) N^2 of a window mean at the windows' mean count."""
+        return self.noise.window_cov(np.mean([w.samples for w in windows], axis=0))
 
     def _compensated(self, windows: list[Window]) -> tuple[np.ndarray, np.ndarray]:
         """Return the windows' forces less the current curve (n, 2) N and their indices (n,)."""
@@ -597,8 +600,7 @@ class Shadow:
                 steps.add(start)
             ramp = None if steps else ramp_windows(y, ks, probability)
             if ramp is None and not steps:  # in stages, or a ramp a vehicle broke: it moved and stopped
-                cov = self.noise.window_cov(np.mean([w.samples for w in fresh], axis=0))
-                vehicle = self.config.traffic_vehicle_max_n
+                cov, vehicle = self._known_window_cov(fresh), self.config.traffic_vehicle_max_n
                 ramp = moved_then_still(y, ks, cov, self.noise.phi, probability, vehicle)
             if ramp is not None:  # a gradual change: its moving windows hold neither state
                 both.update(range(*ramp))

@@ -521,8 +521,8 @@ def moved_then_still(
     total = d[first : last + 1].sum(axis=0)
     if np.any(d[moved] @ np.linalg.solve(cov, total) <= 0.0):
         return None
-    after = np.asarray(y, float).reshape(-1, 2)[last + 1 :].mean(axis=0)
-    if not beyond_any_vehicle(after - np.asarray(y, float).reshape(-1, 2)[first], vehicle_max_n):
+    y = np.asarray(y, float).reshape(-1, 2)
+    if not beyond_any_vehicle(y[last + 1 :].mean(axis=0) - y[first], vehicle_max_n):
         return None
     return first + 1, last + 1
 
