@@ -23,6 +23,7 @@ from bridge_shadow.estimate.events.warmup import (
     RAMP_MIN_LENGTH,
     RAMP_MIN_REST,
     false_ramp_probability,
+    moved_not_still,
     moved_then_still,
     moving_on_known_noise,
     ramp_in_progress,
@@ -224,6 +225,36 @@ def test_windows_that_moved_and_stopped_are_a_change_and_a_vehicle_or_noise_is_n
         moved_then_still(_known_noise(rng, 16), k, KNOWN_COV, KNOWN_PHI, p, vehicle) for _ in range(1000)
     ]
     assert not any(noise)
+
+
+def test_a_long_run_is_held_until_still_and_read_with_the_test_car_among_its_moves() -> None:
+    """The detector's long run (``ChangeDetector._long_run``): held on until still, then read.
+
+    Lowered by 6 / 8 kN a window over windows 1-9 with a test car arriving at window 5 and
+    leaving at window 7 (+12 / +10 kN: its arrival moves against the lowering), then six still
+    windows.
+    ``moved_not_still`` holds the windows while any of the last two differences moves after a
+    moving block (also when the block itself has ended, the car's leaving the last move), and
+    releases them once two are still; noise alone (1000 draws of 16 windows at a 1 % allowance)
+    and a car parked and gone without a lowering (no moving block) are not held.
+    ``moved_then_still`` reads the lowering only when the moves may lie on either side
+    (``one_sign=False``): the car's moves among the moving windows are left out with them.
+    """
+    rng = np.random.default_rng(11)
+    p, vehicle = 1e-2, 30e3
+    k = np.arange(16)
+    lowering = np.outer(np.clip(k, 0, 9), [-6e3, -8e3])
+    car = np.outer((k >= 5) & (k < 7), [12e3, 10e3])
+    y = lowering + car + _known_noise(rng, 16)
+    assert moved_not_still(y[:8], k[:8], KNOWN_COV, KNOWN_PHI, p)  # the car's leaving: not still
+    assert moved_not_still(y[:10], k[:10], KNOWN_COV, KNOWN_PHI, p)
+    assert not moved_not_still(y[:12], k[:12], KNOWN_COV, KNOWN_PHI, p)  # two still differences
+    assert moved_then_still(y, k, KNOWN_COV, KNOWN_PHI, p, vehicle) is None  # one side only
+    assert moved_then_still(y, k, KNOWN_COV, KNOWN_PHI, p, vehicle, one_sign=False) == (1, 9)
+    parked = np.outer((k >= 4) & (k < 9), [6e3, 5e3]) + _known_noise(rng, 16)
+    assert not moved_not_still(parked[:10], k[:10], KNOWN_COV, KNOWN_PHI, p)
+    held = sum(moved_not_still(_known_noise(rng, 16), k, KNOWN_COV, KNOWN_PHI, p) for _ in range(1000))
+    assert held <= 10, held
 
 
 def _slow_lowering(minutes: float, seed: int, before: float = 5.0) -> tuple[MonitoringData, np.ndarray]:

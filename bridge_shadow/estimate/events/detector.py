@@ -77,7 +77,15 @@ import numpy as np
 from scipy import special, stats
 
 from bridge_shadow.estimate.compensation.noise import ar1_factor
-from bridge_shadow.estimate.events.warmup import beyond_any_vehicle, ramp_in_progress, ramp_windows
+from bridge_shadow.estimate.events.warmup import (
+    RAMP_HOLD_FACTOR,
+    beyond_any_vehicle,
+    moved_not_still,
+    moved_then_still,
+    moving_on_known_noise,
+    ramp_in_progress,
+    ramp_windows,
+)
 from bridge_shadow.estimate.settlement.relaxation import relaxation_variance
 from bridge_shadow.estimate.small import Sym, Vec, quad_inv
 
@@ -368,22 +376,80 @@ class ChangeDetector:
                 return self._transient()  # back to where the run started from: it was passing by
             return self._moved_on()  # beyond it, the other way: the run never came back
         best = self._best(cands)
+        if len(self.pending) >= self.max_pending:
+            return self._long_run(cands, best)
         if best is not None:
             series = self._run_series()
             split = self._ramp_split(series)
-            waiting = len(self.pending) < self.max_pending
-            if split is None and best.mixed and waiting and best.n_after < 2 * self.confirm:
+            if split is None and best.mixed and best.n_after < 2 * self.confirm:
                 return Decision()  # a window inside the step, or a ramp's last: the ramp rule looks first
             if split is not None and len(self.pending) - split[1] < self.confirm:
-                if waiting:
-                    return Decision()  # a ramp ended: its new state needs its own windows first
-                split = None  # forced: the event as the one step dates it
-            elif split is None and waiting and ramp_in_progress(series[0], series[1], self.false_trigger):
+                return Decision()  # a ramp ended: its new state needs its own windows first
+            if split is None and ramp_in_progress(series[0], series[1], self.false_trigger):
                 return Decision()  # still moving: the new state is not reached yet
             return self._event(best, split)
-        if len(self.pending) >= self.max_pending:
-            return self._forced(cands)
         return Decision()
+
+    def _long_run(self, cands: list[_Candidate], best: _Candidate | None) -> Decision:
+        """Decide a run held ``event_max_pending`` windows, or hold on while a ramp goes on.
+
+        At ``event_max_pending`` a run is decided: an event at its best candidate (a ramp's
+        windows left out, ``_ramp_split``, when its new state has ``event_confirm_windows``), or
+        ordinary data with the change reported (``_forced``). A ramp slower than that (jacks
+        lowering a support over a quarter of an hour) was still moving then: taken as data, its
+        windows pulled the state and the noise model, and the day's earlier events fell to
+        unconfirmed changes (``benchmarks/loadtest_days.py --only ramps``, the test car as
+        recorded). So while the run moves on the known noise (``moving_on_known_noise``, as the
+        hold after a gap reads it), and after that until its last ``RAMP_MIN_REST`` differences are
+        still, it is held on, up to ``RAMP_HOLD_FACTOR`` times ``event_max_pending``. A run held on
+        is then split where it moved and stopped (``_ramp_split``, else ``moved_then_still`` with
+        the test car's moves among the moving windows): the moving windows left out, the new state
+        an event when a candidate qualifies, a provisional change otherwise, once it has
+        ``event_confirm_windows`` windows (or the hold's limit is reached).
+        """
+        n = len(self.pending)
+        series = self._run_series()
+        cap = n >= RAMP_HOLD_FACTOR * self.max_pending
+        if not cap and (self._moving_on(series) or self._not_still(series)):
+            return Decision()  # a ramp going on: its new state is not reached yet
+        split = self._ramp_split(series)
+        if split is None:
+            split = self._moved_split(series)
+        if split is not None and n - split[1] < self.confirm and not cap:
+            return Decision()  # a ramp ended: its new state needs its own windows first
+        if best is not None:
+            if split is not None and n - split[1] < self.confirm:
+                split = None  # forced: the event as the one step dates it
+            return self._event(best, split)
+        if split is not None and n - split[1] >= SHORT_STATE_WINDOWS:
+            return self._unconfirmed(cands, provisional=True, split=split)
+        return self._forced(cands)
+
+    def _known_cov(self) -> np.ndarray:
+        """Return the noise model's covariance (2, 2) N^2 of a held window's mean, averaged, not inflated."""
+        return np.mean([p.r_window for p in self.pending], axis=0) / self.inflation
+
+    def _moving_on(self, series: tuple[np.ndarray, np.ndarray, int]) -> bool:
+        """Whether the held run still moves on the known noise (``moving_on_known_noise``)."""
+        y, ks, _ = series
+        return moving_on_known_noise(y, ks, self._known_cov(), self.phi, self.false_trigger)
+
+    def _not_still(self, series: tuple[np.ndarray, np.ndarray, int]) -> bool:
+        """Whether the held run moved and its last differences are not still yet (``moved_not_still``)."""
+        y, ks, h = series
+        a = max(h - 1, 0)  # as ``_moved_split`` reads it
+        return moved_not_still(y[a:], ks[a:], self._known_cov(), self.phi, self.false_trigger)
+
+    def _moved_split(self, series: tuple[np.ndarray, np.ndarray, int]) -> tuple[int, int] | None:
+        """``(first moving, first of the new state)`` in the held run where it moved and stopped."""
+        y, ks, h = series
+        a = max(h - 1, 0)  # the run and the ordinary window before it (the old state's wander not read)
+        found = moved_then_still(
+            y[a:], ks[a:], self._known_cov(), self.phi, self.false_trigger, self.vehicle_max_n, one_sign=False
+        )
+        if found is None or found[1] + a <= h:
+            return None
+        return max(found[0] + a - h, 0), found[1] + a - h
 
     def close_run(self) -> Decision:
         """Decide on what is held because the run ends here: at the end of the data or a gap.

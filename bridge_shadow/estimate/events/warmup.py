@@ -64,6 +64,7 @@ __all__ = [
     "false_ramp_probability",
     "false_step_probability",
     "false_two_step_probability",
+    "moved_not_still",
     "moved_then_still",
     "moving_on_known_noise",
     "ramp_in_progress",
@@ -489,6 +490,7 @@ def moved_then_still(
     phi: np.ndarray,
     probability: float,
     vehicle_max_n: float,
+    one_sign: bool = True,
 ) -> tuple[int, int] | None:
     """Return ``(first window moving, first window of the new state)`` of windows that moved and stopped.
 
@@ -506,25 +508,49 @@ def moved_then_still(
     between the first moving difference and the last hold neither state; the new state begins
     after them, and the window before them stays the old state's (as ``ramp_windows`` has it). A
     stretch this rule reads where nothing changed needs the hold's four moved differences first,
-    whose probability is bounded there, and a level beyond any vehicle after them.
+    whose probability is bounded there, and a level beyond any vehicle after them. Without
+    ``one_sign`` the moving differences may lie on either side (a ramp the detector held on past
+    ``event_max_pending``, ``ChangeDetector._long_run``: the test car's moves among its windows
+    are left out with it).
     """
     d, lag, js, cov, q = _known_noise_moves(y, k, window_cov, phi, probability)
     m = len(d)
     if m < HOLD_MOVING_DIFFERENCES + RAMP_MIN_REST:
         return None
-    if not any(_moved_block(d, lag, js, cov, q, end) for end in range(HOLD_MOVING_DIFFERENCES, m + 1)):
+    if not _moved_somewhere(d, lag, js, cov, q):
         return None
     moved = np.flatnonzero(js > q)
     first, last = int(moved[0]), int(moved[-1])
     if m - 1 - last < RAMP_MIN_REST:
         return None  # still moving at the last windows held
     total = d[first : last + 1].sum(axis=0)
-    if np.any(d[moved] @ np.linalg.solve(cov, total) <= 0.0):
+    if one_sign and np.any(d[moved] @ np.linalg.solve(cov, total) <= 0.0):
         return None
     y = np.asarray(y, float).reshape(-1, 2)
     if not beyond_any_vehicle(y[last + 1 :].mean(axis=0) - y[first], vehicle_max_n):
         return None
     return first + 1, last + 1
+
+
+def _moved_somewhere(d: np.ndarray, lag: np.ndarray, js: np.ndarray, cov: np.ndarray, q: float) -> bool:
+    """Whether some ``HOLD_MOVING_DIFFERENCES`` successive differences moved (``_moved_block``)."""
+    return any(_moved_block(d, lag, js, cov, q, end) for end in range(HOLD_MOVING_DIFFERENCES, len(d) + 1))
+
+
+def moved_not_still(
+    y: np.ndarray, k: np.ndarray, window_cov: np.ndarray, phi: np.ndarray, probability: float
+) -> bool:
+    """Whether the windows moved somewhere as the hold asks and their last differences are not yet still.
+
+    On the known noise (``_known_noise_moves``): some ``HOLD_MOVING_DIFFERENCES`` successive
+    differences moved (``_moved_block``), and of the last ``RAMP_MIN_REST`` one has ``J`` beyond
+    ``q``: a ramp whose pace broke (the test car's moves among its windows) that ``moved_then_still``
+    cannot read yet.
+    """
+    d, lag, js, cov, q = _known_noise_moves(y, k, window_cov, phi, probability)
+    if len(js) < RAMP_MIN_REST or bool(np.all(js[-RAMP_MIN_REST:] <= q)):
+        return False
+    return _moved_somewhere(d, lag, js, cov, q)
 
 
 def ramp_windows(y: np.ndarray, k: np.ndarray, probability: float) -> tuple[int, int] | None:
