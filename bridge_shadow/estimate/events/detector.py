@@ -477,7 +477,10 @@ class ChangeDetector:
             return Decision(accept=[only.payload])
         cands = self._candidates()
         best = self._best(cands)
-        split = self._ramp_split(self._run_series())
+        series = self._run_series()
+        split = self._ramp_split(series)
+        if split is None and len(self.pending) >= self.max_pending:
+            split = self._moved_split(series)  # a run held on (``_long_run``) that stopped
         if best is not None and (split is None or len(self.pending) - split[1] >= self.confirm):
             return self._event(best, split)  # (a ramp's new state too short to confirm: a change)
         c = min(cands, key=lambda c: c.cost)
