@@ -48,10 +48,11 @@ demo: $(STAMP)
 # where the environment forbids Python to write bytecode (PYTHONDONTWRITEBYTECODE) every process
 # of the suite (the two test processes, each node, CLI and Dask worker they start) compiled the
 # modules it imports anew (the node, CLI and fleet test files: 97 s of CPU instead of 89 s).
-# Syntax errors are left for pytest to report.
+# Syntax errors are left for pytest to report. Files go to the processes in collection order, the
+# heaviest first (test/conftest.py, HEAVIEST_FIRST), so that both finish together.
 test: $(STAMP)
 	@$(PY) -m compileall -q bridge_shadow test tools benchmarks > /dev/null || true
-	$(PY) -m pytest -n 2 --dist loadfile
+	$(PY) -m pytest -n 2 --dist loadfile --no-loadscope-reorder
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check bridge_shadow test benchmarks tools
