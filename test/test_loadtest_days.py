@@ -426,6 +426,45 @@ def test_a_record_cut_as_its_last_car_drives_off_ends_at_the_new_state(folder: P
     assert len(res.to_json()["traffic"]["parked"]) == 1
 
 
+#: Sweep seed 53 with every later record cut to its first minutes (``--cut-share 1.0``): #272, the
+#: 10 mm record 2.1 h on cut at minute 8.9, then again; #561, the reference record 4.5 h on,
+#: 37.4 mm lower, cut at minute 9.1, then again (each after the reference record).
+STEP_272, STEP_561 = (-0.011874230307802226, -0.002648969419099414), (-0.03739343478436449,) * 2
+CUT_BEFORE_A_GAP = {
+    "#272": (
+        Piece("lowered", 2.115055668230693, STEP_272, 0.4844821134256644, cut_min=(0.0, 8.941795867285155)),
+        Piece("lowered", 3.550813643073432, STEP_272, 0.5265755285437115),
+    ),
+    "#561": (
+        Piece("ref", 4.511037421742019, STEP_561, 8.017116325839307, cut_min=(0.0, 9.103781544395332)),
+        Piece("ref", 5.981280553757228, STEP_561, 6.619145590627778),
+    ),
+}
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("name", sorted(CUT_BEFORE_A_GAP))
+def test_a_car_in_a_cut_records_last_seconds_before_a_gap_is_no_state(
+    folder: Path, surrogate, name: str
+) -> None:
+    """A record cut seconds after a test car came on, then the same state after a gap: one event.
+
+    The last window holds 12-14 s of data with the car (+5 to +7 kN a bearing), too short for
+    the screen to see it park. Taken as a state of one window before the gap (a provisional
+    change of probability 1.0, +1.6 / +2.1 mm), it made the next record's return to the lowered
+    level a second event (-1.4 / -2.1 mm): two events for one step. One window before a gap, no
+    heavier than any vehicle, is now no state of its own (``SHORT_STATE_WINDOWS``): it is left out
+    (``step_window``), and the gap's segment weighs any change by the windows after it.
+    """
+    later, again = CUT_BEFORE_A_GAP[name]
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0), later, again])
+    _, res = replay(sc, surrogate)
+    assert check(sc, res) == {"event": True, "within": True}
+    assert len(res.events) == 1 and not res.changes, (res.events, res.changes)
+    left = [o for o in res.outputs if o.reason == "step_window"]
+    assert len(left) == 1 and sc.starts_ns[1] < left[0].end_ns < sc.starts_ns[2], left
+
+
 def _jacking(folder: Path, surrogate, minutes: tuple[int, int], size: float, then: bool = True) -> Scenario:
     """Return the reference and 10 mm records, a jacking record, and one more record after it (``then``).
 

@@ -56,6 +56,7 @@ from bridge_shadow.estimate.events.detector import ChangeDetector, Decision
 from bridge_shadow.estimate.events.warmup import (
     MIN_DIFFERENCES,
     RAMP_HOLD_FACTOR,
+    beyond_any_vehicle,
     moved_then_still,
     moving_on_known_noise,
     ramp_in_progress,
@@ -515,8 +516,8 @@ class Shadow:
         """
         outputs: list[WindowOutput] = []
         if self.warm:
-            outputs.extend(self._release_fresh())
-            outputs.extend(self._close_run(self.detector.close_run()))
+            outputs.extend(self._release_fresh(at_gap=True))
+            outputs.extend(self._close_run(self.detector.close_run(at_gap=True)))
             outputs.extend(self._drain())
         else:
             self._split_warm_segment()
@@ -563,7 +564,7 @@ class Shadow:
         w.reason, w.action = "step_window", "invalid"
         self.counts["step_window"] += 1
 
-    def _release_fresh(self) -> list[WindowOutput]:
+    def _release_fresh(self, at_gap: bool = False) -> list[WindowOutput]:
         """Judge the windows held after a gap, in order; a step among them opens a provisional segment.
 
         Right after a gap the provisional segment's level rests on its first few windows, so the
@@ -583,7 +584,11 @@ class Shadow:
         level, the next window jumped from it by the rest of the step, and the detector reported a
         second event of about half the step (10 of 56 streams with two steps inside a record); it
         is left out as ``step_window`` (where ``step_windows`` names it: its neighbours next to it)
-        and the new segment starts at the window after it.
+        and the new segment starts at the window after it. With ``at_gap`` (the data stop after
+        these windows), a step whose new state is the last window alone, no heavier than any
+        vehicle, is no state of its own (``detector.SHORT_STATE_WINDOWS``): that window is left
+        out, and the gap's segment weighs any change by the windows after the gap
+        (``ChangeDetector.close_run``).
         """
         if not self._fresh_open:
             return []
@@ -598,9 +603,13 @@ class Shadow:
                     both.add(mixed)
                     start = mixed + 1
                 steps.add(start)
+            last, vehicle = len(fresh) - 1, self.config.traffic_vehicle_max_n
+            if at_gap and last in steps and not beyond_any_vehicle(y[last] - y[last - 1], vehicle):
+                steps.discard(last)  # one window before a gap: a vehicle's, or the gap's to weigh
+                both.add(last)
             ramp = None if steps else ramp_windows(y, ks, probability)
             if ramp is None and not steps:  # in stages, or a ramp a vehicle broke: it moved and stopped
-                cov, vehicle = self._known_window_cov(fresh), self.config.traffic_vehicle_max_n
+                cov = self._known_window_cov(fresh)
                 ramp = moved_then_still(y, ks, cov, self.noise.phi, probability, vehicle)
             if ramp is not None:  # a gradual change: its moving windows hold neither state
                 both.update(range(*ramp))

@@ -451,7 +451,7 @@ class ChangeDetector:
             return None
         return max(found[0] + a - h, 0), found[1] + a - h
 
-    def close_run(self) -> Decision:
+    def close_run(self, at_gap: bool = False) -> Decision:
         """Decide on what is held because the run ends here: at the end of the data or a gap.
 
         A run that is held has not come back (its last window was closer to the step than to no
@@ -475,6 +475,11 @@ class ChangeDetector:
             self._remember(only.k, only.v)
             self.prev = only
             return Decision(accept=[only.payload])
+        if at_gap and len(self.pending) == 1 and not self._beyond_any_vehicle(self.pending[0].v):
+            # one window before a gap, no heavier than any vehicle: no state of its own
+            # (``SHORT_STATE_WINDOWS``), neither a vehicle's outlier (it did not come back) nor
+            # this state's data; the gap's segment weighs any change by the windows after it
+            return Decision(moving=[self.pending.pop().payload])
         cands = self._candidates()
         best = self._best(cands)
         series = self._run_series()
