@@ -454,15 +454,21 @@ def test_a_car_in_a_cut_records_last_seconds_before_a_gap_is_no_state(
     change of probability 1.0, +1.6 / +2.1 mm), it made the next record's return to the lowered
     level a second event (-1.4 / -2.1 mm): two events for one step. One window before a gap, no
     heavier than any vehicle, is now no state of its own (``SHORT_STATE_WINDOWS``): it is left out
-    (``step_window``), and the gap's segment weighs any change by the windows after it.
+    (``step_window``) and reported with its size (``before_gap``, no warning: a vehicle is the
+    likelier reading), and the gap's segment weighs any change by the windows after it.
     """
     later, again = CUT_BEFORE_A_GAP[name]
     sc = build(folder, surrogate.A, [Piece("ref", 0.0), later, again])
     _, res = replay(sc, surrogate)
     assert check(sc, res) == {"event": True, "within": True}
-    assert len(res.events) == 1 and not res.changes, (res.events, res.changes)
+    assert len(res.events) == 1, res.events
     left = [o for o in res.outputs if o.reason == "step_window"]
     assert len(left) == 1 and sc.starts_ns[1] < left[0].end_ns < sc.starts_ns[2], left
+    (change,) = res.changes
+    assert change.kind == "before_gap" and not change.likely
+    assert change.window * W == left[0].end_ns - W  # the window left out (integer ns)
+    assert 0.0 < change.size_m[0] < 0.005 and 0.0 < change.size_m[1] < 0.005  # the car's load, upward
+    assert not any("before_gap" in w or "one window before a gap" in w for w in res.warnings)
 
 
 def _jacking(folder: Path, surrogate, minutes: tuple[int, int], size: float, then: bool = True) -> Scenario:

@@ -174,6 +174,11 @@ def _summary(js: dict[str, Any]) -> str:
                 f"a state of {windows} until {c['until']} between two steps, heavier than "
                 "any vehicle: left out"
             )
+        elif c["kind"] == "before_gap":
+            how = (
+                "one window before a gap, no heavier than any vehicle: left out, the gap's segment "
+                "weighs any change"
+            )
         elif c["kind"] == "step":
             how = "a step the detector found, its size not told from zero on the data: no event"
         else:

@@ -173,7 +173,10 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         out.append(_run_record(shadow, r, "run_in_data", significant))
     # runs no vehicle makes that came back (rejected as an excursion) or states held between two
     # steps (left out): reported (a checkpoint written before the kind was kept holds excursions)
-    out.extend(_run_record(shadow, r, r.get("kind", "excursion"), True) for r in shadow.excursions)
+    # (one window before a gap, no heavier than any vehicle, is no likely change: not a warning)
+    for r in shadow.excursions:
+        kind = r.get("kind", "excursion")
+        out.append(_run_record(shadow, r, kind, kind != "before_gap"))
     return sorted(out, key=lambda c: c.window)
 
 
@@ -348,6 +351,7 @@ def warnings(shadow: Shadow) -> list[str]:
             "run_in_data": "a run that stayed away without a step's jump",
             "excursion": "a run that came back, heavier than any vehicle on the supports' sum",
             "between_steps": "a state held between two steps, heavier than any vehicle on the supports' sum",
+            "before_gap": "one window before a gap, no heavier than any vehicle",
         }[c.kind]
         size = ", ".join(
             f"{side} {1e3 * m:+.2f} ± {1.96e3 * sd:.2f} mm"
@@ -363,6 +367,8 @@ def warnings(shadow: Shadow) -> list[str]:
         elif c.kind == "between_steps":
             until = iso_utc(c.until_ns or c.time_ns)
             how = f"{windows} until {until}, left out as a moving support's: not in the estimate"
+        elif c.kind == "before_gap":
+            how = "left out: not in the estimate; the gap's segment weighs any change"
         else:
             since = "since" if c.next_ns is None else f"before the next state from {iso_utc(c.next_ns)}"
             how = (

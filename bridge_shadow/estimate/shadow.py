@@ -607,6 +607,7 @@ class Shadow:
             if at_gap and last in steps and not beyond_any_vehicle(y[last] - y[last - 1], vehicle):
                 steps.discard(last)  # one window before a gap: a vehicle's, or the gap's to weigh
                 both.add(last)
+                self._note_before_gap(fresh[last - 1], fresh[last], y[last] - y[last - 1])
             ramp = None if steps else ramp_windows(y, ks, probability)
             if ramp is None and not steps:  # in stages, or a ramp a vehicle broke: it moved and stopped
                 cov = self._known_window_cov(fresh)
@@ -633,6 +634,20 @@ class Shadow:
                 outputs.extend(self._judge(w))
             outputs.extend(self._drain())
         return outputs
+
+    def _note_before_gap(self, before: Window, w: Window, step_n: np.ndarray) -> None:
+        """Report window ``w``, left out before a gap, as a possible change of ``step_n`` (2,) N."""
+        cov = self.noise.window_cov(before.samples) + self.noise.window_cov(w.samples)
+        self.excursions.append(
+            {
+                "window": w.k,
+                "until_window": w.k,
+                "windows": 1,
+                "step_n": np.asarray(step_n, float).tolist(),
+                "step_cov_n2": cov.tolist(),
+                "kind": "before_gap",
+            }
+        )
 
     def _settle_provisional(self, now_k: int, merge: bool = False) -> bool:
         """Note provisional segments the data have decided; merge the unchanged ones; True if merged.
@@ -829,7 +844,13 @@ class Shadow:
                     "windows": len(decision.excursion),
                     "step_n": np.asarray(decision.excursion_n, float).tolist(),
                     "step_cov_n2": np.asarray(decision.excursion_cov_n2, float).tolist(),
-                    "kind": "between_steps" if decision.between_steps else "excursion",
+                    "kind": (
+                        "before_gap"
+                        if decision.before_gap
+                        else "between_steps"
+                        if decision.between_steps
+                        else "excursion"
+                    ),
                 }
             )
         for w in decision.accept:

@@ -153,9 +153,12 @@ def _events(diag: Mapping[str, Any]) -> Status:
             for side, m, sd in zip(SUPPORTS, c["size_m"], c["sigma_m"], strict=True)
         )
         p = c.get("change_probability")
-        unweighed = {"step": "not significant", "excursion": "rejected", "between_steps": "left out"}.get(
-            c["kind"], "used as data"
-        )
+        unweighed = {
+            "step": "not significant",
+            "excursion": "rejected",
+            "between_steps": "left out",
+            "before_gap": "left out",
+        }.get(c["kind"], "used as data")
         how = unweighed if p is None else f"probability {p:.3g}"
         values[f"unconfirmed {i + 1}"] = f"{c['kind']} at {c['time']}: {size} mm (95 %; {how})"
     state = diag.get("state", {})

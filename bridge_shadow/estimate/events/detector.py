@@ -220,6 +220,8 @@ class Decision:
             ``between_steps``: the windows beyond any vehicle of a ``moving`` run the data left
             for another level (``ChangeDetector._moved_on``), a state held between two steps.
         between_steps: ``excursion`` is such a state between two steps, not a run that came back.
+        before_gap: ``excursion`` is the one window of a ``moving`` run before a gap, no heavier
+            than any vehicle (``ChangeDetector.close_run``): no state of its own, reported.
 
     """
 
@@ -239,6 +241,7 @@ class Decision:
     excursion_n: np.ndarray | None = None
     excursion_cov_n2: np.ndarray | None = None
     between_steps: bool = False
+    before_gap: bool = False
 
 
 @dataclass
@@ -464,7 +467,11 @@ class ChangeDetector:
         mm; ``benchmarks/loadtest_days.py --only sweep --seeds 1000 --stream-seed 41``, #640). A
         lone window within the trigger, held for its jump, is data as before the jump rule (the
         real reference record cut at 2.5 minutes, 4 h on and 20 mm lower: its last window, half of
-        one, jumped 1.1 mm and was a change at probability 1).
+        one, jumped 1.1 mm and was a change at probability 1). With ``at_gap``, a lone window beyond
+        the trigger but no heavier than any vehicle is no state of its own (``SHORT_STATE_WINDOWS``):
+        it is left out and reported (``Decision.before_gap``), and the gap's segment weighs any
+        change by the windows after the gap (a test car that came on in a cut record's last
+        seconds was a change of probability 1, and the next record's return a second event).
         """
         if not self.pending:
             return Decision()
@@ -479,7 +486,14 @@ class ChangeDetector:
             # one window before a gap, no heavier than any vehicle: no state of its own
             # (``SHORT_STATE_WINDOWS``), neither a vehicle's outlier (it did not come back) nor
             # this state's data; the gap's segment weighs any change by the windows after it
-            return Decision(moving=[self.pending.pop().payload])
+            only = self.pending.pop()
+            return Decision(
+                moving=[only.payload],
+                excursion=[only.payload],
+                excursion_n=np.array(only.v, float),
+                excursion_cov_n2=self._mean_cov([only]),
+                before_gap=True,
+            )
         cands = self._candidates()
         best = self._best(cands)
         series = self._run_series()
