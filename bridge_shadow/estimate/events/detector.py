@@ -56,7 +56,10 @@ freedom.
      states, the second a step no vehicle makes, is two such changes (``_second_state``). At
      ``event_max_pending`` inside the data the run is ordinary data, the change reported; when
      its most likely change time has fewer than ``event_confirm_windows`` windows after it, only
-     the windows before it are decided so and the rest stay held (``_forced``).
+     the windows before it are decided so and the rest stay held (``_forced``). A run that still
+     moves on the known noise then (a ramp) is held on until it is still and read where it moved
+     and stopped (``_long_run``); one window before a gap, no heavier than any vehicle, is no
+     state of its own (``close_run``).
 
 While the noise model rests on few windows, its variance is uncertain: detection uses it inflated
 by ``dof / chi2_dof(0.05)`` (its one-sided 95 % bound; ``dof`` the fit's residual degrees of
