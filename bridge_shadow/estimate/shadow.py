@@ -598,16 +598,19 @@ class Shadow:
         if len(fresh) > MIN_DIFFERENCES:
             y, ks = self._compensated(fresh)
             probability = 1.0 - self.config.event_trigger_probability
-            for start, mixed in step_windows(y, ks, probability, self.config.traffic_vehicle_max_n):
+            vehicle = self.config.traffic_vehicle_max_n
+            for start, mixed in step_windows(y, ks, probability, vehicle):
                 if mixed is not None:  # each side keeps a window: its neighbours are its states'
                     both.add(mixed)
                     start = mixed + 1
                 steps.add(start)
-            last, vehicle = len(fresh) - 1, self.config.traffic_vehicle_max_n
+            last = len(fresh) - 1
             if at_gap and last in steps and not beyond_any_vehicle(y[last] - y[last - 1], vehicle):
                 steps.discard(last)  # one window before a gap: a vehicle's, or the gap's to weigh
                 both.add(last)
-                self._note_before_gap(fresh[last - 1], fresh[last], y[last] - y[last - 1])
+                w0, w1 = fresh[last - 1], fresh[last]  # the difference's two windows
+                cov = self.noise.window_cov(w0.samples) + self.noise.window_cov(w1.samples)
+                self._note_excursion([fresh[last]], y[last] - y[last - 1], cov, "before_gap")
             ramp = None if steps else ramp_windows(y, ks, probability)
             if ramp is None and not steps:  # in stages, or a ramp a vehicle broke: it moved and stopped
                 cov = self._known_window_cov(fresh)
@@ -635,17 +638,18 @@ class Shadow:
             outputs.extend(self._drain())
         return outputs
 
-    def _note_before_gap(self, before: Window, w: Window, step_n: np.ndarray) -> None:
-        """Report window ``w``, left out before a gap, as a possible change of ``step_n`` (2,) N."""
-        cov = self.noise.window_cov(before.samples) + self.noise.window_cov(w.samples)
+    def _note_excursion(
+        self, windows: list[Window], step_n: np.ndarray, cov_n2: np.ndarray, kind: str
+    ) -> None:
+        """Report windows not in the estimate as a possible change of ``step_n`` (2,) N (``excursions``)."""
         self.excursions.append(
             {
-                "window": w.k,
-                "until_window": w.k,
-                "windows": 1,
+                "window": windows[0].k,
+                "until_window": windows[-1].k,
+                "windows": len(windows),
                 "step_n": np.asarray(step_n, float).tolist(),
-                "step_cov_n2": cov.tolist(),
-                "kind": "before_gap",
+                "step_cov_n2": np.asarray(cov_n2, float).tolist(),
+                "kind": kind,
             }
         )
 
@@ -837,22 +841,12 @@ class Shadow:
         if decision.unconfirmed:
             self._note_run(decision)
         if decision.excursion:
-            self.excursions.append(
-                {
-                    "window": decision.excursion[0].k,
-                    "until_window": decision.excursion[-1].k,
-                    "windows": len(decision.excursion),
-                    "step_n": np.asarray(decision.excursion_n, float).tolist(),
-                    "step_cov_n2": np.asarray(decision.excursion_cov_n2, float).tolist(),
-                    "kind": (
-                        "before_gap"
-                        if decision.before_gap
-                        else "between_steps"
-                        if decision.between_steps
-                        else "excursion"
-                    ),
-                }
-            )
+            kind = "excursion"
+            if decision.before_gap:
+                kind = "before_gap"
+            elif decision.between_steps:
+                kind = "between_steps"
+            self._note_excursion(decision.excursion, decision.excursion_n, decision.excursion_cov_n2, kind)
         for w in decision.accept:
             w.action = "accept"
         return []

@@ -414,13 +414,13 @@ class ChangeDetector:
         ``event_confirm_windows`` windows (or the hold's limit is reached).
         """
         n = len(self.pending)
-        series = self._run_series()
+        series, cov = self._run_series(), self._known_cov()
         cap = n >= RAMP_HOLD_FACTOR * self.max_pending
-        if not cap and (self._moving_on(series) or self._not_still(series)):
+        if not cap and self._still_moving(series, cov):
             return Decision()  # a ramp going on: its new state is not reached yet
         split = self._ramp_split(series)
         if split is None:
-            split = self._moved_split(series)
+            split = self._moved_split(series, cov)
         if split is not None and n - split[1] < self.confirm and not cap:
             return Decision()  # a ramp ended: its new state needs its own windows first
         if best is not None:
@@ -435,23 +435,27 @@ class ChangeDetector:
         """Return the noise model's covariance (2, 2) N^2 of a held window's mean, averaged, not inflated."""
         return np.mean([p.r_window for p in self.pending], axis=0) / self.inflation
 
-    def _moving_on(self, series: tuple[np.ndarray, np.ndarray, int]) -> bool:
-        """Whether the held run still moves on the known noise (``moving_on_known_noise``)."""
-        y, ks, _ = series
-        return moving_on_known_noise(y, ks, self._known_cov(), self.phi, self.false_trigger)
+    def _still_moving(self, series: tuple[np.ndarray, np.ndarray, int], cov: np.ndarray) -> bool:
+        """Whether the held run moves on the known noise ``cov``, or moved and is not still yet.
 
-    def _not_still(self, series: tuple[np.ndarray, np.ndarray, int]) -> bool:
-        """Whether the held run moved and its last differences are not still yet (``moved_not_still``)."""
+        ``moving_on_known_noise`` on the remembered windows and the run, ``moved_not_still`` on
+        the run and the ordinary window before it (as ``_moved_split`` reads it).
+        """
         y, ks, h = series
-        a = max(h - 1, 0)  # as ``_moved_split`` reads it
-        return moved_not_still(y[a:], ks[a:], self._known_cov(), self.phi, self.false_trigger)
+        if moving_on_known_noise(y, ks, cov, self.phi, self.false_trigger):
+            return True
+        a = max(h - 1, 0)
+        return moved_not_still(y[a:], ks[a:], cov, self.phi, self.false_trigger)
 
-    def _moved_split(self, series: tuple[np.ndarray, np.ndarray, int]) -> tuple[int, int] | None:
+    def _moved_split(
+        self, series: tuple[np.ndarray, np.ndarray, int], cov: np.ndarray | None = None
+    ) -> tuple[int, int] | None:
         """``(first moving, first of the new state)`` in the held run where it moved and stopped."""
         y, ks, h = series
         a = max(h - 1, 0)  # the run and the ordinary window before it (the old state's wander not read)
+        cov = self._known_cov() if cov is None else cov
         found = moved_then_still(
-            y[a:], ks[a:], self._known_cov(), self.phi, self.false_trigger, self.vehicle_max_n, one_sign=False
+            y[a:], ks[a:], cov, self.phi, self.false_trigger, self.vehicle_max_n, one_sign=False
         )
         if found is None or found[1] + a <= h:
             return None
