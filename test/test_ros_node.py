@@ -272,7 +272,8 @@ def test_a_child_hears_sigint_where_its_launcher_was_started_with_it_ignored(tmp
     finally:
         signal.signal(signal.SIGINT, previous)
     try:
-        wait_until(lambda: "ready" in node.output(), TIMEOUT_S, "the child to start")
+        # the whole line: the child writes unbuffered (PYTHONUNBUFFERED), print's parts one by one
+        wait_until(lambda: "\n" in node.output(), TIMEOUT_S, "the child's first line")
         assert "ready __main__ ['--ros-args', '-p', 'x:=1']" in node.output()
         assert node.stop(timeout_s=10.0) == -signal.SIGINT and node.killed_after_s is None
     finally:
