@@ -58,8 +58,9 @@ freedom.
      its most likely change time has fewer than ``event_confirm_windows`` windows after it, only
      the windows before it are decided so and the rest stay held (``_forced``). A run that still
      moves on the known noise then (a ramp) is held on until it is still and read where it moved
-     and stopped (``_long_run``); one window before a gap, no heavier than any vehicle, is no
-     state of its own (``close_run``).
+     and stopped (``_long_run``), and one that moves so is not an event before that either (one
+     hold, before and after ``event_max_pending``); one window before a gap, no heavier than any
+     vehicle, is no state of its own (``close_run``).
 
 While the noise model rests on few windows, its variance is uncertain: detection uses it inflated
 by ``dof / chi2_dof(0.05)`` (its one-sided 95 % bound; ``dof`` the fit's residual degrees of
@@ -393,6 +394,8 @@ class ChangeDetector:
                 return Decision()  # a ramp ended: its new state needs its own windows first
             if split is None and ramp_in_progress(series[0], series[1], self.false_trigger):
                 return Decision()  # still moving: the new state is not reached yet
+            if self._still_moving(series, self._known_cov()):
+                return Decision()  # moving on the known noise, as ``_long_run`` holds on: not still yet
             return self._event(best, split)
         return Decision()
 
@@ -411,7 +414,11 @@ class ChangeDetector:
         is then split where it moved and stopped (``_ramp_split``, else ``moved_then_still`` with
         the test car's moves among the moving windows): the moving windows left out, the new state
         an event when a candidate qualifies, a provisional change otherwise, once it has
-        ``event_confirm_windows`` windows (or the hold's limit is reached).
+        ``event_confirm_windows`` windows (or the hold's limit is reached). Before
+        ``event_max_pending`` the same hold keeps such a run from being an event (``step``): over
+        minutes 6-36 of the ramp study the test car's weight hid the jacks' pace, an event was
+        dated four minutes into the lowering, and its still-lowering windows raised the noise
+        model ninefold, so the rest of the lowering came as data (8.8 mm off at the end).
         """
         n = len(self.pending)
         series, cov = self._run_series(), self._known_cov()
