@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from bridge_shadow.twin.loadtest_score import score_stream
+from bridge_shadow.twin.loadtest_score import car_excursions, score_stream
 from bridge_shadow.twin.real_records import Piece, Scenario, build, car_stretches_ns
 
 W = 60 * 1_000_000_000
@@ -41,6 +41,30 @@ def test_a_parked_car_on_a_state_then_held_is_an_excursion_and_nothing_else_is()
     # without the car every rejected window of a changed record loses a state
     bare = score_stream(Scenario(None, pieces, sc.starts_ns), _result(windows))
     assert (bare.lost_windows, bare.lost_car_free) == (5, 5)
+
+
+def test_a_window_across_slices_of_one_state_is_in_one_piece() -> None:
+    """A record cut into slices (as ``lowered_over`` cuts one) is one state where its slices' states agree.
+
+    The later record at 100 W in half-window slices: -10 mm up to 104.5 W, then -12 mm from there
+    (a jack's first slice), the car over 100.5-105.5 W. The window ending at 102 W straddles two
+    slices of -10 mm: under the car, the next used window of that state, an excursion
+    (``car_excursions``; it counted as a state's window lost while only one piece was one
+    state). The window ending at 105 W straddles -10 and -12 mm slices: a state's window.
+    """
+    pieces = [Piece("ref", 0.0)]
+    starts = [0]
+    for i in range(10):
+        x = -0.01 if i < 9 else -0.012
+        pieces.append(Piece("lowered", 1.0, (x, x)))
+        starts.append(100 * W + i * W // 2)
+    sc = Scenario(None, tuple(pieces), starts, ((201 * W // 2, 211 * W // 2),))
+    windows = {k: "" for k in (*range(1, 11), 101, 103, 104, 106)}
+    windows |= {102: "outlier", 105: "outlier"}
+    res = _result(windows)
+    assert car_excursions(sc, res, [102 * W, 105 * W], W) == 1  # a count of windows
+    assert car_excursions(sc, res, [102 * W], W) == 1
+    assert car_excursions(sc, res, [105 * W], W) == 0
 
 
 @pytest.mark.realdata

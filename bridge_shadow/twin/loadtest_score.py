@@ -19,7 +19,7 @@ import numpy as np
 
 from bridge_shadow.estimate.result import ReplayResult
 
-__all__ = ["DayScore", "StreamScore", "score_day", "score_stream"]
+__all__ = ["DayScore", "StreamScore", "car_excursions", "score_day", "score_stream"]
 
 
 @dataclass(frozen=True)
@@ -129,23 +129,39 @@ class StreamScore:
         return self.lost_windows - self.lost_under_car
 
 
+def car_excursions(sc: Any, res: ReplayResult, ends_ns: list[int], w: int) -> int:
+    """Return how many of the windows ending at ``ends_ns`` are the recorded test car on a state then held.
+
+    ``_car_excursion`` of each, against the windows ``res`` used (``w`` the window length, ns).
+    """
+    used_ends = sorted(o.end_ns for o in res.outputs if not o.reason)
+    return sum(1 for t in ends_ns if _car_excursion(sc, t, w, used_ends))
+
+
 def _car_excursion(sc: Any, end_ns: int, w: int, used_ends: list[int]) -> bool:
     """Whether the window ending at ``end_ns`` is the test car parked on the state the shadow then held.
 
-    The recorded car stood in the window (``sc.car_ns``), the window lies in one piece (no change
-    inside it), and the next window the shadow used is in a piece of the same true state: the
-    rejected window was an excursion, not a state of its own.
+    The recorded car stood in the window (``sc.car_ns``), the window lies in pieces of one true
+    state (no change inside it; a record cut into slices, as ``lowered_over`` cuts one, is one
+    piece where its slices' states are the same), and the next window the shadow used is in a
+    piece of that state: the rejected window was an excursion, not a state of its own.
     """
     if not any(a < end_ns and b > end_ns - w for a, b in sc.car_ns):
         return False
     piece = bisect.bisect_right(sc.starts_ns, end_ns - w) - 1
-    if piece < 0 or bisect.bisect_right(sc.starts_ns, end_ns - 1) - 1 != piece:
+    last = bisect.bisect_right(sc.starts_ns, end_ns - 1) - 1
+    if piece < 0 or any(not _same_state(sc, piece, p) for p in range(piece + 1, last + 1)):
         return False
     after = bisect.bisect_right(used_ends, end_ns)
     if after == len(used_ends):
         return False
     held = bisect.bisect_right(sc.starts_ns, used_ends[after] - w) - 1
-    return bool(np.allclose(sc.pieces[held].truth_m(), sc.pieces[piece].truth_m(), rtol=0.0, atol=1e-9))
+    return _same_state(sc, held, piece)
+
+
+def _same_state(sc: Any, a: int, b: int) -> bool:
+    """Whether pieces ``a`` and ``b`` of the scenario have the same true state."""
+    return bool(np.allclose(sc.pieces[a].truth_m(), sc.pieces[b].truth_m(), rtol=0.0, atol=1e-9))
 
 
 def score_stream(sc: Any, res: ReplayResult, window_s: float = 60.0) -> StreamScore:
@@ -166,8 +182,7 @@ def score_stream(sc: Any, res: ReplayResult, window_s: float = 60.0) -> StreamSc
     changed = [(bounds[i], bounds[i + 1]) for i in sc.changes()]
     outliers = [o.end_ns for o in res.outputs if o.reason == "outlier"]
     lost_ends = [t for t in outliers if any(a <= t < b + w for a, b in changed)]
-    used_ends = sorted(o.end_ns for o in res.outputs if not o.reason)
-    under_car = sum(1 for t in lost_ends if _car_excursion(sc, t, w, used_ends))
+    under_car = car_excursions(sc, res, lost_ends, w)
     truth = np.asarray(sc.truth_m, float)
     err = res.mean_m - truth
     sd = np.sqrt(np.diag(res.covariance_m2))
