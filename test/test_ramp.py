@@ -435,11 +435,12 @@ def test_a_lowering_longer_than_the_detectors_hold_under_the_test_car_is_followe
     (``ChangeDetector._long_run``), and read where it moved and stopped: its windows left out as
     ``step_window``, none before the lowering began, the new state after them.
 
-    Over minutes 6-36 the car stands on the lowering's minutes 7-13 and 20-26, and its weight
-    hid the jacks' pace: the detector dated an event 4 minutes into the lowering, within
-    ``event_max_pending``. The event's windows, still lowering, raised the noise model ninefold,
-    the rest of the lowering came as data, and the day ended 8.8 mm off with the morning's 10 mm
-    an unconfirmed change (2026-11-30). Now a run that moves on the known noise is no event
+    Over minutes 6-36 the car stands on the bridge through most of the lowering (minutes 6-9,
+    12-21 and 24-33 of the record copied three times), and its weight hid the jacks' pace: the
+    detector dated an event 4 minutes into the lowering, within ``event_max_pending``. The
+    event's windows, still lowering, raised the noise model ninefold, the rest of the lowering
+    came as data, and the day ended 8.8 mm off with the morning's 10 mm an unconfirmed change
+    (2026-11-30). Now a run that moves on the known noise is no event
     before ``event_max_pending`` either (the same hold).
 
     Outliers may only be the test car parked on a state the shadow then held
