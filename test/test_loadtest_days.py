@@ -1345,7 +1345,9 @@ def test_two_settlements_held_to_the_end_of_the_data_are_two_states(
     Where the car leaves over the minutes after the second lowering (#151) or covers the first
     state but for its last window (#171), the second change is dated after the car's windows or
     the first is read from that window: the score's "every change at its record's first window"
-    does not hold there, which is why this test does not ask it (``check`` does).
+    does not hold there, which is why this test does not ask it (``check`` does). Where the car
+    stands on all of the state between (#151, #174), both settlements may be one change of their
+    sum: that state has no window of its own to read.
     """
     sc = _settled_twice_inside(folder, surrogate, record, hours, air_h, minutes, states)
     _, res = replay(sc, surrogate)
@@ -1353,7 +1355,20 @@ def test_two_settlements_held_to_the_end_of_the_data_are_two_states(
     assert s.within and s.covered and not s.lost_windows and not s.spurious, s
     assert res.rejected["outlier"] == 0
     reported = _reported_from(res, sc.starts_ns[1] // W)
-    assert len(reported) == 2, (res.events, res.changes)
+    a, b = (sc.starts_ns[1] + m * W for m in minutes)
+    car_free_between = any(  # a window of the state between with no car in it
+        not any(c0 < t + W and c1 > t for c0, c1 in sc.car_ns) for t in range(a, b, W)
+    )
+    if car_free_between:
+        assert len(reported) == 2, (res.events, res.changes)
+    else:
+        # the car parked on the state between for all of it: the record's windows held after the
+        # gap moved until the second state (``Shadow._ramp_going_on``), and may be read where they
+        # moved and stopped, one change of both settlements' sum, as a lowering in stages is
+        # (``Shadow._release_fresh``; #151 so since 2026-11-30, its final state as before)
+        assert len(reported) in (1, 2), (res.events, res.changes)
+        total = np.sum([r.size_m for r in reported], axis=0)
+        assert np.allclose(total, states[1], atol=0.1 * np.abs(states[1]).max()), total
 
 
 @pytest.mark.realdata

@@ -57,6 +57,7 @@ from bridge_shadow.estimate.events.warmup import (
     MIN_DIFFERENCES,
     RAMP_HOLD_FACTOR,
     beyond_any_vehicle,
+    moved_not_still,
     moved_then_still,
     moving_on_known_noise,
     ramp_in_progress,
@@ -539,8 +540,11 @@ class Shadow:
         rule reads the ramp against still differences of the held windows before it; a lowering
         from the record's first minutes, or a record whose test car was cut, may have none or one.
         So the windows are held too while they move against the noise model known before the gap
-        (``moving_on_known_noise``). A hold decides nothing: the held windows are judged by the
-        rules when it ends (``benchmarks/loadtest_days.py --only ramps``, ``test_ramp.py``).
+        (``moving_on_known_noise``), and, once they have moved so, until their last differences are
+        still (``moved_not_still``: the test car's moves among them), as the detector holds a run
+        on (``ChangeDetector._long_run``). A hold decides nothing: the held windows are judged by
+        the rules when it ends (``_release_fresh``; ``benchmarks/loadtest_days.py --only ramps``,
+        ``test_ramp.py``).
         """
         if len(self._fresh) >= RAMP_HOLD_FACTOR * self.config.warmup_windows:
             return False
@@ -548,7 +552,10 @@ class Shadow:
         probability = 1.0 - self.config.event_trigger_probability
         if ramp_in_progress(y, k, probability):
             return True
-        return moving_on_known_noise(y, k, self._known_window_cov(self._fresh), self.noise.phi, probability)
+        cov = self._known_window_cov(self._fresh)
+        if moving_on_known_noise(y, k, cov, self.noise.phi, probability):
+            return True
+        return moved_not_still(y, k, cov, self.noise.phi, probability)
 
     def _known_window_cov(self, windows: list[Window]) -> np.ndarray:
         """Return the noise model's covariance (2, 2) N^2 of a window mean at the windows' mean count."""
@@ -588,7 +595,14 @@ class Shadow:
         these windows), a step whose new state is the last window alone, no heavier than any
         vehicle, is no state of its own (``detector.SHORT_STATE_WINDOWS``): that window is left
         out, and the gap's segment weighs any change by the windows after the gap
-        (``ChangeDetector.close_run``).
+        (``ChangeDetector.close_run``). Windows the hold kept past ``warmup_windows`` because they
+        moved (``_ramp_going_on``) that no step rule reads are read where they moved and stopped
+        first (``moved_then_still`` with the test car's moves among the moving windows, as the
+        detector's ``_long_run`` reads a run it held on), then as a ramp: a lowering from the
+        record's first minute, the car parked on it, began where the car's weight hid it, and
+        ``ramp_windows`` dated it minutes late (the windows before, judged one by one, a state of
+        their own). Two settlements minutes apart with the car parked on the state between are
+        then one change of their sum, as a lowering in stages is.
         """
         if not self._fresh_open:
             return []
@@ -611,7 +625,12 @@ class Shadow:
                 w0, w1 = fresh[last - 1], fresh[last]  # the difference's two windows
                 cov = self.noise.window_cov(w0.samples) + self.noise.window_cov(w1.samples)
                 self._note_excursion([fresh[last]], y[last] - y[last - 1], cov, "before_gap")
-            ramp = None if steps else ramp_windows(y, ks, probability)
+            ramp = None
+            if not steps and len(fresh) > self.config.warmup_windows:  # held on because they moved
+                cov = self._known_window_cov(fresh)
+                ramp = moved_then_still(y, ks, cov, self.noise.phi, probability, vehicle, one_sign=False)
+            if ramp is None and not steps:
+                ramp = ramp_windows(y, ks, probability)
             if ramp is None and not steps:  # in stages, or a ramp a vehicle broke: it moved and stopped
                 cov = self._known_window_cov(fresh)
                 ramp = moved_then_still(y, ks, cov, self.noise.phi, probability, vehicle)
