@@ -1372,6 +1372,32 @@ def test_two_settlements_held_to_the_end_of_the_data_are_two_states(
 
 
 @pytest.mark.realdata
+def test_a_last_state_of_two_windows_after_a_hold_that_read_nothing_is_still_a_state(
+    folder: Path, surrogate
+) -> None:
+    """The reference record 7.34 h on (the air of 0.23 h), raised 6.8 mm at minute 7, lowered 4.1 / 3.6 at 10.
+
+    #8 of ``benchmarks/loadtest_days.py --only inside --stream-seed 71`` (states rounded to 0.1 mm).
+    The windows after the gap move to the end of the data (the test car, the raise, the
+    lowering), so the hold that waits until they are still kept all thirteen, and no rule read
+    them whole: the step rules need more than the lowering's two windows at the end. Judged one by
+    one, those two were the raise's data: 2.8 / 2.5 mm off, the lowering unreported
+    (212e81d, 2026-11-30). Now the step rules read the windows the hold released
+    before it waited for stillness, and the rest are judged: the final state within 10 % (or
+    1 mm), covered, the lowering reported.
+    """
+    sc = _settled_twice_inside(
+        folder, surrogate, "ref", 7.34, 0.23, (7, 10), ((0.0068, 0.0068), (0.0027, 0.0032))
+    )
+    _, res = replay(sc, surrogate)
+    s = score_stream(sc, res)
+    assert s.within and s.covered and not s.lost_windows, s
+    assert res.rejected["outlier"] == 0
+    lowering = sc.starts_ns[1] // W + 10  # the record's minute 10, in windows
+    assert any(r.window >= lowering for r in _reported_from(res, lowering)), (res.events, res.changes)
+
+
+@pytest.mark.realdata
 @pytest.mark.parametrize("rules", ["both", "detector", "search", "neither"])
 def test_a_short_state_the_data_leave_for_another_keeps_its_level_apart(
     folder: Path, surrogate, rules: str
