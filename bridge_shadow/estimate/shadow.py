@@ -549,19 +549,16 @@ class Shadow:
         if len(self._fresh) >= RAMP_HOLD_FACTOR * self.config.warmup_windows:
             return False
         y, k = self._compensated(self._fresh)
-        if self._moving(self._fresh, y, k):
-            return True
         cov = self._known_window_cov(self._fresh)
         probability = 1.0 - self.config.event_trigger_probability
-        return moved_not_still(y, k, cov, self.noise.phi, probability)
+        return self._moving(y, k, cov) or moved_not_still(y, k, cov, self.noise.phi, probability)
 
-    def _moving(self, windows: list[Window], y: np.ndarray, k: np.ndarray) -> bool:
-        """Whether windows held after a gap still move: a ramp in progress, or a move on the known noise."""
+    def _moving(self, y: np.ndarray, k: np.ndarray, cov: np.ndarray) -> bool:
+        """Whether windows held after a gap still move: a ramp in progress, or a move on the known ``cov``."""
         probability = 1.0 - self.config.event_trigger_probability
-        if ramp_in_progress(y, k, probability):
-            return True
-        cov = self._known_window_cov(windows)
-        return moving_on_known_noise(y, k, cov, self.noise.phi, probability)
+        return ramp_in_progress(y, k, probability) or moving_on_known_noise(
+            y, k, cov, self.noise.phi, probability
+        )
 
     def _step_reading(self, y: np.ndarray, ks: np.ndarray, steps: set[int], both: set[int]) -> None:
         """Add the step rules' reading of held windows: new states' first windows, windows a step was in."""
@@ -631,7 +628,6 @@ class Shadow:
         both: set[int] = set()  # windows a step happened in, left out
         if len(fresh) > MIN_DIFFERENCES:
             y, ks = self._compensated(fresh)
-            probability = 1.0 - self.config.event_trigger_probability
             vehicle = self.config.traffic_vehicle_max_n
             self._step_reading(y, ks, steps, both)
             last = len(fresh) - 1
@@ -641,20 +637,15 @@ class Shadow:
                 w0, w1 = fresh[last - 1], fresh[last]  # the difference's two windows
                 cov = self.noise.window_cov(w0.samples) + self.noise.window_cov(w1.samples)
                 self._note_excursion([fresh[last]], y[last] - y[last - 1], cov, "before_gap")
-            ramp = None
-            if not steps and len(fresh) > self.config.warmup_windows:  # held on because they moved
-                cov = self._known_window_cov(fresh)
-                ramp = moved_then_still(y, ks, cov, self.noise.phi, probability, vehicle, one_sign=False)
-            if ramp is None and not steps:
-                ramp = ramp_windows(y, ks, probability)
-            if ramp is None and not steps:  # in stages, or a ramp a vehicle broke: it moved and stopped
-                cov = self._known_window_cov(fresh)
-                ramp = moved_then_still(y, ks, cov, self.noise.phi, probability, vehicle)
-            if ramp is None and not steps and len(fresh) > self.config.warmup_windows:
-                # held on until still and read as none of these: the step rules read the windows
-                # the hold released before it waited for stillness, and the rest are judged
+            held_on = len(fresh) > self.config.warmup_windows  # held past the warm-up: they moved
+            ramp = None if steps else self._gradual_change(fresh, y, ks, held_on)
+            if ramp is None and not steps and held_on:
+                # read as none of these: the step rules read the windows the hold released before
+                # it waited for stillness, and the rest are judged
                 quiet = self.config.warmup_windows
-                while quiet < len(fresh) and self._moving(fresh[:quiet], y[:quiet], ks[:quiet]):
+                while quiet < len(fresh) and self._moving(
+                    y[:quiet], ks[:quiet], self._known_window_cov(fresh[:quiet])
+                ):
                     quiet += 1
                 if quiet < len(fresh):
                     self._step_reading(y[:quiet], ks[:quiet], steps, both)
@@ -680,6 +671,27 @@ class Shadow:
                 outputs.extend(self._judge(w))
             outputs.extend(self._drain())
         return outputs
+
+    def _gradual_change(
+        self, fresh: list[Window], y: np.ndarray, ks: np.ndarray, held_on: bool
+    ) -> tuple[int, int] | None:
+        """Return ``(first moving, first of the new state)`` of held windows no step rule reads, or None.
+
+        Held on because they moved: where they moved and stopped, the test car's moves among them
+        (``moved_then_still`` without one sign); then a ramp (``ramp_windows``); then, in stages or
+        a ramp a vehicle broke, where they moved one way and stopped (``moved_then_still``).
+        """
+        probability = 1.0 - self.config.event_trigger_probability
+        vehicle = self.config.traffic_vehicle_max_n
+        cov = self._known_window_cov(fresh)
+        if held_on:
+            found = moved_then_still(y, ks, cov, self.noise.phi, probability, vehicle, one_sign=False)
+            if found is not None:
+                return found
+        found = ramp_windows(y, ks, probability)
+        if found is not None:
+            return found
+        return moved_then_still(y, ks, cov, self.noise.phi, probability, vehicle)
 
     def _note_excursion(
         self, windows: list[Window], step_n: np.ndarray, cov_n2: np.ndarray, kind: str
