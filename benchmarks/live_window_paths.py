@@ -5,8 +5,10 @@ is fed to two shadows window by window, alternately (which goes first alternates
 feeds them: the air, then each force channel, then ``poll``; the refit a window schedules runs
 after, outside the timing (the node publishes first). One shadow takes the short paths of a live
 window (``TopicGate._regular`` for a batch of regular messages, ``WindowBuffer._one_window`` for
-samples that all fall in one window, the curve and its variance for both channels at once where
-every window has a temperature, the B-spline basis on plain floats at a few points); the
+samples that all fall in one window, the temperature matched once where both load cells are
+stamped alike, the curve and its variance for both channels at once where every window has a
+temperature, the B-spline basis on plain floats at a few points, the clear sky from blocks of
+windows computed ahead, ``SunCovariate.values`` with ``window_ns``); the
 other, the baseline, goes the general way (those disabled). Both must give the same window
 outputs (checked every window). Printed: each one's p50 / p99 per window and the ratio, paired
 window by window, so that the machine's speed, which drifts within minutes, cancels.
@@ -62,6 +64,9 @@ def main() -> None:
     for gate in general.gates:
         gate._regular = lambda *args: False  # type: ignore[method-assign]
     general.buffer._one_window = lambda taken: None  # type: ignore[method-assign]
+    if general.sun is not None:  # the clear sky of each call's windows at once, not from blocks
+        sun_values = general.sun.values
+        general.sun.values = lambda t, temp, window_ns=None: sun_values(t, temp)  # type: ignore[method-assign]
     comp = general.compensation
     comp._curve_rows_known = comp._curve_rows_by_channel  # type: ignore[method-assign]
     comp._curve_variance_known = comp._curve_variance_by_channel  # type: ignore[method-assign]

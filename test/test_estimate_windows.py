@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from bridge_shadow.estimate.inputs.windows import WindowBuffer
 from bridge_shadow.windowing import sorted_union
@@ -11,10 +12,15 @@ W = 60 * 10**9
 T0 = 1_700_000_040 * 10**9
 
 
-def _data(seed: int = 0) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray]:
+def _data(
+    seed: int = 0, alike: bool = False
+) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray]:
+    """Two force channels (stamped ``alike``: one logger sampling both), and the air with a hole."""
     rng = np.random.default_rng(seed)
     stamps = [np.sort(T0 + rng.integers(0, 30 * W, 900)) for _ in range(2)]
     stamps = [np.unique(s) for s in stamps]
+    if alike:
+        stamps[1] = stamps[0].copy()
     values = [2e5 + rng.normal(0, 100, len(s)) for s in stamps]
     ts = T0 + np.arange(0, 30 * W, 20 * 10**9)
     ts = np.delete(ts, np.arange(40, 52))  # a 4-minute hole in the temperature
@@ -88,12 +94,18 @@ def test_a_held_record_too_long_only_for_a_recording_started_again_is_split_at_t
     assert two.extend(40 * m, 30 * m) == [] and not two.holding  # the piece after it is too long
 
 
-def _one_by_one(match: str, ts: np.ndarray, tv: np.ndarray, one_window: bool, seed: int):
-    """Close the windows of ``_data(seed)`` one at a time (a live node's pace); return the batches."""
-    stamps, values, _, _ = _data(seed)
+def _one_by_one(match: str, ts: np.ndarray, tv: np.ndarray, one_window: bool, seed: int, alike: bool = False):
+    """Close the windows of ``_data(seed, alike)`` one at a time (a live node's pace); return the batches.
+
+    Also the number of ``_match`` calls (the temperature matched at the force stamps).
+    """
+    stamps, values, _, _ = _data(seed, alike)
     buf = WindowBuffer(60.0, 30.0, 120.0, match, min_samples=30)
     if not one_window:
         buf._one_window = lambda taken: None  # the general path alone
+    matches = []
+    inner = buf._match
+    buf._match = lambda *a: matches.append(1) or inner(*a)  # type: ignore[method-assign]
     lasts = [int(s[-1]) for s in stamps]
     for c in range(2):
         buf.add_forces(c, stamps[c], values[c])
@@ -101,18 +113,25 @@ def _one_by_one(match: str, ts: np.ndarray, tv: np.ndarray, one_window: bool, se
     out = []
     while buf.next_k is not None and buf.holds_data:
         out.append(buf.close_until(buf.next_k + 1, lasts))
-    return out
+    return out, len(matches)
 
 
-def test_one_window_at_a_time_equals_the_general_aggregate() -> None:
-    """``WindowBuffer._one_window`` (the live pace) gives the general path's sums, NaNs, ages, reasons."""
+@pytest.mark.parametrize("alike", [False, True])
+def test_one_window_at_a_time_equals_the_general_aggregate(alike: bool) -> None:
+    """``WindowBuffer._one_window`` (the live pace) gives the general path's sums, NaNs, ages, reasons.
+
+    ``alike``: both load cells stamped alike (one logger sampling both, as the real records and the
+    live benchmark's stream are): the short path matches the temperature once for both.
+    """
     _, _, ts, tv = _data()
     late = ts >= T0 + 12 * W  # the first reading after the first windows: those are blind to it
     cases = [("linear", ts, tv), ("hold", ts, tv), ("linear", ts[late], tv[late]), ("linear", ts[:0], tv[:0])]
     for seed, (match, t, v) in enumerate(cases):
-        fast = _one_by_one(match, t, v, True, seed)
-        slow = _one_by_one(match, t, v, False, seed)
+        fast, fast_matches = _one_by_one(match, t, v, True, seed, alike)
+        slow, slow_matches = _one_by_one(match, t, v, False, seed, alike)
         assert len(fast) == len(slow) == 30
+        if len(t) and match == "linear" and len(t) == len(ts):  # every window sees a reading
+            assert slow_matches == 60 and fast_matches == (30 if alike else 60)
         reasons = set()
         for a, b in zip(fast, slow, strict=True):
             np.testing.assert_array_equal(a.k, b.k)  # integers

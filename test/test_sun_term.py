@@ -28,6 +28,7 @@ from bridge_shadow.estimate.compensation.sunlight import (
     FIRST_SD,
     RISE_FROM_H,
     RISE_TO_H,
+    SKY_BLOCK,
     WANDER_K,
     SunCovariate,
     _rise_share,
@@ -152,6 +153,34 @@ def test_sun_covariate_reads_the_days_clearness_from_its_warming_causally() -> N
     np.testing.assert_allclose(var_late, DAY_SD**2 * clear_sky(t2[noon]) ** 2, rtol=1e-12)
     _, var_own = SunCovariate().values(t1, clear_day)
     assert np.all(var_own[up][after] < 0.01 * FIRST_SD**2 * clear_sky(t1[up][after]) ** 2)
+
+
+@pytest.mark.parametrize("window_s", [0.1, 60.0])
+def test_windows_one_at_a_time_take_the_clear_sky_the_whole_batch_does(window_s: float) -> None:
+    """A live shadow's covariate, a window at a time from blocks of windows, is the batch's.
+
+    ``values(..., window_ns)`` reads the clear sky of a few windows from blocks of ``SKY_BLOCK``
+    (computed once each, ahead of the windows); one call over every window, or calls at random
+    sizes across the blocks' edges, give the same covariate and variance as ``clear_sky`` itself.
+    """
+    w = round(window_s * NS)
+    rng = np.random.default_rng(3)
+    start = 1_649_664_000 * NS // w  # 2022-04-11 10:00 local, the sun up
+    k = start + np.arange(int(8 * 3600 / window_s) if window_s >= 1 else 3 * SKY_BLOCK + 7)
+    t = k * w + w // 2
+    temp = 2.0 + 10.0 * np.clip((k - k[0]) / len(k), 0.0, 1.0) + rng.normal(0, 0.05, len(k))
+    plain = np.column_stack(SunCovariate().values(t, temp))
+    assert np.all(plain > 0.0)
+    live, pieces, i = SunCovariate(), [], 0
+    while i < len(k):
+        n = int(rng.integers(1, 4))
+        pieces.append(np.column_stack(live.values(t[i : i + n], temp[i : i + n], w)))
+        i += n
+    np.testing.assert_allclose(np.concatenate(pieces), plain, rtol=1e-13, atol=0.0)
+    assert live._sky_block is not None and live._sky_block[1] == int(k[-1]) // SKY_BLOCK  # blocks used
+    np.testing.assert_allclose(
+        np.column_stack(SunCovariate().values(t, temp, w)), plain, rtol=1e-13, atol=0.0
+    )
 
 
 def test_a_day_whose_data_begin_partway_up_the_rise_reads_its_clearness() -> None:

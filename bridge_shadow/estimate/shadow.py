@@ -414,7 +414,7 @@ class Shadow:
         sun, svar = None, np.zeros(n)
         if self.sun is not None:  # one air temperature for both channels: the first one known
             temp = np.where(np.isfinite(batch.temp_c[:, 0]), batch.temp_c[:, 0], batch.temp_c[:, 1])
-            sun, svar = self.sun.values(batch.k * self._w_ns + self._w_ns // 2, temp)
+            sun, svar = self.sun.values(batch.k * self._w_ns + self._w_ns // 2, temp, self._w_ns)
         i0, bv = self.compensation.basis_rows(batch.temp_c, sun)
         windows = [
             Window(
