@@ -129,3 +129,48 @@ def test_a_discovery_timeout_says_where_it_looked(monkeypatch) -> None:
     assert "\n" not in text and text.startswith("timed out after 60 s")
     assert "ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET, ROS_DOMAIN_ID=7" in text
     assert "unset ROS_AUTOMATIC_DISCOVERY_RANGE" in text
+
+
+@pytest.mark.ros
+def test_a_lost_answer_to_a_query_is_asked_again_and_a_flush_is_waited_for_once(monkeypatch) -> None:
+    """A status or history answer lost in DDS is asked for again; a flush is never sent twice.
+
+    Fast DDS can drop a service's answer while the node's response writer is not yet matched to
+    the caller's reader (ros2/rclpy#1181): the future never completes. A query is withdrawn after
+    ``RESEND_S`` and sent again until the call's timeout; the flush (not idempotent) times out.
+    """
+    pytest.importorskip("rclpy")
+    from rclpy.task import Future
+    from std_srvs.srv import Trigger
+
+    from bridge_shadow.ros import live_replay
+    from bridge_shadow.ros.launcher import NodeError
+
+    monkeypatch.setattr(live_replay, "RESEND_S", 0.05)
+
+    class Client:
+        """A service client whose first answer is lost; later requests are answered at once."""
+
+        def __init__(self) -> None:
+            self.sent: list[Future] = []
+            self.withdrawn: list[Future] = []
+
+        def call_async(self, request: object) -> Future:
+            future = Future()
+            self.sent.append(future)
+            if len(self.sent) >= 2:
+                future.set_result(Trigger.Response(success=True, message='{"taken": [4, 5, 1]}'))
+            return future
+
+        def remove_pending_request(self, future: Future) -> None:
+            self.withdrawn.append(future)
+
+    client = Client()
+    lost = client.call_async(Trigger.Request())
+    answer = live_replay.Player._answer(None, lost, None, 10.0, client=client)  # type: ignore[arg-type]
+    assert answer["taken_total"] == 10
+    assert client.withdrawn == [lost] and len(client.sent) == 2
+    flush = Client()
+    with pytest.raises(NodeError, match=r"timed out after 0\.3 s"):
+        live_replay.Player._answer(None, flush.call_async(Trigger.Request()), None, 0.3)  # type: ignore[arg-type]
+    assert len(flush.sent) == 1 and not flush.withdrawn

@@ -76,6 +76,11 @@ __all__ = ["INPUT_ORDER", "MAX_IN_FLIGHT", "Player", "merge_log_order", "run_liv
 #: Messages in flight at most: below the history depth, and below Fast DDS's shared-memory port
 #: queue (512 messages per participant by default), whose overflow also costs a heartbeat stall.
 MAX_IN_FLIGHT = 400
+#: A query of the node's state (status, history) unanswered this long is withdrawn and asked
+#: again, up to the call's timeout: a service's answer can be lost while DDS still matches the
+#: node's response writer to this client's reader, although the service already shows as ready
+#: (ros2/rclpy#1181, ros2/rclcpp#625), and the lost one never comes. A flush is never asked twice.
+RESEND_S = 5.0
 #: Input topics in the node's index order (frc_01, frc_02, air temperature).
 INPUT_ORDER: tuple[str, str, str] = (*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC)
 _OUTPUT_TYPES = {
@@ -257,7 +262,8 @@ class Player:
                 while in_flight and sent + stop - start - taken > in_flight:
                     if not asked:
                         asked.append(self.status_client.call_async(Trigger.Request()))
-                    taken = max(taken, self._answer(asked.popleft(), node)["taken_total"])
+                    answer = self._answer(asked.popleft(), node, client=self.status_client)
+                    taken = max(taken, answer["taken_total"])
                 if due is None:
                     for i, j in zip(topics[start:stop], positions[start:stop], strict=True):
                         pubs[i](raws[i][j])
@@ -278,12 +284,31 @@ class Player:
             progress(sent, last_log)
         return t_first, time.perf_counter(), sent
 
-    def _answer(self, future: Any, node: NodeProcess | None, timeout_s: float = 30.0) -> dict[str, Any]:
-        """Wait for a Trigger answer and parse its JSON (``taken_total`` added when ``taken`` is there)."""
-        answered = threading.Event()  # set from the spinning thread: no polling at a fine period
-        future.add_done_callback(lambda _future: answered.set())
+    def _answer(
+        self, future: Any, node: NodeProcess | None, timeout_s: float = 30.0, client: Any = None
+    ) -> dict[str, Any]:
+        """Wait for a Trigger answer and parse its JSON (``taken_total`` added when ``taken`` is there).
+
+        ``client``: the request was a query (status, history) of that client, asked again after
+        ``RESEND_S`` without an answer; None (a flush): waited for once.
+        """
         alive = node.check_alive if node is not None else None
-        wait_until(future.done, timeout_s, "an answer from the node", alive, period_s=0.05, wake=answered)
+        deadline = time.monotonic() + timeout_s
+        while True:
+            answered = threading.Event()  # set from the spinning thread: no polling at a fine period
+            future.add_done_callback(lambda _future, ev=answered: ev.set())
+            again = deadline if client is None else min(deadline, time.monotonic() + RESEND_S)
+
+            def due(f: Any = future, t: float = again) -> bool:
+                return f.done() or time.monotonic() >= t
+
+            wait_until(due, timeout_s, "an answer from the node", alive, period_s=0.05, wake=answered)
+            if future.done():
+                break
+            if client is None or time.monotonic() >= deadline:
+                raise NodeError(f"timed out after {timeout_s:g} s waiting for an answer from the node")
+            client.remove_pending_request(future)  # a late answer to it is dropped (rclpy's executor)
+            future = client.call_async(Trigger.Request())
         response = future.result()
         if response is None or not response.success:
             raise NodeError(f"the node's service failed: {getattr(response, 'message', 'no answer')}")
@@ -292,8 +317,9 @@ class Player:
             answer["taken_total"] = int(sum(answer["taken"]))
         return answer
 
-    def _call(self, client: Any, node: NodeProcess | None, timeout_s: float) -> Any:
-        return self._answer(client.call_async(Trigger.Request()), node, timeout_s)
+    def _call(self, client: Any, node: NodeProcess | None, timeout_s: float, query: bool = True) -> Any:
+        """Ask ``client``'s service; a ``query`` (idempotent) is asked again when its answer is lost."""
+        return self._answer(client.call_async(Trigger.Request()), node, timeout_s, client if query else None)
 
     def history(self, node: NodeProcess | None = None, timeout_s: float = 30.0) -> list[Any]:
         """Return the node's kept window outputs (``WindowOutput``, oldest first), via its history service."""
@@ -311,7 +337,7 @@ class Player:
 
     def flush(self, node: NodeProcess | None = None, timeout_s: float = 30.0) -> dict[str, Any]:
         """Call the node's flush service; return its report (``Shadow.diagnostics()`` + ``node``)."""
-        return self._call(self.flush_client, node, timeout_s)
+        return self._call(self.flush_client, node, timeout_s, query=False)
 
     def received(self, topic: str) -> int:
         """Return the number of output messages recorded on ``topic``."""
