@@ -176,16 +176,42 @@ def test_a_run_that_stays_away_at_the_end_or_before_a_gap_is_never_rejected() ->
     for n_after in (1, 2, 3, 6):
         for gap in (False, True):
             v = ar1(400 + n_after + (50 if gap else 0), 21)
-            v[400 : 400 + n_after] += [-40.0, -70.0]
+            v[400 : 400 + n_after] += [-40.0, -70.0]  # beyond the heaviest vehicle (30) on the sum
             if gap:  # the data stop, then go on at the old state after a gap
                 v[400 + n_after :] = ar1(len(v) - 400 - n_after, 22)
-            verdict, events = run(v, gaps=(400 + n_after,) if gap else ())
+            verdict, events = run(
+                v, gaps=(400 + n_after,) if gap else (), det=ChangeDetector(vehicle_max_n=30.0)
+            )
             held = [verdict[k] for k in range(400, 400 + n_after)]
             assert "reject" not in held, (n_after, gap, held)
             if n_after >= 4:
                 assert [k for k, _ in events][:1] == [400]
             else:  # too short to confirm: an unconfirmed change, reported (never outliers)
                 assert held == ["change"] * n_after, (n_after, gap, held)
+
+
+def test_one_window_where_the_data_end_no_heavier_than_any_vehicle_is_no_state() -> None:
+    """The data's last window beyond the trigger, within a vehicle's load on the sum: left out, reported.
+
+    One window where the data end (``flush``) cannot tell a vehicle that drove on in it from the
+    window a step happened in (``SHORT_STATE_WINDOWS``): it is left out (``moving``) and reported
+    (``Decision.at_end``), not taken as a change, as before a gap (``before_gap``). Beyond the
+    heaviest vehicle it is a change as before; so is a run of two windows. Never an outlier.
+    """
+    for level, n_after, left_out in ((-12.0, 1, True), (-40.0, 1, False), (-12.0, 2, False)):
+        v = ar1(300 + n_after, 7)
+        v[300:] += level  # the sum moves by twice the level: 24 within the vehicle's 30, 80 beyond
+        det = ChangeDetector(vehicle_max_n=30.0)
+        seen: list[Decision] = []
+        flush = det.flush
+        det.flush = lambda seen=seen, flush=flush: seen.append(flush()) or seen[-1]  # type: ignore[method-assign]
+        verdict, events = run(v, det=det)
+        held = [verdict[k] for k in range(300, 300 + n_after)]
+        assert held == (["moving"] if left_out else ["change"] * n_after), (level, n_after, held)
+        assert seen[-1].at_end == left_out and not seen[-1].before_gap
+        if left_out:
+            np.testing.assert_allclose(seen[-1].excursion_n, v[300] - v[:300].mean(axis=0), atol=3.0)
+        assert not events
 
 
 def test_the_windows_that_stayed_away_before_an_events_change_time_are_never_outliers() -> None:

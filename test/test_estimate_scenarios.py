@@ -125,3 +125,28 @@ def test_an_independent_record_is_recovered_as_the_batch_method_does() -> None:
     sd = np.sqrt(np.diag(res.covariance_m2))
     assert np.all(np.abs(res.mean_m - x) < 0.015e-3) and np.all(np.abs(res.mean_m - x) < 3 * sd)
     assert np.all(sd < 0.01e-3)
+
+
+def test_monitoring_that_ends_as_a_vehicle_crosses_ends_at_the_state_before_it() -> None:
+    """A day of monitoring with traffic, the data ending in the middle of a crossing: no change.
+
+    The last window holds seconds of a 25 kN vehicle on the bridge, beyond the detector's trigger,
+    with nothing after it to show the vehicle leave. Taken as a change where the data end, it was
+    an unconfirmed change of probability 1 and moved the final estimate by the vehicle's share of
+    the window (+0.29 mm on both supports, the truth 0). One window where the data end, no heavier
+    than any vehicle, is no state of its own: left out and reported (``at_end``, a warning).
+    """
+    from bridge_shadow.estimate import load_config
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    sur = load_surrogate()
+    data, _ = simulate(1.0, 1.0, 3, {"traffic": 25000.0}, surrogate=sur)
+    end = int(data.forces["frc_01"].stamp_ns[35259]) + 1  # seconds into a crossing (09:47 local)
+    data = data.select(lambda t: t < end)
+    res = Shadow(load_config(), sur).run(data)
+    np.testing.assert_allclose(res.mean_m, 0.0, atol=5e-5)  # the truth: no settlement
+    assert [c.kind for c in res.changes if c.kind != "run_in_data"] == ["at_end"], res.changes
+    (at_end,) = [c for c in res.changes if c.kind == "at_end"]
+    assert at_end.likely and np.all(at_end.size_m > 0.0)  # reported, the vehicle's load upward
+    assert res.outputs[-1].reason == "step_window"
+    assert not res.events

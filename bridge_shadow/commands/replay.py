@@ -179,6 +179,11 @@ def _summary(js: dict[str, Any]) -> str:
                 "one window before a gap, no heavier than any vehicle: left out, the gap's segment "
                 "weighs any change"
             )
+        elif c["kind"] == "at_end":
+            how = (
+                "the data's last window, no heavier than any vehicle: left out, one window cannot "
+                "tell a vehicle that drove on from the window a step happened in"
+            )
         elif c["kind"] == "step":
             how = "a step the detector found, its size not told from zero on the data: no event"
         else:

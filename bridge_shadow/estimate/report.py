@@ -173,7 +173,8 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         out.append(_run_record(shadow, r, "run_in_data", significant))
     # runs no vehicle makes that came back (rejected as an excursion) or states held between two
     # steps (left out): reported (a checkpoint written before the kind was kept holds excursions)
-    # (one window before a gap, no heavier than any vehicle, is no likely change: not a warning)
+    # (one window before a gap, no heavier than any vehicle, is no likely change: not a warning;
+    # at the end of the data nothing after it weighs it: a warning)
     for r in shadow.excursions:
         kind = r.get("kind", "excursion")
         out.append(_run_record(shadow, r, kind, kind != "before_gap"))
@@ -352,6 +353,7 @@ def warnings(shadow: Shadow) -> list[str]:
             "excursion": "a run that came back, heavier than any vehicle on the supports' sum",
             "between_steps": "a state held between two steps, heavier than any vehicle on the supports' sum",
             "before_gap": "one window before a gap, no heavier than any vehicle",
+            "at_end": "the data's last window, no heavier than any vehicle",
         }[c.kind]
         size = ", ".join(
             f"{side} {1e3 * m:+.2f} ± {1.96e3 * sd:.2f} mm"
@@ -369,6 +371,11 @@ def warnings(shadow: Shadow) -> list[str]:
             how = f"{windows} until {until}, left out as a moving support's: not in the estimate"
         elif c.kind == "before_gap":
             how = "left out: not in the estimate; the gap's segment weighs any change"
+        elif c.kind == "at_end":
+            how = (
+                "left out: not in the estimate; one window cannot tell a vehicle that drove on "
+                "from the window a step happened in, the next data will"
+            )
         else:
             since = "since" if c.next_ns is None else f"before the next state from {iso_utc(c.next_ns)}"
             how = (

@@ -158,6 +158,7 @@ def _events(diag: Mapping[str, Any]) -> Status:
             "excursion": "rejected",
             "between_steps": "left out",
             "before_gap": "left out",
+            "at_end": "left out",
         }.get(c["kind"], "used as data")
         how = unweighed if p is None else f"probability {p:.3g}"
         values[f"unconfirmed {i + 1}"] = f"{c['kind']} at {c['time']}: {size} mm (95 %; {how})"

@@ -226,6 +226,8 @@ class Decision:
         between_steps: ``excursion`` is such a state between two steps, not a run that came back.
         before_gap: ``excursion`` is the one window of a ``moving`` run before a gap, no heavier
             than any vehicle (``ChangeDetector.close_run``): no state of its own, reported.
+        at_end: the same at the end of the data (a vehicle that drove on in the data's last
+            window, or the window a step happened in): no state of its own, reported.
 
     """
 
@@ -246,6 +248,7 @@ class Decision:
     excursion_cov_n2: np.ndarray | None = None
     between_steps: bool = False
     before_gap: bool = False
+    at_end: bool = False
 
 
 @dataclass
@@ -468,7 +471,7 @@ class ChangeDetector:
             return None
         return max(found[0] + a - h, 0), found[1] + a - h
 
-    def close_run(self, at_gap: bool = False) -> Decision:
+    def close_run(self, at_gap: bool = False, at_end: bool = False) -> Decision:
         """Decide on what is held because the run ends here: at the end of the data or a gap.
 
         A run that is held has not come back (its last window was closer to the step than to no
@@ -481,11 +484,20 @@ class ChangeDetector:
         mm; ``benchmarks/loadtest_days.py --only sweep --seeds 1000 --stream-seed 41``, #640). A
         lone window within the trigger, held for its jump, is data as before the jump rule (the
         real reference record cut at 2.5 minutes, 4 h on and 20 mm lower: its last window, half of
-        one, jumped 1.1 mm and was a change at probability 1). With ``at_gap``, a lone window beyond
-        the trigger but no heavier than any vehicle is no state of its own (``SHORT_STATE_WINDOWS``):
-        it is left out and reported (``Decision.before_gap``), and the gap's segment weighs any
-        change by the windows after the gap (a test car that came on in a cut record's last
-        seconds was a change of probability 1, and the next record's return a second event).
+        one, jumped 1.1 mm and was a change at probability 1). A lone window beyond the trigger
+        but no heavier than any vehicle is no state of its own (``SHORT_STATE_WINDOWS``): it is
+        left out and reported. Before a gap (``Decision.before_gap``) the gap's segment weighs any
+        change by the windows after it (a test car that came on in a cut record's last seconds
+        was a change of probability 1, and the next record's return a second event). At the end
+        of the data (``at_end``, from ``flush``; ``Decision.at_end``) nothing follows that could
+        tell a vehicle that drove on in the last window from the window a step happened in: taken
+        as a change, a vehicle's load moved the final estimate by the whole of it at probability 1
+        (a record cut 9 s after the test car drove on, +1.5 mm, ``benchmarks/loadtest_days.py
+        --only sweep --seeds 600 --stream-seed 53 --cut-share 1.0``, #253; a day of continuous
+        monitoring cut as a vehicle crossed, +0.3 mm and a change warned of). There, only a window
+        right after the state's data: one after a window left out is the last state's (a raise
+        inside minute 11 of a record lowered at minute 9, ``--only inside --stream-seed 71``,
+        #272, 1.1 mm off as a vehicle's).
         """
         if not self.pending:
             return Decision()
@@ -496,17 +508,22 @@ class ChangeDetector:
             self._remember(only.k, only.v)
             self.prev = only
             return Decision(accept=[only.payload])
-        if at_gap and len(self.pending) == 1 and not self._beyond_any_vehicle(self.pending[0].v):
-            # one window before a gap, no heavier than any vehicle: no state of its own
+        lone = len(self.pending) == 1 and not self._beyond_any_vehicle(self.pending[0].v)
+        # at the end, only right after a window of the state's data: after a window left out (the
+        # one a second step happened in, ``_second_step_inside``) it is the last state's window
+        after_data = self.prev is not None and self.prev.k == self.pending[0].k - 1
+        if lone and (at_gap or (at_end and after_data)):
+            # one window where the run ends, no heavier than any vehicle: no state of its own
             # (``SHORT_STATE_WINDOWS``), neither a vehicle's outlier (it did not come back) nor
-            # this state's data; the gap's segment weighs any change by the windows after it
+            # this state's data; after a gap, the gap's segment weighs any change by its windows
             only = self.pending.pop()
             return Decision(
                 moving=[only.payload],
                 excursion=[only.payload],
                 excursion_n=np.array(only.v, float),
                 excursion_cov_n2=self._mean_cov([only]),
-                before_gap=True,
+                before_gap=at_gap,
+                at_end=at_end,
             )
         cands = self._candidates()
         best = self._best(cands)
@@ -531,8 +548,8 @@ class ChangeDetector:
         return self._unconfirmed(cands, provisional=True, split=split)
 
     def flush(self) -> Decision:
-        """End of data: decide on what is held (``close_run``)."""
-        return self.close_run()
+        """End of data: decide on what is held (``close_run`` with ``at_end``)."""
+        return self.close_run(at_end=True)
 
     # -- internals ------------------------------------------------------------------------------
     def _second_state(self, c: _Candidate) -> tuple[int, bool] | None:
