@@ -136,10 +136,13 @@ def test_a_lost_answer_to_a_query_is_asked_again_and_a_flush_is_waited_for_once(
     """A status or history answer lost in DDS is asked for again; a flush is never sent twice.
 
     Fast DDS can drop a service's answer while the node's response writer is not yet matched to
-    the caller's reader (ros2/rclpy#1181): the future never completes. A query is withdrawn after
-    ``RESEND_S`` and sent again until the call's timeout; the flush (not idempotent) times out.
+    the caller's reader (ros2/rclpy#1181): the future never completes. A query is asked again
+    every ``RESEND_S`` until the call's timeout, the first answer to any request taken (a slow one
+    too) and the others withdrawn; the flush (not idempotent) times out.
     """
     pytest.importorskip("rclpy")
+    import threading
+
     from rclpy.task import Future
     from std_srvs.srv import Trigger
 
@@ -169,7 +172,15 @@ def test_a_lost_answer_to_a_query_is_asked_again_and_a_flush_is_waited_for_once(
     lost = client.call_async(Trigger.Request())
     answer = live_replay.Player._answer(None, lost, None, 10.0, client=client)  # type: ignore[arg-type]
     assert answer["taken_total"] == 10
-    assert client.withdrawn == [lost] and len(client.sent) == 2
+    assert client.withdrawn == [lost] and len(client.sent) == 2  # the unanswered one, once answered
+    slow = Client()  # an answer that comes after RESEND_S is still taken
+    first = slow.call_async(Trigger.Request())
+    threading.Timer(
+        0.12, lambda: first.set_result(Trigger.Response(success=True, message='{"taken": [1]}'))
+    ).start()
+    slow.call_async = lambda request: slow.sent.append(Future()) or slow.sent[-1]  # never answered
+    assert live_replay.Player._answer(None, first, None, 10.0, client=slow)["taken_total"] == 1  # type: ignore[arg-type]
+    assert len(slow.sent) >= 2 and first not in slow.withdrawn and set(slow.withdrawn) == set(slow.sent[1:])
     flush = Client()
     with pytest.raises(NodeError, match=r"timed out after 0\.3 s"):
         live_replay.Player._answer(None, flush.call_async(Trigger.Request()), None, 0.3)  # type: ignore[arg-type]

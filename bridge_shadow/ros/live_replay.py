@@ -76,10 +76,11 @@ __all__ = ["INPUT_ORDER", "MAX_IN_FLIGHT", "Player", "merge_log_order", "run_liv
 #: Messages in flight at most: below the history depth, and below Fast DDS's shared-memory port
 #: queue (512 messages per participant by default), whose overflow also costs a heartbeat stall.
 MAX_IN_FLIGHT = 400
-#: A query of the node's state (status, history) unanswered this long is withdrawn and asked
-#: again, up to the call's timeout: a service's answer can be lost while DDS still matches the
-#: node's response writer to this client's reader, although the service already shows as ready
-#: (ros2/rclpy#1181, ros2/rclcpp#625), and the lost one never comes. A flush is never asked twice.
+#: A query of the node's state (status, history) unanswered this long is asked again (the first
+#: answer to any request is taken), up to the call's timeout: a service's answer can be lost while
+#: DDS still matches the node's response writer to this client's reader, although the service
+#: already shows as ready (ros2/rclpy#1181, ros2/rclcpp#625), and the lost one never comes. A
+#: flush is never asked twice.
 RESEND_S = 5.0
 #: Input topics in the node's index order (frc_01, frc_02, air temperature).
 INPUT_ORDER: tuple[str, str, str] = (*(FORCE_TOPICS[ch] for ch in CHANNELS), TEMPERATURE_TOPIC)
@@ -289,26 +290,35 @@ class Player:
     ) -> dict[str, Any]:
         """Wait for a Trigger answer and parse its JSON (``taken_total`` added when ``taken`` is there).
 
-        ``client``: the request was a query (status, history) of that client, asked again after
-        ``RESEND_S`` without an answer; None (a flush): waited for once.
+        ``client``: the request was a query (status, history) of that client, asked again every
+        ``RESEND_S`` without an answer, the first answer to any of them taken; None (a flush):
+        waited for once.
         """
         alive = node.check_alive if node is not None else None
         deadline = time.monotonic() + timeout_s
+        answered = threading.Event()  # set from the spinning thread: no polling at a fine period
+        asked = [future]
+        future.add_done_callback(lambda _future: answered.set())
         while True:
-            answered = threading.Event()  # set from the spinning thread: no polling at a fine period
-            future.add_done_callback(lambda _future, ev=answered: ev.set())
             again = deadline if client is None else min(deadline, time.monotonic() + RESEND_S)
 
-            def due(f: Any = future, t: float = again) -> bool:
-                return f.done() or time.monotonic() >= t
+            def due(t: float = again) -> bool:
+                return any(f.done() for f in asked) or time.monotonic() >= t
 
             wait_until(due, timeout_s, "an answer from the node", alive, period_s=0.05, wake=answered)
-            if future.done():
+            done = [f for f in asked if f.done()]
+            if done:
+                future = done[0]
                 break
             if client is None or time.monotonic() >= deadline:
                 raise NodeError(f"timed out after {timeout_s:g} s waiting for an answer from the node")
-            client.remove_pending_request(future)  # a late answer to it is dropped (rclpy's executor)
-            future = client.call_async(Trigger.Request())
+            # asked again, the earlier requests kept: a slow answer (a node busy, a long history)
+            # still counts, and whichever comes first is taken
+            asked.append(client.call_async(Trigger.Request()))
+            asked[-1].add_done_callback(lambda _future: answered.set())
+        for f in asked:
+            if f is not future and not f.done():
+                client.remove_pending_request(f)  # a late answer to it is dropped (rclpy's executor)
         response = future.result()
         if response is None or not response.success:
             raise NodeError(f"the node's service failed: {getattr(response, 'message', 'no answer')}")
