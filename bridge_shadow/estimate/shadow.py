@@ -550,19 +550,19 @@ class Shadow:
             return False
         y, k = self._compensated(self._fresh)
         cov = self._known_window_cov(self._fresh)
-        probability = 1.0 - self.config.event_trigger_probability
+        probability = self.detector.false_trigger  # the trigger's false probability
         return self._moving(y, k, cov) or moved_not_still(y, k, cov, self.noise.phi, probability)
 
     def _moving(self, y: np.ndarray, k: np.ndarray, cov: np.ndarray) -> bool:
         """Whether windows held after a gap still move: a ramp in progress, or a move on the known ``cov``."""
-        probability = 1.0 - self.config.event_trigger_probability
+        probability = self.detector.false_trigger  # the trigger's false probability
         return ramp_in_progress(y, k, probability) or moving_on_known_noise(
             y, k, cov, self.noise.phi, probability
         )
 
     def _step_reading(self, y: np.ndarray, ks: np.ndarray, steps: set[int], both: set[int]) -> None:
         """Add the step rules' reading of held windows: new states' first windows, windows a step was in."""
-        probability = 1.0 - self.config.event_trigger_probability
+        probability = self.detector.false_trigger  # the trigger's false probability
         for start, mixed in step_windows(y, ks, probability, self.config.traffic_vehicle_max_n):
             if mixed is not None:  # each side keeps a window: its neighbours are its states'
                 both.add(mixed)
@@ -684,7 +684,7 @@ class Shadow:
         (``moved_then_still`` without one sign); then a ramp (``ramp_windows``); then, in stages or
         a ramp a vehicle broke, where they moved one way and stopped (``moved_then_still``).
         """
-        probability = 1.0 - self.config.event_trigger_probability
+        probability = self.detector.false_trigger  # the trigger's false probability
         vehicle = self.config.traffic_vehicle_max_n
         cov = self._known_window_cov(fresh)
         if held_on:
@@ -1062,7 +1062,7 @@ class Shadow:
         found = step_windows(
             np.array([w.force for w in run]).reshape(-1, 2),
             np.array([w.k for w in run], np.int64),
-            1.0 - self.config.event_trigger_probability,
+            self.detector.false_trigger,
             self.config.traffic_vehicle_max_n,
         )
         for i, mixed in found:
