@@ -27,3 +27,28 @@ def test_replay_uses_the_calibrated_surrogate_unless_told_otherwise(root) -> Non
     np.testing.assert_allclose(default["surrogate"]["A"], load_surrogate().A, rtol=1e-12)
     np.testing.assert_allclose(chosen["surrogate"]["A"], load_surrogate(fe).A, rtol=1e-12)
     assert not np.allclose(default["posterior"]["mean_m"], chosen["posterior"]["mean_m"], rtol=1e-3)
+
+
+def test_a_loaded_surrogate_is_its_own_copy_of_the_file(root) -> None:
+    """Loads share one parse of the file, and what a caller changes in one never reaches the next.
+
+    ``load_surrogate`` copies only the six entries it reads (``LOADED_KEYS``), not the sweeps and
+    sensitivities beside them; ``read_surrogate_document`` without ``keys`` copies everything.
+    """
+    from bridge_shadow.model.surrogate_file import LOADED_KEYS, read_surrogate_document
+
+    path = root / "config" / "surrogate.yaml"
+    whole = read_surrogate_document(path)
+    part = read_surrogate_document(path, LOADED_KEYS)
+    assert set(part) == set(whole) and {"sweeps", "sensitivities"} <= set(whole) - set(LOADED_KEYS)
+    assert all(part[k] == whole[k] for k in LOADED_KEYS) and part["sweeps"] is None
+    part["provenance"]["solver"] = "changed"
+    whole["sweeps"].clear()
+    first = load_surrogate(path)
+    first.provenance["calibration"]["priors"] = "changed"
+    first.thermal["uniform"][:] = 0.0
+    again = load_surrogate(path)
+    assert again.provenance["solver"].startswith("bridge_shadow.fe")
+    assert again.provenance["calibration"]["priors"] == "sources"
+    assert np.abs(again.thermal["uniform"]).max() > 0
+    assert read_surrogate_document(path)["sweeps"]  # the cached parse kept its sweeps

@@ -69,6 +69,8 @@ FILE_KEYS: tuple[str, ...] = (
     "sensitivities",
     "sweeps",
 )
+#: The keys ``load_surrogate`` reads (the rest are ``model.sensitivities``' and ``model.sweeps``').
+LOADED_KEYS: tuple[str, ...] = FILE_KEYS[:6]
 #: Largest relative asymmetry ``|A12 - A21| / max|A_ij|`` taken as symmetric. ``A`` is a Schur
 #: complement of a symmetric stiffness matrix; the FE solves give it symmetric to 3e-13 (the
 #: committed surrogates) and the Schur check holds them to 1e-8. An edited or foreign matrix is
@@ -102,17 +104,23 @@ def _parsed(path: str, mtime_ns: int, size: int) -> Any:
     return load_yaml(Path(path).read_text(encoding="utf-8"))
 
 
-def read_surrogate_document(path: str | Path) -> Any:
+def read_surrogate_document(path: str | Path, keys: tuple[str, ...] | None = None) -> Any:
     """Return the parsed YAML of a surrogate file, parsed once per version of the file.
 
     The surrogate, its ``sensitivities`` and its ``sweeps`` are read from one file by several
     callers; the parse is cached by path, modification time and size, and a deep copy returned
-    (callers may change what they get). Raises OSError and yaml.YAMLError as reading would.
+    (callers may change what they get). With ``keys``, a mapping's other top-level entries are
+    ``None`` and only those keys' values are copied: ``load_surrogate`` reads six small entries
+    beside the sweeps and sensitivities, whose copy was most of a load's time. Raises OSError and
+    yaml.YAMLError as reading would.
     """
     import copy
 
     st = Path(path).stat()
-    return copy.deepcopy(_parsed(str(Path(path).resolve()), st.st_mtime_ns, st.st_size))
+    data = _parsed(str(Path(path).resolve()), st.st_mtime_ns, st.st_size)
+    if keys is None or not isinstance(data, dict):
+        return copy.deepcopy(data)
+    return {k: copy.deepcopy(v) if k in keys else None for k, v in data.items()}
 
 
 @dataclass(frozen=True)
@@ -388,7 +396,7 @@ def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = 
             raise ConfigError(f"{file}: surrogate file not found")
         return placeholder_surrogate()
     try:
-        data = read_surrogate_document(file)
+        data = read_surrogate_document(file, LOADED_KEYS)
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
         raise ConfigError(f"{file}: not a valid surrogate file ({yaml_problem(err)})") from None
     if not isinstance(data, dict):
