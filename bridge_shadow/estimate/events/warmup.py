@@ -104,13 +104,22 @@ HOLD_MOVING_DIFFERENCES = RAMP_MIN_LENGTH + 1
 MAD_NORMAL = 0.6744897501960817
 
 
+@lru_cache(maxsize=4096)
+def _log_order_norm(m: int, n: int) -> float:
+    """``log(n! / ((m-1)! (n-m)!))``: the constant of ``_log_order_density``, once per ``(m, n)``.
+
+    The integrals below evaluate the density thousands of times at one ``(m, n)``; its three
+    ``gammaln`` calls were half of each evaluation (the same value, hence the same density).
+    """
+    return special.gammaln(n + 1.0) - special.gammaln(float(m)) - special.gammaln(n - m + 1.0)
+
+
 def _log_order_density(x: float, m: int, n: int) -> float:
     """Log density at ``x > 0`` of the ``m``-th largest of ``n`` unit exponentials.
 
     ``n! / ((m-1)! (n-m)!) (1 - e^-x)^(n-m) e^(-m x)``.
     """
-    log_norm = special.gammaln(n + 1.0) - special.gammaln(float(m)) - special.gammaln(n - m + 1.0)
-    return float(log_norm + (n - m) * np.log(-np.expm1(-x)) - m * x)
+    return float(_log_order_norm(m, n) + (n - m) * np.log(-np.expm1(-x)) - m * x)
 
 
 def false_step_probability(f: float, n: int) -> float:
