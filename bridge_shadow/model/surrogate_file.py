@@ -70,7 +70,7 @@ FILE_KEYS: tuple[str, ...] = (
     "sweeps",
 )
 #: The keys ``load_surrogate`` reads (the rest are ``model.sensitivities``' and ``model.sweeps``').
-LOADED_KEYS: tuple[str, ...] = FILE_KEYS[:6]
+LOADED_KEYS: tuple[str, ...] = ("A", "u0", "thermal", "provenance", "model_uncertainty", "discrepancy")
 #: Largest relative asymmetry ``|A12 - A21| / max|A_ij|`` taken as symmetric. ``A`` is a Schur
 #: complement of a symmetric stiffness matrix; the FE solves give it symmetric to 3e-13 (the
 #: committed surrogates) and the Schur check holds them to 1e-8. An edited or foreign matrix is
