@@ -31,6 +31,33 @@ def test_rejected_messages_and_unused_windows_are_counted_apart() -> None:
     assert not any(line.startswith("rejected:") for line in lines)
 
 
+def test_a_channel_with_no_window_used_says_so_and_prints_no_nan() -> None:
+    """A bag of air temperature alone: no curve was fitted, and the text says that, not ``nan``."""
+    js = _replay_json({"missing_topic": 30})
+    empty = {
+        "edf": None,
+        "lambda": None,
+        "mean_force_n": None,
+        "windows": 0,
+        "t_min_c": None,
+        "t_max_c": None,
+    }
+    fitted = {
+        "edf": 2.5,
+        "lambda": 40.0,
+        "mean_force_n": 211220.0,
+        "windows": 7,
+        "t_min_c": 4.0,
+        "t_max_c": 9.0,
+    }
+    js["spline"] = {"frc_01": empty, "frc_02": fitted}
+    lines = _summary(js).splitlines()
+    assert "compensation frc_01: no window used, no curve fitted" in lines
+    assert any(line.startswith("compensation frc_02: 2.50 effective degrees of freedom") for line in lines)
+    assert "211.22 kN over 7 windows" in _summary(js)
+    assert "nan" not in _summary(js).lower()
+
+
 def test_node_start_up_lines_name_surrogate_parameter_files_topics_and_checkpoint(root) -> None:
     from bridge_shadow.model.surrogate_file import load_surrogate
 
