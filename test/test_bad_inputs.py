@@ -48,6 +48,16 @@ def _tree(*roots: Path) -> dict[str, str]:
     return out
 
 
+def _without_forces(bag: Path, out: Path) -> None:
+    """Write ``bag``'s air temperature to ``out`` with the load cells' topics and no message on them."""
+    from bridge_shadow.bagio import read_monitoring, write_monitoring
+    from bridge_shadow.series import MonitoringData
+
+    data = read_monitoring(bag)
+    forces = data.select(lambda stamps: np.zeros(len(stamps), bool)).forces
+    write_monitoring(out, MonitoringData(forces, data.temperature))
+
+
 def _params(path: Path, **values: object) -> str:
     path.write_text(yaml.safe_dump({"bridge_shadow": {"ros__parameters": values}}))
     return str(path)
@@ -64,6 +74,7 @@ def scratch(tmp_path_factory, root: Path) -> Path:
     (w / "random.bin").write_bytes(np.random.default_rng(1).bytes(2048))
     (w / "empty.npz").write_bytes(b"")
     shutil.copytree(root / "bags" / "baseline_1d", w / "bag")
+    _without_forces(w / "bag", w / "noforce")
     (w / "tiny.csv").write_text("Time (-),FRC-01 (kN),FRC-02 (kN)\n2022-03-07 16:35:00.000,260.1,221.2\n")
     _params(w / "inf.yaml", window_s=float("inf"))
     _params(w / "true.yaml", window_s=True)
@@ -154,6 +165,7 @@ CLI_CASES = {
     "replay --watch without --live": ["replay", "{w}/bag", "--watch"],
     # gap
     "gap missing bag": ["gap", "{w}/missing"],
+    "gap bag without a load cell message": ["gap", "{w}/noforce"],
     "gap --report a file": ["gap", "{w}/bag", "--report", "{w}/afile"],
     "gap --report under a file": ["gap", "{w}/bag", "--report", "{w}/afile/report"],
     "gap --surrogate random bytes": ["gap", "{w}/bag", "--surrogate", "{w}/random.bin"],

@@ -330,6 +330,9 @@ def run(args: argparse.Namespace) -> int:
     config = shadow_config(args.params, args.surrogate)
     surrogate = load_surrogate(config.surrogate_path or None)
     data = read_monitoring(args.bag, topics=config.input_topics())
+    if not any(len(s) for s in data.forces.values()):
+        frc_01, frc_02, _ = config.input_topics()
+        raise InputError(f"{args.bag}: no load cell message on {frc_01} or {frc_02}: nothing to diagnose")
     first = min(int(s.stamp_ns.min()) for s in data.forces.values() if len(s))
     last = max(int(s.stamp_ns.max()) for s in data.forces.values() if len(s))
     imposed = parse_imposed(args.imposed, first, last)
