@@ -57,7 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
         module.add_arguments(cmd)
-        cmd.set_defaults(_run=module.run)
+        cmd.set_defaults(_run=module.run, _parser=cmd)
     return parser
 
 
@@ -119,7 +119,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         parser = build_parser()
         try:
-            args = parser.parse_args(argv)
+            args, extra = parser.parse_known_args(argv)
+            if extra:  # said by the command's parser: its usage, not the top level's
+                args._parser.error(f"unrecognized arguments: {' '.join(extra)}")
         except SystemExit:  # --help, --version, a usage error: their text must reach the pipe now
             sys.stdout.flush()
             raise
