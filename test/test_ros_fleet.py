@@ -139,3 +139,18 @@ def test_a_bad_fleet_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixt
     bad.write_text(yaml.safe_dump({"bridges": {"b1": {"params": str(tmp_path / "missing.yaml")}}}))
     assert fleet_main([str(bad)]) == 2
     assert "missing.yaml" in capsys.readouterr().err
+
+
+def test_help_shows_the_fleet_files_format_and_a_wrong_call_says_how(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``--help`` on stdout: the usage, the fleet file's format and what each node gets; exit 0."""
+    assert fleet_main(["--help"]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith("usage: bridge_shadow_fleet FLEET.yaml") and not err
+    for said in ("bridges:", "params:", "surrogate:", "__ns:=/NAME", "SIGINT/SIGTERM", "checkpoint_path"):
+        assert said in out, said
+    for wrong in ([], ["a.yaml", "b.yaml"]):
+        assert fleet_main(wrong) == 2
+        out, err = capsys.readouterr()
+        assert not out and "error: expected one fleet file (--help shows its format)" in err

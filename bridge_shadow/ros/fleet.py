@@ -138,9 +138,16 @@ def main(argv: list[str] | None = None) -> int:
     from bridge_shadow.ros.netenv import confine_to_loopback
 
     args = sys.argv[1:] if argv is None else argv
-    if len(args) != 1 or args[0] in ("-h", "--help"):
-        print(__doc__.split("\n\n")[0] + "\n\nusage: bridge_shadow_fleet FLEET.yaml", file=sys.stderr)
-        return 0 if args and args[0] in ("-h", "--help") else 2
+    if args and args[0] in ("-h", "--help"):  # the usage, the fleet file's format, what runs: stdout
+        print(f"usage: bridge_shadow_fleet FLEET.yaml\n\n{__doc__}", end="")
+        return 0
+    if len(args) != 1:
+        print(
+            "usage: bridge_shadow_fleet FLEET.yaml\nbridge_shadow_fleet: error: expected one fleet file "
+            "(--help shows its format)",
+            file=sys.stderr,
+        )
+        return 2
     if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in os.environ:
         confine_to_loopback()  # every node of the fleet in this one domain, on loopback
     stop: list[int] = []
