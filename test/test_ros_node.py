@@ -307,6 +307,23 @@ def test_bad_parameter_exits_2_with_one_line() -> None:
     assert "Traceback" not in out
 
 
+def test_an_argument_outside_ros_args_stops_the_node_before_it_starts(capsys) -> None:
+    """``bridge_shadow_node --params-file F`` (without ``--ros-args``): ROS would run on the defaults.
+
+    The node takes no arguments of its own, so one outside ``--ros-args`` (before it, or after a
+    ``--`` that ends it) is a mistake: exit 2 with one line that says where parameters go.
+    """
+    from bridge_shadow.ros.main import main, user_args
+
+    assert user_args(["--ros-args", "-p", "window_s:=60.0", "--params-file", "f.yaml"]) == []
+    assert user_args(["--params-file", "f.yaml"]) == ["--params-file", "f.yaml"]
+    assert user_args(["--ros-args", "-p", "a:=1", "--", "x"]) == ["x"]
+    assert main(["--params-file", "shadow.yaml"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unrecognized arguments: --params-file shadow.yaml" in err[0]
+    assert "go after --ros-args" in err[0]
+
+
 def test_parameters_default_to_shadow_yaml_and_override() -> None:
     import rclpy
     from rclpy.parameter import Parameter

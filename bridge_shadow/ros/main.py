@@ -35,7 +35,7 @@ from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.ros.netenv import confine_to_loopback
 from bridge_shadow.ros.node import ShadowNode
 
-__all__ = ["main", "params_files"]
+__all__ = ["main", "params_files", "user_args"]
 
 _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -61,6 +61,19 @@ def params_files(argv: Sequence[str]) -> list[str]:
         elif in_ros and arg == "--params-file" and k + 1 < len(argv):
             files.append(argv[k + 1])
     return files
+
+
+def user_args(argv: Sequence[str]) -> list[str]:
+    """Return the arguments of a ROS command line outside ``--ros-args`` (before it, or after ``--``)."""
+    out, in_ros = [], False
+    for arg in argv:
+        if arg == "--ros-args":
+            in_ros = True
+        elif arg == "--" and in_ros:
+            in_ros = False
+        elif not in_ros:
+            out.append(arg)
+    return out
 
 
 def _check_params_file(path: str) -> None:
@@ -116,6 +129,14 @@ def main(args: list[str] | None = None) -> int:
         print(_USAGE, end="")
         return 0
     prog = "bridge_shadow_node"
+    extra = user_args(argv)
+    if extra:  # the node takes no arguments of its own: a parameter outside --ros-args is ignored by ROS
+        print(
+            f"{prog}: error: unrecognized arguments: {' '.join(extra)} (parameters go after --ros-args: "
+            f"{prog} --ros-args --params-file FILE -p NAME:=VALUE)",
+            file=sys.stderr,
+        )
+        return 2
     files = params_files(argv)
     try:
         for file in files:
