@@ -197,7 +197,7 @@ def _summary(js: dict[str, Any]) -> str:
     if state.get("text"):
         lines.append(f"the posterior stands for {state['text']}")
     for ch, sp in js["spline"].items():
-        if not sp["windows"]:  # nothing fitted: no numbers to print (they are NaN in the JSON)
+        if not sp["windows"]:  # nothing fitted: no numbers to print (null in JSON, NaN in a direct result)
             lines.append(f"compensation {ch}: no window used, no curve fitted")
             continue
         # JSON carries a non-finite lambda (no curve: no temperature) as null (the live node's report)
