@@ -191,3 +191,36 @@ def test_replay_is_loud_about_what_it_lost(
     err = capsys.readouterr().err
     assert "WARN: topic frc_01: all" in err and "frame_id 'load_cell', expected 'frc_01'" in err
     assert "no window updated the estimate" in err and "Traceback" not in err
+
+
+def test_an_empty_plot_says_why_it_is_empty(root: Path, tmp_path: Path, monkeypatch) -> None:
+    """Plots of data without air temperature, or without a window, carry a note instead of blank axes."""
+    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.estimate import Shadow, load_config, plots
+    from bridge_shadow.series import MonitoringData
+
+    said: dict[str, list[str]] = {}
+
+    def keep(fig, path):  # the figure's notes, by file
+        said[path.name] = [t.get_text() for ax in fig.axes for t in ax.texts]
+        return path
+
+    monkeypatch.setattr(plots, "_save", keep)
+    data = read_monitoring(root / "bags" / "baseline_1d")
+    nothing = data.select(lambda stamps: np.zeros(len(stamps), bool))
+    cases = {
+        "no air": MonitoringData(data.forces, nothing.temperature),
+        "no force": MonitoringData(nothing.forces, data.temperature),
+        "both": data.select(lambda stamps: stamps < stamps.min() + 6 * 3600 * 10**9),
+    }
+    notes = {}
+    for name, case in cases.items():
+        shadow = Shadow(load_config())
+        plots.write_plots(tmp_path / name.replace(" ", "_"), shadow.run(case), shadow)
+        notes[name] = dict(said)
+    assert notes["no air"]["compensation_curve.png"] == ["no air temperature: windows used uncompensated"] * 2
+    assert notes["no air"]["posterior.png"] == []  # the windows were used
+    assert notes["no force"]["compensation_curve.png"] == ["no window used"] * 2
+    assert notes["no force"]["posterior.png"] == ["no window closed: the prior"] * 2
+    assert notes["no force"]["raw_vs_compensated.png"] == ["no window closed"] * 2
+    assert not any(notes["both"].values())  # a record with both: no note anywhere

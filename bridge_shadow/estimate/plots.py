@@ -39,6 +39,9 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
             level = np.nanmean(h["compensated_n"][ok, c])  # the curve is centred: y - g(T) has mean ybar
             ax.plot(grid, 1e-3 * (g + level), "r-", label=f"g(T) + mean level, edf {fit.edf[c]:.1f}")
         ax.set(xlabel="air temperature (°C)", ylabel="reaction (kN)", title=f"{CHANNELS[c]} ({SUPPORTS[c]})")
+        if not ok.any():
+            used = np.isfinite(h["force_n"][:, c]).any()
+            _note(ax, "no air temperature: windows used uncompensated" if used else "no window used")
         ax.legend()
     paths.append(_save(fig, out / "compensation_curve.png"))
 
@@ -47,6 +50,8 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
         ax.plot(t_h, 1e-3 * h["force_n"][:, c], "-", lw=0.8, label="raw")
         ax.plot(t_h, 1e-3 * h["compensated_n"][:, c], "-", lw=0.8, label="compensated")
         ax.set(ylabel=f"{SUPPORTS[c]} (kN)")
+        if not len(t_h):
+            _note(ax, "no window closed")
         ax.legend()
     axes[-1].set(xlabel="time (h)")
     paths.append(_save(fig, out / "raw_vs_compensated.png"))
@@ -58,6 +63,8 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
         ax.fill_between(t_h, mu - 2e3 * sd[:, c], mu + 2e3 * sd[:, c], alpha=0.3, label="±2σ")
         ax.plot(t_h, mu, "-", label="posterior mean")
         ax.set(ylabel=f"{SUPPORTS[c]} settlement (mm)")
+        if not len(t_h):
+            _note(ax, "no window closed: the prior")
         ax.legend()
     axes[-1].set(xlabel="time (h)")
     paths.append(_save(fig, out / "posterior.png"))
@@ -78,6 +85,11 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
     ax.legend()
     paths.append(_save(fig, out / "credible_ellipse.png"))
     return paths
+
+
+def _note(ax: Any, text: str) -> None:
+    """Say in the middle of an empty plot why it is empty."""
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, color="0.35")
 
 
 def _save(fig: Any, path: Path) -> Path:
