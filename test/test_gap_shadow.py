@@ -28,16 +28,22 @@ def _cli(argv: list[str]) -> str:
 
 
 @pytest.fixture(scope="module")
-def demo(root: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Any], dict[str, Any], Path]:
+def demo(
+    root: Path, tmp_path_factory: pytest.TempPathFactory
+) -> tuple[dict[str, Any], dict[str, Any], Path, str]:
+    """``gap --json --report --out-surrogate`` and ``replay --json`` of the demo bag (and gap's stderr)."""
     bag = root / "bags" / "demo_3d"
-    report = tmp_path_factory.mktemp("gap_demo") / "report"
-    gap = json.loads(_cli(["gap", str(bag), "--json", "--report", str(report)]))
+    folder = tmp_path_factory.mktemp("gap_demo")
+    err = io.StringIO()
+    argv = ["gap", str(bag), "--json", "--report", str(folder / "report")]
+    with contextlib.redirect_stderr(err):
+        gap = json.loads(_cli([*argv, "--out-surrogate", str(folder / "after.yaml")]))
     replay = json.loads(_cli(["replay", str(bag), "--json"]))
-    return gap, replay, report
+    return gap, replay, folder / "report", err.getvalue()
 
 
 def test_gap_before_is_the_replay_posterior(demo):
-    gap, replay, _ = demo
+    gap, replay, *_ = demo
     before = gap["posterior"]["before"]
     np.testing.assert_allclose(before["mean_m"], replay["posterior"]["mean_m"], rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(before["covariance_m2"], replay["posterior"]["covariance_m2"], rtol=1e-12)
@@ -45,7 +51,7 @@ def test_gap_before_is_the_replay_posterior(demo):
 
 
 def test_gap_after_adding_the_named_effects_is_the_papers_offset(demo):
-    gap, _, _ = demo
+    gap, *_ = demo
     after = gap["posterior"]["after"]
     assert set(after["effects_added"]) == {"vertical_gradient", "transverse_gradient", "traffic"}
     # the twin's offset (+0.7 / -0.7 mm), which the as-built shadow reads as +0.67 / -0.64
@@ -53,7 +59,7 @@ def test_gap_after_adding_the_named_effects_is_the_papers_offset(demo):
 
 
 def test_text_and_report_say_what_each_number_is(demo):
-    gap, _, report = demo
+    gap, _, report, _ = demo
     from bridge_shadow.commands.gap import _human
 
     text = _human(gap)
@@ -67,3 +73,25 @@ def test_text_and_report_say_what_each_number_is(demo):
     assert "| before |" in md and "| after |" in md
     for png in ("residual.png", "breakdown.png", "heldout.png"):
         assert (report / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_surrogate_written_says_which_named_effects_it_cannot_carry(demo):
+    """The demo's named effects are loads taken off the record: the file is the model in use, and says so.
+
+    ``replay --surrogate`` with it gives ``before``, not ``after``; the file's header and a WARN line
+    say which effects it leaves out (a stiffness named is carried: ``test_gap_realdata``).
+    """
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    gap, _, _, err = demo
+    after = gap["posterior"]["after"]
+    assert after["effects_in_surrogate"] == []
+    assert set(after["effects_off_the_record"]) == {"vertical_gradient", "transverse_gradient", "traffic"}
+    written = Path(gap["surrogate_written"])
+    header = written.read_text().split("\nA:", 1)[0]
+    assert "the named effects that change the model: none" in header and "Not in it:" in header
+    np.testing.assert_allclose(load_surrogate(written).A, load_surrogate().A, rtol=1e-15)
+    again = json.loads(_cli(["replay", gap["bag"], "--json", "--surrogate", str(written)]))
+    np.testing.assert_allclose(again["posterior"]["mean_m"], gap["posterior"]["before"]["mean_m"], rtol=1e-12)
+    warn = [line for line in err.splitlines() if "WARN" in line]
+    assert len(warn) == 1 and "does not carry" in warn[0] and "traffic" in warn[0]

@@ -36,7 +36,9 @@ the settlement steps the shadow estimates. The named effect goes into the model 
 
 --out-surrogate FILE writes the model with the named effects added (for `replay --surrogate`
 and the node's surrogate_path), with its uncertainty and a discrepancy beyond the settlements
-it was fitted on.
+it was fitted on. Effects that change the model (a stiffness, a support spring, the slab joint)
+are in it; effects that are loads (thermal, traffic, sensor drift) are taken off the record for
+`after` only, which no surrogate can carry: the file's header and a WARN line name them.
 
 `best` is `none` when no candidate beats the chance level of AR(1) noise. The diagnosis never
 reads a twin's ground-truth file. JSON output is SI (N, m, s, C)."""
@@ -347,13 +349,23 @@ def run(args: argparse.Namespace) -> int:
         )
     summary["bag"] = str(args.bag)
     summary["surrogate_file"] = config.surrogate_path or "config/surrogate.yaml"
+    off_record: list[str] = []
     if args.out_surrogate:
         after = dg.surrogate_after if dg.surrogate_after is not None else surrogate
+        named = summary.get("posterior", {}).get("after", {})
+        carried = named.get("effects_in_surrogate", [])
+        off_record = named.get("effects_off_the_record", [])
         header = (
             f"Written by `bridge-shadow gap {args.bag} --out-surrogate`: the model in use\n"
-            f"({summary['surrogate_file']}) with the named effects added: "
-            f"{', '.join(summary['posterior'].get('after', {}).get('effects_added', [])) or 'none'}.\n"
-            "Units: A N/m, u0 N, thermal N/K; model_uncertainty covariance of [A, u0, thermal]."
+            f"({summary['surrogate_file']}) with the named effects that change the model: "
+            f"{', '.join(carried) or 'none'}.\n"
+            + (
+                f"Not in it: {', '.join(off_record)}, loads `after` took off the record (a surrogate\n"
+                "cannot carry them): `replay` with this file does not take them off.\n"
+                if off_record
+                else ""
+            )
+            + "Units: A N/m, u0 N, thermal N/K; model_uncertainty covariance of [A, u0, thermal]."
         )
         written = save_surrogate(after, args.out_surrogate, header=header, force=args.force)
         summary["surrogate_written"] = str(written)
@@ -369,4 +381,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"report: {summary['report']}")
         if args.out_surrogate:
             print(f"wrote {summary['surrogate_written']}", file=sys.stderr)
+    if off_record:  # replay with the file would not reproduce `after`: say so however the output goes
+        print(
+            f"bridge-shadow gap: WARN: {summary['surrogate_written']} does not carry "
+            f"{', '.join(off_record)}: loads `after` took off the record, which a surrogate cannot "
+            "carry; `replay --surrogate` with it differs from `after` by them",
+            file=sys.stderr,
+        )
     return 0

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from bridge_shadow.contract import CHANNELS
+from bridge_shadow.effects import MODEL_FORM_EFFECTS
 from bridge_shadow.model.sensitivities import StiffnessSensitivity, change_surrogate
 from bridge_shadow.model.surrogate_file import Surrogate
 from bridge_shadow.series import ForceSeries, MonitoringData
@@ -123,6 +124,9 @@ def _after(
         "shadow's to estimate)"
     )
     after["effects_added"] = list(change.effects)
+    # what a surrogate file can carry (``gap --out-surrogate``) and what only this run takes off
+    after["effects_in_surrogate"] = [e for e in change.effects if e in MODEL_FORM_EFFECTS]
+    after["effects_off_the_record"] = [e for e in change.effects if e not in MODEL_FORM_EFFECTS]
     model: dict[str, Any] = {k: float(v) for k, v in change.ratios.items()}
     if np.any(np.isfinite(change.springs_n_per_m)):
         model["support_spring_n_per_m"] = [None if np.isinf(k) else float(k) for k in change.springs_n_per_m]
@@ -158,7 +162,7 @@ def shadow_posteriors(
             "nothing added: no effect named, or settlements only, which are what the shadow estimates "
             "(after = before)"
         )
-        after["effects_added"] = []
+        after["effects_added"] = after["effects_in_surrogate"] = after["effects_off_the_record"] = []
     else:
         after = _after(data, surrogate, config, change, t_ns, sensitivities)
     out = {
