@@ -194,6 +194,7 @@ def test_out_surrogate_is_what_replay_reads(lowering_bag: Path, tmp_path: Path):
     written = load_surrogate(out)
     assert written.discrepancy is not None and written.discrepancy.low_m == (LOWERING_M, LOWERING_M)
     assert written.provenance["gap_model_change"]["effect"] == gap["best"]
+    assert "records' levels were read with" in out.read_text().split("\nA:", 1)[0]
     replay = _run(["replay", str(lowering_bag), "--json", "--surrogate", str(out)])
     np.testing.assert_allclose(replay["posterior"]["mean_m"], gap["posterior"]["after"]["mean_m"], rtol=1e-6)
     np.testing.assert_allclose(

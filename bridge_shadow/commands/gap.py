@@ -353,7 +353,9 @@ def run(args: argparse.Namespace) -> int:
     if args.out_surrogate:
         after = dg.surrogate_after if dg.surrogate_after is not None else surrogate
         named = summary.get("posterior", {}).get("after", {})
-        carried = named.get("effects_in_surrogate", [])
+        carried = list(named.get("effects_in_surrogate", []))
+        if named.get("model_change_from_levels"):  # a day of records: the model its levels were read with
+            carried.append("the model the records' levels were read with (provenance gap_model_change)")
         off_record = named.get("effects_off_the_record", [])
         header = (
             f"Written by `bridge-shadow gap {args.bag} --out-surrogate`: the model in use\n"
