@@ -53,3 +53,21 @@ def test_a_loaded_surrogate_is_its_own_copy_of_the_file(root) -> None:
     assert again.provenance["calibration"]["priors"] == "sources"
     assert np.abs(again.thermal["uniform"]).max() > 0
     assert read_surrogate_document(path)["sweeps"]  # the cached parse kept its sweeps
+
+
+def test_a_relative_surrogate_path_not_found_names_the_folder_it_was_read_from(tmp_path, monkeypatch) -> None:
+    """A relative ``surrogate_path`` is read from the working directory: the error says so."""
+    import re
+
+    import pytest
+
+    from bridge_shadow.errors import ConfigError
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(
+        ConfigError,
+        match=rf"s\.yaml: surrogate file not found \(a relative path, read from {re.escape(str(tmp_path))}\)",
+    ):
+        load_surrogate("s.yaml")
+    with pytest.raises(ConfigError, match=r"surrogate file not found$"):  # an absolute one says nothing more
+        load_surrogate(tmp_path / "s.yaml")

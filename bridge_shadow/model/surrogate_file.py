@@ -393,7 +393,9 @@ def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = 
         raise ConfigError(f"{file}: is a directory, not a surrogate file")
     if not file.is_file():
         if explicit or not allow_placeholder:
-            raise ConfigError(f"{file}: surrogate file not found")
+            # a relative path (surrogate_path in a parameter file) is read from the working directory
+            where = "" if file.is_absolute() else f" (a relative path, read from {Path.cwd()})"
+            raise ConfigError(f"{file}: surrogate file not found{where}")
         return placeholder_surrogate()
     try:
         data = read_surrogate_document(file, LOADED_KEYS)
