@@ -680,6 +680,18 @@ def test_live_replay_of_the_real_lowering_ends_at_the_direct_posterior(
     direct = Shadow(load_config()).run(read_monitoring(bag))
     live = run_live(bag, out=tmp_path / "out", timeout_s=TIMEOUT_S)
     assert len(direct.events) == 1 and live["events"][0]["window"] == direct.events[0].window
+    # the traffic screen's report (the test car's windows cut), as the direct replay's JSON has it:
+    # counts, stamps and the hold (a parameter) exactly; the loads of parked vehicles to rounding
+    traffic = direct.to_json()["traffic"]
+    assert traffic["windows_cut"] > 0
+    assert {k: v for k, v in live["traffic"].items() if k != "parked"} == {
+        k: v for k, v in traffic.items() if k != "parked"
+    }
+    assert len(live["traffic"]["parked"]) == len(traffic["parked"])
+    for got, want in zip(live["traffic"]["parked"], traffic["parked"], strict=True):
+        assert got["since_ns"] == want["since_ns"] and got["until_ns"] == want["until_ns"]
+        if want["load_n"] is not None:
+            np.testing.assert_allclose(got["load_n"], want["load_n"], rtol=1e-12)
     np.testing.assert_allclose(live["posterior"]["mean_m"], direct.mean_m, rtol=1e-12, atol=0)
     np.testing.assert_allclose(live["posterior"]["covariance_m2"], direct.covariance_m2, rtol=1e-12, atol=0)
     # what a subscriber saw last is that final posterior (one message per window, and one more

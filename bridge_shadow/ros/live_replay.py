@@ -562,6 +562,7 @@ def run_live(
         "events": report["events"],
         "unconfirmed_changes": report["unconfirmed_changes"],
         "gaps": report["gaps"],
+        "traffic": report["traffic"],
         "rejected_windows": rejected_windows(history),
         "warnings": report["warnings"],
         "prior": report["prior"],
