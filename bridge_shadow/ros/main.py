@@ -50,30 +50,35 @@ checkpoint is written when checkpoint_path is set).
 """
 
 
+def _in_ros_args(argv: Sequence[str]) -> list[bool | None]:
+    """Per argument: inside a ``--ros-args`` section (True), outside (False), or a marker (None).
+
+    A section runs from ``--ros-args`` to a ``--`` that ends it, or to the end of the line.
+    """
+    out: list[bool | None] = []
+    in_ros = False
+    for arg in argv:
+        if arg == "--ros-args" or (arg == "--" and in_ros):
+            in_ros = arg == "--ros-args"
+            out.append(None)
+        else:
+            out.append(in_ros)
+    return out
+
+
 def params_files(argv: Sequence[str]) -> list[str]:
     """Return the ``--params-file FILE`` arguments of a ROS command line (after ``--ros-args``)."""
-    files, in_ros = [], False
-    for k, arg in enumerate(argv):
-        if arg == "--ros-args":
-            in_ros = True
-        elif arg == "--":
-            in_ros = False
-        elif in_ros and arg == "--params-file" and k + 1 < len(argv):
-            files.append(argv[k + 1])
-    return files
+    inside = _in_ros_args(argv)
+    return [
+        argv[k + 1]
+        for k, arg in enumerate(argv)
+        if inside[k] and arg == "--params-file" and k + 1 < len(argv)
+    ]
 
 
 def user_args(argv: Sequence[str]) -> list[str]:
     """Return the arguments of a ROS command line outside ``--ros-args`` (before it, or after ``--``)."""
-    out, in_ros = [], False
-    for arg in argv:
-        if arg == "--ros-args":
-            in_ros = True
-        elif arg == "--" and in_ros:
-            in_ros = False
-        elif not in_ros:
-            out.append(arg)
-    return out
+    return [arg for arg, inside in zip(argv, _in_ros_args(argv), strict=True) if inside is False]
 
 
 def _check_params_file(path: str) -> None:
