@@ -146,6 +146,49 @@ def test_a_failed_write_leaves_nothing_behind(tmp_path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.npz", "file"]
 
 
+def test_a_periodic_write_that_fails_is_a_warning_and_is_tried_again(tmp_path) -> None:
+    """A full disk or a mount gone read-only must not stop the monitoring (it stopped the node).
+
+    The checkpoint's place is taken by a directory for the first half of the data: the windows go
+    on as without a checkpoint, the failure is a warning with its time, and once the place is free
+    the next period writes the state and the warning is gone.
+    """
+    from bridge_shadow.series import MonitoringData
+
+    target = tmp_path / "state.npz"
+    data = _data(120)
+    half = T0 + 60 * 60 * 10**9
+    parts = []
+    for keep in (lambda s: s < half, lambda s: s >= half):
+        f = [data.forces[ch] for ch in data.forces]
+        sel = keep(f[0].stamp_ns)
+        t_sel = keep(data.temperature.stamp_ns)
+        parts.append(
+            MonitoringData.from_arrays(
+                f[0].stamp_ns[sel],
+                np.column_stack([f[0].force_n[sel], f[1].force_n[sel]]),
+                data.temperature.stamp_ns[t_sel],
+                data.temperature.temp_c[t_sel],
+            )
+        )
+    cfg = ShadowConfig(**CFG, checkpoint_period_s=600.0)
+    plain = Shadow(cfg, placeholder_surrogate())
+    shadow = Shadow(cfg.replace(checkpoint_path=str(target)), placeholder_surrogate())
+    target.mkdir()
+    first = shadow.run(parts[0], chunk=60, flush=False)  # a poll every 20 s of data
+    alone = plain.run(parts[0], flush=False)
+    assert plain.n_updates == shadow.n_updates > 30
+    np.testing.assert_allclose(first.mean_m, alone.mean_m, rtol=1e-12, atol=1e-15)  # the same windows
+    lines = [w for w in shadow.warnings() if w.startswith("checkpoint not written")]
+    assert len(lines) == 1 and "is a directory" in lines[0] and "every 600 s" in lines[0], lines
+    assert shadow.diagnostics()["level"] == "WARN"
+    target.rmdir()
+    shadow.run(parts[1], chunk=60, flush=False)
+    assert target.is_file() and not any(w.startswith("checkpoint") for w in shadow.warnings())
+    resumed = Shadow.resume(target, cfg.replace(checkpoint_path=str(target)), placeholder_surrogate())
+    assert resumed.clock_ns > half  # a state of the second half, written by a later period
+
+
 @pytest.fixture(scope="module")
 def small_bag(tmp_path_factory) -> Path:
     return write_monitoring(tmp_path_factory.mktemp("bag") / "small", _data(60))

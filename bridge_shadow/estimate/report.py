@@ -306,6 +306,12 @@ def silent_channel_lines(shadow: Shadow) -> list[str]:
 def warnings(shadow: Shadow) -> list[str]:
     """Problems a user must hear about (one line each): silent failures made loud."""
     out = []
+    if shadow.checkpoint_failure is not None:
+        at, why = shadow.checkpoint_failure
+        out.append(
+            f"checkpoint not written at {iso_utc(at)} ({why}): a restart would resume from an older "
+            f"state; tried again every {shadow.config.checkpoint_period_s:g} s of data"
+        )
     if shadow.uncompensated:
         out.append(
             f"no air temperature: {shadow.uncompensated} windows used without temperature compensation "

@@ -76,7 +76,7 @@ from bridge_shadow.estimate.settlement.prior import configured_prior_sigma, prio
 from bridge_shadow.estimate.settlement.relaxation import relaxation_variance
 from bridge_shadow.estimate.settlement.segments import SegmentChain
 from bridge_shadow.estimate.small import congruence, quad_inv
-from bridge_shadow.estimate.state.checkpoint import restore, save_state
+from bridge_shadow.estimate.state.checkpoint import CheckpointError, restore, save_state
 from bridge_shadow.estimate.state.persistence import restore_shadow, shadow_state
 from bridge_shadow.model.surrogate_file import ModelCovariance, Surrogate, load_surrogate
 from bridge_shadow.series import MonitoringData
@@ -250,6 +250,8 @@ class Shadow:
         self._pending_refit: bool | None = None  # a scheduled refit not yet run: reselect lambda?
         self._lambda_at = 0
         self._ckpt_ns: int | None = None
+        #: the last periodic checkpoint write that failed (data clock ns, why); None after a success
+        self.checkpoint_failure: tuple[int, str] | None = None
         self._first_ns: int | None = None
         self._last_judged = -1
         self._last_ok: Window | None = None  # the last window used (the jump test's reference)
@@ -1240,7 +1242,9 @@ class Shadow:
         if not target:
             return None
         self._ckpt_ns = self.clock_ns
-        return save_state(self.state_dict(), target)
+        written = save_state(self.state_dict(), target)
+        self.checkpoint_failure = None
+        return written
 
     @classmethod
     def resume(
@@ -1255,7 +1259,13 @@ class Shadow:
         if self._ckpt_ns is None:
             self._ckpt_ns = self.clock_ns
         elif self.clock_ns - self._ckpt_ns >= self.config.checkpoint_period_s * _NS:
-            self.save_checkpoint()
+            # a write that fails (a full disk, a mount gone read-only) must not stop the monitoring:
+            # the windows go on, the failure is a warning (JSON, /diagnostics, the node's log) and
+            # the write is tried again a period later (save_checkpoint moved the clock of the last try)
+            try:
+                self.save_checkpoint()
+            except CheckpointError as err:
+                self.checkpoint_failure = (int(self.clock_ns), str(err))
 
     # -- offline ----------------------------------------------------------------------------
     def result(self, outputs: list[WindowOutput], messages: int, seconds: float) -> ReplayResult:

@@ -195,9 +195,9 @@ def main(args: list[str] | None = None) -> int:
                 path = node.save_on_exit()
                 if path is not None:
                     print(f"{prog}: checkpoint written to {path}", file=sys.stderr)
-            except BridgeShadowError as err:
+            except BridgeShadowError as err:  # a failure at run time (the path was checked at start)
                 print(f"{prog}: checkpoint not written: {err}", file=sys.stderr)
-                code = 2
+                code = code or 1
             node.destroy_node()
         rclpy.try_shutdown()
         for sig, handler in previous.items():

@@ -87,7 +87,7 @@ from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.estimate import Shadow, ShadowConfig, WindowOutput
 from bridge_shadow.estimate.parameters.specs import SPECS
 from bridge_shadow.estimate.startup import open_shadow
-from bridge_shadow.estimate.state.checkpoint import save_state
+from bridge_shadow.estimate.state.checkpoint import CheckpointError, save_state
 from bridge_shadow.jsonvalues import jsonable
 from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 from bridge_shadow.paths import config_file
@@ -494,7 +494,10 @@ class ShadowNode(Node):
         """Close every window holding data, publish, checkpoint; answer with the report as JSON."""
         self.close_open_windows()
         if self.config.checkpoint_path:
-            self.shadow.save_checkpoint()
+            try:
+                self.shadow.save_checkpoint()
+            except CheckpointError as err:  # the report's warnings say so; the node goes on
+                self.shadow.checkpoint_failure = (int(self.shadow.clock_ns or 0), str(err))
         response.success = True
         response.message = json.dumps(jsonable(self.report()))
         return response
