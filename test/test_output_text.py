@@ -94,6 +94,37 @@ def test_the_node_logs_its_start_up_lines(capfd) -> None:
         assert f"[bridge_shadow]: {what}" in err, what
 
 
+def test_the_node_logs_each_load_cells_warning_once(capfd) -> None:
+    """One warning per load cell reaches the log, each only once.
+
+    The numbers blanked to tell a new warning from a recount blanked the cells' own digits too, and
+    frc_02's warning never appeared.
+    """
+    rclpy = pytest.importorskip("rclpy")
+    from bridge_shadow.ros.node import ShadowNode
+
+    lines = [
+        f"topic {t}: all {n} messages rejected (wrong_frame: frame_id 'x', expected 'frc_0{i}')"
+        for n in (40, 120)
+        for i, t in ((1, "frc_01"), (2, "frc_02"))
+    ]
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = ShadowNode(context=context)
+        real = node.shadow.diagnostics
+        for some in (lines[:2], lines[2:]):
+            node.shadow.diagnostics = lambda some=some, **kw: {**real(**kw), "warnings": some}
+            node.publish_diagnostics()
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+    err = capfd.readouterr().err
+    assert err.count("topic frc_01: all 40 messages rejected") == 1, err
+    assert err.count("topic frc_02: all 40 messages rejected") == 1, err
+    assert "120 messages" not in err  # the same warnings recounted
+
+
 def test_watch_line_shows_the_latest_outputs() -> None:
     pytest.importorskip("rclpy")
     from rclpy.serialization import serialize_message

@@ -465,7 +465,7 @@ class ShadowNode(Node):
         diag = self.shadow.diagnostics()
         for line in diag["warnings"]:  # what must not pass silently also reaches the log (stderr)
             # the same warning with other counts is not new; an unconfirmed change is one per time
-            key = line.split(" (")[0] if line.startswith("unconfirmed") else re.sub(r"[0-9]+", "#", line)
+            key = line.split(" (")[0] if line.startswith("unconfirmed") else warning_key(line)
             if key not in self._warned:
                 self._warned.add(key)
                 self.get_logger().warn(line)
@@ -516,6 +516,19 @@ class ShadowNode(Node):
         if self._before_quiet is not None:
             return save_state(self._before_quiet[0], self.config.checkpoint_path)
         return self.shadow.save_checkpoint()
+
+
+#: an ISO time, then a count or measure: what changes in a warning that is still the same one
+_WARNING_TIME = re.compile(r"\d{4}-\d\d-\d\dT[\d:.]+Z?")
+_WARNING_NUMBER = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?")
+
+
+def warning_key(line: str) -> str:
+    """Return what makes a warning line new: its text with times and numbers blanked.
+
+    The digits of a name stay (``frc_01`` and ``frc_02`` are two warnings, one per load cell).
+    """
+    return _WARNING_NUMBER.sub("#", _WARNING_TIME.sub("#", line))
 
 
 def startup_lines(config: ShadowConfig, surrogate: Any, params_files: Sequence[str] = ()) -> list[str]:
