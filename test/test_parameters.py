@@ -75,6 +75,15 @@ def test_cross_field_rules_and_unknown_names() -> None:
         ShadowConfig.from_params({"windw_s": 60.0})
 
 
+def test_a_parameter_given_twice_in_a_file_is_refused_where_it_is(tmp_path: Path) -> None:
+    """YAML forbids a key twice; PyYAML kept the second value without a word (window_s 60, not 30)."""
+    path = _params_file(tmp_path, "    window_s: 30.0\n    warmup_windows: 5\n    window_s: 60.0\n")
+    with pytest.raises(ConfigError, match=r"line 5, column 5: key 'window_s' given twice"):
+        load_config(path)
+    merged = _params_file(tmp_path, "    prior_sigma_m: &s [0.01, 0.01]\n    window_s: 30.0\n")
+    assert load_config(merged).window_s == 30.0  # anchors and the rest as before
+
+
 def test_an_integer_is_taken_for_a_real_and_kept_as_one() -> None:
     cfg = ShadowConfig.from_params({"window_s": 60, "prior_sigma_m": [1, 0.5], "window_min_samples": 4})
     assert cfg.window_s == 60.0 and type(cfg.window_s) is float
