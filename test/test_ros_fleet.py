@@ -141,6 +141,61 @@ def test_a_bad_fleet_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "missing.yaml" in capsys.readouterr().err
 
 
+def test_a_bridge_named_twice_or_two_sharing_a_checkpoint_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, the second ``munich`` silently replaced the first, and two bridges wrote one file."""
+    twice = tmp_path / "twice.yaml"
+    twice.write_text("bridges:\n  munich: {}\n  munich: {}\n")
+    assert fleet_main([str(twice)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "line 3, column 3: key 'munich' given twice" in err[0], err
+    params = tmp_path / "shared.yaml"
+    params.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"checkpoint_path": "state.npz"}}}))
+    shared = tmp_path / "shared_fleet.yaml"
+    both = {"a": {"params": params.name}, "b": {"params": params.name}}
+    shared.write_text(yaml.safe_dump({"bridges": both}))
+    assert fleet_main([str(shared)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bridges a and b both write the checkpoint" in err[0], err
+
+
+def test_the_fleet_relays_its_nodes_output_and_fails_when_a_node_did(tmp_path: Path) -> None:
+    """A node that cannot write its checkpoint at the stop: its lines reach the fleet's stderr, exit 1.
+
+    Before, each node's output went to a file removed at the end, and the fleet exited 0.
+    """
+    import signal
+    import subprocess
+    import sys
+    import threading
+
+    target = tmp_path / "state.npz"
+    params = tmp_path / "a.yaml"
+    params.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"checkpoint_path": str(target)}}}))
+    fleet = tmp_path / "fleet.yaml"
+    fleet.write_text(yaml.safe_dump({"bridges": {"a": {"params": params.name}}}))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "bridge_shadow.ros.fleet", str(fleet)], stderr=subprocess.PIPE, text=True
+    )
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
+    reader.start()
+    try:
+        started = lambda: any(ln.startswith("[a] ") and "checkpoint: " in ln for ln in lines)  # noqa: E731
+        wait_until(started, 120.0, "the node's start-up lines")
+        target.mkdir()  # the checkpoint's place taken: the node's write at its stop fails
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    reader.join(10)
+    text = "".join(lines)
+    assert code == 1, text
+    assert "[a] " in text and "checkpoint not written" in text and "a: stopped with exit 1" in text, text
+
+
 def test_help_shows_the_fleet_files_format_and_a_wrong_call_says_how(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

@@ -22,7 +22,11 @@ index, ``ros.launcher.NodeProcess`` is the launcher) reads::
   with the surrogate's path into a parameter file of its own (``/**`` section: one node a process).
 
 The fleet runs until SIGINT/SIGTERM and then stops every node (each writes its checkpoint when
-its parameters name one: give each bridge its own ``checkpoint_path``).
+its parameters name one: each bridge needs its own ``checkpoint_path``, two bridges naming one
+file are refused). Every node's output (its start-up lines, warnings, the checkpoint it wrote)
+is relayed on stderr after its bridge's name, ``[munich] ...``. The exit code is 1 when a node
+died, or stopped with an exit code other than 0 (a checkpoint it could not write, for one); one
+node dying stops the others.
 """
 
 from __future__ import annotations
@@ -38,7 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from bridge_shadow.errors import BridgeShadowError, InputError
-from bridge_shadow.fileio import load_yaml
+from bridge_shadow.fileio import load_yaml, yaml_problem
 from bridge_shadow.ros.launcher import NodeProcess
 
 __all__ = ["FleetMember", "member_args", "read_fleet", "start_fleet"]
@@ -67,7 +71,9 @@ def read_fleet(path: str | Path) -> list[FleetMember]:
     file = Path(path)
     try:
         doc = load_yaml(file.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
+    except yaml.YAMLError as err:
+        raise InputError(f"{file}: cannot read the fleet file ({yaml_problem(err)})") from None
+    except (OSError, UnicodeDecodeError) as err:
         raise InputError(f"{file}: cannot read the fleet file ({' '.join(str(err).split())})") from None
     bridges = doc.get("bridges") if isinstance(doc, dict) else None
     if not isinstance(bridges, dict) or not bridges:
@@ -125,6 +131,17 @@ def start_fleet(members: list[FleetMember], folder: Path) -> list[NodeProcess]:
     import yaml
 
     plans = [(m, member_params(m)) for m in members]  # every file checked before any node starts
+    writers: dict[Path, str] = {}
+    for member, params in plans:  # two nodes writing one checkpoint would resume each other's state
+        if not params.get("checkpoint_path"):
+            continue
+        path = Path(params["checkpoint_path"]).expanduser().resolve()
+        if path in writers:
+            raise InputError(
+                f"bridges {writers[path]} and {member.name} both write the checkpoint {path}: "
+                "give each bridge its own checkpoint_path"
+            )
+        writers[path] = member.name
     nodes = []
     for member, params in plans:
         file = folder / f"{member.name}.yaml"
@@ -133,8 +150,18 @@ def start_fleet(members: list[FleetMember], folder: Path) -> list[NodeProcess]:
     return nodes
 
 
+def _relay(node: NodeProcess, member: FleetMember) -> None:
+    """Print the node's new output lines on stderr, each after its bridge's name."""
+    for line in node.new_lines():
+        print(f"[{member.name}] {line}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run a fleet until SIGINT/SIGTERM; exit 2 with one line on a bad fleet file."""
+    """Run a fleet until SIGINT/SIGTERM; exit 2 with one line on a bad fleet file.
+
+    Each node's output is relayed on stderr after its bridge's name. Exit 1 when a node died, or
+    stopped with an exit code other than 0 (its checkpoint not written, for one).
+    """
     from bridge_shadow.ros.netenv import confine_to_loopback
 
     args = sys.argv[1:] if argv is None else argv
@@ -167,15 +194,26 @@ def main(argv: list[str] | None = None) -> int:
                 return 2
             names = ", ".join(f"/{m.name}" for m in members)
             print(f"bridge_shadow_fleet: {len(nodes)} nodes in namespaces {names}", file=sys.stderr)
-            while not stop:
+            code = 0
+            while not stop and not code:
                 for node, member in zip(nodes, members, strict=True):
+                    _relay(node, member)
                     try:
                         node.check_alive()
                     except BridgeShadowError as err:
                         print(f"bridge_shadow_fleet: {member.name}: {err}", file=sys.stderr)
-                        return 1
-                time.sleep(0.2)
-            return 0
+                        code = 1  # one bridge down: the others are stopped (and checkpointed)
+                        break
+                else:
+                    time.sleep(0.2)
+            for node, member in zip(nodes, members, strict=True):
+                running = node.proc is not None and node.proc.poll() is None
+                end = node.stop()
+                _relay(node, member)
+                if running and end != 0:  # its last lines say why (a checkpoint not written, ...)
+                    print(f"bridge_shadow_fleet: {member.name}: stopped with exit {end}", file=sys.stderr)
+                    code = 1
+            return code
     finally:
         for node in nodes:
             node.close()

@@ -94,6 +94,7 @@ class NodeProcess:
         self.proc: subprocess.Popen[bytes] | None = None
         self.killed_after_s: float | None = None
         self._log = tempfile.NamedTemporaryFile(prefix="bridge_shadow_node_", suffix=".log", delete=False)
+        self._relayed = 0  # bytes of the log ``new_lines`` has returned
 
     @property
     def log_path(self) -> Path:
@@ -115,6 +116,16 @@ class NodeProcess:
         """Return the child's output so far."""
         self._log.flush()
         return self.log_path.read_text(errors="replace")
+
+    def new_lines(self) -> list[str]:
+        """Return the child's complete output lines not returned before (for a caller that relays them)."""
+        self._log.flush()
+        with open(self.log_path, "rb") as fh:
+            fh.seek(self._relayed)
+            chunk = fh.read()
+        end = chunk.rfind(b"\n") + 1
+        self._relayed += end
+        return chunk[:end].decode(errors="replace").splitlines()
 
     def check_alive(self) -> None:
         """Raise NodeError with the child's last output line if it has exited."""
