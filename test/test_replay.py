@@ -95,6 +95,29 @@ def test_replay_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert "--rate needs --live" in err and err.count("\n") == 1
 
 
+def test_force_never_writes_over_the_bag_being_read(
+    root: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``replay BAG --out BAG --force`` replaced the records by the outputs and removed truth.yaml."""
+    import hashlib
+    import shutil
+
+    bag = tmp_path / "bag"
+    shutil.copytree(root / "bags" / "baseline_1d", bag)
+
+    def digest() -> dict[str, str]:
+        return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(bag.iterdir())}
+
+    before = digest()
+    places = ((bag, "is the input"), (bag / "out", "lies inside the input"), (tmp_path, "holds the input"))
+    for out, how in places:
+        for live in ([], ["--live"]):
+            assert main(["replay", str(bag), "--out", str(out), "--force", *live]) == 2
+            err = capsys.readouterr().err
+            assert f"{out}: {how} {bag}" in err and err.count("\n") == 1, err
+    assert digest() == before
+
+
 @pytest.mark.realdata
 def test_replay_on_the_real_records(
     munich_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]

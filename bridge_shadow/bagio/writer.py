@@ -69,11 +69,33 @@ def _check_target(path: Path, overwrite: bool) -> None:
         raise BagExistsError(f"{path}: exists and is not a bag directory; refusing to overwrite it")
 
 
-def check_bag_target(path: str | Path, overwrite: bool = False) -> Path:
-    """Check before any work that a bag can be written at ``path``; BagError in one line if not."""
+def check_bag_target(path: str | Path, overwrite: bool = False, reading: Sequence[str | Path] = ()) -> Path:
+    """Check before any work that a bag can be written at ``path``; BagError in one line if not.
+
+    ``reading``: the bags (or files) the command reads. The target may be none of them, nor hold
+    one, nor lie inside one: ``--force`` replaces an output, never the input (``replay BAG --out
+    BAG --force`` replaced the records it had just read by its outputs).
+    """
     from bridge_shadow.fileio import check_output_dir
 
     target = Path(path)
+    where = target.resolve()
+    for source in reading:
+        read = Path(source).resolve()
+        how = (
+            "is the input"
+            if where == read
+            else "holds the input"
+            if where in read.parents
+            else "lies inside the input"
+            if read in where.parents
+            else None
+        )
+        if how is not None:
+            raise BagError(
+                f"{target}: {how} {source}; write the outputs to another place (--force replaces "
+                "an output, never the input)"
+            )
     _check_target(target, overwrite)
     if not target.exists():
         check_output_dir(target, "bag")

@@ -299,7 +299,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--watch needs --live (it shows the node's topics)")
     # the outputs are checked before the replay runs, so a bad path costs no time
     if args.out:
-        check_bag_target(args.out, args.force)
+        check_bag_target(args.out, args.force, reading=[args.bag])
     if args.plots:
         check_output_dir(args.plots, "plot directory")
     over = {"surrogate_path": str(Path(args.surrogate).resolve())} if args.surrogate else None
