@@ -434,6 +434,7 @@ def test_a_truncated_bag_is_named_not_raised(root: Path, tmp_path: Path, bag: st
 def test_sources_folder_glob_and_manifest(archive: dict[str, Any], tmp_path: Path) -> None:
     """The three ways to name an archive give the same bridge and bags (the broken one included)."""
     from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.errors import InputError
 
     folder = archive["folder"] / "bridge"
     (by_folder,) = archive_sources(str(folder))
@@ -448,6 +449,13 @@ def test_sources_folder_glob_and_manifest(archive: dict[str, Any], tmp_path: Pat
     for src in (by_glob, by_manifest):
         assert src.name == "bridge" and sorted(p.name for p in src.bags) == names
     assert by_folder.surrogate == folder / "surrogate.yaml" == by_manifest.surrogate
+    # a manifest's name names the output files: '/abs' and '../x' wrote outside --out before
+    for name in ("/tmp/abs", "../x", "a/b", ".hidden", ""):
+        manifest.write_text(f"bridges:\n  '{name}':\n    bags: ['{folder}/day_*']\n")
+        with pytest.raises(InputError, match="a bridge's name names its output files"):
+            archive_sources(str(manifest))
+    manifest.write_text(f"bridges:\n  2022.b-1_x:\n    bags: ['{folder}/day_*']\n")
+    assert archive_sources(str(manifest))[0].name == "2022.b-1_x"
 
 
 #: A valid other value for every parameter the cache key leaves out (``cache.ESTIMATOR_ONLY``).

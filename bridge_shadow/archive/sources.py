@@ -8,7 +8,7 @@
 - a **manifest** (``.yaml``/``.yml``)::
 
       bridges:
-        munich:                      # the bridge's name (output file names)
+        munich:                      # the bridge's name (output file names: letters, digits, _ - .)
           bags: [munich/*, extra/2024-01-01]   # paths or globs, relative to the manifest
           params: munich/shadow.yaml           # optional: shadow parameters (config/shadow.yaml)
           surrogate: munich/surrogate.yaml     # optional: its surrogate (else the parameters')
@@ -22,6 +22,7 @@ bridge's bags is fixed later, by their first message (``archive.run``).
 from __future__ import annotations
 
 import glob
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,6 +33,9 @@ __all__ = ["BridgeSource", "archive_sources", "is_bag"]
 
 _BAG_FILES = (".db3", ".mcap")
 _GLOB_CHARS = set("*?[")
+#: A manifest's bridge name: one file name of --out (no folder, not hidden, not ``..``).
+_FILE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")
+
 #: Files beside the bags of a bridge folder that name its parameters and surrogate.
 PARAMS_FILE, SURROGATE_FILE = "shadow.yaml", "surrogate.yaml"
 
@@ -137,6 +141,11 @@ def _from_manifest(manifest: Path) -> list[BridgeSource]:
     out = []
     for name, spec in doc["bridges"].items():
         where = f"bridge {name!r}"
+        if not _FILE_NAME.fullmatch(str(name)):
+            raise InputError(
+                f"{manifest}: {where}: a bridge's name names its output files: letters, digits, "
+                "'_', '-' and '.', not first"
+            )
         if not isinstance(spec, dict) or "bags" not in spec:
             raise InputError(f"{manifest}: {where} needs a 'bags' list")
         bad = sorted(set(spec) - {"bags", "params", "surrogate"})
