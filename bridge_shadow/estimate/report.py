@@ -328,7 +328,7 @@ def warnings(shadow: Shadow) -> list[str]:
             "compensation widened by what the air can do in that time)"
         )
     for ledger in shadow.ledgers:
-        line = ledger.all_rejected_message()
+        line = ledger.all_rejected_message() or ledger.old_stamps_message()
         if line:
             out.append(line)
     out.extend(silent_channel_lines(shadow))

@@ -21,6 +21,15 @@ __all__ = ["TOPIC_KEYS", "TopicLedger"]
 #: Keys of the three input topics in counters and diagnostics.
 TOPIC_KEYS: tuple[str, str, str] = (*CHANNELS, "air_temperature")
 
+#: The share of a topic's messages rejected for their stamps that is said out loud
+#: (``TopicLedger.old_stamps_message``); the bundled bags and the real records reject none.
+OLD_SHARE = 0.1
+_STAMP_REASONS = ("clock_jump", "out_of_order", "duplicate")
+_OLD_CAUSES = (
+    "not used: bags that overlap in time, or a checkpoint (or data before) whose clock is ahead "
+    "of these stamps"
+)
+
 
 @dataclass
 class TopicLedger:
@@ -43,6 +52,9 @@ class TopicLedger:
     rejected: Counter = field(default_factory=Counter)
     last_frame: str | None = None
     last_value: float | None = None
+    #: the counts of a resumed checkpoint: the warnings judge this run's messages (not saved)
+    used_before: int = 0
+    rejected_before: Counter = field(default_factory=Counter)
 
     def note(
         self,
@@ -71,20 +83,50 @@ class TopicLedger:
         if out.any():
             self.last_value = float(values[np.flatnonzero(out)[-1]])
 
+    def run_counts(self) -> tuple[int, Counter]:
+        """Return this run's used messages and rejections by reason (those since a resumed checkpoint)."""
+        return self.used - self.used_before, self.rejected - self.rejected_before
+
     def all_rejected_message(self) -> str | None:
-        """One line when every message of the topic was rejected (None otherwise)."""
-        total = sum(self.rejected.values())
-        if self.used or not total:
+        """One line when every message of the topic this run was rejected (None otherwise)."""
+        used, rejected = self.run_counts()
+        total = sum(rejected.values())
+        if used or not total:
             return None
-        reason, n = self.rejected.most_common(1)[0]
+        reason, n = rejected.most_common(1)[0]
         detail = {
-            "frame_id": f"frame_id {self.last_frame!r}, expected {self.expected_frame!r} "
-            "(parameter temperature_frame_id / check_frame_id)",
+            "frame_id": f"frame_id {self.last_frame!r}, expected {self.expected_frame!r}"
+            + (
+                " (parameter check_frame_id; the load cells' frames are the contract's)"
+                if self.key in CHANNELS
+                else " (parameter temperature_frame_id / check_frame_id)"
+            ),
             "out_of_range": f"value {self.last_value!r}, expected {self.value_range[0]:g} .. "
             f"{self.value_range[1]:g} {self.value_range[2]}",
             "nonfinite": "NaN or infinite values, expected finite numbers",
+            "clock_jump": f"stamps far from the data before them, {_OLD_CAUSES}",
+            "out_of_order": f"stamps older than the data before them, {_OLD_CAUSES}",
         }.get(reason, reason)
         return f"topic {self.key}: all {total} messages rejected ({n} for {reason}: {detail})"
+
+    def old_stamps_message(self) -> str | None:
+        """One line when at least ``OLD_SHARE`` of this run's messages were rejected for their stamps.
+
+        A logger's glitches cost a message here and there; a tenth of a topic is a time base at
+        odds with the data before it: bags of one bridge that overlap in time, or a checkpoint
+        whose clock is ahead of the records (every one of their messages too old).
+        """
+        used, rejected = self.run_counts()
+        old = {r: rejected[r] for r in _STAMP_REASONS if rejected[r]}
+        total = used + sum(rejected.values())
+        n = sum(old.values())
+        if not used or not total or n < OLD_SHARE * total:
+            return None  # all rejected: all_rejected_message says it
+        counts = ", ".join(f"{r} {c}" for r, c in old.items())
+        return (
+            f"topic {self.key}: {n} of {total} messages ({100.0 * n / total:.0f} %) rejected for "
+            f"their stamps ({counts}), {_OLD_CAUSES}"
+        )
 
     def state_dict(self) -> dict[str, object]:
         """Plain-data state."""
@@ -98,8 +140,9 @@ class TopicLedger:
 
     def load_state_dict(self, state: dict[str, object]) -> None:
         """Restore the bookkeeping."""
-        self.used = int(state["used"])  # type: ignore[call-overload]
+        self.used = self.used_before = int(state["used"])  # type: ignore[call-overload]
         self.rejected = Counter({k: int(v) for k, v in json.loads(str(state["rejected"])).items()})
+        self.rejected_before = Counter(self.rejected)
         self.last_frame = str(state["last_frame"]) if bool(state["has_frame"]) else None
         v = float(state["last_value"])  # type: ignore[arg-type]
         self.last_value = None if np.isnan(v) else v
