@@ -162,6 +162,7 @@ CLI_CASES = {
     ],
     "replay --rate without --live": ["replay", "{w}/bag", "--rate", "2"],
     "replay --live --rate 0": ["replay", "{w}/bag", "--live", "--rate", "0"],
+    "replay --live --rate 1e-9": ["replay", "{w}/bag", "--live", "--rate", "1e-9"],
     "replay --watch without --live": ["replay", "{w}/bag", "--watch"],
     # gap
     "gap missing bag": ["gap", "{w}/missing"],
@@ -299,6 +300,7 @@ EXPECT = {
     "surrogate --set typo": "did you mean bearing_stiffness?",
     "gap --window a year": "--window must be a finite number in (0, 86400]",
     "replay --live --rate 1e12": "--rate must be",
+    "replay --live --rate 1e-9": "--rate must be a finite number in [0.001, 10000000], not 1e-09",
     "synth --days 1e6": "--days must be",
     "synth --step in mm": "SOUTH must be a finite number in (-1, 1)",
     "surrogate --out existing surrogate": "pass --force to replace it",

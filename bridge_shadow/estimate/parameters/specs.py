@@ -223,8 +223,9 @@ VALUE_SPECS: dict[str, ParamSpec] = {
     # ten minutes, beyond which a 12-minute record with the test car on it has no car-free window
     "calibration_window_s": ParamSpec("s", low=0.1, high=600.0),
     # replay --live --rate: a speed factor of log time; 1e7 plays a year in 3 s, faster than any
-    # node takes it (the player then publishes as fast as it is taken anyway)
-    "rate": ParamSpec("-", low=0.0, high=1.0e7, low_open=True),
+    # node takes it (the player then publishes as fast as it is taken anyway); 1e-3 plays a
+    # minute's window in 17 hours, slower than anyone watches (1e-9 made a wait the OS refuses)
+    "rate": ParamSpec("-", low=1.0e-3, high=1.0e7),
     # synth: a record of at most a year (the twin holds it in memory), forces and air
     # temperature at most at the 1 kHz acquisition rate
     "days": ParamSpec("day", low=0.0, high=366.0, low_open=True),
