@@ -123,6 +123,13 @@ def test_input_levels_follow_arrival_age(diag: dict) -> None:
     inputs = statuses(diag, stale_all, timeout_s=60.0)[1]
     assert inputs.level == 2
     assert inputs.message.startswith("no input for 60 s on any topic")
+    # a node 5 s old that has heard nothing yet is waiting, not an ERROR of 60 s without input
+    never = dict.fromkeys(stale_all)
+    inputs = statuses(diag, never, timeout_s=60.0, running_s=5.0)[1]
+    assert inputs.level == 0 and inputs.message.startswith("waiting for input (started 5 s ago)")
+    assert statuses(diag, never, timeout_s=60.0, running_s=61.0)[1].level == 2
+    assert statuses(diag, quiet_one, timeout_s=60.0, running_s=5.0)[1].level == 0
+    assert statuses(diag, quiet_one, timeout_s=60.0, running_s=61.0)[1].level == 1
 
 
 def test_events_and_lost_topics_reach_diagnostics() -> None:

@@ -63,16 +63,22 @@ def _estimate(diag: Mapping[str, Any]) -> Status:
 
 
 def _inputs(
-    diag: Mapping[str, Any], arrival_age_s: Mapping[str, float | None], malformed: int, timeout_s: float
+    diag: Mapping[str, Any],
+    arrival_age_s: Mapping[str, float | None],
+    malformed: int,
+    timeout_s: float,
+    running_s: float | None = None,
 ) -> Status:
     values: dict[str, str] = {}
-    quiet = []
+    quiet, waiting = [], []
     for topic, used in diag["used"].items():
         age = arrival_age_s.get(topic)
         values[f"{topic} used"] = str(used)
         values[f"{topic} last arrival [s ago]"] = _num(age, ".2f")
         values[f"{topic} stamp lag [s]"] = _num(diag["staleness_s"].get(topic), ".2f")
-        if age is None or age > timeout_s:
+        if age is None and running_s is not None and running_s <= timeout_s:
+            waiting.append(topic)  # not heard from yet, but the node has not waited timeout_s
+        elif age is None or age > timeout_s:
             quiet.append(topic)
     rejected = diag["rejected"]
     for reason, count in rejected.items():
@@ -83,6 +89,10 @@ def _inputs(
         level, message = LEVELS["ERROR"], f"no input for {timeout_s:g} s on any topic"
     elif quiet:
         level, message = LEVELS["WARN"], f"no input for {timeout_s:g} s: {', '.join(quiet)}"
+    elif len(waiting) == len(diag["used"]):
+        level, message = LEVELS["OK"], f"waiting for input (started {running_s:.0f} s ago)"
+    elif waiting:
+        level, message = LEVELS["OK"], f"receiving; waiting for {', '.join(waiting)}"
     else:
         level, message = LEVELS["OK"], "receiving"
     if n_rejected:
@@ -181,6 +191,7 @@ def statuses(
     arrival_age_s: Mapping[str, float | None],
     malformed: int = 0,
     timeout_s: float = 60.0,
+    running_s: float | None = None,
 ) -> list[Status]:
     """Build the node's statuses: settlement, inputs, compensation, events.
 
@@ -189,11 +200,13 @@ def statuses(
         arrival_age_s: per topic key, wall seconds since the last message arrived (None: never).
         malformed: raw messages the node could not decode.
         timeout_s: an input quiet for longer is stale (WARN; ERROR when every topic is).
+        running_s: wall seconds since the node started (None: unknown): a topic never heard
+            from is quiet only once the node has run ``timeout_s``.
 
     """
     return [
         _estimate(diag),
-        _inputs(diag, arrival_age_s, malformed, timeout_s),
+        _inputs(diag, arrival_age_s, malformed, timeout_s, running_s),
         _compensation(diag),
         _events(diag),
     ]

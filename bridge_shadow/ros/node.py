@@ -469,7 +469,8 @@ class ShadowNode(Node):
             if key not in self._warned:
                 self._warned.add(key)
                 self.get_logger().warn(line)
-        items = statuses(diag, self._ages(), self.malformed, self._timeout_s)
+        running = time.monotonic() - self._born
+        items = statuses(diag, self._ages(), self.malformed, self._timeout_s, running)
         if self.get_namespace() != "/":  # a fleet's nodes share /diagnostics: say which bridge
             ns = self.get_namespace().strip("/")
             items = [dataclasses.replace(s, name=f"{ns}/{s.name}") for s in items]
