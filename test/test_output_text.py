@@ -79,6 +79,27 @@ def test_node_start_up_lines_name_surrogate_parameter_files_topics_and_checkpoin
     assert "checkpoint: off" in "\n".join(off) and "parameter files: none" in "\n".join(off)
 
 
+def test_a_parameter_file_for_another_node_is_a_warning(tmp_path) -> None:
+    """A file copied under another node's name set nothing, checkpoint_path included, silently."""
+    pytest.importorskip("rclpy")
+    from bridge_shadow.ros.main import _check_params_file, node_sections
+
+    other = tmp_path / "other.yaml"
+    other.write_text("shadow_node:\n  ros__parameters:\n    window_s: 30.0\n")
+    ours = tmp_path / "ours.yaml"
+    ours.write_text("bridge_shadow:\n  ros__parameters:\n    window_s: 30.0\n")
+    plain = ["--ros-args", "--params-file", "F"]
+    renamed = ["--ros-args", "-r", "__node:=shadow_node", "-r", "__ns:=/site", "--params-file", "F"]
+    warning = _check_params_file(str(other), node_sections(plain))
+    assert warning == (
+        f"{other}: no section for this node (/bridge_shadow, or /**): it sets nothing here "
+        "(its sections: shadow_node)"
+    )
+    assert _check_params_file(str(ours), node_sections(plain)) is None
+    assert _check_params_file(str(other), node_sections(renamed)) is None  # renamed to it
+    assert "(/site/shadow_node, or /**)" in _check_params_file(str(ours), node_sections(renamed))
+
+
 def test_the_node_logs_its_start_up_lines(capfd) -> None:
     rclpy = pytest.importorskip("rclpy")
     from bridge_shadow.ros.node import ShadowNode

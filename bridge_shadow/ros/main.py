@@ -31,6 +31,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
+from bridge_shadow.contract import NODE_NAME
 from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.ros.netenv import confine_to_loopback
 from bridge_shadow.ros.node import ShadowNode
@@ -81,16 +82,43 @@ def user_args(argv: Sequence[str]) -> list[str]:
     return [arg for arg, inside in zip(argv, _in_ros_args(argv), strict=True) if inside is False]
 
 
-def _check_params_file(path: str) -> None:
-    """Read a ``--params-file`` before rcl does, so a broken one gives one line (not an RCLError)."""
+def node_sections(argv: Sequence[str]) -> list[str]:
+    """Return the parameter file sections that address this node (its remapped name and namespace)."""
+    name, ns = NODE_NAME, ""
+    inside = _in_ros_args(argv)
+    for k, arg in enumerate(argv[:-1]):
+        if inside[k] and arg in ("-r", "--remap"):
+            rule = argv[k + 1]
+            if rule.startswith("__node:=") or rule.startswith("__name:="):
+                name = rule.split(":=", 1)[1]
+            elif rule.startswith("__ns:="):
+                ns = "/" + rule.split(":=", 1)[1].strip("/")
+    full = f"{ns}/{name}" if ns not in ("", "/") else f"/{name}"
+    return ["/**", f"/**/{name}", name, full, full.lstrip("/")]
+
+
+def _check_params_file(path: str, sections: Sequence[str] = ()) -> str | None:
+    """Read a ``--params-file`` before rcl does, so a broken one gives one line (not an RCLError).
+
+    Return a warning when no section of the file addresses this node (``sections``): legal in ROS,
+    but a copied file under another node's name sets nothing here, checkpoint_path included.
+    """
     from bridge_shadow.estimate.parameters.config import read_params_file
+    from bridge_shadow.fileio import load_yaml
 
     try:
         read_params_file(Path(path))
     except BridgeShadowError as err:
-        if "expected" in str(err) and "ros__parameters" in str(err):
-            return  # a file for other nodes only: legal in ROS, it sets nothing here
-        raise
+        if not ("expected" in str(err) and "ros__parameters" in str(err)):
+            raise
+    doc = load_yaml(Path(path).read_text(encoding="utf-8"))  # read above: valid YAML
+    if not sections or not isinstance(doc, dict) or any(s in doc for s in sections):
+        return None
+    found = ", ".join(str(k) for k in doc) or "none"
+    return (
+        f"{path}: no section for this node ({sections[3]}, or /**): it sets nothing here "
+        f"(its sections: {found})"
+    )
 
 
 class _stderr_held:
@@ -145,7 +173,9 @@ def main(args: list[str] | None = None) -> int:
     files = params_files(argv)
     try:
         for file in files:
-            _check_params_file(file)
+            warning = _check_params_file(file, node_sections(argv))
+            if warning:
+                print(f"{prog}: WARN: {warning}", file=sys.stderr)
     except BridgeShadowError as err:
         print(f"{prog}: {err}", file=sys.stderr)
         return 2
