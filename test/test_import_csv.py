@@ -360,6 +360,34 @@ def test_a_file_none_of_whose_rows_can_be_read_is_refused_by_name(tmp_path: Path
     assert (source["rows_read"], source["rows_rejected"]) == (2, 1)
 
 
+def test_a_header_without_rows_or_a_bag_without_forces_is_refused(tmp_path: Path, capsys) -> None:
+    """Beside another file, a force file of a header only became 0 rows, exit 0; air alone is a WARN."""
+    header = tmp_path / "h_2022-03-07.csv"
+    header.write_text("Time (-),FRC-01 (kN),FRC-02 (kN)\n")
+    good = tmp_path / "a_2022-03-07.csv"
+    good.write_text("Time (-),FRC-01 (kN),FRC-02 (kN)\n2022-03-07 16:35:00.000,233.90,221.10\n")
+    air = tmp_path / "t.csv"
+    air.write_bytes("Time (-),Air Temperature (°C)\n07.03.2022 16:35:00.000,5.5\n".encode("cp1252"))
+    out = tmp_path / "bag"
+    for files, said in (
+        ([header, good], f"{header}: a header and no data rows; nothing was written"),
+        ([header, good, "--date", "2022-03-07"], f"{header}: a header and no data rows"),
+    ):
+        assert main(["import-csv", *map(str, files), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert said in err and err.count("\n") == 1, err
+        assert not out.exists()
+    assert main(["import-csv", str(air), "--out", str(out), "--json"]) == 0
+    out_text, err = capsys.readouterr()
+    assert "WARN: no force record among the inputs" in err
+    assert json.loads(out_text)["warnings"][0].startswith("no force record")
+    assert main(["replay", str(out)]) == 1  # and the replay says why (it said nothing before)
+    said = "WARN: no load cell message: /bridge/frc_01/force and /bridge/frc_02/force delivered nothing"
+    assert said in capsys.readouterr().err
+    assert main(["import-csv", str(good), str(air), "--out", str(tmp_path / "both")]) == 0
+    assert "WARN" not in capsys.readouterr().err
+
+
 def test_a_folder_is_its_csv_and_zip_files(april, munich_data: Path, tmp_path: Path, capsys) -> None:
     """A folder reads as the CSV and zip files directly in it: not its other files or subfolders."""
     files, expected = april

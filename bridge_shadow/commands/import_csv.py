@@ -64,6 +64,15 @@ def run(args: argparse.Namespace) -> int:
     data, report = import_csv(args.files, date_hint=args.date)
     out = write_monitoring(args.out, data, args.storage, overwrite=args.force, compress=args.compress)
     summary = {"out": str(out), "storage": args.storage, **report.as_dict()}
+    warnings = []
+    if not any(len(data.forces[ch]) for ch in data.forces):  # said nowhere before: a replay found nothing
+        warnings.append(
+            "no force record among the inputs: the bag holds the air temperature only, and the shadow "
+            "reads the load cells (import their CSVs with it)"
+        )
+    summary["warnings"] = warnings
+    for line in warnings:
+        print(f"bridge-shadow import-csv: WARN: {line}", file=sys.stderr)
     if args.json:
         emit_json(summary)
         return 0

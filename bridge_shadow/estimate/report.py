@@ -331,6 +331,13 @@ def warnings(shadow: Shadow) -> list[str]:
         line = ledger.all_rejected_message() or ledger.old_stamps_message()
         if line:
             out.append(line)
+    heard = [sum(led.run_counts()[1].values()) + led.run_counts()[0] for led in shadow.ledgers]
+    if heard[2] and not heard[0] and not heard[1]:  # the air came, no load cell: no window ever closes
+        forces = " and ".join(shadow.config.input_topics()[:2])
+        out.append(
+            f"no load cell message: {forces} delivered nothing, while "
+            f"{shadow.config.topic_air_temperature} delivered {heard[2]} (the shadow reads the load cells)"
+        )
     out.extend(silent_channel_lines(shadow))
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")

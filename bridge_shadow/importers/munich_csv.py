@@ -420,6 +420,8 @@ def import_csv(
     values: dict[str, list[np.ndarray]] = {name: [] for name in (*CHANNELS, TEMPERATURE)}
     offsets: set[int] = set()
     for p in parsed:
+        if not len(p.local_ns) and not p.rejected and len(parsed) > 1:  # alone: "no data rows" below
+            raise InputError(f"{p.source.label}: a header and no data rows; nothing was written")
         local = p.local_ns.copy()
         used_dates = list(p.written_dates)
         if p.source.kind == "force":
