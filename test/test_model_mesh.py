@@ -51,6 +51,21 @@ def test_overrides_apply_and_are_recorded(cfg):
     assert cfg.params["bearing_stiffness"] != 1e9  # the original is untouched
 
 
+def test_infinity_is_taken_as_the_messages_and_files_write_it(root):
+    """The range message says 'or be .inf'; --set refused '.inf' as not a number."""
+    import math
+
+    parsed = parse_overrides(["support_spring_south=.inf", "support_spring_north=+.Inf", "a=inf"])
+    assert parsed == {"support_spring_south": math.inf, "support_spring_north": math.inf, "a": math.inf}
+    cfg = load_bridge_config(None, {"support_spring_south": math.inf})
+    assert cfg.params["support_spring_south"] == math.inf
+    with pytest.raises(ConfigError, match=r"^--reality-set support_spring_south must lie in .* or be \.inf"):
+        bad = parse_overrides(["support_spring_south=-1"], "--reality-set")
+        load_bridge_config(None, bad, "--reality-set")
+    with pytest.raises(ConfigError, match=r"^--reality-set x: '\.infx' is not a number"):
+        parse_overrides(["x=.infx"], "--reality-set")
+
+
 @pytest.mark.parametrize(
     "items",
     [["nonsense=1"], ["bearing_stiffness"], ["bearing_stiffness=abc"], ["bearing_stiffness=-1"]],

@@ -167,7 +167,8 @@ def _reality(args: argparse.Namespace) -> dict[str, Any]:
     if args.reality_surrogate:
         reality = reality_from_file(args.reality_surrogate)
     elif args.reality_set:
-        reality = reality_from_parameters(parse_overrides(args.reality_set), args.reality_mesh)
+        overrides = parse_overrides(args.reality_set, "--reality-set")
+        reality = reality_from_parameters(overrides, args.reality_mesh)
     else:
         return {}
     return {"surrogate": reality.surrogate, "sensitivities_block": reality.block, "reality": reality.info}

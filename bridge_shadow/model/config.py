@@ -151,17 +151,21 @@ class BridgeConfig:
         return cfg
 
 
-def parse_overrides(items: Iterable[str] | None) -> dict[str, float]:
-    """Parse ``["name=value", ...]`` into floats; raise :class:`ConfigError` on bad syntax."""
+#: YAML's spellings of infinity (the range messages and the files write ``.inf``).
+_YAML_INF = {".inf": math.inf, "+.inf": math.inf, "-.inf": -math.inf}
+
+
+def parse_overrides(items: Iterable[str] | None, option: str = "--set") -> dict[str, float]:
+    """Parse ``["name=value", ...]`` into floats (``.inf`` as YAML writes it); ConfigError on bad syntax."""
     out: dict[str, float] = {}
     for item in items or ():
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
-            raise ConfigError(f"--set expects NAME=VALUE, got {item!r}")
+            raise ConfigError(f"{option} expects NAME=VALUE, got {item!r}")
         try:
-            out[name.strip()] = float(value)
+            out[name.strip()] = _YAML_INF.get(value.strip().lower()) or float(value)
         except ValueError:
-            raise ConfigError(f"--set {name.strip()}: {value!r} is not a number") from None
+            raise ConfigError(f"{option} {name.strip()}: {value!r} is not a number") from None
     return out
 
 
@@ -256,9 +260,9 @@ def _validate(cfg: BridgeConfig) -> None:
 
 
 def load_bridge_config(
-    path: str | Path | None = None, overrides: Mapping[str, float] | None = None
+    path: str | Path | None = None, overrides: Mapping[str, float] | None = None, option: str = "--set"
 ) -> BridgeConfig:
-    """Read ``bridge.yaml`` (default ``config/bridge.yaml``) and apply ``overrides``."""
+    """Read ``bridge.yaml`` (default ``config/bridge.yaml``) and apply ``overrides`` (named ``option``)."""
     file = Path(path) if path is not None else config_file("bridge.yaml")
     try:
         raw = file.read_bytes()
@@ -274,7 +278,7 @@ def load_bridge_config(
     cfg = BridgeConfig(data, file, hashlib.sha256(raw).hexdigest())
     _validate(cfg)
     _check_ranges(cfg.params, f"{file}: parameter ")
-    _check_ranges(overrides or {}, "--set ")
+    _check_ranges(overrides or {}, f"{option} ")
     return cfg.with_overrides(overrides or {})
 
 

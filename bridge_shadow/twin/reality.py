@@ -34,13 +34,19 @@ class Reality:
 
 
 def reality_from_parameters(
-    overrides: Mapping[str, float], mesh: str = "default", model: str | Path | None = None
+    overrides: Mapping[str, float],
+    mesh: str = "default",
+    model: str | Path | None = None,
+    option: str = "--reality-set",
 ) -> Reality:
-    """FE reality: ``bridge.yaml`` (or ``model``) with ``overrides`` solved at ``mesh`` (one solve)."""
+    """FE reality: ``bridge.yaml`` (or ``model``) with ``overrides`` solved at ``mesh`` (one solve).
+
+    ``option``: the command-line option that gave ``overrides``, named in a range error.
+    """
     from bridge_shadow.model.config import load_bridge_config
     from bridge_shadow.model.surrogate import compute_surrogate
 
-    cfg = load_bridge_config(model, dict(overrides))
+    cfg = load_bridge_config(model, dict(overrides), option)
     cfg.mesh(mesh)
     run = compute_surrogate(cfg, mesh)
     info = {
