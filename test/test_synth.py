@@ -110,6 +110,11 @@ def test_settlement_drift_summary_in_truth(synth_bag) -> None:
         (["--step", "1:2"], "expected DAY:SOUTH:NORTH"),
         (["--compress"], "mcap storage only"),
         (["--start", "yesterday"], "not an ISO 8601"),
+        # options that did nothing, exit 0: a step after the record, archive shapes without one
+        (["--step", "5:-0.01:-0.01"], "--step 5:-0.01:-0.01: day 5 lies outside the record of --days 0.1"),
+        (["--bridges", "3"], "--bridges and --bag-days shape an --archive"),
+        (["--bag-days", "0.5"], "--bridges and --bag-days shape an --archive"),
+        (["--reality-mesh", "coarse"], "--reality-mesh is the mesh of a --reality-set solve"),
     ],
 )
 def test_cli_errors_are_one_line(tmp_path: Path, capsys, extra: list[str], message: str) -> None:
@@ -129,6 +134,16 @@ def test_existing_bag_needs_force(tmp_path: Path, capsys) -> None:
     assert read_truth(out)["seed"] == 1
     assert main([*base, "--seed", "2", "--overwrite"]) == 0  # the older name of --force
     assert read_truth(out)["seed"] == 2
+
+
+def test_force_replaces_the_whole_archive(tmp_path: Path) -> None:
+    """An archive of two bridges rewritten with one kept the old bridge_01, which `archive` then read."""
+    folder = tmp_path / "fleet"
+    base = ["synth", "--archive", str(folder), "--days", "0.02", "--rate", "0.1", "--bag-days", "0.01"]
+    assert main([*base, "--bridges", "2"]) == 0
+    (folder / "notes").mkdir()  # not the archive's: left alone
+    assert main([*base, "--bridges", "1", "--force"]) == 0
+    assert sorted(p.name for p in folder.iterdir() if p.is_dir()) == ["bridge_00", "notes"]
 
 
 def test_help_lists_the_effects(capsys) -> None:

@@ -72,10 +72,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "record of --days (seed + NN), its truth in DIR/bridge_NN/truth.yaml; for `bridge-shadow archive`",
     )
     parser.add_argument(
-        "--bridges", type=int, default=1, metavar="N", help="with --archive: bridges (default 1)"
+        "--bridges", type=int, default=None, metavar="N", help="with --archive: bridges (default 1)"
     )
     parser.add_argument(
-        "--bag-days", type=float, default=1.0, metavar="D", help="with --archive: days per bag (default 1)"
+        "--bag-days", type=float, default=None, metavar="D", help="with --archive: days per bag (default 1)"
     )
     parser.add_argument("--days", type=float, default=3.0, help="record length in days (default 3)")
     parser.add_argument("--rate", type=float, default=1.0, metavar="HZ", help="force rate, Hz (default 1)")
@@ -110,9 +110,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--reality-mesh",
-        default="default",
+        default=None,
         metavar="LEVEL",
-        help="mesh of the reality's FE solve (coarse, default, fine)",
+        help="with --reality-set: mesh of the reality's FE solve (coarse, default, fine; default: default)",
     )
     parser.add_argument(
         "--reality-surrogate",
@@ -164,11 +164,13 @@ def _reality(args: argparse.Namespace) -> dict[str, Any]:
 
     if args.reality_set and args.reality_surrogate:
         raise InputError("give --reality-set or --reality-surrogate, not both")
+    if args.reality_mesh is not None and not args.reality_set:
+        raise InputError("--reality-mesh is the mesh of a --reality-set solve; without one it does nothing")
     if args.reality_surrogate:
         reality = reality_from_file(args.reality_surrogate)
     elif args.reality_set:
         overrides = parse_overrides(args.reality_set, "--reality-set")
-        reality = reality_from_parameters(overrides, args.reality_mesh)
+        reality = reality_from_parameters(overrides, args.reality_mesh or "default")
     else:
         return {}
     return {"surrogate": reality.surrogate, "sensitivities_block": reality.block, "reality": reality.info}
@@ -201,12 +203,20 @@ def run(args: argparse.Namespace) -> int:
         "temp_rate_hz": args.temp_rate,
         "steps": _parse_steps(args.step),
     }
+    late = [s for s in world["steps"] if s[0] >= args.days]
+    if late:
+        day, south, north = late[0]
+        raise InputError(
+            f"--step {day:g}:{south:g}:{north:g}: day {day:g} lies outside the record of --days {args.days:g}"
+        )
     if args.archive:
         return _archive(args, world)
     if args.workers is not None or args.scheduler:
         raise InputError(
             "--workers and --scheduler write the bags of an --archive; one --out bag is one task"
         )
+    if args.bridges is not None or args.bag_days is not None:
+        raise InputError("--bridges and --bag-days shape an --archive; one --out bag is one bridge's record")
     check_bag_target(args.out, args.force)  # before the simulation
     world.update(_reality(args))
     if record_samples(args.days, args.rate) <= SEGMENT_SAMPLES:
@@ -279,6 +289,8 @@ def _archive(args: argparse.Namespace, world: dict[str, Any]) -> int:
     from bridge_shadow.twin.stream import write_archive
 
     t0 = time.perf_counter()
+    args.bridges = 1 if args.bridges is None else args.bridges
+    args.bag_days = 1.0 if args.bag_days is None else args.bag_days
     if args.bridges < 1:
         raise InputError(f"--bridges must be at least 1 (got {args.bridges})")
     if not (0 < args.bag_days < float("inf")):
@@ -288,11 +300,13 @@ def _archive(args: argparse.Namespace, world: dict[str, Any]) -> int:
     taken = [p for p in (folder / f"bridge_{b:02d}" for b in range(args.bridges)) if p.exists()]
     if taken and not args.force:
         raise InputError(f"{taken[0]}: exists already (use --force to replace the archive's bridges)")
-    if args.force:
+    if args.force:  # the archive's bridges, all: one more from before would join the next `archive`
+        import re
         import shutil
 
-        for p in taken:
-            shutil.rmtree(p)
+        for p in sorted(folder.glob("bridge_*")) if folder.is_dir() else []:
+            if p.is_dir() and re.fullmatch(r"bridge_\d{2,}", p.name):
+                shutil.rmtree(p)
     world.update(_reality(args))
     simulate(min(args.days, args.bag_days), args.rate, span=(0, 1), **world)  # bad arguments fail now
     show = None if args.json or not sys.stderr.isatty() else (lambda f: progress(f, "synth"))
