@@ -212,3 +212,22 @@ def test_a_resumed_replay_counts_this_run(root, tmp_path) -> None:
     text = _summary(again)
     assert text.startswith(f"resumed from a checkpoint of {fresh['windows']['closed']} windows")
     assert f"messages: {msgs['total']} in, 0 used, {msgs['total']} rejected" in text
+
+
+def test_the_gap_texts_fitted_values_are_in_mm_and_kn() -> None:
+    """Text for people in mm and kN (the JSON's in SI): it printed 'v_south -0.0002002' unitless."""
+    from bridge_shadow.commands.gap import _fmt_params
+
+    params = {
+        "v_south [m/day]": -2.002e-4,
+        "d [N/day]": -2305.0,
+        "k_south [N/m]": 1.83e6,
+        "k_north [N/m]": None,
+        "g [K]": -3.0,
+        "r [1]": 0.5,
+        "dx_south [m]": -4.357e-4,
+    }
+    assert _fmt_params(params) == (
+        "v_south -0.2002 mm/day, d -2.305 kN/day, k_south 1.83 kN/mm, k_north rigid, g -3 K, r 0.5, "
+        "dx_south -0.4357 mm"
+    )

@@ -153,6 +153,26 @@ def _mm(x: list[float]) -> str:
     return f"{1e3 * x[0]:+.3f} / {1e3 * x[1]:+.3f}"
 
 
+#: A fitted parameter's SI unit (its JSON key's ``[unit]``) -> the text's unit and factor.
+_PEOPLE_UNITS: dict[str, tuple[str, float]] = {
+    "m": ("mm", 1e3),
+    "m/day": ("mm/day", 1e3),
+    "N/day": ("kN/day", 1e-3),
+    "N/K": ("kN/K", 1e-3),
+    "N/m": ("kN/mm", 1e-6),
+    "m/N": ("mm/kN", 1e6),
+    "K": ("K", 1.0),
+    "h": ("h", 1.0),
+}
+
+
+def _param_text(key: str, value: float) -> str:
+    """``v_south -0.2002 mm/day``: a fitted value in the units the text uses (kN, mm); 1 bare."""
+    name, _, unit = key.partition(" [")
+    shown, factor = _PEOPLE_UNITS.get(unit.rstrip("]"), ("", 1.0))
+    return f"{name} {factor * value:.4g}" + (f" {shown}" if shown else "")
+
+
 def _fmt_params(params: dict[str, Any]) -> str:
     parts = []
     for k, v in params.items():
@@ -161,7 +181,7 @@ def _fmt_params(params: dict[str, Any]) -> str:
                 parts.append(f"{len(v)} steps (levels below)")
             continue
         if isinstance(v, float):
-            parts.append(f"{k.split(' ')[0]} {v:.4g}")
+            parts.append(_param_text(k, v))
         elif v is None:
             parts.append(f"{k.split(' ')[0]} rigid")
         elif k == "at [ns]":
@@ -226,7 +246,11 @@ def _human(summary: dict) -> str:
     lines.append(summary["statement"])
     named = ([summary["best_effect"]] if summary.get("best_effect") else []) + summary["also_present"]
     if named:
-        lines += ["", "named effects (fitted values in SI; group = what the reactions cannot tell apart):"]
+        lines += [
+            "",
+            "named effects (fitted values in mm, kN, K, h; the JSON's in SI; group = what the reactions "
+            "cannot tell apart):",
+        ]
         for e in named:
             lines.append(f"  {e['effect']:<21} {_fmt_params(e['params'])}")
             for g in e["group"][1:]:
@@ -237,8 +261,8 @@ def _human(summary: dict) -> str:
                 xs, xn = (1e3 * v for v in soft["value"])
                 unit = "mm" if soft["unit"] == "m" else "mm/day"
                 lines.append(
-                    f"    its size depends on A: with support springs of {k:.3g} N/m (the soft end of their "
-                    f"plausible range) the same reactions mean {xs:+.3f} / {xn:+.3f} {unit}"
+                    f"    its size depends on A: with support springs of {1e-6 * k:.3g} kN/mm (the soft end "
+                    f"of their plausible range) the same reactions mean {xs:+.3f} / {xn:+.3f} {unit}"
                 )
     lines += _levels_lines(summary.get("levels"))
     if summary["rejected_implausible"]:
