@@ -276,6 +276,7 @@ CLI_CASES = {
     "import-csv ambiguous date": ["import-csv", "{w}/tiny.csv", "--out", "{w}/new"],
     "gap --imposed before the record": ["gap", "{w}/bag", "--imposed", "2020-01-01T00:00=-0.01,-0.01"],
     "gap --imposed after the record": ["gap", "{w}/bag", "--imposed", "+30=-0.01,-0.01"],
+    "gap --imposed nan": ["gap", "{w}/bag", "--imposed", "+0.5=nan,-0.01"],
 }
 
 #: What the one line must say, where it matters which parameter or problem it names.
@@ -309,6 +310,7 @@ EXPECT = {
     "import-csv ambiguous date": "could also be 2022-07-03",
     "gap --imposed before the record": "outside the record",
     "gap --imposed after the record": "outside the record",
+    "gap --imposed nan": "SOUTH must be a finite number in (-1, 1), not nan",  # 'a metre or more' before
 }
 
 

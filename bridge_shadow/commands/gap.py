@@ -117,6 +117,7 @@ def parse_imposed(
     from zoneinfo import ZoneInfo
 
     from bridge_shadow.errors import InputError
+    from bridge_shadow.estimate.parameters.specs import VALUE_SPECS, check_value
 
     out = []
     for item in items:
@@ -136,8 +137,8 @@ def parse_imposed(
             raise InputError(
                 f"--imposed {item!r}: expected WHEN=SOUTH,NORTH (ISO time or +DAYS; metres, positive upward)"
             ) from None
-        if not all(abs(v) < 1.0 for v in (south, north)):
-            raise InputError(f"--imposed {item!r}: a settlement of a metre or more is not a settlement (m)")
+        for side, value in (("SOUTH", south), ("NORTH", north)):  # as synth --step: finite, under a metre
+            check_value(f"--imposed {item!r}: {side}", value, "float", VALUE_SPECS["settlement_m"])
         if last_ns is not None and not first_ns < t_ns <= last_ns:
             from bridge_shadow.timefmt import iso_utc
 
