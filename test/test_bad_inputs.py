@@ -72,6 +72,7 @@ def scratch(tmp_path_factory, root: Path) -> Path:
     (w / "afile").write_text("hello\n")
     (w / "adir").mkdir()
     (w / "random.bin").write_bytes(np.random.default_rng(1).bytes(2048))
+    (w / "empty.zip").write_bytes(b"PK\x05\x06" + bytes(18))  # a zip with no file in it
     (w / "empty.npz").write_bytes(b"")
     shutil.copytree(root / "bags" / "baseline_1d", w / "bag")
     _without_forces(w / "bag", w / "noforce")
@@ -189,6 +190,7 @@ CLI_CASES = {
     "import-csv missing file": ["import-csv", "{w}/missing.csv", "--out", "{w}/new"],
     "import-csv a directory": ["import-csv", "{w}/adir", "--out", "{w}/new"],
     "import-csv random bytes": ["import-csv", "{w}/random.bin", "--out", "{w}/new"],
+    "import-csv empty zip": ["import-csv", "{w}/empty.zip", "--out", "{w}/new"],
     "import-csv foreign CSV": ["import-csv", "{w}/afile", "--out", "{w}/new"],
     "import-csv --out existing dir": ["import-csv", "{w}/tiny.csv", "--out", "{w}/adir"],
     "import-csv --out under a file": ["import-csv", "{w}/tiny.csv", "--out", "{w}/afile/bag"],
@@ -307,6 +309,7 @@ EXPECT = {
     "surrogate --out existing surrogate": "pass --force to replace it",
     "calibrate --out existing surrogate": "pass --force to replace it",
     "import-csv --out existing bag": "pass --force to replace it",
+    "import-csv empty zip": "empty.zip: an empty zip (no file in it)",  # 'not a ... CSV (header PK..)'
     "import-csv ambiguous date": "could also be 2022-07-03",
     "gap --imposed before the record": "outside the record",
     "gap --imposed after the record": "outside the record",

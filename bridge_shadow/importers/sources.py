@@ -13,7 +13,8 @@ from bridge_shadow.errors import InputError
 
 __all__ = ["CsvSource", "classify_header", "find_sources", "folder_files"]
 
-_ZIP_MAGIC = b"PK\x03\x04"
+#: A zip's first bytes: a local file header, or an empty zip's end of central directory.
+_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
 _TIME = "time (-)"
 
 
@@ -81,7 +82,7 @@ def _from_bytes(file: str, member: str, data: bytes, modified: date | None, out:
         with archive:
             infos = [i for i in archive.infolist() if not i.is_dir()]
             if not infos:
-                raise InputError(f"{label}: empty zip")
+                raise InputError(f"{label}: an empty zip (no file in it)")
             for info in infos:
                 try:
                     content = archive.read(info)
