@@ -43,15 +43,10 @@ HEARTBEAT_AT_CLOSE = "Failed to communicate with scheduler during heartbeat."
 
 
 class _HeartbeatAtClose(logging.Filter):
-    """Drop ``HEARTBEAT_AT_CLOSE`` (installed on a local cluster's workers as it closes)."""
+    """Drop ``HEARTBEAT_AT_CLOSE`` (installed on a local cluster's workers: ``dask_setup``)."""
 
     def filter(self, record: logging.LogRecord) -> bool:
         return record.getMessage() != HEARTBEAT_AT_CLOSE
-
-
-def _closing() -> None:
-    """Run on each local worker once the job is done: its heartbeat may meet the close."""
-    logging.getLogger("distributed.worker").addFilter(_HeartbeatAtClose())
 
 
 @contextlib.contextmanager
@@ -98,6 +93,10 @@ def dask_client(
                 # the workers' statistical profiler samples the task thread's stack every 10 ms,
                 # under the GIL of a task that is pure Python half the time: off
                 "distributed.worker.profile.enabled": False,
+                # Ctrl-C reaches the whole process group: each worker printed a KeyboardInterrupt
+                # traceback (25-100 lines) after the command's one line; this module's dask_setup
+                # has them ignore it (this process closes the cluster on its way out)
+                "distributed.worker.preload": [__name__] if processes else [],
             }
         ),
         LocalCluster(
@@ -112,10 +111,27 @@ def dask_client(
         ) as cluster,
         Client(cluster) as client,
     ):
-        yield client
-        if processes:  # (a job that raised leaves its workers as they are: they may be busy)
-            with contextlib.suppress(Exception):
-                client.run(_closing)
+        try:
+            yield client
+        except KeyboardInterrupt:
+            # the interrupted gather's tasks die with the client: asyncio would log each as "Task
+            # exception was never retrieved" (AllExit), dozens of lines after the CLI's one
+            logging.getLogger("asyncio").setLevel(logging.CRITICAL)
+            raise
+
+
+def dask_setup(worker: Any) -> None:
+    """Dask preload hook, run in each local worker process as it starts.
+
+    SIGINT is the client's to handle (its close ends the workers), and the heartbeat that meets
+    the close, at the end of a job or of an interrupted one, is not an error of the job's.
+    """
+    import signal
+    import threading
+
+    logging.getLogger("distributed.worker").addFilter(_HeartbeatAtClose())
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def serial_mapper(fn: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:

@@ -170,15 +170,19 @@ def test_twin_days_on_a_worker_process_are_the_days_of_this_process() -> None:
     assert not all(s.within_10pct for s in mapped)  # seed 49: the one sunny day of 100 beyond 10 %
 
 
-def test_a_local_cluster_drops_the_heartbeat_line_of_its_own_close(monkeypatch) -> None:
-    """A heartbeat in flight as the cluster closes logs an ERROR with a traceback (Dask's race).
+def test_a_local_clusters_workers_leave_ctrl_c_to_the_command_and_drop_the_close_heartbeat() -> None:
+    """Ctrl-C reaches the whole process group: each worker printed its own traceback (25-100 lines).
 
-    Once the job is done, ``dask_client`` filters that one line on its local workers
-    (``HEARTBEAT_AT_CLOSE``); every other line of theirs still shows.
+    Now the workers ignore SIGINT (``dask_setup``, the local cluster's preload) and the command
+    says it once, closing the cluster; and the ERROR with a traceback a heartbeat in flight logs as
+    the cluster closes (Dask's race, ``HEARTBEAT_AT_CLOSE``) is filtered on the local workers, every
+    other line of theirs still shown.
     """
     import logging
-
-    from distributed import Client
+    import os
+    import signal
+    import subprocess
+    import sys
 
     from bridge_shadow import engine
 
@@ -188,19 +192,35 @@ def test_a_local_cluster_drops_the_heartbeat_line_of_its_own_close(monkeypatch) 
     drop = engine._HeartbeatAtClose()
     assert not drop.filter(record(engine.HEARTBEAT_AT_CLOSE)) and drop.filter(record("Compute Failed"))
 
-    def filters() -> list[str]:
-        return [type(f).__name__ for f in logging.getLogger("distributed.worker").filters]
-
-    seen = []
-    run = Client.run
-
-    def recording(self, fn, *args, **kwargs):
-        out = run(self, fn, *args, **kwargs)
-        seen.append((fn, run(self, filters)))  # on the workers, right after
-        return out
-
-    monkeypatch.setattr(Client, "run", recording)
-    with dask_client(workers=1) as client:
-        assert client.submit(abs, -2).result() == 2
-    assert [fn for fn, _ in seen] == [engine._closing]
-    assert list(seen[0][1].values()) == [["_HeartbeatAtClose"]]
+    script = (
+        "import sys, time\n"
+        "from bridge_shadow.engine import dask_client\n"
+        "try:\n"
+        "    with dask_client(workers=1) as client:\n"
+        "        def state():\n"
+        "            import logging, signal\n"
+        "            names = [type(f).__name__ for f in logging.getLogger('distributed.worker').filters]\n"
+        "            return names, signal.getsignal(signal.SIGINT) == signal.SIG_IGN\n"
+        "        print(list(client.run(state).values()), flush=True)\n"
+        "        client.submit(time.sleep, 120).result()\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted', file=sys.stderr)\n"
+        "    sys.exit(130)\n"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    try:
+        line = proc.stdout.readline()  # the workers are up and ran the preload
+        assert line.strip() == "[(['_HeartbeatAtClose'], True)]", (line, proc.stderr.read())
+        os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C does: the group, workers too
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130 and err == "interrupted\n", err
