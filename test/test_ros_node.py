@@ -183,6 +183,28 @@ def _diagnostic_values(raw: bytes) -> dict[str, tuple[int, dict[str, str]]]:
     return {s.name: (s.level[0], {kv.key: kv.value for kv in s.values}) for s in msg.status}
 
 
+def test_ctrl_c_while_the_node_starts_is_exit_130_without_a_traceback() -> None:
+    """rclpy, numpy and scipy take seconds to import on a busy machine; Ctrl-C then printed a trace.
+
+    The signal is sent once rcl's library is in the process (the imports under way) and before
+    the node could have installed its own handler (it has not said anything yet).
+    """
+    node = NodeProcess()  # the console script's way: SIGINT's default handler, python -m
+    node.start()
+    try:
+        maps = Path(f"/proc/{node.proc.pid}/maps")
+
+        def importing() -> bool:
+            return node.proc.poll() is not None or "librcl" in maps.read_text()
+
+        wait_until(importing, 60.0, "the node's imports")
+        assert not node.output(), node.output()  # still before its first line
+        code = node.stop(signal.SIGINT, timeout_s=30.0)
+        assert code == 130 and "Traceback" not in node.output(), (code, node.output())
+    finally:
+        node.close()
+
+
 def test_sigterm_writes_checkpoint_and_restart_resumes(short_bag: Path, short_direct, tmp_path: Path) -> None:
     direct = short_direct
     ckpt = tmp_path / "shadow.npz"

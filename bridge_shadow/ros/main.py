@@ -24,17 +24,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import rclpy
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
-from rclpy.signals import SignalHandlerOptions
-from rclpy.task import Future
-
 from bridge_shadow.contract import NODE_NAME
 from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.ros.netenv import confine_to_loopback
-from bridge_shadow.ros.node import ShadowNode
 
 __all__ = ["main", "params_files", "user_args"]
 
@@ -156,7 +148,18 @@ def _one_line(err: BaseException) -> str:
 
 
 def main(args: list[str] | None = None) -> int:
-    """Run the node until SIGINT/SIGTERM; return 0, or 2 with one line on a configuration error."""
+    """Run the node until SIGINT/SIGTERM; return 0, or 2 with one line on a configuration error.
+
+    Ctrl-C while it starts (its imports take seconds on a busy machine) is exit 130 without a
+    traceback: rclpy and the shadow are imported here, not when the command loads this module.
+    """
+    try:
+        return _main(args)
+    except KeyboardInterrupt:
+        return 130
+
+
+def _main(args: list[str] | None) -> int:
     argv = sys.argv[1:] if args is None else list(args)
     if "--ros-args" not in argv and any(a in ("-h", "--help") for a in argv):
         print(_USAGE, end="")
@@ -179,6 +182,15 @@ def main(args: list[str] | None = None) -> int:
     except BridgeShadowError as err:
         print(f"{prog}: {err}", file=sys.stderr)
         return 2
+    import rclpy
+    from rclpy.exceptions import ParameterException
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.experimental import EventsExecutor
+    from rclpy.signals import SignalHandlerOptions
+    from rclpy.task import Future
+
+    from bridge_shadow.ros.node import ShadowNode
+
     if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in os.environ:
         confine_to_loopback()
     # SIGINT/SIGTERM set a flag and complete the future the executor waits on: the loop ends
