@@ -23,6 +23,7 @@ from bridge_shadow.ros.convert import (
     wrench_raw,
 )
 from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
+from bridge_shadow.series import MonitoringData
 
 
 def test_mean_and_covariance_layout_round_trip() -> None:
@@ -99,7 +100,7 @@ def diag(root: Path) -> dict:
     return shadow.diagnostics()
 
 
-def test_statuses_carry_posterior_in_mm_and_counts(diag: dict) -> None:
+def test_statuses_carry_posterior_in_mm_and_counts(diag: dict, root: Path) -> None:
     ages = {"frc_01": 0.1, "frc_02": 0.1, "air_temperature": 0.5}
     est, inputs, comp, events = statuses(diag, ages, malformed=3, timeout_s=60.0)
     mean, sigma = np.array(diag["mean_m"]), np.array(diag["sigma_m"])
@@ -110,6 +111,18 @@ def test_statuses_carry_posterior_in_mm_and_counts(diag: dict) -> None:
     assert inputs.values["rejected nonfinite"] == str(diag["rejected"]["nonfinite"]) != "0"
     assert inputs.values["rejected malformed"] == "3"
     assert comp.values["frc_02 lambda [C^3]"] == f"{diag['spline']['frc_02']['lambda']:.4g}"
+    sp = diag["spline"]["frc_02"]
+    assert comp.values["frc_02 temperature range [C]"] == f"{sp['t_min_c']:.1f} .. {sp['t_max_c']:.1f}"
+    # windows without an air temperature: n/a, not 'lambda inf' and 'inf .. -inf'
+    data = read_monitoring(root / "bags" / "baseline_1d")
+    forces = np.column_stack([data.forces[ch].force_n for ch in data.forces])
+    stamps = data.forces["frc_01"].stamp_ns
+    no_air = MonitoringData.from_arrays(stamps, forces, stamps[:0], np.zeros(0))
+    shadow = Shadow(load_config(None, {"window_min_samples": 2}))
+    shadow.run(no_air)
+    comp = statuses(shadow.diagnostics(), ages, timeout_s=60.0)[2]
+    assert comp.values["frc_01 windows"] != "0"
+    assert comp.values["frc_01 lambda [C^3]"] == comp.values["frc_01 temperature range [C]"] == "n/a"
     assert events.level == 0 and events.values["events"] == "0"
     msg = diagnostic_array([est, inputs, comp, events], 5_000_000_001)
     assert [s.level for s in msg.status] == [bytes([est.level]), b"\x00", bytes([comp.level]), b"\x00"]

@@ -109,11 +109,14 @@ def _compensation(diag: Mapping[str, Any]) -> Status:
     values: dict[str, str] = {}
     for ch in CHANNELS:
         sp = diag["spline"][ch]
+        # no temperature fitted yet (none came, or no fit): no curve, no range ('inf', 'inf .. -inf')
+        lo, hi = sp["t_min_c"], sp["t_max_c"]
+        curve = bool(sp["windows"]) and lo is not None and hi is not None and lo <= hi
         values[f"{ch} edf"] = _num(sp["edf"], ".2f")
-        values[f"{ch} lambda [C^3]"] = _num(sp["lambda"], ".4g")
+        values[f"{ch} lambda [C^3]"] = _num(sp["lambda"] if curve else None, ".4g")
         values[f"{ch} mean force [kN]"] = _num(1e-3 * sp["mean_force_n"], ".3f")
         values[f"{ch} windows"] = str(sp["windows"])
-        span = f"{_num(sp['t_min_c'], '.1f')} .. {_num(sp['t_max_c'], '.1f')}"
+        span = f"{_num(lo, '.1f')} .. {_num(hi, '.1f')}" if curve else "n/a"
         values[f"{ch} temperature range [C]"] = span
         if "sun_gradient_k" in sp:  # the sun term (sun_gradient): its difference at full sun
             values[f"{ch} sun term [K]"] = _num(sp["sun_gradient_k"], ".2f")
