@@ -231,3 +231,24 @@ def test_the_gap_texts_fitted_values_are_in_mm_and_kn() -> None:
         "v_south -0.2002 mm/day, d -2.305 kN/day, k_south 1.83 kN/mm, k_north rigid, g -3 K, r 0.5, "
         "dx_south -0.4357 mm"
     )
+
+
+def test_forces_far_below_the_dead_load_are_said_out_loud(root) -> None:
+    """Forces in kN sent as N: a confident -70 mm with no word but 'the noise model has seen 0.3 h'."""
+    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.estimate import Shadow
+    from bridge_shadow.estimate.report import LOW_LOAD_SHARE
+    from bridge_shadow.series import MonitoringData
+    from bridge_shadow.twin.real_records import SWEEP_MIN_LOAD_SHARE
+
+    assert LOW_LOAD_SHARE == SWEEP_MIN_LOAD_SHARE  # where the linear model's studies stop
+    data = read_monitoring(root / "bags" / "baseline_1d")
+    forces = np.column_stack([data.forces[ch].force_n for ch in data.forces])
+    stamps, temp = data.forces["frc_01"].stamp_ns, data.temperature
+    for scale, said in ((1e-3, True), (1.0, False)):
+        shadow = Shadow(load_config())
+        shadow.run(MonitoringData.from_arrays(stamps, scale * forces, temp.stamp_ns, temp.temp_c))
+        lines = [w for w in shadow.warnings() if w.startswith("force level far below the dead load")]
+        assert bool(lines) == said, lines
+        if said:
+            assert "frc_01 0.235 kN of 235 kN (0.1 %)" in lines[0] and "kN where N" in lines[0]

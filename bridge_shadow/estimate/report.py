@@ -303,6 +303,32 @@ def silent_channel_lines(shadow: Shadow) -> list[str]:
     return out
 
 
+#: A bearing's force level below this share of its dead load (``u0``) is said out loud: near
+#: lift-off the linear model does not hold (``twin.real_records.SWEEP_MIN_LOAD_SHARE``, where the
+#: studies stop), and forces sent in kN where N are expected read as 0.1 % of it.
+LOW_LOAD_SHARE = 0.25
+
+
+def low_load_lines(shadow: Shadow) -> list[str]:
+    """One line when the current state's force level of a bearing is below ``LOW_LOAD_SHARE`` of u0."""
+    fit = shadow.fit
+    if fit is None or not len(fit.level):
+        return []
+    level = fit.level[min(shadow.filter.segment, len(fit.level) - 1)] + shadow.u0
+    share = level / shadow.u0
+    low = [c for c in range(len(CHANNELS)) if share[c] < LOW_LOAD_SHARE]
+    if not low:
+        return []
+    each = ", ".join(
+        f"{CHANNELS[c]} {1e-3 * level[c]:.3g} kN of {1e-3 * shadow.u0[c]:.0f} kN ({100 * share[c]:.2g} %)"
+        for c in low
+    )
+    return [
+        f"force level far below the dead load ({each}): near lift-off the model does not hold and the "
+        "settlements mean little; forces sent in kN where N are expected look like this"
+    ]
+
+
 def warnings(shadow: Shadow) -> list[str]:
     """Problems a user must hear about (one line each): silent failures made loud."""
     out = []
@@ -331,6 +357,7 @@ def warnings(shadow: Shadow) -> list[str]:
         line = ledger.all_rejected_message() or ledger.old_stamps_message()
         if line:
             out.append(line)
+    out.extend(low_load_lines(shadow))
     heard = [sum(led.run_counts()[1].values()) + led.run_counts()[0] for led in shadow.ledgers]
     if heard[2] and not heard[0] and not heard[1]:  # the air came, no load cell: no window ever closes
         forces = " and ".join(shadow.config.input_topics()[:2])
