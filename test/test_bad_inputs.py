@@ -150,6 +150,13 @@ CLI_CASES = {
     "replay --plots a file": ["replay", "{w}/bag", "--plots", "{w}/afile"],
     "replay --plots under a file": ["replay", "{w}/bag", "--plots", "{w}/afile/plots"],
     "replay --checkpoint random bytes": ["replay", "{w}/bag", "--checkpoint", "{w}/random.bin"],
+    "replay --live --checkpoint random bytes": [
+        "replay",
+        "{w}/bag",
+        "--live",
+        "--checkpoint",
+        "{w}/random.bin",
+    ],
     "replay --checkpoint empty": ["replay", "{w}/bag", "--checkpoint", "{w}/empty.npz"],
     "replay --checkpoint truncated": ["replay", "{w}/bag", "--checkpoint", "{w}/truncated.npz"],
     "replay --checkpoint a directory": ["replay", "{w}/bag", "--checkpoint", "{w}/adir"],
@@ -309,7 +316,9 @@ EXPECT = {
     "surrogate --out existing surrogate": "pass --force to replace it",
     "calibrate --out existing surrogate": "pass --force to replace it",
     "import-csv --out existing bag": "pass --force to replace it",
-    "import-csv empty zip": "empty.zip: an empty zip (no file in it)",  # 'not a ... CSV (header PK..)'
+    "import-csv empty zip": "empty.zip: an empty zip (no file in it)",
+    "replay --checkpoint random bytes": "(checkpoint_unusable: fresh sets it aside",
+    "replay --live --checkpoint random bytes": "(checkpoint_unusable: fresh sets it aside",  # offline's
     "import-csv ambiguous date": "could also be 2022-07-03",
     "gap --imposed before the record": "outside the record",
     "gap --imposed after the record": "outside the record",

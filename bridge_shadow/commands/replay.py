@@ -385,8 +385,15 @@ def _resumed_counts(config: Any, surrogate: Any, checkpoint: str | None) -> dict
     if not checkpoint or not Path(checkpoint).is_file():
         return None
     from bridge_shadow.estimate import Shadow
+    from bridge_shadow.estimate.startup import UNUSABLE_HINT
+    from bridge_shadow.estimate.state.checkpoint import CheckpointError
 
-    shadow = Shadow.resume(Path(checkpoint), config, surrogate)  # unusable: the error the node would give
+    try:
+        shadow = Shadow.resume(Path(checkpoint), config, surrogate)
+    except CheckpointError as err:  # unusable: the error the node would give, with its hint
+        if config.checkpoint_unusable == "fresh":
+            return None  # the node sets it aside and starts from the prior
+        raise CheckpointError(f"{err} ({UNUSABLE_HINT})") from None
     return _counts(shadow) if shadow.n_windows else None
 
 

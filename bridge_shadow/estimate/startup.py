@@ -14,7 +14,11 @@ from bridge_shadow.estimate.shadow import Shadow
 from bridge_shadow.estimate.state.checkpoint import CheckpointError, check_target, remove_orphans, set_aside
 from bridge_shadow.model.surrogate_file import Surrogate
 
-__all__ = ["open_shadow"]
+__all__ = ["UNUSABLE_HINT", "open_shadow"]
+
+
+#: What an unusable checkpoint's error adds: the parameter that starts from the prior instead.
+UNUSABLE_HINT = "checkpoint_unusable: fresh sets it aside and starts from the prior"
 
 
 def open_shadow(config: ShadowConfig, surrogate: Surrogate) -> tuple[Shadow, list[str]]:
@@ -37,8 +41,7 @@ def open_shadow(config: ShadowConfig, surrogate: Surrogate) -> tuple[Shadow, lis
         shadow = Shadow.resume(file, config, surrogate)
     except CheckpointError as err:
         if config.checkpoint_unusable != "fresh":
-            hint = "checkpoint_unusable: fresh sets it aside and starts from the prior"
-            raise CheckpointError(f"{err} ({hint})") from None
+            raise CheckpointError(f"{err} ({UNUSABLE_HINT})") from None
         aside = set_aside(file)
         what = f"set aside as {aside.name}, starting from the prior (checkpoint_unusable: fresh)"
         notes.append(f"{err}; {what}")
