@@ -144,6 +144,11 @@ def test_a_failed_write_leaves_nothing_behind(tmp_path) -> None:
     with pytest.raises(CheckpointError, match="is a directory"):
         save_state({"version": 1}, tmp_path / "dir.npz")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.npz", "file"]
+    # at start: the file in the way named (it read "cannot write a checkpoint there (File exists)")
+    from bridge_shadow.estimate.state.checkpoint import check_target
+
+    with pytest.raises(CheckpointError, match=f"there: {blocker} is a file, not a folder$"):
+        check_target(blocker / "sub" / "state.npz")
 
 
 def test_a_periodic_write_that_fails_is_a_warning_and_is_tried_again(tmp_path) -> None:

@@ -89,6 +89,9 @@ def check_target(path: str | Path) -> Path:
     file = Path(path)
     if file.is_dir():
         raise CheckpointError(f"{file}: is a directory, not a checkpoint file")
+    blocking = next((p for p in file.parents if p.exists()), None)
+    if blocking is not None and not blocking.is_dir():  # mkdir's "File exists" said nothing of it
+        raise CheckpointError(f"{file}: cannot write a checkpoint there: {blocking} is a file, not a folder")
     try:
         file.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=file.parent):
