@@ -228,7 +228,7 @@ def test_bad_holdout_day_is_one_line_error(drift_bag: Path, capsys):
     ("extra", "word"),
     [
         (["--imposed", "yesterday=-0.01"], "--imposed"),
-        (["--imposed", "2022-03-14T12:00=-3,-3"], "metre"),
+        (["--imposed", "2022-03-14T12:00=-3,-3"], "SOUTH must be a finite number in (-1, 1), not -3.0"),
         (["--report", "FILE"], "--report"),
     ],
 )

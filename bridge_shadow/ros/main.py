@@ -174,11 +174,8 @@ def _main(args: list[str] | None) -> int:
         )
         return 2
     files = params_files(argv)
-    try:
-        for file in files:
-            warning = _check_params_file(file, node_sections(argv))
-            if warning:
-                print(f"{prog}: WARN: {warning}", file=sys.stderr)
+    try:  # the warnings once rcl has read the files too (an error of its own is the one line)
+        unaddressed = [w for file in files if (w := _check_params_file(file, node_sections(argv)))]
     except BridgeShadowError as err:
         print(f"{prog}: {err}", file=sys.stderr)
         return 2
@@ -218,6 +215,8 @@ def _main(args: list[str] | None) -> int:
         if init_error is not None:
             print(f"{prog}: cannot read the ROS arguments: {_one_line(init_error)}", file=sys.stderr)
             return 2
+        for warning in unaddressed:
+            print(f"{prog}: WARN: {warning}", file=sys.stderr)
         node = ShadowNode(params_files=files)
         executor = EventsExecutor()
         executor.add_node(node)
