@@ -359,7 +359,9 @@ def warnings(shadow: Shadow) -> list[str]:
             out.append(line)
     out.extend(low_load_lines(shadow))
     heard = [sum(led.run_counts()[1].values()) + led.run_counts()[0] for led in shadow.ledgers]
-    if heard[2] and not heard[0] and not heard[1]:  # the air came, no load cell: no window ever closes
+    # the air came (twice: a live feed's first message may be the air's, the forces' a moment later)
+    # and no load cell: no window ever closes
+    if heard[2] >= 2 and not heard[0] and not heard[1]:
         forces = " and ".join(shadow.config.input_topics()[:2])
         out.append(
             f"no load cell message: {forces} delivered nothing, while "
