@@ -222,13 +222,14 @@ def test_an_empty_plot_says_why_it_is_empty(root: Path, tmp_path: Path, monkeypa
     from bridge_shadow.estimate import Shadow, load_config, plots
     from bridge_shadow.series import MonitoringData
 
-    said: dict[str, list[str]] = {}
+    drawn: list[list[str]] = []
+    png = plots._png
 
-    def keep(fig, path):  # the figure's notes, by file
-        said[path.name] = [t.get_text() for ax in fig.axes for t in ax.texts]
-        return path
+    def keep(fig):  # the figure's notes, in the order drawn
+        drawn.append([t.get_text() for ax in fig.axes for t in ax.texts])
+        return png(fig)
 
-    monkeypatch.setattr(plots, "_save", keep)
+    monkeypatch.setattr(plots, "_png", keep)
     data = read_monitoring(root / "bags" / "baseline_1d")
     nothing = data.select(lambda stamps: np.zeros(len(stamps), bool))
     cases = {
@@ -239,11 +240,44 @@ def test_an_empty_plot_says_why_it_is_empty(root: Path, tmp_path: Path, monkeypa
     notes = {}
     for name, case in cases.items():
         shadow = Shadow(load_config())
-        plots.write_plots(tmp_path / name.replace(" ", "_"), shadow.run(case), shadow)
-        notes[name] = dict(said)
+        drawn.clear()
+        paths = plots.write_plots(tmp_path / name.replace(" ", "_"), shadow.run(case), shadow)
+        assert all(p.stat().st_size > 1000 for p in paths)  # written, whole PNGs
+        notes[name] = {p.name: texts for p, texts in zip(paths, drawn, strict=True)}
     assert notes["no air"]["compensation_curve.png"] == ["no air temperature: windows used uncompensated"] * 2
     assert notes["no air"]["posterior.png"] == []  # the windows were used
     assert notes["no force"]["compensation_curve.png"] == ["no window used"] * 2
     assert notes["no force"]["posterior.png"] == ["no window closed: the prior"] * 2
     assert notes["no force"]["raw_vs_compensated.png"] == ["no window closed"] * 2
     assert not any(notes["both"].values())  # a record with both: no note anywhere
+
+
+def test_an_interrupt_while_drawing_leaves_the_plot_folder_as_it_was(
+    root: Path, tmp_path: Path, monkeypatch
+) -> None:
+    """Ctrl-C after two of the four figures left two new PNGs beside two old ones."""
+    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.estimate import Shadow, load_config, plots
+
+    data = read_monitoring(root / "bags" / "baseline_1d")
+    first = Shadow(load_config())
+    folder = tmp_path / "plots"
+    part = first.run(data.select(lambda stamps: stamps < stamps.min() + 6 * 3600 * 10**9))
+    before = {p.name: p.read_bytes() for p in plots.write_plots(folder, part, first)}
+    shadow = Shadow(load_config())
+    result = shadow.run(data)  # other plots: the whole day
+    png, calls = plots._png, []
+
+    def interrupted(fig):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return png(fig)
+
+    monkeypatch.setattr(plots, "_png", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        plots.write_plots(folder, result, shadow)
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+    monkeypatch.setattr(plots, "_png", png)
+    plots.write_plots(folder, result, shadow)  # and uninterrupted, every one of them new
+    assert all(p.read_bytes() != before[p.name] for p in folder.iterdir())

@@ -17,7 +17,11 @@ __all__ = ["write_plots"]
 
 
 def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
-    """Write the four PNGs of a ``ReplayResult`` into ``directory``; return their paths."""
+    """Write the four PNGs of a ``ReplayResult`` into ``directory``; return their paths.
+
+    All four are drawn before the first is written: Ctrl-C while drawing (seconds for a long
+    record) leaves the folder as it was, not two of four new plots beside two old ones.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -26,7 +30,7 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
     out = output_dir(directory, "plot directory")
     h = result.history()
     t_h = (h["end_ns"] - (h["end_ns"][0] if len(h["end_ns"]) else 0)) / 3.6e12
-    paths: list[Path] = []
+    drawn: list[tuple[Path, bytes]] = []
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for c, ax in enumerate(axes):
@@ -43,7 +47,7 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
             used = np.isfinite(h["force_n"][:, c]).any()
             _note(ax, "no air temperature: windows used uncompensated" if used else "no window used")
         ax.legend()
-    paths.append(_save(fig, out / "compensation_curve.png"))
+    drawn.append((out / "compensation_curve.png", _png(fig)))
 
     fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
     for c, ax in enumerate(axes):
@@ -54,7 +58,7 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
             _note(ax, "no window closed")
         ax.legend()
     axes[-1].set(xlabel="time (h)")
-    paths.append(_save(fig, out / "raw_vs_compensated.png"))
+    drawn.append((out / "raw_vs_compensated.png", _png(fig)))
 
     fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
     sd = np.sqrt(np.stack([h["covariance_m2"][:, 0, 0], h["covariance_m2"][:, 1, 1]], axis=1))
@@ -67,7 +71,7 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
             _note(ax, "no window closed: the prior")
         ax.legend()
     axes[-1].set(xlabel="time (h)")
-    paths.append(_save(fig, out / "posterior.png"))
+    drawn.append((out / "posterior.png", _png(fig)))
 
     fig, ax = plt.subplots(figsize=(5.5, 5))
     mean, cov = 1e3 * result.mean_m, 1e6 * result.covariance_m2
@@ -83,8 +87,11 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
     ax.set(xlabel="south settlement (mm)", ylabel="north settlement (mm)", title="credible region")
     ax.axis("equal")
     ax.legend()
-    paths.append(_save(fig, out / "credible_ellipse.png"))
-    return paths
+    drawn.append((out / "credible_ellipse.png", _png(fig)))
+    for path, png in drawn:
+        with atomic_write(path, "plot") as tmp:
+            Path(tmp).write_bytes(png)
+    return [path for path, _ in drawn]
 
 
 def _note(ax: Any, text: str) -> None:
@@ -92,13 +99,16 @@ def _note(ax: Any, text: str) -> None:
     ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, color="0.35")
 
 
-def _save(fig: Any, path: Path) -> Path:
+def _png(fig: Any) -> bytes:
+    """Return the figure as PNG bytes (and close it)."""
+    import io
+
     import matplotlib.pyplot as plt
 
     fig.tight_layout()
+    buffer = io.BytesIO()
     try:
-        with atomic_write(path, "plot") as tmp:
-            fig.savefig(tmp, dpi=110, format="png")
+        fig.savefig(buffer, dpi=110, format="png")
     finally:
         plt.close(fig)
-    return path
+    return buffer.getvalue()
