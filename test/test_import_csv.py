@@ -367,7 +367,8 @@ def test_a_header_without_rows_or_a_bag_without_forces_is_refused(tmp_path: Path
     good = tmp_path / "a_2022-03-07.csv"
     good.write_text("Time (-),FRC-01 (kN),FRC-02 (kN)\n2022-03-07 16:35:00.000,233.90,221.10\n")
     air = tmp_path / "t.csv"
-    air.write_bytes("Time (-),Air Temperature (°C)\n07.03.2022 16:35:00.000,5.5\n".encode("cp1252"))
+    rows = "07.03.2022 16:35:00.000,5.5\n07.03.2022 16:36:00.000,5.6\n"  # the air twice: no load cell
+    air.write_bytes(f"Time (-),Air Temperature (°C)\n{rows}".encode("cp1252"))
     out = tmp_path / "bag"
     for files, said in (
         ([header, good], f"{header}: a header and no data rows; nothing was written"),
