@@ -252,3 +252,27 @@ def test_forces_far_below_the_dead_load_are_said_out_loud(root) -> None:
         assert bool(lines) == said, lines
         if said:
             assert "frc_01 0.235 kN of 235 kN (0.1 %)" in lines[0] and "kN where N" in lines[0]
+
+
+def test_imposed_steps_are_read_at_their_exact_time_and_add_up_at_one_instant() -> None:
+    """09:00:00.897 was read a second late; two entries of one time crashed the level pairs."""
+    import datetime as dt
+
+    from bridge_shadow.commands.gap import parse_imposed
+    from bridge_shadow.errors import InputError
+
+    def ns(text: str) -> int:
+        return round(dt.datetime.fromisoformat(text).timestamp() * 1e6) * 1000
+
+    first, last = ns("2022-04-11T06:36:24.897+00:00"), ns("2022-04-11T07:32:05.365+00:00")
+    steps = parse_imposed(
+        ["2022-04-11T09:00:00.897=-0.01,0", "2022-04-11T07:00:00.897Z=0,-0.01", "+0.01=-0.002,-0.002"],
+        first,
+        last,
+    )
+    at = ns("2022-04-11T07:00:00.897+00:00")  # 09:00 in Munich's summer time is 07:00 UTC
+    assert steps[0][0] - first == round(864e11 * 0.01) and steps[0][1:] == (-0.002, -0.002)
+    assert steps[1] == (at, -0.01, -0.01)  # south and north given apart, at one instant
+    for edge in ("+0=-0.01,-0.01", "2022-04-11T07:32:05.365Z=-0.01,-0.01"):
+        with pytest.raises(InputError, match="is outside the record"):
+            parse_imposed([edge], first, last)

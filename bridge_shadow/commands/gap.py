@@ -132,14 +132,17 @@ def parse_imposed(
                 stamp = dt.datetime.fromisoformat(when)
                 if stamp.tzinfo is None:
                     stamp = stamp.replace(tzinfo=ZoneInfo("Europe/Berlin"))
-                t_ns = round(stamp.timestamp()) * 1_000_000_000 + stamp.microsecond * 1000
+                # whole microseconds since the epoch, exactly (rounding the float seconds and adding
+                # the microseconds again put a time of .5 s or more a second late)
+                since = stamp - dt.datetime(1970, 1, 1, tzinfo=dt.timezone.utc)
+                t_ns = since // dt.timedelta(microseconds=1) * 1000
         except ValueError:
             raise InputError(
                 f"--imposed {item!r}: expected WHEN=SOUTH,NORTH (ISO time or +DAYS; metres, positive upward)"
             ) from None
         for side, value in (("SOUTH", south), ("NORTH", north)):  # as synth --step: finite, under a metre
             check_value(f"--imposed {item!r}: {side}", value, "float", VALUE_SPECS["settlement_m"])
-        if last_ns is not None and not first_ns < t_ns <= last_ns:
+        if last_ns is not None and not first_ns < t_ns < last_ns:  # at an edge: nothing after or before
             from bridge_shadow.timefmt import iso_utc
 
             raise InputError(
@@ -147,7 +150,13 @@ def parse_imposed(
                 f"({iso_utc(first_ns)} to {iso_utc(last_ns)}): the data cannot show that step"
             )
         out.append((t_ns, south, north))
-    return out
+    # steps at one instant add up (south and north given apart: T=-0.01,0 and T=0,-0.01); two
+    # entries of one time crashed the level pairs with a traceback
+    merged: dict[int, tuple[float, float]] = {}
+    for t_ns, south, north in out:
+        s0, n0 = merged.get(t_ns, (0.0, 0.0))
+        merged[t_ns] = (s0 + south, n0 + north)
+    return [(t_ns, s, n) for t_ns, (s, n) in sorted(merged.items())]
 
 
 def _mm(x: list[float]) -> str:
