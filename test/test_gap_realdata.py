@@ -156,6 +156,7 @@ def test_known_lowering_names_a_stiffness_not_an_extra_settlement(lowering):
     # an extra settlement at the imposed time would need the jacks off by ~2.5 mm (0.5 mm sd)
     assert rows["settlement_step"]["delta_log_evidence"] < -20.0
     assert imp["named"] and s["best"] in MODEL_FORM_EFFECTS, s["statement"]
+    assert imp["misfit"] is None and "no explanation fits" not in s["statement"]  # it fits the 10 mm
     assert set(s["indistinguishable_from"]) <= set(MODEL_FORM_EFFECTS)
     # the named model reads the imposed 10 mm as 10 mm within the jacks' accuracy (in-sample)
     x = np.array(rows[s["best"]]["in_sample"][0]["x_m"])
@@ -165,6 +166,20 @@ def test_known_lowering_names_a_stiffness_not_an_extra_settlement(lowering):
     before, after = np.array(post["before"]["mean_m"]), np.array(post["after"]["mean_m"])
     # the stiffness moves the shadow's reading of the lowering from about half of it towards 10 mm
     assert np.all(after < before - 2e-3)
+
+
+def test_a_step_given_with_the_wrong_sign_is_said_to_fit_nothing(lowering_bag: Path, capsys) -> None:
+    """+10 mm for the real -10 mm: a softer deck 'explained' it at probability 1.00, with no word.
+
+    The probabilities rank the explanations against each other; the best of those that all fail
+    needed the jacks 13 times their accuracy off the step given. Now the statement and a WARN
+    line say no explanation fits.
+    """
+    gap = _run(["gap", str(lowering_bag), "--json", "--imposed", "2022-04-11T09:00=0.01,0.01"])
+    bad = gap["levels"]["imposed"]["misfit"]
+    assert bad is not None and bad["in_sd"] > 4.0 and bad["effect"] == gap["levels"]["imposed"]["best"]
+    assert "But no explanation fits the imposed step(s)" in gap["statement"]
+    assert "WARN: no explanation fits the imposed step(s)" in capsys.readouterr().err
 
 
 def test_after_agrees_with_replay_under_the_calibrated_surrogate(lowering_bag: Path, lowering):

@@ -142,6 +142,16 @@ def statement(
     return text
 
 
+def misfit_text(bad: dict[str, Any]) -> str:
+    """Return the sentence for an imposed step no explanation fits (``ImposedAnalysis.misfit``)."""
+    return (
+        f"no explanation fits the imposed step(s): even {bad['effect']} needs the jacks of "
+        f"{bad['pair']} {1e3 * bad['jack_error_m']:+.2f} mm off what was imposed, {bad['in_sd']:.0f} "
+        "times their accuracy. Check the step's sign, size and time (and that the bag is the one "
+        "the step was made in) before using a model written from it."
+    )
+
+
 def level_statement(lv: DayLevels, inside: str) -> str:
     """One paragraph for a day of records: the levels, then what happens inside the records."""
     mm = 1e3
@@ -158,8 +168,11 @@ def level_statement(lv: DayLevels, inside: str) -> str:
             )
             if an.group[1:]:
                 text += f" It cannot be told apart from {', '.join(an.group[1:])}."
-        else:
+        elif an.misfit("settlement_step") is None:
             text += " The model explains the response to the imposed step(s) within the jacks' accuracy."
+        bad = an.misfit() if an.named else an.misfit("settlement_step")
+        if bad is not None:
+            text += " But " + misfit_text(bad)
     steps = [st for st in lv.steps if st["significant"]]
     if steps:
         sizes = "; ".join(f"{st['x_m'][0] * mm:+.2f} / {st['x_m'][1] * mm:+.2f} mm" for st in steps)

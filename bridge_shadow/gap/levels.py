@@ -240,6 +240,12 @@ def _window_s(data: MonitoringData) -> float:
     return max(10.0, 5.0 * spacing)
 
 
+#: An explanation whose MAP needs a jack off the imposed step by more than this many of the jacks'
+#: sds does not explain the step (two-sided normal tail 6e-5 a number: with a few pairs' four
+#: numbers, under 1e-3 that any of them is so far by chance).
+MISFIT_SD = 4.0
+
+
 @dataclass
 class ImposedAnalysis:
     """What explains the response to the known imposed steps.
@@ -261,6 +267,25 @@ class ImposedAnalysis:
     group: list[str]
     named: bool
     forward: dict[str, Any]
+
+    def misfit(self, name: str | None = None) -> dict[str, Any] | None:
+        """Whether explanation ``name`` (default ``best``) needs the jacks far off what was imposed.
+
+        Returns None when it fits: every jack error of its MAP within ``MISFIT_SD`` of the jacks'
+        accuracy. Otherwise the largest error and its size in those sds: the probabilities rank
+        the explanations against each other, and the best of those that all fail is no answer
+        (a step given with the wrong sign was "explained" by a softer deck at probability 1.00).
+        """
+        e = self.explanations[name or self.best]
+        worst = (0.0, "", 0.0)
+        for pair, err in e.summary()["imposed_error_m"].items():
+            for value, sd in zip(err["map"], err["sd"], strict=True):
+                ratio = abs(value) / sd if sd > 0 else math.inf
+                if ratio > worst[0]:
+                    worst = (ratio, pair, value)
+        if worst[0] <= MISFIT_SD:
+            return None
+        return {"effect": e.name, "pair": worst[1], "jack_error_m": worst[2], "in_sd": worst[0]}
 
     def surrogate_after(self, base: Surrogate, name: str | None = None) -> Surrogate:
         """Return the model in use with explanation ``name`` (default ``best``) at its MAP.
@@ -324,6 +349,7 @@ class ImposedAnalysis:
             "pairs": [p.to_dict() for p in self.pairs],
             "explanations": self.table(),
             "best": self.best,
+            "misfit": self.misfit(),
             "indistinguishable_from": self.group[1:],
             "named": self.named,
             "rule": (
