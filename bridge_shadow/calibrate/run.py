@@ -171,9 +171,13 @@ def measure_pairs(
     for i, p in enumerate(spec.pairs):
         if report is not None:
             report(i / max(len(spec.pairs), 1), f"records {p.name}")
-        change: MeasuredChange = measured_change(
-            _record_level(p.before, spec), _record_level(p.after, spec), spec.baseline_change, sun
-        )
+        try:
+            change: MeasuredChange = measured_change(
+                _record_level(p.before, spec), _record_level(p.after, spec), spec.baseline_change, sun
+            )
+        except CalibrationError as err:  # which file and pair: its records are the user's to fix
+            where = f"{spec.path}: " if spec.path is not None else ""
+            raise CalibrationError(f"{where}pair {p.name}: {err}") from None
         out.append(PairData(p.name, p.imposed_m, p.imposed_sd_m, change))
     return out
 
