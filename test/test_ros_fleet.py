@@ -165,6 +165,7 @@ def test_the_fleet_relays_its_nodes_output_and_fails_when_a_node_did(tmp_path: P
 
     Before, each node's output went to a file removed at the end, and the fleet exited 0.
     """
+    import os
     import signal
     import subprocess
     import sys
@@ -176,7 +177,10 @@ def test_the_fleet_relays_its_nodes_output_and_fails_when_a_node_did(tmp_path: P
     fleet = tmp_path / "fleet.yaml"
     fleet.write_text(yaml.safe_dump({"bridges": {"a": {"params": params.name}}}))
     proc = subprocess.Popen(
-        [sys.executable, "-m", "bridge_shadow.ros.fleet", str(fleet)], stderr=subprocess.PIPE, text=True
+        [sys.executable, "-m", "bridge_shadow.ros.fleet", str(fleet)],
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # a failing run kills the fleet and its nodes together
     )
     lines: list[str] = []
     reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
@@ -189,7 +193,7 @@ def test_the_fleet_relays_its_nodes_output_and_fails_when_a_node_did(tmp_path: P
         code = proc.wait(60)
     finally:
         if proc.poll() is None:
-            proc.kill()
+            os.killpg(proc.pid, signal.SIGKILL)
     reader.join(10)
     text = "".join(lines)
     assert code == 1, text
