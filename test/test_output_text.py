@@ -271,8 +271,11 @@ def test_imposed_steps_are_read_at_their_exact_time_and_add_up_at_one_instant() 
         last,
     )
     at = ns("2022-04-11T07:00:00.897+00:00")  # 09:00 in Munich's summer time is 07:00 UTC
-    assert steps[0][0] - first == round(864e11 * 0.01) and steps[0][1:] == (-0.002, -0.002)
-    assert steps[1] == (at, -0.01, -0.01)  # south and north given apart, at one instant
+    # stamps are integers (exact); the sizes are float sums of the entries given (a tolerance)
+    assert steps[0][0] - first == round(864e11 * 0.01)
+    assert steps[0][1:] == pytest.approx((-0.002, -0.002), rel=1e-12, abs=1e-15)
+    assert steps[1][0] == at  # south and north given apart, at one instant
+    assert steps[1][1:] == pytest.approx((-0.01, -0.01), rel=1e-12, abs=1e-15)
     for edge in ("+0=-0.01,-0.01", "2022-04-11T07:32:05.365Z=-0.01,-0.01"):
         with pytest.raises(InputError, match="is outside the record"):
             parse_imposed([edge], first, last)

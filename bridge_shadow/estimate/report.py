@@ -309,12 +309,19 @@ def silent_channel_lines(shadow: Shadow) -> list[str]:
 LOW_LOAD_SHARE = 0.25
 
 
-def low_load_lines(shadow: Shadow) -> list[str]:
-    """One line when the current state's force level of a bearing is below ``LOW_LOAD_SHARE`` of u0."""
+def current_level(shadow: Shadow) -> np.ndarray | None:
+    """Return the current state's force level of each bearing, N (None before a fit)."""
     fit = shadow.fit
     if fit is None or not len(fit.level):
+        return None
+    return fit.level[min(shadow.filter.segment, len(fit.level) - 1)] + shadow.u0
+
+
+def low_load_lines(shadow: Shadow) -> list[str]:
+    """One line when the current state's force level of a bearing is below ``LOW_LOAD_SHARE`` of u0."""
+    level = current_level(shadow)
+    if level is None:
         return []
-    level = fit.level[min(shadow.filter.segment, len(fit.level) - 1)] + shadow.u0
     share = level / shadow.u0
     low = [c for c in range(len(CHANNELS)) if share[c] < LOW_LOAD_SHARE]
     if not low:
@@ -358,7 +365,7 @@ def warnings(shadow: Shadow) -> list[str]:
         if line:
             out.append(line)
     out.extend(low_load_lines(shadow))
-    heard = [sum(led.run_counts()[1].values()) + led.run_counts()[0] for led in shadow.ledgers]
+    heard = [used + sum(rejected.values()) for used, rejected in (led.run_counts() for led in shadow.ledgers)]
     # the air came (twice: a live feed's first message may be the air's, the forces' a moment later)
     # and no load cell: no window ever closes
     if heard[2] >= 2 and not heard[0] and not heard[1]:
@@ -445,10 +452,9 @@ def spline_info(shadow: Shadow) -> dict[str, dict[str, Any]]:
     """
     info: dict[str, dict[str, Any]] = {}
     fit = shadow.fit
+    levels = current_level(shadow)
     for c, ch in enumerate(CHANNELS):
-        level = float("nan")
-        if fit is not None and len(fit.level):
-            level = float(fit.level[min(shadow.filter.segment, len(fit.level) - 1), c] + shadow.u0[c])
+        level = float("nan") if levels is None else float(levels[c])
         info[ch] = {
             "edf": float(fit.edf[c]) if fit is not None else float("nan"),
             "lambda": float(fit.lam[c]) if fit is not None else float("nan"),

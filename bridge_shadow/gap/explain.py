@@ -159,6 +159,7 @@ def level_statement(lv: DayLevels, inside: str) -> str:
     an = lv.imposed
     if an is not None:
         rows = {r["effect"]: r for r in an.table()}
+        bad = an.misfit(None if an.named else "settlement_step", rows)
         if an.named:
             p = ", ".join(f"{k} {v:.3g}" for k, v in rows[an.best]["parameters"].items())
             text += (
@@ -168,9 +169,8 @@ def level_statement(lv: DayLevels, inside: str) -> str:
             )
             if an.group[1:]:
                 text += f" It cannot be told apart from {', '.join(an.group[1:])}."
-        elif an.misfit("settlement_step") is None:
+        elif bad is None:
             text += " The model explains the response to the imposed step(s) within the jacks' accuracy."
-        bad = an.misfit() if an.named else an.misfit("settlement_step")
         if bad is not None:
             text += " But " + misfit_text(bad)
     steps = [st for st in lv.steps if st["significant"]]

@@ -268,24 +268,28 @@ class ImposedAnalysis:
     named: bool
     forward: dict[str, Any]
 
-    def misfit(self, name: str | None = None) -> dict[str, Any] | None:
+    def misfit(
+        self, name: str | None = None, rows: Mapping[str, dict[str, Any]] | None = None
+    ) -> dict[str, Any] | None:
         """Whether explanation ``name`` (default ``best``) needs the jacks far off what was imposed.
 
         Returns None when it fits: every jack error of its MAP within ``MISFIT_SD`` of the jacks'
         accuracy. Otherwise the largest error and its size in those sds: the probabilities rank
         the explanations against each other, and the best of those that all fail is no answer
         (a step given with the wrong sign was "explained" by a softer deck at probability 1.00).
+        ``rows``: ``table()`` by effect, when already built (else the explanation's own summary).
         """
-        e = self.explanations[name or self.best]
+        effect = name or self.best
+        row = rows[effect] if rows is not None else self.explanations[effect].summary()
         worst = (0.0, "", 0.0)
-        for pair, err in e.summary()["imposed_error_m"].items():
+        for pair, err in row["imposed_error_m"].items():
             for value, sd in zip(err["map"], err["sd"], strict=True):
                 ratio = abs(value) / sd if sd > 0 else math.inf
                 if ratio > worst[0]:
                     worst = (ratio, pair, value)
         if worst[0] <= MISFIT_SD:
             return None
-        return {"effect": e.name, "pair": worst[1], "jack_error_m": worst[2], "in_sd": worst[0]}
+        return {"effect": effect, "pair": worst[1], "jack_error_m": worst[2], "in_sd": worst[0]}
 
     def surrogate_after(self, base: Surrogate, name: str | None = None) -> Surrogate:
         """Return the model in use with explanation ``name`` (default ``best``) at its MAP.
@@ -345,11 +349,12 @@ class ImposedAnalysis:
 
     def to_dict(self) -> dict[str, Any]:
         """Return the ``levels.imposed`` block of the gap JSON (SI)."""
+        table = self.table()
         return {
             "pairs": [p.to_dict() for p in self.pairs],
-            "explanations": self.table(),
+            "explanations": table,
             "best": self.best,
-            "misfit": self.misfit(),
+            "misfit": self.misfit(rows={r["effect"]: r for r in table}),
             "indistinguishable_from": self.group[1:],
             "named": self.named,
             "rule": (
