@@ -80,6 +80,7 @@ def test_a_north_cell_below_zero_for_a_whole_record_is_warned_and_the_state_mark
     assert len(lines) == 1, res.warnings
     line = lines[0]
     assert "out_of_range" in line and "lifted off" in line
+    assert "rejected over the whole run" in line  # the ledger's counts are the run's, not the stretch's
     n_said = int(line.split("nothing usable in ")[1].split()[0])
     assert n_later - 1 <= n_said <= n_later
     assert not any(w.startswith("topic frc_01: nothing usable") for w in res.warnings)

@@ -269,9 +269,10 @@ def posterior_state(shadow: Shadow) -> dict[str, Any]:
 def silent_channel_lines(shadow: Shadow) -> list[str]:
     """One line per force channel that missed stretches of windows while the other delivered.
 
-    What its messages there were rejected for comes from the topic's ledger (``out_of_range``
-    with the last such value: at or below zero, a bearing that lifted off or a dead cell). A
-    topic whose every message was rejected has its own line (``all_rejected_message``).
+    What its messages were rejected for comes from the topic's ledger, counted over the whole run
+    and said so (``out_of_range`` with the last such value: at or below zero, a bearing that
+    lifted off or a dead cell). A topic whose every message was rejected has its own line
+    (``all_rejected_message``).
     """
     out = []
     w = shadow._w_ns
@@ -289,7 +290,12 @@ def silent_channel_lines(shadow: Shadow) -> list[str]:
             lo, hi, unit = ledger.value_range
             value = f"{ledger.last_value:g} {unit}"
             why.append(f"last out-of-range value {value}, accepted {lo:g} .. {hi:g} {unit}")
-        said = f"its rejected messages: {', '.join(why)}" if why else "no message of it arrived there"
+        # the ledger counts the whole run, not the stretches: say so (it read as the stretches' own)
+        said = (
+            f"its messages rejected over the whole run: {', '.join(why)}"
+            if why
+            else "no message of it arrived there"
+        )
         lift = (
             "; a load cell at or below zero is a bearing that lifted off its support, or a dead cell"
             if ledger.last_value is not None and ledger.last_value <= 0
