@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -71,3 +72,18 @@ def test_a_relative_surrogate_path_not_found_names_the_folder_it_was_read_from(t
         load_surrogate("s.yaml")
     with pytest.raises(ConfigError, match=r"surrogate file not found$"):  # an absolute one says nothing more
         load_surrogate(tmp_path / "s.yaml")
+
+
+def test_a_surrogate_path_that_exists_but_is_no_regular_file_is_not_called_missing(tmp_path) -> None:
+    """``--surrogate /dev/null`` (or a named pipe) is there: "not found" sent the user looking for it."""
+    import os
+
+    import pytest
+
+    from bridge_shadow.errors import ConfigError
+
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)
+    for path in (Path(os.devnull), fifo):
+        with pytest.raises(ConfigError, match=r"not a regular file, so not a surrogate file"):
+            load_surrogate(path)

@@ -391,6 +391,8 @@ def load_surrogate(path: str | Path | None = None, *, allow_placeholder: bool = 
     file = Path(path) if explicit else config_file("surrogate.yaml")
     if file.is_dir():
         raise ConfigError(f"{file}: is a directory, not a surrogate file")
+    if file.exists() and not file.is_file():  # /dev/null, a pipe: there, but no surrogate file
+        raise ConfigError(f"{file}: not a regular file, so not a surrogate file")
     if not file.is_file():
         if explicit or not allow_placeholder:
             # a relative path (surrogate_path in a parameter file) is read from the working directory
