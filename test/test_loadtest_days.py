@@ -1936,3 +1936,29 @@ def test_a_load_record_minutes_after_hours_of_monitoring_is_screened(
     got = check(sc, res)
     assert got["event"] and got["within"]
     assert sum(o.reason == "traffic" and o.end_ns > sc.starts_ns[-1] for o in res.outputs) >= 4
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("step", [(-0.005, 0.005), (0.005, 0.0)])
+def test_a_change_that_unloads_one_bearing_is_no_vehicle_and_confirms_across_a_gap(
+    folder: Path, surrogate, step: tuple[float, float]
+) -> None:
+    """South down and north up by 5 mm, or south up alone, in a record of 3.5 minutes 1.25 h on.
+
+    The bearings move by -100 / +104 kN (south raised alone: +58 / -43 kN), their sum by only
+    +4 kN (+15 kN): within what a parked vehicle adds, so the sum's test took it for one and
+    asked ``event_confirm_windows`` (4) of a record that has three. Before the per-bearing test
+    (``UNLOADED_SD``) it stayed an unconfirmed change of probability 1.0. A vehicle loads both
+    girders: a bearing unloaded by 40 kN is none, and the change's two windows confirm it.
+    """
+    piece = Piece("ref", 1.25, step, None, cut_min=(0.0, 3.5))
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0), piece])
+    d = surrogate.A @ np.asarray(step)
+    assert 0.0 < d.sum() < 30e3 and d.min() < -40e3  # the premise: the sum alone looks like a vehicle
+    _, res = replay(sc, surrogate)
+    assert res.rejected["outlier"] == 0 and not res.changes
+    (event,) = res.events
+    assert event.kind == "gap" and event.time_ns < sc.starts_ns[1] + 3 * W
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    assert np.all(np.abs(res.mean_m - sc.truth_m) <= 1.96 * sd)
+    assert np.all(np.abs(np.asarray(event.size_m) - step) < 0.1 * np.max(np.abs(step)))

@@ -94,6 +94,13 @@ _NO_CROSS: Mat = (0.0, 0.0, 0.0, 0.0)
 #: (``traffic_vehicle_max_n``); so not ``event_confirm_windows``; two, because one window alone at
 #: the end of the data or before a further step is what an outlier looks like.
 GAP_LOWERING_WINDOWS = 2
+#: A vehicle loads both girders (its share on each lies in [0, 1]: ``twin.traffic``'s lane
+#: position, the real test car's +3 to +11 kN on both bearings), so a change that unloads one
+#: bearing by more than this many of its standard deviations (the data estimates' on both sides of
+#: the change, through ``A``) is none, whatever the sum: a south-down, north-up settlement moves
+#: the bearings by -100 / +104 kN and their sum by +4 kN. One-sided 3 sd: 0.13 % of a vehicle
+#: that loads one bearing alone reads as unloading it.
+UNLOADED_SD = 3.0
 
 
 @dataclass
@@ -421,7 +428,8 @@ class SegmentChain:
 
         The windows ``event_confirm_windows`` asks for are there to tell a change from a load that
         stays for minutes (a parked test car); a vehicle only adds load (``inputs.traffic``), so a
-        change that takes load off the bearings is none, and so is one that adds more to their sum
+        change that takes load off the bearings is none, nor one that unloads one bearing
+        (``UNLOADED_SD``: a vehicle loads both girders), and so is one that adds more to their sum
         than the heaviest vehicle (``vehicle_max_n``, the traffic screen's own limit of a vehicle:
         ``traffic_vehicle_max_n``). Only where the data had stopped: across a
         gap, or at the first usable window after a logger outage inside a record (``mark_outage``:
@@ -435,7 +443,13 @@ class SegmentChain:
             return False
         sm = self.summaries[s]
         d = self.A @ (sm.x_data - sm.x_before)
-        return bool(np.all(np.isfinite(d)) and not 0.0 <= float(d.sum()) <= self.vehicle_max_n)
+        if not np.all(np.isfinite(d)):
+            return False
+        if not 0.0 <= float(d.sum()) <= self.vehicle_max_n:
+            return True
+        cov = self.A @ (sm.d_cov + sm.P_before) @ self.A.T
+        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        return bool(np.all(np.isfinite(sd)) and np.any(d < -UNLOADED_SD * sd))
 
     def windows_changed(self, s: int, enough: int | None = None) -> int:
         """Windows from segment ``s``'s start on that stayed away from the state before it.
