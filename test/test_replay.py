@@ -54,6 +54,22 @@ def test_replay_json_outputs_and_plots(
     last = get_typestore().deserialize_cdr(raw[MEAN_TOPIC][1][-1], FLOAT_ARRAY_TYPE)
     assert np.allclose(last.data, mean, rtol=1e-15)
     assert last.layout.dim[0].label == "support"
+    # every diagnostic value is a str meant as one or JSON another program reads (numpy reprs and
+    # Python dicts went out before: ``[np.float64(-1.8e-06), ...]``, ``{'nonfinite': 7}``)
+    from bridge_shadow.contract import DIAGNOSTICS_TOPIC, DIAGNOSTICS_TYPE
+
+    diags = read_raw_topics(tmp_path / "out", {DIAGNOSTICS_TOPIC: DIAGNOSTICS_TYPE})[DIAGNOSTICS_TOPIC][1]
+    statuses = [st for d in diags for st in get_typestore().deserialize_cdr(d, DIAGNOSTICS_TYPE).status]
+    values = {kv.key: kv.value for st in statuses[:-1] for kv in st.values}
+    final = {kv.key: kv.value for kv in statuses[-1].values}
+
+    def strict(text: str) -> object:
+        return json.loads(text, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
+
+    assert len(strict(values["mean_m"])) == 2 and len(strict(values["sigma_m"])) == 2
+    assert isinstance(strict(values["window_end_ns"]), int) and strict(values["updated"]) in (True, False)
+    assert strict(final["rejected"]) == {k: v for k, v in js["rejected"].items()}
+    assert set(strict(final["spline"])) == {"frc_01", "frc_02"}
     pngs = sorted(p.name for p in (tmp_path / "plots").glob("*.png"))
     assert pngs == [
         "compensation_curve.png",

@@ -376,7 +376,8 @@ class BagOutputWriter:
         """Write a ``diagnostic_msgs/msg/DiagnosticArray``.
 
         Each status is ``{"name", "level" (0 OK, 1 WARN, 2 ERROR, 3 STALE), "message",
-        "hardware_id" (optional), "values" (optional mapping, values turned into str)}``.
+        "hardware_id" (optional), "values" (optional mapping; a str value as it is, any other
+        as JSON text: ``kv_text``)}``.
         """
         ts = get_typestore()
         status_t = ts.types["diagnostic_msgs/msg/DiagnosticStatus"]
@@ -387,12 +388,25 @@ class BagOutputWriter:
                 name=str(s["name"]),
                 message=str(s.get("message", "")),
                 hardware_id=str(s.get("hardware_id", "")),
-                values=[kv_t(key=str(k), value=str(v)) for k, v in dict(s.get("values", {})).items()],
+                values=[kv_t(key=str(k), value=kv_text(v)) for k, v in dict(s.get("values", {})).items()],
             )
             for s in statuses
         ]
         msg = ts.types[DIAGNOSTICS_TYPE](header=_header(stamp_ns, frame_id), status=items)
         self.write_message(topic, msg, log_ns)
+
+
+def kv_text(value: Any) -> str:
+    """Return a diagnostic value as text another program parses: a str as is, else JSON.
+
+    ``str()`` wrote numpy reprs (``[np.float64(-1.78e-06), ...]``) and Python dicts (``{'nonfinite':
+    7}``), which no JSON reader takes; non-finite numbers are ``null``, as in every JSON written.
+    """
+    import json
+
+    from bridge_shadow.jsonvalues import jsonable
+
+    return value if isinstance(value, str) else json.dumps(jsonable(value), allow_nan=False)
 
 
 def _header(stamp_ns: int, frame_id: str) -> Any:
