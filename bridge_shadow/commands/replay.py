@@ -179,6 +179,11 @@ def _summary(js: dict[str, Any]) -> str:
                 "one window before a gap, no heavier than any vehicle: left out, the gap's segment "
                 "weighs any change"
             )
+        elif c["kind"] == "after_gap":
+            how = (
+                "a gap's first window before a drop no heavier than any vehicle (one that left): "
+                "left out, the gap's segment begins after it"
+            )
         elif c["kind"] == "at_end":
             how = (
                 "the data's last window, no heavier than any vehicle: left out, one window cannot "

@@ -173,11 +173,12 @@ def unconfirmed_changes(shadow: Shadow) -> list[ChangeRecord]:
         out.append(_run_record(shadow, r, "run_in_data", significant))
     # runs no vehicle makes that came back (rejected as an excursion) or states held between two
     # steps (left out): reported (a checkpoint written before the kind was kept holds excursions)
-    # (one window before a gap, no heavier than any vehicle, is no likely change: not a warning;
+    # (one window before a gap, or a gap's first window before a drop, no heavier than any vehicle,
+    # is no likely change: not a warning;
     # at the end of the data nothing after it weighs it: a warning)
     for r in shadow.excursions:
         kind = r.get("kind", "excursion")
-        out.append(_run_record(shadow, r, kind, kind != "before_gap"))
+        out.append(_run_record(shadow, r, kind, kind not in ("before_gap", "after_gap")))
     return sorted(out, key=lambda c: c.window)
 
 
@@ -408,6 +409,7 @@ def warnings(shadow: Shadow) -> list[str]:
             "excursion": "a run that came back, heavier than any vehicle on the supports' sum",
             "between_steps": "a state held between two steps, heavier than any vehicle on the supports' sum",
             "before_gap": "one window before a gap, no heavier than any vehicle",
+            "after_gap": "a gap's first window before a drop no heavier than any vehicle",
             "at_end": "the data's last window, no heavier than any vehicle",
         }[c.kind]
         size = ", ".join(
@@ -426,6 +428,8 @@ def warnings(shadow: Shadow) -> list[str]:
             how = f"{windows} until {until}, left out as a moving support's: not in the estimate"
         elif c.kind == "before_gap":
             how = "left out: not in the estimate; the gap's segment weighs any change"
+        elif c.kind == "after_gap":
+            how = "left out as a vehicle's that left: not in the estimate; the gap's segment begins after it"
         elif c.kind == "at_end":
             how = (
                 "left out: not in the estimate; one window cannot tell a vehicle that drove on "

@@ -141,11 +141,14 @@ class ChangeRecord:
             out as ``step_window``, its level not in the estimate, reported) or ``before_gap`` (one
             window before a gap, no heavier than any vehicle: no state of its own, left out as
             ``step_window``, reported but not a warning; the gap's segment weighs any change) or
+            ``after_gap`` (a gap's first window before a drop no heavier than any vehicle: the load
+            of one that stood when the record began and left in its first minute; left out as
+            ``step_window``, reported but not a warning; the gap's segment begins after it) or
             ``at_end`` (the same at the end of the data: left out, reported as a warning, since
             nothing after it can tell a vehicle that drove on from the window a step happened in).
         change_probability: posterior probability that the settlement changed there (NaN for a
-            ``run_in_data``, a ``step``, an ``excursion``, a ``between_steps``, a ``before_gap`` or
-            an ``at_end``, which are not weighed).
+            ``run_in_data``, a ``step``, an ``excursion``, a ``between_steps``, a ``before_gap``,
+            an ``after_gap`` or an ``at_end``, which are not weighed).
         windows: windows since (in its segment).
         size_m: (2,) m, the change if there was one (the segment's data minus the state before).
         covariance_m2: (2, 2) m^2, its covariance.
@@ -153,8 +156,8 @@ class ChangeRecord:
         significant: for a ``run_in_data``: its GLR passed the event threshold, and its jump
             is one against the rate its own windows show (not a drift's progress over a hole:
             ``ChangeDetector._drift_jump``); False for a ``step`` (None otherwise).
-        until_ns: for a ``run_in_data``, an ``excursion``, a ``between_steps``, a ``before_gap`` or
-            an ``at_end``: the end of its last window, ns (None otherwise).
+        until_ns: for a ``run_in_data``, an ``excursion``, a ``between_steps``, a ``before_gap``,
+            an ``after_gap`` or an ``at_end``: the end of its last window, ns (None otherwise).
         next_ns: for a provisional segment the data left for another state (an event or a further
             possible change after it): that state's start, ns (None when the data end in it).
             ``windows`` are those before it: a change followed minutes later by a small event has

@@ -642,6 +642,16 @@ class Shadow:
                 w0, w1 = fresh[last - 1], fresh[last]  # the difference's two windows
                 cov = self.noise.window_cov(w0.samples) + self.noise.window_cov(w1.samples)
                 self._note_excursion([fresh[last]], y[last] - y[last - 1], cov, "before_gap")
+            if 1 in steps and 0 not in both and last > 1 and 0.0 <= float(np.sum(y[0] - y[1])) <= vehicle:
+                # the gap's first window alone before a step down by no more than a vehicle: the
+                # load of one that stood when the record began and left within its first minute
+                # (the screen reads a load a minute long at least, ``MIN_SIDE_BINS``); no state of
+                # its own, so left out, and the gap's segment begins at the step (a lowering in
+                # that minute is then the gap's change, dated a window early)
+                steps.discard(1)
+                both.add(0)
+                cov = self.noise.window_cov(fresh[0].samples) + self.noise.window_cov(fresh[1].samples)
+                self._note_excursion([fresh[0]], y[0] - y[1], cov, "after_gap")
             held_on = len(fresh) > self.config.warmup_windows  # held past the warm-up: they moved
             ramp = None if steps else self._gradual_change(fresh, y, ks, held_on)
             if ramp is None and not steps and held_on:
@@ -658,11 +668,15 @@ class Shadow:
                 both.update(range(*ramp))
                 steps.add(ramp[1])
         outputs: list[WindowOutput] = []
+        first = 0
         for j, w in enumerate(fresh):
             self.settle()
             if j in both:  # it holds both states: the level of neither (see the docstring)
                 self._leave_out(w)
                 outputs.extend(self._drain())
+                if j == first and j + 1 < len(fresh) and self.filter.current_windows == 0:
+                    self.filter.move_start(fresh[j + 1].k)  # the gap's segment begins with its data
+                first += j == first
                 continue
             if j in steps:
                 outputs.extend(self._close_run(self.detector.close_run()))
@@ -670,7 +684,7 @@ class Shadow:
                 prior = self.config.change_prior_probability
                 self.filter.open_segment(w.k, self._drift_jump(w.k), kind="warmup", change_prior=prior)
                 self.detector.prev = None
-            if j == 0 or j in steps:
+            if j == first or j in steps:
                 w.action = "accept"  # a provisional segment's first window is its data, not judged by it
             else:
                 outputs.extend(self._judge(w))

@@ -171,6 +171,7 @@ def _events(diag: Mapping[str, Any]) -> Status:
             "excursion": "rejected",
             "between_steps": "left out",
             "before_gap": "left out",
+            "after_gap": "left out",
             "at_end": "left out",
         }.get(c["kind"], "used as data")
         how = unweighed if p is None else f"probability {p:.3g}"

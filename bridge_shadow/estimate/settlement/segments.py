@@ -377,6 +377,12 @@ class SegmentChain:
         self._update_current()
         self._prune_outages()
 
+    def move_start(self, k: int) -> None:
+        """Let the current segment, still without a window, begin at window ``k`` (its first left out)."""
+        if self._online.n or not self.starts or k < self.starts[-1]:
+            raise ValueError("only a segment without windows moves its start, and only later")
+        self.starts[-1] = int(k)
+
     def _prune_outages(self) -> None:
         """Keep the outage marks a segment may still start at (the provisional ones' and later)."""
         if not self.outage_starts:
