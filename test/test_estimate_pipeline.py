@@ -74,6 +74,9 @@ def test_resume_from_checkpoint_equals_an_uninterrupted_run(tmp_path: Path) -> N
     for c, ch in enumerate(CHANNELS):
         f = data.forces[ch]
         f.force_n[f.stamp_ns >= T0 + 40 * 60 * S] += placeholder_surrogate().A[c] @ np.array([-1e-3, -1e-3])
+    # and a dead north cell over minutes 20-23, so that rejected windows come before the checkpoint
+    north = data.forces["frc_02"]
+    north.force_n[(north.stamp_ns >= T0 + 20 * 60 * S) & (north.stamp_ns < T0 + 23 * 60 * S)] = np.nan
     cfg = small_config(
         checkpoint_path=str(tmp_path / "shadow.npz"), checkpoint_period_s=300.0, refit_windows=7
     )
@@ -89,6 +92,8 @@ def test_resume_from_checkpoint_equals_an_uninterrupted_run(tmp_path: Path) -> N
         np.testing.assert_allclose(res.mean_m, whole.mean_m, rtol=1e-10, atol=0.0)
         np.testing.assert_allclose(res.covariance_m2, whole.covariance_m2, rtol=1e-10, atol=0.0)
         assert b.rejected == whole.rejected and len(res.events) == 1
+        # every rejected window, those before the checkpoint too (the shadow's log, not the outputs)
+        assert res.rejected_windows() == whole.rejected_windows() != []
         assert res.events[0].window == whole.events[0].window
         assert b.spline_info()["frc_01"]["edf"] == pytest.approx(whole.spline["frc_01"]["edf"], rel=1e-10)
 

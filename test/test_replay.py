@@ -297,3 +297,27 @@ def test_an_interrupt_while_drawing_leaves_the_plot_folder_as_it_was(
     monkeypatch.setattr(plots, "_png", png)
     plots.write_plots(folder, result, shadow)  # and uninterrupted, every one of them new
     assert all(p.read_bytes() != before[p.name] for p in folder.iterdir())
+
+
+def test_every_rejected_window_is_listed_with_or_without_plots(
+    root: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``rejected_windows`` lists every window not used, as the README says, whatever is kept for plots.
+
+    The replay streams its window outputs to ``--out`` and keeps none unless ``--plots`` asks for
+    a (decimated) history: the list came from that history and was empty without ``--plots``.
+    """
+    from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
+
+    bag = str(root / "bags" / "baseline_1d")
+    plain = _replay_json(capsys, bag)
+    plotted = _replay_json(capsys, bag, "--plots", str(tmp_path / "plots"))
+    listed = plain["rejected_windows"]
+    assert listed == plotted["rejected_windows"]
+    assert len(listed) == plain["windows"]["closed"] - plain["windows"]["updates"] > 0
+    by_reason: dict[str, int] = {}
+    for w in listed:
+        by_reason[w["reason"]] = by_reason.get(w["reason"], 0) + 1
+    windows_rejected = {k: v for k, v in plain["rejected"].items() if k not in MESSAGE_REASONS and v}
+    assert by_reason == windows_rejected
+    assert [w["window"] for w in listed] == sorted({w["window"] for w in listed})

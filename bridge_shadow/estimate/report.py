@@ -658,4 +658,20 @@ def replay_result(shadow: Shadow, outputs: list[WindowOutput], messages: int, se
         state=posterior_state(shadow),
         gaps=gaps(shadow),
         traffic=traffic_info(shadow),
+        rejected_list=rejected_list(shadow),
     )
+
+
+def rejected_list(shadow: Shadow) -> list[dict[str, Any]]:
+    """Every window the shadow rejected, in order: start time, window and reason (``rejected_runs``).
+
+    From the shadow's own log, so that the replay JSON lists every one whatever window outputs
+    the caller kept (a replay streams them to ``--out`` and keeps none, or a decimated history
+    for ``--plots``; it listed none, or a sample).
+    """
+    w = shadow._w_ns
+    return [
+        {"time_ns": k * w, "time": iso_utc(k * w), "window": k, "reason": reason}
+        for first, last, reason in shadow.rejected_runs
+        for k in range(first, last + 1)
+    ]

@@ -247,6 +247,8 @@ class ReplayResult:
     state: dict[str, Any] = field(default_factory=dict)
     gaps: list[dict[str, Any]] = field(default_factory=list)
     traffic: dict[str, Any] = field(default_factory=dict)
+    #: every rejected window (time, window, reason) from the shadow's own log; None: from ``outputs``
+    rejected_list: list[dict[str, Any]] | None = None
 
     @property
     def messages_per_s(self) -> float:
@@ -269,7 +271,7 @@ class ReplayResult:
 
     def rejected_windows(self) -> list[dict[str, Any]]:
         """Every window that closed with data but did not join the estimate: its time and reason."""
-        return rejected_windows(self.outputs)
+        return rejected_windows(self.outputs) if self.rejected_list is None else list(self.rejected_list)
 
     def to_json(self) -> dict[str, Any]:
         """Return the replay JSON object (contract keys first)."""

@@ -222,6 +222,9 @@ class Shadow:
         self.unconfirmed_runs: list[dict[str, Any]] = []  # runs at event_max_pending, used as data
         self.excursions: list[dict[str, Any]] = []  # runs no vehicle makes that came back: rejected
         self.recent_rejected: deque[tuple[int, str]] = deque(maxlen=RECENT_REJECTED)  # (window, reason)
+        #: every rejected window, as runs ``[first, last, reason]`` of consecutive windows of one
+        #: reason (the replay JSON's ``rejected_windows``, whatever outputs a caller keeps)
+        self.rejected_runs: list[list[Any]] = []
         self.confirmed_at: dict[int, int] = {}  # provisional segment start -> window that confirmed it
         self.gaps: list[dict[str, int]] = []  # {"from_k", "to_k", "segment"}: gaps in usable windows
         self._gap_k = max(1, round(config.gap_s / config.window_s))  # missing windows that make a gap
@@ -953,6 +956,15 @@ class Shadow:
         else:
             self.unconfirmed_runs.append({"window": run[0].k, "windows": len(run), **record})
 
+    def _note_rejected(self, k: int, reason: str) -> None:
+        """Note window ``k`` as rejected for ``reason`` (``recent_rejected``, ``rejected_runs``)."""
+        self.recent_rejected.append((k, reason))
+        runs = self.rejected_runs
+        if runs and runs[-1][2] == reason and runs[-1][1] + 1 == k:
+            runs[-1][1] = k
+        else:
+            runs.append([k, k, reason])
+
     def _drain(self) -> list[WindowOutput]:
         """Apply the decided windows at the head of the queue in order; return their outputs."""
         outputs = []
@@ -961,11 +973,11 @@ class Shadow:
             w = q.popleft()
             action = w.action
             if action == "invalid":
-                self.recent_rejected.append((w.k, w.reason))
+                self._note_rejected(w.k, w.reason)
                 outputs.append(self._output(w, np.full(2, np.nan), False, w.reason))
             elif action == "reject":
                 self.counts["outlier"] += 1
-                self.recent_rejected.append((w.k, "outlier"))
+                self._note_rejected(w.k, "outlier")
                 outputs.append(self._output(w, np.full(2, np.nan), False, "outlier"))
             elif action == "warm":
                 outputs.append(self._accept(w, add_rows=False))

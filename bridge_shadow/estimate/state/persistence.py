@@ -178,6 +178,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "unconfirmed_runs": json.dumps(shadow.unconfirmed_runs),
         "excursions": json.dumps(shadow.excursions),
         "recent_rejected": json.dumps(list(shadow.recent_rejected)),
+        "rejected_runs": json.dumps(shadow.rejected_runs),
         "traffic_windows": json.dumps(shadow.traffic_windows),
         "parked": json.dumps(shadow.parked),
         "silence": json.dumps(shadow.silence.state_dict()),
@@ -326,6 +327,9 @@ def restore_shadow(
     if "excursions" in state:  # checkpoints written before excursions were reported have none
         shadow.excursions = list(json.loads(str(state["excursions"])))
     shadow.recent_rejected.extend((int(k), str(r)) for k, r in json.loads(str(state["recent_rejected"])))
+    if "rejected_runs" in state:  # checkpoints written before every rejected window was kept have none
+        runs = json.loads(str(state["rejected_runs"]))
+        shadow.rejected_runs = [[int(a), int(b), str(r)] for a, b, r in runs]
     shadow.traffic_windows = [[int(v) for v in row] for row in json.loads(str(state["traffic_windows"]))]
     if "parked" in state:  # checkpoints written before vehicles parked at a record's end were cut have none
         shadow.parked = [
