@@ -10,12 +10,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import json
 import os
 import signal
 import sys
 import threading
 import time
 from collections.abc import Iterator, Sequence
+from typing import NoReturn
 
 from bridge_shadow import __version__
 from bridge_shadow.errors import BridgeShadowError
@@ -35,15 +37,27 @@ COMMANDS: dict[str, str] = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """``argparse``'s parser that keeps its last usage error's text (for ``--json``'s error object)."""
+
+    last_error: str = ""
+
+    def error(self, message: str) -> NoReturn:
+        """Keep the message, then report it as argparse does (usage on stderr, exit 2)."""
+        _Parser.last_error = f"{self.prog}: error: {message}"
+        super().error(message)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with every subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="bridge-shadow",
         description=(
             "Digital shadow of the UniBw Munich two-span test bridge: temperature-compensated "
             "Bayesian (Kalman) estimate of the two central-support settlements from the FRC-01/02 "
             "load cells, over a surrogate from the bundled FE solver, with sim-to-real gap "
-            "diagnosis. Machine output (--json) is SI: N, m, s, C."
+            "diagnosis. Machine output (--json) is SI: N, m, s, C; with --json a failed command "
+            'prints {"error": TEXT, "exit_code": CODE} on stdout too.'
         ),
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -108,6 +122,17 @@ def _quiet_broken_pipe() -> int:
     return EXIT_BROKEN_PIPE
 
 
+def _json_error(wanted: bool, text: str, code: int) -> None:
+    """With ``--json``, say a failure on stdout too: the one JSON object a caller parses there.
+
+    The contract's "with --json, exactly one JSON object on stdout" held only for success: a
+    caller's ``json.loads`` of stdout met an empty string on every error.
+    """
+    if wanted:
+        print(json.dumps({"error": text, "exit_code": code}))
+        sys.stdout.flush()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the process exit code.
 
@@ -116,13 +141,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     after the interrupted writers removed their temporary files.
     """
     started = time.perf_counter()  # end-to-end rates count from here (replay's messages_per_s)
+    words = list(sys.argv[1:] if argv is None else argv)
+    wants_json = "--json" in words[: words.index("--") if "--" in words else len(words)]
     try:
         parser = build_parser()
         try:
             args, extra = parser.parse_known_args(argv)
             if extra:  # said by the command's parser: its usage, not the top level's
                 args._parser.error(f"unrecognized arguments: {' '.join(extra)}")
-        except SystemExit:  # --help, --version, a usage error: their text must reach the pipe now
+        except SystemExit as stop:  # --help, --version, a usage error: their text must reach the pipe now
+            if stop.code not in (0, None):
+                _json_error(wants_json, _Parser.last_error or "usage error", int(stop.code))
             sys.stdout.flush()
             raise
         args.started = started
@@ -134,12 +163,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         except BridgeShadowError as err:
             text = " ".join(str(err).split())  # one line, whatever a library put in the message
             print(f"bridge-shadow {args.command}: error: {text}", file=sys.stderr)
+            _json_error(wants_json, text, 2)
             return 2
         except Terminated:
             print(f"bridge-shadow {args.command}: terminated (SIGTERM)", file=sys.stderr)
+            _json_error(wants_json, "terminated (SIGTERM)", EXIT_TERMINATED)
             return EXIT_TERMINATED
         except KeyboardInterrupt:
             print(f"bridge-shadow {args.command}: interrupted", file=sys.stderr)
+            _json_error(wants_json, "interrupted", 130)
             return 130
     except BrokenPipeError:
         return _quiet_broken_pipe()
