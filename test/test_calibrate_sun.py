@@ -222,3 +222,11 @@ def test_cli_check_with_the_sun_on_the_real_pair(munich_data, root, capsys, tmp_
     bare.write_text(yaml.safe_dump(doc))
     assert main(["calibrate", "--check", str(bare), "--baseline-change", "sun"]) == 2
     assert "no thermal vertical_gradient" in capsys.readouterr().err
+
+
+def test_a_record_levels_json_gives_the_sun_lags_in_seconds() -> None:
+    """SI at the machine interface: the lags the sun covariate was read at went out in hours."""
+    got = _level(T0, (0.3,) * len(SUN_LAGS_H), 0.5).to_dict()
+    assert "sun_lags_h" not in got
+    assert got["sun_lags_s"] == pytest.approx([3600.0 * h for h in SUN_LAGS_H], rel=1e-12)
+    assert len(got["sun_lags_s"]) == len(got["sun_clear_sky"])

@@ -145,7 +145,7 @@ def test_single_channel_drift_and_settlement_drift_are_reported_together():
     assert s["best"] == "sensor_drift"
     drift = next(c for c in s["candidates"] if c["effect"] == "sensor_drift")
     assert drift["params"]["channel"] == "north"
-    assert drift["params"]["d [N/day]"] == pytest.approx(300.0, rel=0.15)
+    assert drift["params"]["d [N/s]"] == pytest.approx(300.0 / 86400.0, rel=0.15)  # 300 N a day, in SI
 
 
 def test_without_the_shadow_the_posterior_says_it_was_not_computed():

@@ -92,25 +92,48 @@ def test_withheld_effect_is_found(name: str, diagnoses: dict[str, dict[str, Any]
     assert cand["significant"]
 
 
+#: The JSON is SI; the vocabulary's sensor drift is per day (``synth --effect sensor_drift=300``).
+PER_DAY = 1.0 / 86400.0
+
+
 @pytest.mark.parametrize(
-    ("name", "key", "rel"),
+    ("name", "key", "rel", "to_json"),
     [
-        ("settlement_offset", "x_south [m]", 0.05),
-        ("settlement_step", "dx_south [m]", 0.05),
-        ("sensor_drift", "d [N/day]", 0.2),
-        ("uniform_temperature", "c [N/K]", 0.1),
-        ("vertical_gradient", "g [K]", 0.25),
-        ("support_spring", "k_south [N/m]", 0.02),
+        ("settlement_offset", "x_south [m]", 0.05, 1.0),
+        ("settlement_step", "dx_south [m]", 0.05, 1.0),
+        ("sensor_drift", "d [N/s]", 0.2, PER_DAY),
+        ("uniform_temperature", "c [N/K]", 0.1, 1.0),
+        ("vertical_gradient", "g [K]", 0.25, 1.0),
+        ("support_spring", "k_south [N/m]", 0.02, 1.0),
     ],
 )
-def test_fitted_magnitude_matches_the_withheld_one(name: str, key: str, rel: float, diagnoses):
+def test_fitted_magnitude_matches_the_withheld_one(
+    name: str, key: str, rel: float, to_json: float, diagnoses
+):
     cand = next(c for c in diagnoses[name]["candidates"] if c["effect"] == name)
-    assert cand["params"][key] == pytest.approx(EFFECTS[name].realistic, rel=rel)
+    assert cand["params"][key] == pytest.approx(EFFECTS[name].realistic * to_json, rel=rel)
 
 
 def test_thermal_lag_time_constant_is_recovered(diagnoses):
     cand = next(c for c in diagnoses["thermal_lag"]["candidates"] if c["effect"] == "thermal_lag")
-    assert cand["params"]["tau [h]"] == pytest.approx(EFFECTS["thermal_lag"].realistic, abs=0.6)
+    # the vocabulary's lag is in hours, the JSON's in seconds
+    assert cand["params"]["tau [s]"] == pytest.approx(
+        3600.0 * EFFECTS["thermal_lag"].realistic, abs=0.6 * 3600.0
+    )
+    assert cand["magnitude"]["unit"] == "s"
+
+
+def test_the_json_has_no_unit_but_si(diagnoses):
+    """The contract: SI at every machine interface (``tau [h]``, ``v_south [m/day]`` went out before)."""
+    import json
+    import re
+
+    for name, js in diagnoses.items():
+        text = json.dumps(js)
+        assert not re.search(r"\[(h|m/day|N/day|kN|mm)\]", text), name
+        units = re.findall(r'"unit": "([^"]*)"', text)
+        assert set(units) <= {"m", "m/s", "N/s", "N/K", "K", "s", "1", "N/m", "m/N", "N"}, (name, units)
+        assert "hours_between" not in text
 
 
 def test_where_points_at_the_north_channel_for_a_north_sensor_drift(diagnoses):
@@ -134,9 +157,16 @@ def _within(name: str, params: dict[str, Any], bounds: list[list[float]] | None 
         lo = plausible_range(name)[0]
         ks = (params["k_south [N/m]"], params["k_north [N/m]"])
         return all(k is None or k >= lo * (1 - 1e-6) for k in ks)
+    from bridge_shadow.gap.si import si_unit_value
+
     cand = next(c for c in CANDIDATES if c.name == name)
-    rng = bounds or [list(plausible_range(name))] * len(cand.params)
-    pairs = zip(cand.params, rng, strict=True)
+    keys, rng = [], []
+    for k in cand.params:  # the fit's names and range in the vocabulary's units, the JSON's in SI
+        label, _, unit = k.partition(" [")
+        si, lo_hi = si_unit_value(unit.rstrip("]"), list(plausible_range(name)))
+        keys.append(f"{label} [{si}]")
+        rng.append(lo_hi)
+    pairs = zip(keys, bounds or rng, strict=True)
     return all(lo - 1e-9 * abs(lo) <= params[k] <= hi + 1e-9 * abs(hi) for k, (lo, hi) in pairs)
 
 

@@ -57,7 +57,7 @@ def test_reference_record_first_sample_si_and_utc(munich_data: Path) -> None:
     assert f1.force_n[0] == pytest.approx(2.6023853125e5, rel=1e-15)
     assert f2.force_n[0] == pytest.approx(2.20779578125e5, rel=1e-15)
     assert f1.stamp_ns[0] == _ns("2022-03-07T15:35:15.601")  # 16:35:15.601 CET = UTC+1
-    assert report.utc_offsets_h == [1.0] and report.date_fixes == []
+    assert report.utc_offsets_s == [3600.0] and report.date_fixes == []
     rows = _csv_rows(_only_member(munich_data / REF))
     assert len(f1) == len(f2) == len(rows) == report.rows["frc_01"]
     np.testing.assert_allclose(f2.force_n, [float(r[2]) * 1e3 for r in rows], rtol=1e-15)
@@ -81,7 +81,7 @@ def test_april_force_date_swap_fixed_from_file_name(munich_data: Path) -> None:
     )
     assert data.forces["frc_01"].stamp_ns[0] == _ns("2022-04-11T06:36:24.897")  # 08:36 CEST = UTC+2
     assert data.forces["frc_01"].force_n[0] == pytest.approx(233.92928125e3, rel=1e-15)
-    assert report.utc_offsets_h == [2.0]
+    assert report.utc_offsets_s == [7200.0]
     np.testing.assert_allclose(
         np.mean([s.force_n[:1000] for s in data.forces.values()], axis=1), 234e3, rtol=0.01
     )

@@ -219,8 +219,9 @@ def test_the_gap_texts_fitted_values_are_in_mm_and_kn() -> None:
     from bridge_shadow.commands.gap import _fmt_params
 
     params = {
-        "v_south [m/day]": -2.002e-4,
-        "d [N/day]": -2305.0,
+        "v_south [m/s]": -2.002e-4 / 86400.0,
+        "d [N/s]": -2305.0 / 86400.0,
+        "tau [s]": 3.0 * 3600.0,
         "k_south [N/m]": 1.83e6,
         "k_north [N/m]": None,
         "g [K]": -3.0,
@@ -228,7 +229,7 @@ def test_the_gap_texts_fitted_values_are_in_mm_and_kn() -> None:
         "dx_south [m]": -4.357e-4,
     }
     assert _fmt_params(params) == (
-        "v_south -0.2002 mm/day, d -2.305 kN/day, k_south 1.83 kN/mm, k_north rigid, g -3 K, r 0.5, "
+        "v_south -0.2002 mm/day, d -2.305 kN/day, tau 3 h, k_south 1.83 kN/mm, k_north rigid, g -3 K, r 0.5, "
         "dx_south -0.4357 mm"
     )
 

@@ -59,6 +59,7 @@ def test_cli_writes_bag_and_truth_that_read_back(
     assert main(argv) == 0
     summary = json.loads(capsys.readouterr().out)  # exactly one JSON object
     assert summary["storage"] == storage and summary["compressed"] is compress
+    assert summary["duration_s"] == pytest.approx(0.5 * 86400.0, rel=1e-12) and "days" not in summary  # SI
     expected, _ = simulate(
         days=0.5, rate_hz=0.2, seed=9, effects={"settlement_offset": 7e-4, "traffic": 2.5e4}
     )

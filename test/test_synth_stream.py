@@ -83,6 +83,8 @@ def test_synth_archive_command(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert main(argv) == 0
     js = json.loads(capsys.readouterr().out)
     assert [b["bridge"] for b in js["bridges"]] == ["bridge_00", "bridge_01"]
+    assert js["duration_s"] == pytest.approx(1.5 * 86400.0, rel=1e-12)  # SI, --days for people
+    assert js["bag_duration_s"] == pytest.approx(86400.0, rel=1e-12)  # one bag a day by default
     assert sorted(p.name for p in (out / "bridge_01").iterdir()) == ["day_0000", "day_0001", "truth.yaml"]
     day0 = read_monitoring(out / "bridge_00" / "day_0000")
     day1 = read_monitoring(out / "bridge_00" / "day_0001")

@@ -180,7 +180,7 @@ class RecordLevel:
             "car_intervals_s": [list(iv) for iv in self.car.intervals_s],
             "plateaus": [p.to_dict() for p in self.car.plateaus],
             "sun_clear_sky": list(self.sun),
-            "sun_lags_h": list(SUN_LAGS_H),
+            "sun_lags_s": [3600.0 * h for h in SUN_LAGS_H],  # SI (the JSON's); the fit's lags in hours
             "clearness": None if np.isnan(self.clearness) else self.clearness,
         }
 

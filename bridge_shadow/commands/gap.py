@@ -166,13 +166,13 @@ def _mm(x: list[float]) -> str:
 #: A fitted parameter's SI unit (its JSON key's ``[unit]``) -> the text's unit and factor.
 _PEOPLE_UNITS: dict[str, tuple[str, float]] = {
     "m": ("mm", 1e3),
-    "m/day": ("mm/day", 1e3),
-    "N/day": ("kN/day", 1e-3),
+    "m/s": ("mm/day", 86400e3),
+    "N/s": ("kN/day", 86.4),
     "N/K": ("kN/K", 1e-3),
     "N/m": ("kN/mm", 1e-6),
     "m/N": ("mm/kN", 1e6),
     "K": ("K", 1.0),
-    "h": ("h", 1.0),
+    "s": ("h", 1.0 / 3600.0),
 }
 
 
@@ -221,7 +221,7 @@ def _levels_lines(levels: dict | None) -> list[str]:
         lines.append(
             f"  {p['name']}: dR = {p['dR_n'][0] / 1e3:+.2f} +- {p['dR_sd_n'][0] / 1e3:.2f} / "
             f"{p['dR_n'][1] / 1e3:+.2f} +- {p['dR_sd_n'][1] / 1e3:.2f} kN over "
-            f"{p['hours_between']:.1f} h; {what}"
+            f"{p['seconds_between'] / 3600.0:.1f} h; {what}"
         )
         if p.get("sun"):
             mean_k, sd_k = p["sun"]["sun_change_k"]
@@ -268,7 +268,8 @@ def _human(summary: dict) -> str:
             soft = e.get("size_if_model_softer")
             if soft:
                 k = soft["with_support_springs_n_per_m"]
-                xs, xn = (1e3 * v for v in soft["value"])
+                per_day = 86400.0 if soft["unit"] == "m/s" else 1.0
+                xs, xn = (1e3 * per_day * v for v in soft["value"])
                 unit = "mm" if soft["unit"] == "m" else "mm/day"
                 lines.append(
                     f"    its size depends on A: with support springs of {1e-6 * k:.3g} kN/mm (the soft end "

@@ -93,6 +93,6 @@ def run(args: argparse.Namespace) -> int:
             total = source["rows_read"] + source["rows_rejected"]
             name = source["file"] + (f"!{source['member']}" if source["member"] else "")
             lines.append(f"    {source['rows_rejected']} of {total} rows in {name}")
-    lines.append(f"  UTC offsets (h): {report.utc_offsets_h}")
+    lines.append(f"  UTC offsets (h): {[o / 3600.0 for o in report.utc_offsets_s]}")
     sys.stdout.write("\n".join(lines) + "\n")
     return 0

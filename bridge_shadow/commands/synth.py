@@ -246,7 +246,7 @@ def run(args: argparse.Namespace) -> int:
         "bytes": _bag_bytes(out),
         "truth": str(truth_file),
         "seed": truth["seed"],
-        "days": truth["days"],
+        "duration_s": 86400.0 * truth["days"],  # SI (the JSON's); --days for people
         "rate_hz": truth["rate_hz"],
         "temp_rate_hz": truth["temp_rate_hz"],
         "start": truth["start"],
@@ -326,8 +326,8 @@ def _archive(args: argparse.Namespace, world: dict[str, Any]) -> int:
     summary = {
         "archive": str(folder),
         "bridges": bridges,
-        "days": args.days,
-        "bag_days": args.bag_days,
+        "duration_s": 86400.0 * args.days,  # SI (the JSON's); --days, --bag-days for people
+        "bag_duration_s": 86400.0 * args.bag_days,
         "rate_hz": args.rate,
         "storage": args.storage,
         "seconds": time.perf_counter() - t0,

@@ -81,8 +81,8 @@ def settlement_if_softer(name: str, params: dict[str, Any], s: Surrogate) -> dic
         x = np.array([params["dx_south [m]"], params["dx_north [m]"]])
         unit = "m"
     elif name == "settlement_drift":
-        x = np.array([params["v_south [m/day]"], params["v_north [m/day]"]])
-        unit = "m/day"
+        x = np.array([params["v_south [m/s]"], params["v_north [m/s]"]])
+        unit = "m/s"
     else:
         return None
     k_low = plausible_range("support_spring")[0]

@@ -17,6 +17,7 @@ from bridge_shadow.effects import EFFECTS, plausible_range
 from bridge_shadow.engine import Mapper
 from bridge_shadow.gap.candidates import CANDIDATES, Candidate, Context, spring_bearings
 from bridge_shadow.gap.fit import CvResult, cross_validate, fit_best
+from bridge_shadow.gap.si import si_params
 from bridge_shadow.gap.spring import SpringModel, best_spring, cross_validate_spring
 
 __all__ = ["BOUND_RTOL", "BY_NAME", "SPRING_SEARCH_SHARE", "Fitter", "candidate_params", "demean_records"]
@@ -117,11 +118,11 @@ class Fitter:
         return x if self.record is None else demean_records(x, self.record, self.valid)
 
     def params(self, name: str, beta: np.ndarray, grid_index: int) -> dict[str, Any]:
-        """Fitted parameters by name (SI)."""
-        return candidate_params(BY_NAME[name], beta, self.grids[name][grid_index])
+        """Fitted parameters by name (SI: ``gap.si``)."""
+        return si_params(candidate_params(BY_NAME[name], beta, self.grids[name][grid_index]))
 
     def magnitude(self, name: str, beta: np.ndarray, grid_index: int) -> float | None:
-        """Return the fitted value in the vocabulary's magnitude unit (None when not finite)."""
+        """Return the fitted value in the vocabulary's magnitude unit (None: not finite; JSON: ``gap.si``)."""
         c = BY_NAME[name]
         if c.magnitude is None:
             return None

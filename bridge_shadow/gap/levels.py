@@ -149,7 +149,7 @@ class LevelPair:
             "imposed_sd_m": self.imposed_sd_m.tolist() if self.imposed else None,
             "dR_n": c.dR_n.tolist(),
             "dR_sd_n": c.sd_n.tolist(),
-            "hours_between": c.dt_s / 3600.0,
+            "seconds_between": c.dt_s,
             "air_temp_change_k": c.air_temp_change_k,
             "baseline_change": c.baseline_change,
             "sun": c.sun,

@@ -213,8 +213,8 @@ def _levels_markdown(levels: dict[str, Any] | None) -> list[str]:
             imposed = f"{1e3 * imp[0]:+.1f} / {1e3 * imp[1]:+.1f}"
         lines.append(
             f"| {p['name']} | {p['dR_n'][0] / 1e3:+.2f} +- {p['dR_sd_n'][0] / 1e3:.2f} | "
-            f"{p['dR_n'][1] / 1e3:+.2f} +- {p['dR_sd_n'][1] / 1e3:.2f} | {p['hours_between']:.1f} | "
-            f"{imposed} |"
+            f"{p['dR_n'][1] / 1e3:+.2f} +- {p['dR_sd_n'][1] / 1e3:.2f} | "
+            f"{p['seconds_between'] / 3600.0:.1f} | {imposed} |"
         )
     imp = levels.get("imposed")
     if imp:

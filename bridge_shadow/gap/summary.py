@@ -21,6 +21,7 @@ from bridge_shadow.gap.fit import CvResult
 from bridge_shadow.gap.fitter import Fitter
 from bridge_shadow.gap.rank import Named, Ranking, Selection, beats, collinearity
 from bridge_shadow.gap.residual import Residual
+from bridge_shadow.gap.si import si_unit_value
 from bridge_shadow.gap.where import where
 from bridge_shadow.model.surrogate_file import Surrogate
 
@@ -57,10 +58,7 @@ def candidate_json(
         "significant": bool(plausible and beats(r.mse_gain, thr)),
         "plausible": plausible,
         "params": fitter.params(c.name, r.beta, r.grid_index),
-        "magnitude": {
-            "value": fitter.magnitude(c.name, r.beta, r.grid_index),
-            "unit": "h" if c.name == "thermal_lag" else EFFECTS[c.name].unit,
-        },
+        "magnitude": _magnitude(c, fitter.magnitude(c.name, r.beta, r.grid_index)),
         "partial_effect": {
             "given": given,
             "heldout_gain": rk.partial[c.name],
@@ -71,10 +69,19 @@ def candidate_json(
     if c.nonlinear:
         entry["plausible_range"] = list(plausible_range(c.name))
     else:
-        entry["plausible_range"] = [list(b) for b in c.plausible_bounds(fitter.ctx)]
+        units = [name.partition(" [")[2].rstrip("]") for name in c.params]
+        entry["plausible_range"] = [
+            si_unit_value(u, list(b))[1] for u, b in zip(units, c.plausible_bounds(fitter.ctx), strict=True)
+        ]
     if why is not None:
         entry["rejected"] = why
     return entry
+
+
+def _magnitude(c: Candidate, value: float | None) -> dict[str, Any]:
+    """Return the magnitude's JSON (SI: ``gap.si``; a lag's is its time constant, in hours in the fit)."""
+    unit, si_value = si_unit_value("h" if c.name == "thermal_lag" else EFFECTS[c.name].unit, value)
+    return {"value": si_value, "unit": unit}
 
 
 def named_json(

@@ -71,7 +71,7 @@ class ImportReport:
     non_finite: dict[str, int] = field(default_factory=dict)
     rejected: list[dict[str, Any]] = field(default_factory=list)
     date_fixes: list[dict[str, str]] = field(default_factory=list)
-    utc_offsets_h: list[float] = field(default_factory=list)
+    utc_offsets_s: list[float] = field(default_factory=list)
     dst_ambiguous: int = 0
 
     def as_dict(self) -> dict[str, Any]:
@@ -90,7 +90,7 @@ class ImportReport:
                 "examples": self.rejected[:_MAX_EXAMPLES],
             },
             "date_fix": self.date_fixes,
-            "utc_offsets_h": self.utc_offsets_h,
+            "utc_offsets_s": self.utc_offsets_s,
             "dst_ambiguous_samples": self.dst_ambiguous,
         }
 
@@ -488,7 +488,7 @@ def import_csv(
     }
     if not any(report.rows.values()):
         raise InputError("no data rows in " + ", ".join(str(f) for f in files))
-    report.utc_offsets_h = sorted(o / 3600 for o in offsets)
+    report.utc_offsets_s = sorted(float(o) for o in offsets)
     forces = {ch: ForceSeries(*series[ch], FORCE_FRAMES[ch]) for ch in CHANNELS}
     temp = TemperatureSeries(
         *series[TEMPERATURE], frame_id=np.full(len(series[TEMPERATURE][0]), TEMPERATURE_FRAME)

@@ -23,7 +23,9 @@ TRUTH_FILE = "truth.yaml"
 _HEADER = (
     "# Ground truth of a synthetic bag written by `bridge-shadow synth` (bridge_shadow.twin).\n"
     "# For scoring only: nothing that estimates or diagnoses may read this file.\n"
-    "# Units: SI (m, N, s, C, K); settlements positive upward [south, north].\n"
+    "# Units: SI (m, N, s, C, K) where a key names none; `days`, the twin settings whose names end in _h,\n"
+    "# _per_day or _per_hour, and the effects (their units in `effect_units`, the vocabulary of\n"
+    "# `synth --effect`) are in the units their names give. Settlements positive upward [south, north].\n"
 )
 
 
