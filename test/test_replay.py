@@ -39,6 +39,14 @@ def test_replay_json_outputs_and_plots(
     data_part = cov - load_surrogate().model_covariance(mean)
     assert np.all(np.sqrt(np.diag(data_part)) < 0.2 * prior_sd)
     assert js["messages"]["used"] + js["messages"]["rejected"] == js["messages"]["total"]
+    # the reasons apart: messages' add up to the rejected messages, windows' to the windows not used
+    assert sum(js["messages"]["rejected_by_reason"].values()) == js["messages"]["rejected"]
+    windows = js["windows"]
+    assert sum(windows["rejected_by_reason"].values()) == windows["closed"] - windows["updates"]
+    both = {**js["messages"]["rejected_by_reason"], **windows["rejected_by_reason"]}
+    assert both == js["rejected"] and len(both) == len(js["messages"]["rejected_by_reason"]) + len(
+        windows["rejected_by_reason"]
+    )
     assert js["messages_per_s"] > 0 and js["windows"]["updates"] > 1000
     # end to end (bag read, start-up) is slower than the pipeline alone
     assert js["seconds"] > js["pipeline_seconds"] > 0 and js["pipeline_messages_per_s"] > js["messages_per_s"]

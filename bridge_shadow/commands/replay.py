@@ -410,6 +410,7 @@ def _this_run(js: dict[str, Any], before: dict[str, Any]) -> None:
     ``resumed`` keeps what the checkpoint held.
     """
     from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
+    from bridge_shadow.estimate.result import split_rejected
 
     msgs = js["messages"]
     for topic, n in before["used"].items():
@@ -418,6 +419,7 @@ def _this_run(js: dict[str, Any], before: dict[str, Any]) -> None:
     for reason, n in before["rejected"].items():
         js["rejected"][reason] = js["rejected"].get(reason, 0) - n
     msgs["rejected"] = int(sum(v for k, v in js["rejected"].items() if k in MESSAGE_REASONS))
+    msgs["rejected_by_reason"], js["windows"]["rejected_by_reason"] = split_rejected(js["rejected"])
     for key in ("uncompensated", "stale_temperature"):
         js["windows"][key] = js["windows"].get(key, 0) - before.get(key, 0)
     for key, name in (("closed", "windows"), ("updates", "updates")):

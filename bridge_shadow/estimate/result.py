@@ -11,7 +11,14 @@ from bridge_shadow.contract import SUPPORTS
 from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
 from bridge_shadow.timefmt import iso_utc
 
-__all__ = ["ChangeRecord", "EventRecord", "ReplayResult", "WindowOutput", "rejected_windows"]
+__all__ = [
+    "ChangeRecord",
+    "EventRecord",
+    "ReplayResult",
+    "WindowOutput",
+    "rejected_windows",
+    "split_rejected",
+]
 
 
 @dataclass
@@ -211,6 +218,18 @@ class ChangeRecord:
         }
 
 
+def split_rejected(rejected: dict[str, int]) -> tuple[dict[str, int], dict[str, int]]:
+    """Split the counts by reason into messages' (``MESSAGE_REASONS``) and windows' (the rest).
+
+    The JSON's ``rejected`` holds both, one count per reason (a message reason counts messages,
+    a window reason windows); a caller that summed it counted more rejected messages than were
+    read. ``messages.rejected_by_reason`` and ``windows.rejected_by_reason`` say which is which.
+    """
+    messages = {k: int(v) for k, v in rejected.items() if k in MESSAGE_REASONS}
+    windows = {k: int(v) for k, v in rejected.items() if k not in MESSAGE_REASONS}
+    return messages, windows
+
+
 def rejected_windows(outputs: list[WindowOutput]) -> list[dict[str, Any]]:
     """Return the windows among ``outputs`` that did not join the estimate: time (start) and reason."""
     out = []
@@ -288,6 +307,7 @@ class ReplayResult:
                 "used": int(sum(self.used.values())),
                 "used_by_topic": dict(self.used),
                 "rejected": int(sum(v for k, v in self.rejected.items() if k in MESSAGE_REASONS)),
+                "rejected_by_reason": split_rejected(self.rejected)[0],
             },
             "rejected": dict(self.rejected),
             "messages_per_s": self.messages_per_s,
@@ -297,6 +317,7 @@ class ReplayResult:
                 "updates": self.updates,
                 "uncompensated": self.uncompensated_windows,
                 "stale_temperature": self.stale_temperature_windows,
+                "rejected_by_reason": split_rejected(self.rejected)[1],
             },
             "events": [e.to_json() for e in self.events],
             "unconfirmed_changes": [c.to_json() for c in self.changes],

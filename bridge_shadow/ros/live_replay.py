@@ -60,7 +60,7 @@ from bridge_shadow.contract import (
 )
 from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.estimate.parameters.specs import YEAR_S
-from bridge_shadow.estimate.result import rejected_windows
+from bridge_shadow.estimate.result import rejected_windows, split_rejected
 from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
 from bridge_shadow.ros.node import (
@@ -549,6 +549,7 @@ def run_live(
             "used": int(sum(used.values())),
             "used_by_topic": used,
             "rejected": total - int(sum(used.values())) - int(counters["malformed"]),
+            "rejected_by_reason": split_rejected(report["rejected"])[0],
         },
         "rejected": report["rejected"],
         "messages_per_s": total / seconds if seconds > 0 else float("inf"),
@@ -558,6 +559,7 @@ def run_live(
             "updates": report["windows"]["updates"],
             "uncompensated": report["windows"]["uncompensated"],
             "stale_temperature": report["windows"].get("stale_temperature", 0),
+            "rejected_by_reason": split_rejected(report["rejected"])[1],
         },
         "events": report["events"],
         "unconfirmed_changes": report["unconfirmed_changes"],
