@@ -69,6 +69,12 @@ def test_text_and_report_say_what_each_number_is(demo):
     assert "vertical_gradient" in after and "added to the model" in after
     mm = [round(1e3 * v, 3) for v in gap["posterior"]["after"]["mean_m"]]
     assert f"{mm[0]:+.3f} / {mm[1]:+.3f}" in after
+    # an effect implausible alone in the rank table and named with the ones before it: the legend
+    # says why both stand (it read as an implausible fit named as present)
+    alone = next(c for c in gap["candidates"] if c["effect"] == "transverse_gradient")
+    named = [gap["best_effect"]["effect"], *(a["effect"] for a in gap["also_present"])]
+    assert not alone["plausible"] and "transverse_gradient" in named
+    assert "fit: each effect alone" in text and "fitted with the ones named before it" in text
     md = (report / "report.md").read_text()
     assert "| before |" in md and "| after |" in md
     for png in ("residual.png", "breakdown.png", "heldout.png"):

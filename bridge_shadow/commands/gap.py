@@ -291,6 +291,10 @@ def _human(summary: dict) -> str:
             f"{100 * r['total']:6.1f}%   {_fmt_params(c['params'])}{note}"
         )
     lines.append("  (* significant: beats the chance level of AR(1) noise with a plausible fit)")
+    lines.append(
+        "  (fit: each effect alone; [implausible]: alone it needs a value outside its plausible range."
+        " A named effect is fitted with the ones named before it, where its value is plausible)"
+    )
     w = summary["where"]
     lines.append("")
     lines.append(
