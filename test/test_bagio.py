@@ -289,6 +289,12 @@ def test_missing_path_and_not_a_bag(tmp_path: Path) -> None:
     (tmp_path / "junk" / "metadata.yaml").write_text("{: not yaml")
     with pytest.raises(CorruptBagError, match="junk"):
         read_monitoring(tmp_path / "junk")
+    # YAML, but no rosbag2 metadata: said so first (it read "corrupt or truncated bag while opening:
+    # Invalid bag metadata: string indices must be integers, not 'str'.")
+    for text in ("junk", "rosbag2_bagfile_information: {version: 9}"):
+        (tmp_path / "junk" / "metadata.yaml").write_text(text)
+        with pytest.raises(CorruptBagError, match=r"junk: metadata\.yaml is not rosbag2 metadata"):
+            read_monitoring(tmp_path / "junk")
 
 
 @pytest.mark.parametrize("storage", STORAGES)

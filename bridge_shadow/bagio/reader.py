@@ -95,6 +95,12 @@ def _translated(path: Path, doing: str) -> Iterator[None]:
         text = str(err).splitlines()[0] if str(err) else type(err).__name__
         if "Unrecognized storage format" in text:
             raise NotABagError(f"{path}: not a rosbag2 bag ({text})") from err
+        if text.startswith(("Invalid bag metadata", "A metadata key is missing")):
+            # rosbags' own words carry Python's ("string indices must be integers"): say what it is
+            raise CorruptBagError(
+                f"{path}: metadata.yaml is not rosbag2 metadata (a mapping under rosbag2_bagfile_information "
+                f"with the bag's files, topics and counts); rosbags: {text}"
+            ) from err
         raise CorruptBagError(f"{path}: corrupt or truncated bag while {doing}: {text}") from err
     except _STORAGE_ERRORS as err:
         text = str(err).splitlines()[0] if str(err) else type(err).__name__
