@@ -329,3 +329,20 @@ def test_every_rejected_window_is_listed_with_or_without_plots(
     windows_rejected = {k: v for k, v in plain["rejected"].items() if k not in MESSAGE_REASONS and v}
     assert by_reason == windows_rejected
     assert [w["window"] for w in listed] == sorted({w["window"] for w in listed})
+
+
+def test_the_outputs_bag_takes_the_storage_asked_for(
+    root: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--storage mcap``: an integrator's MCAP tooling reads the outputs (always sqlite3 before)."""
+    import yaml
+
+    from bridge_shadow.bagio import read_raw_topics
+    from bridge_shadow.contract import FLOAT_ARRAY_TYPE
+
+    out = tmp_path / "out"
+    js = _replay_json(capsys, str(root / "bags" / "baseline_1d"), "--out", str(out), "--storage", "mcap")
+    meta = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["storage_identifier"] == "mcap" and [p.suffix for p in out.glob("*.mcap")] == [".mcap"]
+    raw = read_raw_topics(out, {MEAN_TOPIC: FLOAT_ARRAY_TYPE})
+    assert len(raw[MEAN_TOPIC][1]) == js["windows"]["closed"]

@@ -70,6 +70,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--out", metavar="OUTBAG", help="write the outputs (mean, covariance, ...) as a bag")
     parser.add_argument("--force", action="store_true", help="replace an existing bag at --out")
+    parser.add_argument(
+        "--storage", choices=("sqlite3", "mcap"), default="sqlite3", help="storage of the --out bag (sqlite3)"
+    )
     parser.add_argument("--plots", metavar="DIR", help="write PNG plots (compensation, posterior, ellipse)")
     parser.add_argument(
         "--checkpoint",
@@ -326,6 +329,7 @@ def run(args: argparse.Namespace) -> int:
             args.params,
             out=args.out,
             overwrite=args.force,
+            storage=args.storage,
             plots=args.plots,
             rate=args.rate,
             overrides=over,
@@ -354,6 +358,7 @@ def run(args: argparse.Namespace) -> int:
         shadow,
         out=args.out,
         overwrite=args.force,
+        storage=args.storage,
         history=history,
         progress=show,
         required=list(INPUT_TOPICS)[:2],

@@ -30,6 +30,7 @@ def replay_bag(
     *,
     out: str | Path | None = None,
     overwrite: bool = False,
+    storage: str = "sqlite3",
     history: int | None = None,
     keep_all: bool = False,
     chunk: int = DEFAULT_CHUNK,
@@ -45,6 +46,7 @@ def replay_bag(
         shadow: a fresh (or resumed) ``estimate.Shadow``.
         out: write the window outputs to this new bag as they close.
         overwrite: replace an existing bag at ``out`` (``--force``), once the new one is complete.
+        storage: ``out``'s storage, ``sqlite3`` or ``mcap``.
         history: keep at most this many window outputs, evenly decimated (for plots); None keeps
             none, unless ``keep_all``.
         keep_all: keep every window output (memory grows with the bag: tests and short bags).
@@ -83,7 +85,7 @@ def replay_bag(
         if progress is not None and stream.first_ns is not None and stream.last_ns is not None:
             first, span = stream.first_ns, max(stream.last_ns - stream.first_ns, 1)
             report = lambda log_ns: progress(min(max((log_ns - first) / span, 0.0), 1.0))  # noqa: E731
-        sink = OutputBag(out, shadow, overwrite=overwrite) if out is not None else None
+        sink = OutputBag(out, shadow, overwrite=overwrite, storage=storage) if out is not None else None
 
         def take(outs: list[Any]) -> None:
             if sink is not None:

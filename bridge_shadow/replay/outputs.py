@@ -56,13 +56,15 @@ class OutputBag:
     ``overwrite`` (``--force``) replaces an existing bag there, once the new one is complete.
     """
 
-    def __init__(self, path: str | Path, shadow: Any, *, overwrite: bool = False) -> None:
+    def __init__(
+        self, path: str | Path, shadow: Any, *, overwrite: bool = False, storage: str = "sqlite3"
+    ) -> None:
         from bridge_shadow.bagio import BagOutputWriter
 
         self.path = Path(path)
         self.shadow = shadow
         self.names = shadow.config.output_topics()
-        self.writer = BagOutputWriter(self.path, overwrite=overwrite)
+        self.writer = BagOutputWriter(self.path, storage, overwrite=overwrite)
         self.last_end_ns: int | None = None
 
     def __enter__(self) -> OutputBag:

@@ -384,11 +384,12 @@ def _write_outputs(
     records: dict[str, list[tuple[int, bytes]]],
     names: dict[str, str],
     overwrite: bool = False,
+    storage: str = "sqlite3",
 ) -> Path:
     """Record the node's outputs under their graph ``names``, log time = receive time (as a recorder)."""
     from bridge_shadow.bagio import BagOutputWriter
 
-    with BagOutputWriter(path, overwrite=overwrite) as writer:
+    with BagOutputWriter(path, storage, overwrite=overwrite) as writer:
         for topic, items in records.items():
             if items:
                 stamps, raws = zip(*items, strict=True)
@@ -418,6 +419,7 @@ def run_live(
     *,
     out: str | Path | None = None,
     overwrite: bool = False,
+    storage: str = "sqlite3",
     plots: str | Path | None = None,
     rate: float | None = None,
     overrides: dict[str, Any] | None = None,
@@ -433,6 +435,7 @@ def run_live(
         params_path: shadow parameter file (default ``config/shadow.yaml``).
         out: record the node's output topics into this bag (log time = receive time).
         overwrite: replace an existing bag at ``out`` (``--force``), once the new one is complete.
+        storage: ``out``'s storage, ``sqlite3`` or ``mcap``.
         plots: write the replay PNGs into this directory, from the node's own state: its window
             outputs (history service) and its final spline fit (the checkpoint it writes at flush).
         rate: speed factor of log time (1.0 = real time); None = as fast as the node takes it.
@@ -583,7 +586,7 @@ def run_live(
         },
     }
     if out is not None:
-        js["out"] = str(_write_outputs(out, records, config.output_topics(), overwrite))
+        js["out"] = str(_write_outputs(out, records, config.output_topics(), overwrite, storage))
     if plots is not None:
         js["plots"] = [str(p) for p in plot_paths]
     return js
