@@ -216,7 +216,7 @@ def test_a_resumed_replay_counts_this_run(root, tmp_path) -> None:
 
 def test_the_gap_texts_fitted_values_are_in_mm_and_kn() -> None:
     """Text for people in mm and kN (the JSON's in SI): it printed 'v_south -0.0002002' unitless."""
-    from bridge_shadow.commands.gap import _fmt_params
+    from bridge_shadow.gap.si import params_text as _fmt_params
 
     params = {
         "v_south [m/s]": -2.002e-4 / 86400.0,

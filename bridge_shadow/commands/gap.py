@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from bridge_shadow.engine import add_engine_options
+from bridge_shadow.gap.si import params_text
 
 HELP = "diagnose the sim-to-real gap: where it lies, which effect causes it, how far it shrinks"
 DESCRIPTION = """\
@@ -163,46 +164,6 @@ def _mm(x: list[float]) -> str:
     return f"{1e3 * x[0]:+.3f} / {1e3 * x[1]:+.3f}"
 
 
-#: A fitted parameter's SI unit (its JSON key's ``[unit]``) -> the text's unit and factor.
-_PEOPLE_UNITS: dict[str, tuple[str, float]] = {
-    "m": ("mm", 1e3),
-    "m/s": ("mm/day", 86400e3),
-    "N/s": ("kN/day", 86.4),
-    "N/K": ("kN/K", 1e-3),
-    "N/m": ("kN/mm", 1e-6),
-    "m/N": ("mm/kN", 1e6),
-    "K": ("K", 1.0),
-    "s": ("h", 1.0 / 3600.0),
-}
-
-
-def _param_text(key: str, value: float) -> str:
-    """``v_south -0.2002 mm/day``: a fitted value in the units the text uses (kN, mm); 1 bare."""
-    name, _, unit = key.partition(" [")
-    shown, factor = _PEOPLE_UNITS.get(unit.rstrip("]"), ("", 1.0))
-    return f"{name} {factor * value:.4g}" + (f" {shown}" if shown else "")
-
-
-def _fmt_params(params: dict[str, Any]) -> str:
-    parts = []
-    for k, v in params.items():
-        if k == "steps":
-            if len(v) > 1:
-                parts.append(f"{len(v)} steps (levels below)")
-            continue
-        if isinstance(v, float):
-            parts.append(_param_text(k, v))
-        elif v is None:
-            parts.append(f"{k.split(' ')[0]} rigid")
-        elif k == "at [ns]":
-            from bridge_shadow.timefmt import iso_utc
-
-            parts.append(f"at {iso_utc(int(v))}")
-        else:
-            parts.append(f"{k.split(' ')[0]} {v}")
-    return ", ".join(parts)
-
-
 def _levels_lines(levels: dict | None) -> list[str]:
     """Describe the levels of a day of records (kN, mm)."""
     if not levels:
@@ -262,9 +223,9 @@ def _human(summary: dict) -> str:
             "cannot tell apart):",
         ]
         for e in named:
-            lines.append(f"  {e['effect']:<21} {_fmt_params(e['params'])}")
+            lines.append(f"  {e['effect']:<21} {params_text(e['params'])}")
             for g in e["group"][1:]:
-                lines.append(f"    or {g['effect']:<18} {_fmt_params(g['params'])}")
+                lines.append(f"    or {g['effect']:<18} {params_text(g['params'])}")
             soft = e.get("size_if_model_softer")
             if soft:
                 k = soft["with_support_springs_n_per_m"]
@@ -288,7 +249,7 @@ def _human(summary: dict) -> str:
         note = "" if c["plausible"] else "  [implausible]"
         lines.append(
             f"{c['rank']:>4}{mark} {c['effect']:<21} {100 * r['south']:6.1f}% {100 * r['north']:6.1f}% "
-            f"{100 * r['total']:6.1f}%   {_fmt_params(c['params'])}{note}"
+            f"{100 * r['total']:6.1f}%   {params_text(c['params'])}{note}"
         )
     lines.append("  (* significant: beats the chance level of AR(1) noise with a plausible fit)")
     lines.append(

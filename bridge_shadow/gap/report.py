@@ -10,6 +10,7 @@ import numpy as np
 from bridge_shadow.contract import SUPPORTS
 from bridge_shadow.fileio import atomic_write, atomic_write_text, output_dir
 from bridge_shadow.gap.diagnose import Diagnosis
+from bridge_shadow.gap.si import params_text
 from bridge_shadow.gap.windows import NS
 
 __all__ = ["write_report"]
@@ -137,9 +138,7 @@ def _markdown(summary: dict[str, Any], source: str) -> str:
     for c in summary["candidates"]:
         red = c["heldout_reduction"]
         par = c["partial_effect"]
-        fitted = ", ".join(
-            f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in c["params"].items()
-        )
+        fitted = params_text(c["params"])  # in mm, kN, K and h, as the CLI's text (the JSON's SI)
         lines.append(
             f"| {c['rank']} | {c['effect']} | {c['part']} | {_pct(red['south'])} / {_pct(red['north'])} / "
             f"{_pct(red['total'])} | {_pct(par['heldout_gain'])} ({par['given']}) | "
