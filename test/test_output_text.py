@@ -280,3 +280,20 @@ def test_imposed_steps_are_read_at_their_exact_time_and_add_up_at_one_instant() 
     for edge in ("+0=-0.01,-0.01", "2022-04-11T07:32:05.365Z=-0.01,-0.01"):
         with pytest.raises(InputError, match="is outside the record"):
             parse_imposed([edge], first, last)
+
+
+def test_an_imposed_step_given_twice_is_refused_not_doubled() -> None:
+    """A copied ``--imposed`` line doubled the step: 'imposed -20 mm', a stiffness at its bound, exit 0."""
+    from bridge_shadow.commands.gap import parse_imposed
+    from bridge_shadow.errors import InputError
+
+    first, last = 1_649_658_984 * 10**9, 1_649_662_325 * 10**9
+    twice = ["2022-04-11T09:00=-0.01,-0.01", "2022-04-11T09:00=-0.01,-0.01"]
+    with pytest.raises(InputError, match=r"is given twice \(entry 1 and 2\)"):
+        parse_imposed(twice, first, last)
+    # the same time in two notations is the same step given twice
+    with pytest.raises(InputError, match="given twice"):
+        parse_imposed(["2022-04-11T09:00=-0.01,-0.01", "2022-04-11T07:00Z=-0.01,-0.01"], first, last)
+    # the bearings apart at one instant still add up
+    (step,) = parse_imposed(["2022-04-11T09:00=-0.01,0", "2022-04-11T09:00=0,-0.01"], first, last)
+    assert step[1:] == pytest.approx((-0.01, -0.01), rel=1e-12, abs=1e-15)

@@ -150,6 +150,13 @@ def parse_imposed(
                 f"--imposed {item!r}: {iso_utc(t_ns)} is outside the record "
                 f"({iso_utc(first_ns)} to {iso_utc(last_ns)}): the data cannot show that step"
             )
+        same = [i for i, (t, s, n) in enumerate(out) if (t, s, n) == (t_ns, south, north)]
+        if same:  # a copied line, most likely: summed, it doubled the step without a word
+            raise InputError(
+                f"--imposed {item!r} is given twice (entry {same[0] + 1} and {len(out) + 1}): to impose "
+                "twice that step at one time give their sum once; steps of the two bearings apart "
+                "(T=S,0 and T=0,N) add up"
+            )
         out.append((t_ns, south, north))
     # steps at one instant add up (south and north given apart: T=-0.01,0 and T=0,-0.01); two
     # entries of one time crashed the level pairs with a traceback
