@@ -297,3 +297,32 @@ def test_an_imposed_step_given_twice_is_refused_not_doubled() -> None:
     # the bearings apart at one instant still add up
     (step,) = parse_imposed(["2022-04-11T09:00=-0.01,0", "2022-04-11T09:00=0,-0.01"], first, last)
     assert step[1:] == pytest.approx((-0.01, -0.01), rel=1e-12, abs=1e-15)
+
+
+def test_a_day_whose_imposed_steps_cannot_decide_does_not_say_the_model_explains_them() -> None:
+    """The imposed steps cannot decide: the statement must not say the model explains them.
+
+    The step given at the later gap of a day read by the as-built model: the step as given came
+    fourth (probability 0.09) and the statement said "The model explains the response".
+    """
+    from types import SimpleNamespace
+
+    from bridge_shadow.gap.explain import level_statement
+
+    def analysis(weights: dict[str, float]) -> SimpleNamespace:
+        rows = [{"effect": k, "parameters": {}, "delta_log_evidence": 0.0} for k in weights]
+        best = max(weights, key=weights.__getitem__)
+        return SimpleNamespace(
+            named=False, best=best, group=[best], weights=weights, table=lambda: rows, misfit=lambda *a: None
+        )
+
+    def text(weights: dict[str, float]) -> str:
+        lv = SimpleNamespace(records=[1, 2, 3], imposed=analysis(weights), steps=[])
+        return level_statement(lv, "nothing.")
+
+    unsure = text({"slab_joint_opening": 0.42, "support_spring": 0.24, "settlement_step": 0.09})
+    assert "The model explains" not in unsure
+    assert "cannot tell whether the model explains them: slab_joint_opening is likelier" in unsure
+    assert "(probability 0.42) than the model as given (settlement_step, 0.09)" in unsure
+    sure = text({"settlement_step": 0.71, "support_spring": 0.29})
+    assert "The model explains the response to the imposed step(s) within the jacks' accuracy" in sure

@@ -169,8 +169,18 @@ def level_statement(lv: DayLevels, inside: str) -> str:
             )
             if an.group[1:]:
                 text += f" It cannot be told apart from {', '.join(an.group[1:])}."
-        elif bad is None:
-            text += " The model explains the response to the imposed step(s) within the jacks' accuracy."
+        elif bad is None and an.best == "settlement_step":
+            text += (
+                " The model explains the response to the imposed step(s) within the jacks' accuracy "
+                f"(probability {an.weights['settlement_step']:.2f})."
+            )
+        elif bad is None:  # likelier explanations, none by the factor that names one
+            text += (
+                " The imposed step(s) cannot tell whether the model explains them: "
+                f"{an.best} is likelier (probability {an.weights[an.best]:.2f}) than the model as given "
+                f"(settlement_step, {an.weights['settlement_step']:.2f}), not by the Bayes factor that "
+                "names an effect; the records are too far apart or too few to show it."
+            )
         if bad is not None:
             text += " But " + misfit_text(bad)
     steps = [st for st in lv.steps if st["significant"]]
