@@ -294,3 +294,40 @@ def test_gap_reads_the_records_levels_with_the_sun_when_asked(lowering_bag: Path
     assert pair["sun"]["response_n_per_k"] == pytest.approx(_as_built().thermal["vertical_gradient"])
     # the as-built model is still told wrong by the imposed step, and a stiffness explains it
     assert gap["levels"]["imposed"]["best"] != "settlement_step"
+
+
+def test_a_record_with_a_silent_channel_is_said_and_no_pair_is_read_across_it(
+    munich_data: Path, tmp_path: Path, capsys
+) -> None:
+    """The real pair and a record 4 h on, 10 mm lower; north silent through the 10 mm record.
+
+    The records need both channels, so that record vanished without a word: the imposed 10 mm was
+    paired with the four hours to the last record, which hold 20 mm, and `slab_joint_opening` was
+    named (probability 0.98) for the calibrated model, its `after` -11.3 / -12.1 mm against -20,
+    the interval missing it, exit 0. Now the pair is not measured, the record and the unused step
+    are WARN lines and JSON warnings, and nothing is named.
+    """
+    from bridge_shadow.bagio.writer import write_monitoring
+    from bridge_shadow.twin.real_records import Piece, build, with_silence
+
+    pieces = [Piece("ref", 0.0), Piece("lowered", 0.733), Piece("lowered", 4.0, (-0.01, -0.01), 6.0)]
+    sc = build(munich_data / "Settlements", load_surrogate().A, pieces)
+    write_monitoring(tmp_path / "bag", with_silence(sc.data, sc.starts_ns[1], 1, 0.0, 13.0))
+    gap = _run(["gap", str(tmp_path / "bag"), "--json", "--imposed", "2022-04-11T09:00=-0.01,-0.01"])
+    err = capsys.readouterr().err
+    levels = gap["levels"]
+    (blind,) = levels["records_one_channel"]
+    assert blind["silent"] == "frc_02" and blind["start_ns"] < sc.starts_ns[1] + 60 * 10**9
+    assert not levels["pairs"] or all(p["imposed_m"] is None for p in levels["pairs"])
+    assert any(
+        "has frc_02 silent" in n and "imposed step there is not used" in n for n in levels["not_measured"]
+    )
+    assert gap["best"] in ("none", "settlement_step") and "slab_joint_opening" not in gap["statement"]
+    assert "1 more with a force channel silent, left out" in gap["statement"]
+    for line in gap["warnings"]:
+        assert f"WARN: {line}" in err
+    assert any("has frc_02 silent: left out of the level analysis" in w for w in gap["warnings"])
+    assert any(w.startswith("imposed step not used") for w in gap["warnings"])
+    after = gap["posterior"]["after"]
+    lo, hi = np.array(after["interval95_m"]).T
+    assert np.all((lo < -0.02) & (-0.02 < hi))  # the final state, -20 mm, inside

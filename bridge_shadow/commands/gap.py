@@ -390,11 +390,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"report: {summary['report']}")
         if args.out_surrogate:
             print(f"wrote {summary['surrogate_written']}", file=sys.stderr)
-    imposed = (summary.get("levels") or {}).get("imposed") or {}
-    if imposed.get("misfit"):  # however the output goes: a model written from it rests on nothing
-        from bridge_shadow.gap.explain import misfit_text
-
-        print(f"bridge-shadow gap: WARN: {misfit_text(imposed['misfit'])}", file=sys.stderr)
+    for line in summary.get("warnings", []):  # however the output goes (gap.summary.gap_warnings)
+        print(f"bridge-shadow gap: WARN: {line}", file=sys.stderr)
     if off_record:  # replay with the file would not reproduce `after`: say so however the output goes
         print(
             f"bridge-shadow gap: WARN: {summary['surrogate_written']} does not carry "

@@ -8,14 +8,14 @@ the variation inside the records.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from bridge_shadow.gap.drivers import Drivers
 from bridge_shadow.gap.fit import folds_of
-from bridge_shadow.gap.records import Record
+from bridge_shadow.gap.records import OneChannel, Record
 from bridge_shadow.model.surrogate_file import Surrogate
 from bridge_shadow.series import MonitoringData
 
@@ -48,6 +48,20 @@ class DayLevels:
     imposed: ImposedAnalysis | None
     steps: list[dict[str, Any]]
     model: Surrogate
+    blind: list[OneChannel] = field(default_factory=list)
+
+    def warnings(self) -> list[str]:
+        """Return what must not pass silently: records with a silent channel, imposed steps unused."""
+        from bridge_shadow.gap.levels import IMPOSED_UNUSED
+        from bridge_shadow.timefmt import iso_utc
+
+        out = [
+            f"the record from {iso_utc(b.start_ns)} to {iso_utc(b.end_ns)} has {b.silent} silent: "
+            "left out of the level analysis, and the change across it is not measured"
+            for b in self.blind
+        ]
+        out += [f"imposed step not used: {note}" for note in self.notes if IMPOSED_UNUSED in note]
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         """Return the ``levels`` block of the JSON (SI)."""
@@ -63,6 +77,9 @@ class DayLevels:
             ],
             "pairs": [p.to_dict() for p in self.pairs],
             "not_measured": self.notes,
+            "records_one_channel": [
+                {"start_ns": b.start_ns, "end_ns": b.end_ns, "silent": b.silent} for b in self.blind
+            ],
             "imposed": self.imposed.to_dict() if self.imposed is not None else None,
             "steps_between_records": self.steps,
             "model_after": {"A": self.model.A.tolist(), "u0": self.model.u0.tolist()},
@@ -100,6 +117,7 @@ def read_levels(
     sens: dict[str, Any],
     surrogate_path: str | None,
     baseline_change: str = "uncertainty",
+    blind: Sequence[OneChannel] = (),
 ) -> DayLevels:
     """Read the levels of a day of records: the imposed steps' explanation, the free steps.
 
@@ -110,11 +128,11 @@ def read_levels(
     from bridge_shadow.gap.levels import explain_imposed, free_steps, level_pairs
 
     sun = SunBaseline.of(s, "the model in use") if baseline_change == "sun" else None
-    pairs, notes = level_pairs(data, records, imposed, imposed_sd_m, baseline_change, sun)
+    pairs, notes = level_pairs(data, records, imposed, imposed_sd_m, baseline_change, sun, blind)
     analysis = None
     model = s
     if any(p.imposed for p in pairs):
         analysis = explain_imposed(pairs, s, sweeps_of(s, surrogate_path), sens)
         if analysis.named:
             model = analysis.surrogate_after(s)
-    return DayLevels(records, pairs, notes, analysis, free_steps(pairs, model), model)
+    return DayLevels(records, pairs, notes, analysis, free_steps(pairs, model), model, list(blind))

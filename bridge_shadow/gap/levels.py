@@ -49,7 +49,7 @@ from bridge_shadow.calibrate.problem import PairData
 from bridge_shadow.calibrate.run import evidence_weights
 from bridge_shadow.calibrate.surrogate_forward import SurrogateForward
 from bridge_shadow.contract import CHANNELS
-from bridge_shadow.gap.records import IMPOSED_SD_M, Record
+from bridge_shadow.gap.records import IMPOSED_SD_M, OneChannel, Record
 from bridge_shadow.model.build import SUPPORT_SPRINGS
 from bridge_shadow.model.sensitivities import StiffnessSensitivity
 from bridge_shadow.model.surrogate_file import Discrepancy, Surrogate
@@ -173,10 +173,13 @@ def level_pairs(
     imposed_sd_m: float = IMPOSED_SD_M,
     baseline_change: str = "uncertainty",
     sun: SunBaseline | None = None,
+    blind: Sequence[OneChannel] = (),
 ) -> tuple[list[LevelPair], list[str]]:
     """Measure the level change across every record gap and every imposed step.
 
-    ``baseline_change``, ``sun``: as ``calibrate.change.measured_change`` takes them.
+    ``baseline_change``, ``sun``: as ``calibrate.change.measured_change`` takes them. ``blind``:
+    records with a silent channel (``records.one_channel_records``); a pair across one is not
+    measured, since a change in that record would be in it.
 
     Returns the pairs (in time order) and notes on what could not be measured (a record with too
     few car-free windows).
@@ -212,6 +215,18 @@ def level_pairs(
         before = (max(before[0], prev_t) if prev_t is not None else before[0], before[1])
         after = (after[0], min(after[1], next_t) if next_t is not None else after[1])
         name = f"step {k + 1} at {_hhmm(t)}"
+        unused = f"; {IMPOSED_UNUSED}" if step is not None else ""
+        across = [b for b in blind if before[1] <= b.start_ns and b.end_ns <= after[0]]
+        if across:
+            b = across[0]
+            notes.append(
+                f"{name}: level not measured (the record between, {_hhmm(b.start_ns)} to "
+                f"{_hhmm(b.end_ns)}, has {b.silent} silent: a change there would be in this pair"
+                f"{unused})"
+            )
+            if step is not None:
+                cumulative = cumulative + step
+            continue
         try:
             lb = record_level(slice_data(data, *before), window_s=_window_s(data))
             la = record_level(slice_data(data, *after), window_s=_window_s(data))
@@ -220,7 +235,7 @@ def level_pairs(
             la = replace(la, clearness=clearness.get(solar_day(la.t_ns), float("nan")))
             change = measured_change(lb, la, baseline_change, sun)
         except (CalibrationError, ValueError) as err:
-            notes.append(f"{name}: level not measured ({err})")
+            notes.append(f"{name}: level not measured ({err}{unused})")
             if step is not None:
                 cumulative = cumulative + step
             continue
@@ -229,6 +244,10 @@ def level_pairs(
         if step is not None:
             cumulative = cumulative + step
     return pairs, notes
+
+
+#: The end of a note on a pair that held an imposed step and could not be measured.
+IMPOSED_UNUSED = "the imposed step there is not used"
 
 
 def _window_s(data: MonitoringData) -> float:

@@ -97,6 +97,8 @@ def _posterior_json(result: Any) -> dict[str, Any]:
         "sigma_m": sd.tolist(),
         "interval95_m": [[float(m - 1.96 * v), float(m + 1.96 * v)] for m, v in zip(mean, sd, strict=True)],
         "updates": int(result.updates),
+        "state": dict(result.state),  # which state it stands for (a state nobody saw: unseen_from)
+        "warnings": list(result.warnings),
     }
 
 

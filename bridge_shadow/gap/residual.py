@@ -15,13 +15,14 @@ from typing import Any
 
 import numpy as np
 
+from bridge_shadow.contract import CHANNELS
 from bridge_shadow.effects import MODEL_FORM_EFFECTS, SETTLEMENT_EFFECTS
 from bridge_shadow.gap.candidates import CANDIDATES, Candidate, Context, step_times, stiffness_sensitivities
 from bridge_shadow.gap.day_levels import DayLevels, is_day_of_records, read_levels, sweeps_of
 from bridge_shadow.gap.drivers import Drivers, compute_drivers
 from bridge_shadow.gap.errors import GapError
 from bridge_shadow.gap.fit import folds_of
-from bridge_shadow.gap.records import records_of
+from bridge_shadow.gap.records import one_channel_records, records_of
 from bridge_shadow.gap.windows import NS, Windows, aggregate
 from bridge_shadow.model.surrogate_file import Surrogate
 from bridge_shadow.series import MonitoringData
@@ -114,7 +115,10 @@ def residual_of(
     records = records_of(w.t_ns, w.valid, width_s)
     lv = None
     if is_day_of_records(d, w.valid, records, holdout_days):
-        lv = read_levels(data, records, imposed, imposed_sd_m, s, sens, surrogate_path, baseline_change)
+        blind = one_channel_records(w.t_ns, w.valid, width_s, records, CHANNELS)
+        lv = read_levels(
+            data, records, imposed, imposed_sd_m, s, sens, surrogate_path, baseline_change, blind
+        )
     model = lv.model if lv is not None else s
     x_known = imposed_path(w.t_ns, width_s, imposed)
     ctx = Context.build(d, model, sens, x_known, w.t_ns, width_s)

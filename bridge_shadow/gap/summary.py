@@ -104,6 +104,25 @@ def named_json(
     return out
 
 
+def gap_warnings(lv: DayLevels | None, post: dict[str, Any]) -> list[str]:
+    """Return what must not pass silently, said on stderr (WARN) and in the JSON's ``warnings``.
+
+    The levels' (a record left out for a silent channel, an imposed step not used, an explanation
+    that needs the jacks far off), and the shadow's own lines on a silent channel in ``before``:
+    the level pairs skipped such a record without a word, read an imposed step across it, and
+    named a stiffness the model did not need.
+    """
+    from bridge_shadow.gap.explain import misfit_text
+
+    out = lv.warnings() if lv is not None else []
+    misfit = lv.imposed.misfit() if lv is not None and lv.imposed is not None else None
+    if misfit is not None:  # the best explanation needs the jacks far off: a model from it rests on nothing
+        out.append(misfit_text(misfit))
+    before = (post.get("before") or {}).get("warnings", [])
+    out += [f"the shadow (before): {w}" for w in before if w.startswith("topic ")]
+    return out
+
+
 def level_named(lv: DayLevels, s: Surrogate) -> list[dict[str, Any]]:
     """List what the levels name: the imposed steps' explanation, then the steps between records."""
     out: list[dict[str, Any]] = []
@@ -232,6 +251,7 @@ def gap_summary(
             ),
         },
         "levels": lv.to_dict() if lv is not None else None,
+        "warnings": gap_warnings(lv, post),
         "baseline": {
             "model": "u0 + A x_imposed + thermal['uniform'] * (T_air - mean T_air)",
             "imposed": [{"t_ns": int(t), "settlement_m": [float(a), float(b)]} for t, a, b in imposed],
