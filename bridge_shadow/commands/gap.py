@@ -182,7 +182,11 @@ def _levels_lines(levels: dict | None) -> list[str]:
 
         return dt.datetime.fromtimestamp(ns / 1e9, ZoneInfo("Europe/Berlin")).strftime("%H:%M")
 
-    lines = ["", f"levels of the {len(levels['records'])} records (car-free levels, test car left out):"]
+    lines = [
+        "",
+        f"levels of the {len(levels['records'])} records (car-free levels, test car left out; "
+        "times local, Europe/Berlin; elsewhere UTC, marked Z):",
+    ]
     for p in levels["pairs"]:
         imp = p["imposed_m"]
         what = f"imposed {_mm(imp)} mm" if imp is not None else "no step given"
