@@ -166,6 +166,9 @@ def test_known_lowering_names_a_stiffness_not_an_extra_settlement(lowering):
     before, after = np.array(post["before"]["mean_m"]), np.array(post["after"]["mean_m"])
     # the stiffness moves the shadow's reading of the lowering from about half of it towards 10 mm
     assert np.all(after < before - 2e-3)
+    # the as-built model has no model uncertainty: its +-0.4 mm is the noise's alone, and says so
+    assert "carries no model uncertainty" in post["before"]["what"]
+    assert "carries no model uncertainty" not in post["after"]["what"]
 
 
 def test_a_step_given_with_the_wrong_sign_is_said_to_fit_nothing(lowering_bag: Path, capsys) -> None:

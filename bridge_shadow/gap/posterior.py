@@ -158,6 +158,9 @@ def shadow_posteriors(
 
     before = _posterior_json(Shadow(config, surrogate).run(data))
     before["what"] = "the shadow with the model in use (the answer of `bridge-shadow replay` on this bag)"
+    if surrogate.model_cov is None and surrogate.discrepancy is None:
+        # an uncalibrated model: its interval is the noise's alone, however wrong the model is
+        before["what"] += "; the model carries no model uncertainty, so its interval is the noise's alone"
     if change.empty:
         after = dict(before)
         after["what"] = (
