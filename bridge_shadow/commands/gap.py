@@ -6,7 +6,6 @@ import argparse
 from typing import Any
 
 from bridge_shadow.engine import add_engine_options
-from bridge_shadow.gap.si import params_text
 
 HELP = "diagnose the sim-to-real gap: where it lies, which effect causes it, how far it shrinks"
 DESCRIPTION = """\
@@ -222,6 +221,9 @@ def _levels_lines(levels: dict | None) -> list[str]:
 
 
 def _human(summary: dict) -> str:
+    # here, not at the top: the gap package imports scipy.stats, which `--help` must not wait for
+    from bridge_shadow.gap.si import params_text
+
     lines = [f"best: {summary['best']}"]
     if summary["indistinguishable_from"]:
         lines[0] += f"  (cannot be told apart from: {', '.join(summary['indistinguishable_from'])})"
