@@ -73,7 +73,7 @@ def dask_client(
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError, ValueError) as err:
             raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({err})") from None
-        with client:
+        with client, _filtered(logging.getLogger("tornado.application"), _SyncCancelFailure()):
             yield client
         return
     n = workers if workers is not None else (os.cpu_count() or 1)
@@ -114,6 +114,7 @@ def dask_client(
             **where,
         ) as cluster,
         Client(cluster) as client,
+        _filtered(logging.getLogger("tornado.application"), _SyncCancelFailure()),
     ):
         try:
             yield client
@@ -122,6 +123,31 @@ def dask_client(
             # exception was never retrieved" (AllExit), dozens of lines after the CLI's one
             logging.getLogger("asyncio").setLevel(logging.CRITICAL)
             raise
+
+
+class _SyncCancelFailure(logging.Filter):
+    """Drop tornado's report of distributed's own failing cancel after an interrupted ``sync``.
+
+    On Ctrl-C distributed's ``sync()`` cancels its future from a loop callback that raises
+    (``NameError: cannot access free variable 'future'``, a bug of distributed's); tornado logs it
+    with its traceback, 15 lines after the command's one, whenever the callback runs before the
+    interrupt reaches this process's handler (read by an interrupt test under load).
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        """Keep every record but that one."""
+        exc = record.exc_info[1] if record.exc_info else None
+        return not (isinstance(exc, NameError) and "sync.<locals>.cancel" in record.getMessage())
+
+
+@contextlib.contextmanager
+def _filtered(logger: logging.Logger, flt: logging.Filter) -> Iterator[None]:
+    """Install ``flt`` on ``logger`` for the block."""
+    logger.addFilter(flt)
+    try:
+        yield
+    finally:
+        logger.removeFilter(flt)
 
 
 def dask_setup(worker: Any) -> None:

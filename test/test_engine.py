@@ -224,3 +224,31 @@ def test_a_local_clusters_workers_leave_ctrl_c_to_the_command_and_drop_the_close
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130 and err == "interrupted\n", err
+
+
+def test_distributeds_failing_cancel_after_an_interrupt_is_not_logged_the_rest_is() -> None:
+    """Ctrl-C under load printed tornado's 15-line report of distributed's own failing cancel.
+
+    ``sync()``'s cancel callback raises ``NameError`` (a bug of distributed's); the filter on
+    ``tornado.application`` drops that record alone, for the client's lifetime.
+    """
+    import logging
+    import sys
+
+    from bridge_shadow import engine
+
+    def record(msg: str, exc: BaseException) -> logging.LogRecord:
+        return logging.LogRecord(
+            "tornado.application", logging.ERROR, __file__, 1, msg, None, (type(exc), exc, None)
+        )
+
+    cancel = "Exception in callback functools.partial(<function sync.<locals>.cancel at 0x7f36146b9620>)"
+    drop = engine._SyncCancelFailure()
+    assert not drop.filter(record(cancel, NameError("cannot access free variable 'future'")))
+    assert drop.filter(record(cancel, ValueError("another failure")))  # any other error stays
+    assert drop.filter(record("Exception in callback something_else", NameError("x")))
+    logger = logging.getLogger("tornado.application")
+    with engine.dask_client(workers=1, processes=False):
+        assert any(isinstance(f, engine._SyncCancelFailure) for f in logger.filters)
+    assert not any(isinstance(f, engine._SyncCancelFailure) for f in logger.filters)
+    assert sys.modules["distributed"]  # the client ran
