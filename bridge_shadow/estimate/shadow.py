@@ -1262,13 +1262,18 @@ class Shadow:
         """Rebuild a shadow from ``state_dict`` (config and surrogate default to the saved ones)."""
         return restore_shadow(cls, state, config, surrogate)
 
-    def save_checkpoint(self, path: str | Path | None = None) -> Path | None:
-        """Write the state atomically to ``path`` (default ``checkpoint_path``); None if disabled."""
+    def save_checkpoint(
+        self, path: str | Path | None = None, state: dict[str, Any] | None = None
+    ) -> Path | None:
+        """Write the state atomically to ``path`` (default ``checkpoint_path``); None if disabled.
+
+        ``state``: a ``state_dict`` taken earlier (the state before an end-of-data close), else now.
+        """
         target = path if path is not None else self.config.checkpoint_path
         if not target:
             return None
         self._ckpt_ns = self.clock_ns
-        written = save_state(self.state_dict(), target)
+        written = save_state(self.state_dict() if state is None else state, target)
         self.checkpoint_failure = None
         return written
 
@@ -1336,7 +1341,9 @@ class Shadow:
             if progress is not None:
                 progress(min(start + chunk, total) / max(total, 1))
         if flush:
-            outputs.extend(self.flush())
+            # the state before the end-of-data close: a run resumed from it goes on with the
+            # records still open, as one run over both would (``replay.bag.replay_bag``)
             if self.config.checkpoint_path:
                 self.save_checkpoint()
+            outputs.extend(self.flush())
         return self.result(outputs, total, time.perf_counter() - t0)

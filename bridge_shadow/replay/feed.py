@@ -52,6 +52,7 @@ def feed_shadow(
     on_outputs: Callable[[list[Any]], None] | None = None,
     progress: Callable[[int], None] | None = None,
     flush: bool = True,
+    before_flush: Callable[[], Any] | None = None,
 ) -> StreamReplay:
     """Feed chunks through ``shadow`` (ingest per topic, then poll; flush at the end).
 
@@ -61,6 +62,7 @@ def feed_shadow(
         on_outputs: called with each non-empty list of closed-window outputs, in order.
         progress: called with the log time (ns) of the last message fed, after each chunk.
         flush: close the open windows at the end (end of a replay).
+        before_flush: called just before that close (the checkpoint of a replay: its state then).
 
     Returns:
         counts and timings (``pipeline_s`` is the time inside the shadow; the rest, until the
@@ -96,6 +98,8 @@ def feed_shadow(
             progress(feed.last_log_ns)
         stats.write_s += clock() - t2
     if flush:
+        if before_flush is not None:
+            before_flush()
         t0 = clock()
         outs = shadow.flush()
         t1 = clock()

@@ -492,11 +492,20 @@ class ShadowNode(Node):
         return response
 
     def _on_flush(self, request: Any, response: Any) -> Any:
-        """Close every window holding data, publish, checkpoint; answer with the report as JSON."""
+        """Close every window holding data, publish, checkpoint; answer with the report as JSON.
+
+        The checkpoint holds the state before the close, as ``replay``'s: a node or a replay
+        resumed from it with the next bag goes on with the last record still open (written after
+        it, a bag split inside a record lost the next bag's first seconds as ``late``).
+        """
+        self.ingest_pending(everything=True)
+        before = None
+        if self.config.checkpoint_path:  # (after a quiet-input close, the state before it: save_on_exit)
+            before = self._before_quiet[0] if self._before_quiet is not None else self.shadow.state_dict()
         self.close_open_windows()
-        if self.config.checkpoint_path:
+        if before is not None:
             try:
-                self.shadow.save_checkpoint()
+                self.shadow.save_checkpoint(state=before)
             except CheckpointError as err:  # the report's warnings say so; the node goes on
                 self.shadow.checkpoint_failure = (int(self.shadow.clock_ns or 0), str(err))
         response.success = True
