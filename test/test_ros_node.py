@@ -633,6 +633,52 @@ def test_a_node_stopped_after_a_quiet_close_resumes_the_record_as_the_offline_re
         rclpy.try_shutdown(context=context)
 
 
+def test_the_flush_services_checkpoint_lets_the_next_bag_go_on_with_the_record(tmp_path: Path) -> None:
+    """A recording split into bags inside a record, played live one after the other with a checkpoint.
+
+    At each bag's end ``replay --live`` calls the node's flush service, then stops it. Its
+    checkpoint (at the flush, and again at exit) held the state after the end-of-bag close: the
+    next bag's first seconds of the window cut there came late (7022 messages of the real
+    records split 0.1 h into the first record). The close is provisional now, as the quiet-input
+    one: both writes hold the state before it, and the next node ends where the offline replay of
+    the whole stream does.
+    """
+    import json
+    from types import SimpleNamespace
+
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from bridge_shadow.ros.node import ShadowNode
+
+    stream = _paused_record_stream()
+    cut = stream["pauses"][0] - 90  # inside the later record, before its logger paused
+    ckpt = tmp_path / "shadow.ckpt"
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        params = [Parameter("checkpoint_path", value=str(ckpt))]
+        node = ShadowNode(context=context, parameter_overrides=params)
+        try:
+            _feed(node, stream, 0, cut)
+            answer = node._on_flush(None, SimpleNamespace(success=False, message=""))
+            assert answer.success and json.loads(answer.message)["windows"]["closed"] > 0
+            assert node.save_on_exit() == ckpt  # the stop after the flush: the same state again
+        finally:
+            node.destroy_node()
+        node = ShadowNode(context=context, parameter_overrides=params)
+        try:
+            assert node.shadow.holds_data  # the record's open window, held as before the close
+            _feed(node, stream, cut, len(stream["stamp"]), quiet_at=tuple(stream["pauses"]))
+            node.close_open_windows()
+            assert node.shadow.rejected.get("late", 0) == 0
+            np.testing.assert_allclose(node._last_posterior[0], stream["whole"].mean_m, rtol=1e-9, atol=0)
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
 def test_topic_parameters_rename_the_node_graph(short_bag: Path, short_direct, tmp_path: Path) -> None:
     """The node subscribes and publishes under the topic_* parameters; the posterior is unchanged."""
     from renamed_topics import RENAMED, renamed_bag

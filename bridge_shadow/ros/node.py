@@ -405,9 +405,10 @@ class ShadowNode(Node):
         to when the data goes on within ``gap_s`` (``_resume_or_confirm_quiet_close``).
         """
         self.drain(everything=True)
-        self._before_quiet = None
         clock = self.shadow.clock_ns
-        if provisional and clock is not None:
+        if not provisional or clock is None:
+            self._before_quiet = None
+        elif self._before_quiet is None:  # an earlier provisional close no data has decided stays
             self._before_quiet = (self.shadow.state_dict(), clock, self.windows_published)
         outputs = self.shadow.flush()
         self._publish(outputs)
@@ -494,16 +495,15 @@ class ShadowNode(Node):
     def _on_flush(self, request: Any, response: Any) -> Any:
         """Close every window holding data, publish, checkpoint; answer with the report as JSON.
 
-        The checkpoint holds the state before the close, as ``replay``'s: a node or a replay
-        resumed from it with the next bag goes on with the last record still open (written after
-        it, a bag split inside a record lost the next bag's first seconds as ``late``).
+        The close is provisional, as the quiet-input one: the checkpoint (and the one written at
+        exit) holds the state before it, as ``replay``'s, so a node or a replay resumed from it
+        with the next bag goes on with the last record still open, and data that go on within
+        ``gap_s`` resume it here too (written after the close, a bag split inside a record lost
+        the next bag's first seconds as ``late``).
         """
-        self.ingest_pending(everything=True)
-        before = None
-        if self.config.checkpoint_path:  # (after a quiet-input close, the state before it: save_on_exit)
-            before = self._before_quiet[0] if self._before_quiet is not None else self.shadow.state_dict()
-        self.close_open_windows()
-        if before is not None:
+        self.close_open_windows(provisional=True)
+        if self.config.checkpoint_path:
+            before = self._before_quiet[0] if self._before_quiet is not None else None
             try:
                 self.shadow.save_checkpoint(state=before)
             except CheckpointError as err:  # the report's warnings say so; the node goes on
