@@ -679,6 +679,42 @@ def test_the_flush_services_checkpoint_lets_the_next_bag_go_on_with_the_record(t
         rclpy.try_shutdown(context=context)
 
 
+def test_a_settlement_event_reaches_the_nodes_log_once(tmp_path: Path) -> None:
+    """The node's log said nothing of a 20 mm settlement it found (only /diagnostics did).
+
+    Whoever reads the log (journald, the fleet's relayed output) now reads a WARN line per event,
+    with its kind, time and size (95 %), once however often /diagnostics goes out.
+    """
+    from types import SimpleNamespace
+
+    import rclpy
+
+    from bridge_shadow.ros.node import ShadowNode
+
+    stream = _paused_record_stream()
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = ShadowNode(context=context)
+        lines: list[str] = []
+        log = SimpleNamespace(warn=lines.append, warning=lines.append, info=lines.append, error=lines.append)
+        node.get_logger = lambda: log  # type: ignore[method-assign]
+        try:
+            _feed(node, stream, 0, len(stream["stamp"]), quiet_at=tuple(stream["pauses"]))
+            node.close_open_windows()
+            node.publish_diagnostics()
+            node.publish_diagnostics()
+            events = node.shadow.diagnostics()["events"]
+            said = [line for line in lines if line.startswith("settlement event: ")]
+            assert events and len(said) == len(events)
+            for e, line in zip(events, said, strict=True):
+                assert e["time"] in line and f"{1e3 * e['size_m'][0]:+.3f}" in line and "(95 %" in line
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
 def test_topic_parameters_rename_the_node_graph(short_bag: Path, short_direct, tmp_path: Path) -> None:
     """The node subscribes and publishes under the topic_* parameters; the posterior is unchanged."""
     from renamed_topics import RENAMED, renamed_bag

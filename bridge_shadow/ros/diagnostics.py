@@ -19,7 +19,7 @@ from bridge_shadow.contract import CHANNELS, NODE_NAME, SUPPORTS
 from bridge_shadow.ros.convert import stamp_msg
 from bridge_shadow.timefmt import iso_utc
 
-__all__ = ["LEVELS", "Status", "diagnostic_array", "statuses"]
+__all__ = ["LEVELS", "Status", "diagnostic_array", "event_text", "statuses"]
 
 #: diagnostic_msgs levels by the names ``Shadow.diagnostics()`` uses.
 LEVELS: dict[str, int] = {"OK": 0, "WARN": 1, "ERROR": 2}
@@ -147,18 +147,22 @@ def _compensation(diag: Mapping[str, Any]) -> Status:
     return Status(f"{NODE_NAME}: compensation", level, message, values)
 
 
+def event_text(e: Mapping[str, Any]) -> str:
+    """One event of the JSON as text for people: kind, time, size per support in mm (95 %)."""
+    size = ", ".join(
+        f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f}"
+        for side, m, sd in zip(SUPPORTS, e["size_m"], e["sigma_m"], strict=True)
+    )
+    note = "" if e.get("size_significant95", True) else "; region holds zero"
+    return f"{e.get('kind', 'step')} at {iso_utc(e['time_ns'])}: {size} mm (95 %{note})"
+
+
 def _events(diag: Mapping[str, Any]) -> Status:
     """Build the events status: the last one in the message, each in the values (mm)."""
     events = diag.get("events", [])
     values: dict[str, str] = {"events": str(len(events))}
     for i, e in enumerate(events):
-        size = ", ".join(
-            f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f}"
-            for side, m, sd in zip(SUPPORTS, e["size_m"], e["sigma_m"], strict=True)
-        )
-        note = "" if e.get("size_significant95", True) else "; region holds zero"
-        kind = e.get("kind", "step")
-        values[f"event {i + 1}"] = f"{kind} at {iso_utc(e['time_ns'])}: {size} mm (95 %{note})"
+        values[f"event {i + 1}"] = event_text(e)
     changes = diag.get("unconfirmed_changes", [])
     for i, c in enumerate(changes):
         size = ", ".join(

@@ -92,7 +92,7 @@ from bridge_shadow.jsonvalues import jsonable
 from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 from bridge_shadow.paths import config_file
 from bridge_shadow.ros import convert
-from bridge_shadow.ros.diagnostics import diagnostic_array, statuses
+from bridge_shadow.ros.diagnostics import diagnostic_array, event_text, statuses
 from bridge_shadow.ros.parameters import declare_parameters, is_ros_own, plain_value
 
 __all__ = [
@@ -470,6 +470,11 @@ class ShadowNode(Node):
             if key not in self._warned:
                 self._warned.add(key)
                 self.get_logger().warn(line)
+        for e in diag["events"]:  # a settlement found is news for whoever reads the log, once
+            key = f"event at window {e['window']}"
+            if key not in self._warned:
+                self._warned.add(key)
+                self.get_logger().warn(f"settlement event: {event_text(e)}")
         running = time.monotonic() - self._born
         items = statuses(diag, self._ages(), self.malformed, self._timeout_s, running)
         if self.get_namespace() != "/":  # a fleet's nodes share /diagnostics: say which bridge
