@@ -320,7 +320,7 @@ def test_a_day_whose_imposed_steps_cannot_decide_does_not_say_the_model_explains
         )
 
     def text(weights: dict[str, float]) -> str:
-        lv = SimpleNamespace(records=[1, 2, 3], imposed=analysis(weights), steps=[])
+        lv = SimpleNamespace(records=[1, 2, 3], imposed=analysis(weights), steps=[], blind=[])
         return level_statement(lv, "nothing.")
 
     unsure = text({"slab_joint_opening": 0.42, "support_spring": 0.24, "settlement_step": 0.09})

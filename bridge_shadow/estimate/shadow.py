@@ -650,7 +650,7 @@ class Shadow:
                 # load of one that stood when the record began and left within its first minute
                 # (the screen reads a load a minute long at least, ``MIN_SIDE_BINS``); no state of
                 # its own, so left out, and the gap's segment begins at the step (a lowering in
-                # that minute is then the gap's change, dated a window early)
+                # that minute is then the gap's change, dated at the window after it, as it was)
                 steps.discard(1)
                 both.add(0)
                 cov = self.noise.window_cov(fresh[0].samples) + self.noise.window_cov(fresh[1].samples)
@@ -677,8 +677,10 @@ class Shadow:
             if j in both:  # it holds both states: the level of neither (see the docstring)
                 self._leave_out(w)
                 outputs.extend(self._drain())
-                if j == first and j + 1 < len(fresh) and self.filter.current_windows == 0:
-                    self.filter.move_start(fresh[j + 1].k)  # the gap's segment begins with its data
+                # the gap's segment begins with its data (a step there opens a segment of its own)
+                data_next = j + 1 < len(fresh) and j + 1 not in steps
+                if j == first and data_next and self.filter.current_windows == 0:
+                    self.filter.move_start(fresh[j + 1].k)
                 first += j == first
                 continue
             if j in steps:

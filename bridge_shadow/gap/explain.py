@@ -156,7 +156,7 @@ def level_statement(lv: DayLevels, inside: str) -> str:
     """One paragraph for a day of records: the levels, then what happens inside the records."""
     mm = 1e3
     text = f"A day of {len(lv.records)} records."
-    blind = getattr(lv, "blind", [])
+    blind = lv.blind
     if blind:  # left out: a level needs both channels (the WARN lines say which)
         text = text[:-1] + f", and {len(blind)} more with a force channel silent, left out."
     an = lv.imposed

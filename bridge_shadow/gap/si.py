@@ -24,9 +24,9 @@ TO_SI: dict[str, tuple[str, float]] = {
 
 def si_unit_value(unit: str, value: Any) -> tuple[str, Any]:
     """Return ``(unit, value)`` in SI (a number, a list of numbers or None converted; others as they are)."""
-    si, factor = TO_SI.get(unit, (unit, 1.0))
-    if factor == 1.0:
+    if unit not in TO_SI:
         return unit, value
+    si, factor = TO_SI[unit]
     return si, _scaled(value, factor)
 
 
