@@ -374,7 +374,8 @@ class ShadowNode(Node):
             n = self.close_open_windows(provisional=True)
             self.quiet_flushes += 1
             self.get_logger().warning(
-                f"no input for {self._timeout_s:g} s: closed {n} open window(s) with the data held "
+                f"no input for {self._timeout_s:g} s: decided the {n} window(s) still held (the open "
+                "one and any the record's screen or a warm-up held, hours back on a load-test day) "
                 f"(undone if the inputs come back within gap_s = {self.config.gap_s:g} s of the data)"
             )
 
