@@ -71,6 +71,9 @@ def test_bad_values_are_refused_naming_the_parameter(name: str, value: object) -
 def test_cross_field_rules_and_unknown_names() -> None:
     with pytest.raises(ConfigError, match="temp_max_c must exceed temp_min_c"):
         ShadowConfig(temp_min_c=20.0, temp_max_c=10.0)
+    # both named with their values (it said "gap_s must be at least window_s" and no more)
+    with pytest.raises(ConfigError, match=r"gap_s must be at least window_s \(now gap_s 30, window_s 60\)"):
+        ShadowConfig(gap_s=30.0, window_s=60.0)
     with pytest.raises(ConfigError, match=r"unknown key 'windw_s' \(did you mean window_s\?\)"):
         ShadowConfig.from_params({"windw_s": 60.0})
 

@@ -189,7 +189,7 @@ class ShadowConfig:
             self.event_max_pending > self.event_confirm_windows,
             pair("event_max_pending", "event_confirm_windows", "exceed"),
         )
-        need(self.gap_s >= self.window_s, "gap_s must be at least window_s")
+        need(self.gap_s >= self.window_s, pair("gap_s", "window_s", "be at least"))
         topics = [*self.input_topics(), *self.output_topics().values()]
         for name in _TOPIC_FIELDS:
             value = getattr(self, name)
