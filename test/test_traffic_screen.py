@@ -658,3 +658,27 @@ def test_the_first_baseline_starts_on_quiet_bins_not_on_a_noise_burst() -> None:
     start = first_free(s, 300.0)
     assert start.sum() > 50 and start[60:180].sum() <= 2
     assert abs(np.median(s[start]) - 400e3) < 20.0
+
+
+@pytest.mark.realdata
+def test_records_longer_than_the_hold_are_said_to_pass_unscreened(munich_data: Path) -> None:
+    """``traffic_hold_s: 600`` ("my records are about ten minutes") on the real 12-minute pair.
+
+    Both records passed unscreened without a word: the test car stayed data, the lowering an
+    unconfirmed change of probability 0.97. The JSON's ``traffic.released_unscreened`` and the
+    summary now say so; with the default hold nothing is released.
+    """
+    from bridge_shadow.commands.replay import _summary
+    from bridge_shadow.twin.real_records import Piece, build
+
+    sc = build(munich_data / "Settlements", load_surrogate().A, [Piece("ref", 0.0), Piece("lowered", 0.733)])
+    short = Shadow(load_config(None, {"traffic_hold_s": 600.0}), load_surrogate()).run(sc.data).to_json()
+    released = short["traffic"]["released_unscreened"]
+    assert len(released) == 2 and short["traffic"]["windows_cut"] == 0
+    for r, start in zip(released, sc.starts_ns, strict=True):
+        # released once seen longer than the hold, by the latest at its end (a 12-minute record)
+        assert 0 <= r["since_ns"] - start < 10**9 and 600e9 < r["released_at_ns"] - r["since_ns"] <= 721e9
+    assert "2 record(s) longer than traffic_hold_s (600 s) passed unscreened" in _summary(short)
+    default = Shadow(load_config(), load_surrogate()).run(sc.data).to_json()
+    assert default["traffic"]["released_unscreened"] == [] and default["traffic"]["windows_cut"] > 0
+    assert "passed unscreened" not in _summary(default)

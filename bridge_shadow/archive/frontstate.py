@@ -77,14 +77,21 @@ def _equal(a: Any, b: Any) -> bool:
 
 def same_behaviour(a: FrontState, b: FrontState) -> bool:
     """Whether two front ends will close the same windows from the same messages (gates, buffer)."""
-    return _equal(a.gates, b.gates) and _equal(a.buffer, b.buffer)
+    return _equal(a.gates, b.gates) and _equal(_behaviour(a.buffer), _behaviour(b.buffer))
+
+
+def _behaviour(buffer: dict[str, Any]) -> dict[str, Any]:
+    """Return the buffer's state less its bookkeeping (``released``: records passed unscreened)."""
+    return {k: v for k, v in buffer.items() if k != "released"}
 
 
 def load_behaviour(shadow: Any, state: FrontState) -> None:
     """Set the gates and the window buffer of ``shadow`` to ``state`` (bookkeeping untouched)."""
     for gate, s in zip(shadow.gates, state.gates, strict=True):
         gate.load_state_dict(s)
+    released = shadow.buffer.released  # bookkeeping: the shadow's own
     shadow.buffer.load_state_dict(state.buffer)
+    shadow.buffer.released = released
 
 
 def add_bookkeeping(shadow: Any, end: FrontState, start: FrontState) -> None:
@@ -94,6 +101,8 @@ def add_bookkeeping(shadow: Any, end: FrontState, start: FrontState) -> None:
     (what a warning quotes) is the later one when ``end`` saw a new one.
     """
     shadow.counts.update(Counter({k: v - start.counts.get(k, 0) for k, v in end.counts.items()}))
+    before = len(start.buffer.get("released", []))
+    shadow.buffer.released.extend([int(a), int(b)] for a, b in end.buffer.get("released", [])[before:])
     for key, n in end.used.items():
         shadow.used[key] += n - start.used.get(key, 0)
     for ledger, e, s in zip(shadow.ledgers, end.ledgers, start.ledgers, strict=True):

@@ -139,6 +139,13 @@ def _summary(js: dict[str, Any]) -> str:
             f"traffic screen: {cut[0]} / {cut[1]} samples (south/north) of vehicles cut from "
             f"{traffic['windows_cut']} windows of short records (JSON `traffic`)"
         )
+    released = traffic.get("released_unscreened", [])
+    if released and traffic.get("hold_s"):
+        lines.append(
+            f"traffic screen: {len(released)} record(s) longer than traffic_hold_s "
+            f"({traffic['hold_s']:g} s) passed unscreened, the first since {released[0]['since']} "
+            "(a vehicle parked in them is data; continuous monitoring is, after its first hold)"
+        )
     prior = js.get("prior", {})
     if prior:
         lines.append(

@@ -345,6 +345,8 @@ class WindowBuffer:
         self.traffic_margin_s = float(traffic_margin_s)
         self.traffic_vehicle_max_n = float(traffic_vehicle_max_n)
         self.record = _Record()
+        #: records that grew longer than the hold and passed unscreened: ``[first, release]`` stamps
+        self.released: list[list[int]] = []
         self.timeout_ns = round(timeout_s * ns)
         self.horizon_ns = round(max(timeout_s, stale_s) * ns)
         self.match = match
@@ -477,7 +479,10 @@ class WindowBuffer:
                     rec.begin(int(seg[0]))
                 elif i >= 0:  # the record goes on after a silence: a recording that started again
                     rec.resume(int(seg[0]))
+                start = rec.start_ns if rec.holding else None
                 ended.extend(rec.extend(int(seg[-1]), self.hold_ns))
+                if start is not None and rec.mode == 2:  # released: said (``released``), not screened
+                    self.released.append([int(start), int(seg[-1])])
         if rec.open and (final or end_ns - rec.last_ns >= self.gap_ns):
             ended.extend(rec.end())
         return ended
@@ -660,6 +665,7 @@ class WindowBuffer:
             "next_k": _NONE if self.next_k is None else self.next_k,
             "temp_first_ns": _NONE if self.temp_first_ns is None else self.temp_first_ns,
             "record": self.record.state_dict(),
+            "released": [list(r) for r in self.released],
         }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
@@ -672,3 +678,5 @@ class WindowBuffer:
         first = int(state["temp_first_ns"])  # type: ignore[call-overload]
         self.temp_first_ns = None if first == _NONE else first
         self.record = _Record.from_state_dict(state["record"])  # type: ignore[arg-type]
+        # (a checkpoint written before releases were kept has none)
+        self.released = [[int(a), int(b)] for a, b in state.get("released", [])]  # type: ignore[union-attr]
