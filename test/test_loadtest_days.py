@@ -1994,3 +1994,21 @@ def test_a_record_that_begins_as_the_test_car_leaves_gives_one_event_of_the_whol
     sd = np.sqrt(np.diag(res.covariance_m2))
     assert np.all(np.abs(res.mean_m - sc.truth_m) <= 1.96 * sd)
     assert np.all(np.abs(res.mean_m - sc.truth_m) <= 0.1 * abs(size))
+
+
+@pytest.mark.realdata
+def test_a_likely_change_too_short_for_an_event_says_what_it_waits_for(folder: Path, surrogate) -> None:
+    """A 3 mm raise 4 h on, ``event_confirm_windows: 8``: the record has too few windows to confirm.
+
+    The text read "probability 1 (not confirmed)", a contradiction to a user who set the
+    parameter; it now says an event needs 8 windows, in the warning and the posterior's state.
+    """
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0), Piece("ref", 4.0, (0.003, 0.003), 6.5)])
+    res = Shadow(load_config(None, {"event_confirm_windows": 8}), surrogate).run(sc.data)
+    assert not res.events
+    (change,) = [c for c in res.changes if c.kind == "gap"]
+    assert change.change_probability >= 0.999 and change.windows < 8
+    assert any("an event needs 8 windows that stay with it" in w for w in res.warnings), res.warnings
+    assert "too few windows yet for an event, which needs 8" in res.to_json()["posterior"]["state"]["text"]
+    sd = np.sqrt(np.diag(res.covariance_m2))
+    assert np.all(np.abs(res.mean_m - sc.truth_m) <= 1.96 * sd)  # the posterior holds the raise all the same

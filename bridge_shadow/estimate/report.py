@@ -233,6 +233,8 @@ def posterior_state(shadow: Shadow) -> dict[str, Any]:
     elif kind in ("gap", "held_run", "warmup"):
         state["change_probability"] = float(prob)
         how = "confirmed" if _confirmed(shadow, s) else "not confirmed"
+        if how != "confirmed" and prob >= shadow.config.change_confirm_probability:
+            how += f": too few windows yet for an event, which needs {shadow.config.event_confirm_windows}"
         if kind == "gap":
             w_h = shadow.config.window_s / 3600.0
             hours = [(g["to_k"] - g["from_k"] - 1) * w_h for g in shadow.gaps if g["segment"] == s]
@@ -441,6 +443,11 @@ def warnings(shadow: Shadow) -> list[str]:
                 f"probability {c.change_probability:.3g}, {windows} {since}; "
                 "the posterior weighs it by that probability"
             )
+            if c.change_probability >= shadow.config.change_confirm_probability:
+                # likely enough, too few windows: say what an event waits for (it read as a
+                # contradiction, "probability 1 (not confirmed)", where the records are short)
+                need = shadow.config.event_confirm_windows
+                how += f"; an event needs {need} windows that stay with it (event_confirm_windows)"
         out.append(f"unconfirmed settlement change at {iso_utc(c.time_ns)} ({where}): {size} ({how})")
     return out
 
