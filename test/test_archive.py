@@ -22,6 +22,7 @@ from bridge_shadow.archive.join import join_bags
 from bridge_shadow.archive.reduce import HEAD_WINDOWS, head_windows, reduce_bag
 from bridge_shadow.estimate import load_config
 from bridge_shadow.estimate.shadow import Shadow
+from bridge_shadow.jsonvalues import jsonable
 from bridge_shadow.model.surrogate_file import load_surrogate, placeholder_surrogate, save_surrogate
 from bridge_shadow.replay import replay_bag
 
@@ -211,6 +212,10 @@ def test_cli_reruns_from_the_cache_and_names_the_broken_bag(
     js = json.loads(first.out)
     assert_same_result(js["bridges"]["bridge"], archive["ref"])
     assert js["bags"] == {"reduced": 5, "cached": 0, "failed": 1}
+    # the surrogate block as replay's (its condition number was missing)
+    got, want = js["bridges"]["bridge"]["surrogate"], jsonable(placeholder_surrogate().summary())
+    assert set(got) == set(want) and got["A"] == want["A"] and got["u0"] == want["u0"]  # as the file holds
+    assert got["condition_number"] == pytest.approx(want["condition_number"], rel=1e-12)
     assert "skipped bag" in first.err and "day_99_broken" in first.err
     index = json.loads((out / "index.json").read_text())
     assert index["failed_bags"][0]["bag"].endswith("day_99_broken")
@@ -524,3 +529,33 @@ def test_what_the_cache_key_leaves_out_leaves_the_reduction_as_it_is(root: Path)
         np.testing.assert_allclose(red.windows.force_n, ref.windows.force_n, rtol=1e-12, atol=0, err_msg=name)
         np.testing.assert_allclose(red.windows.temp_c, ref.windows.temp_c, rtol=1e-12, atol=0, err_msg=name)
         assert red.windows.reason.tolist() == ref.windows.reason.tolist(), name
+
+
+def test_a_bag_rewritten_with_its_size_and_mtime_kept_is_hashed_again(tmp_path: Path, monkeypatch) -> None:
+    """``cp -p``, ``tar -x`` or a restore: new bytes, the same size, the old mtime.
+
+    The cache's stat record (name, size, mtime) took the file for unchanged and served the old
+    reduction, joined to the new file's rest: a posterior of neither version. The record now holds
+    the change time and the inode too, which a rewrite moves and no user tool sets back.
+    """
+    import os
+
+    from bridge_shadow.archive import cache as cache_mod
+
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    data = bag / "bag_0.db3"
+    data.write_bytes(b"a" * 4096)
+    cache = cache_mod.ReductionCache(tmp_path / "cache")
+    hashed = []
+    real = cache_mod.bag_digest
+    monkeypatch.setattr(cache_mod, "bag_digest", lambda b: hashed.append(b) or real(b))
+    first = cache.digest(bag)
+    assert cache.digest(bag) == first and len(hashed) == 1  # unchanged: the stat record serves it
+    st = data.stat()
+    data.write_bytes(b"b" * 4096)  # the same size ...
+    os.utime(data, ns=(st.st_atime_ns, st.st_mtime_ns))  # ... and the old mtime
+    assert data.stat().st_size == st.st_size and data.stat().st_mtime_ns == st.st_mtime_ns
+    again = cache.digest(bag)
+    assert again != first and again == real(bag) and len(hashed) == 2

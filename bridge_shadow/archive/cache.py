@@ -103,10 +103,17 @@ def _bag_files(bag: Path) -> list[Path]:
 
 
 def _stat_signature(files: list[Path]) -> list[list[Any]]:
+    """Name, size, modification and change time, inode of each file: what tells a file rewritten.
+
+    Size and mtime alone missed a bag replaced by one of the same size with its mtime kept (``cp
+    -p``, ``tar -x``, a restore): its stale reduction was served, joined to the new file's rest. The
+    change time moves with every write and every ``touch``, and no user tool sets it back; a new
+    inode is a file replaced.
+    """
     out = []
     for p in files:
         st = p.stat()
-        out.append([p.name, st.st_size, st.st_mtime_ns])
+        out.append([p.name, st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino])
     return out
 
 

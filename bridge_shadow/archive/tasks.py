@@ -195,11 +195,7 @@ def join_task(
     result["bridge"] = name
     result["bags"] = [o.bag for o in time_order(seen)]
     result["failed_bags"] = [{"bag": b, "error": e} for b, e in failed]
-    result["surrogate"] = {
-        "A": surrogate.A.tolist(),
-        "u0": surrogate.u0.tolist(),
-        "solver": surrogate.provenance.get("solver", ""),
-    }
+    result["surrogate"] = surrogate.summary()  # as replay's (its condition number was missing)
     return BridgeOutcome(name, result, rows.finish(shadow), failed, stats.fed_whole, seconds)
 
 
