@@ -2012,3 +2012,18 @@ def test_a_likely_change_too_short_for_an_event_says_what_it_waits_for(folder: P
     assert "too few windows yet for an event, which needs 8" in res.to_json()["posterior"]["state"]["text"]
     sd = np.sqrt(np.diag(res.covariance_m2))
     assert np.all(np.abs(res.mean_m - sc.truth_m) <= 1.96 * sd)  # the posterior holds the raise all the same
+
+
+@pytest.mark.realdata
+def test_windows_left_uncompensated_by_rejected_readings_say_so(folder: Path, surrogate) -> None:
+    """``temp_min_c: 5`` above the reference morning's air (1.6-4 C): its readings are all refused.
+
+    The warning blamed the windows "before the first reading" of the air temperature; it now
+    counts the readings rejected, and why (the accepted range).
+    """
+    sc = build(folder, surrogate.A, [Piece("ref", 0.0), Piece("ref", 4.0, (0.003, 0.003), 6.5)])
+    res = Shadow(load_config(None, {"temp_min_c": 5.0}), surrogate).run(sc.data)
+    (line,) = [w for w in res.warnings if w.startswith("no air temperature")]
+    assert "before the first accepted reading" in line
+    n = res.rejected["out_of_range"]
+    assert n > 0 and f"{n} of its readings were rejected: out_of_range {n} (accepted 5 .. " in line

@@ -355,12 +355,22 @@ def warnings(shadow: Shadow) -> list[str]:
             f"state; tried again every {shadow.config.checkpoint_period_s:g} s of data"
         )
     if shadow.uncompensated:
+        air = shadow.ledgers[2]
+        refused = sum(air.rejected.values())
+        lo, hi, unit = air.value_range
+        why = (  # readings the gate refused may be why (temp_min_c above a cold morning's air)
+            f"; {refused} of its readings were rejected: "
+            + ", ".join(f"{r} {n}" for r, n in air.rejected.most_common() if n)
+            + (f" (accepted {lo:g} .. {hi:g} {unit})" if air.rejected.get("out_of_range") else "")
+            if refused
+            else ""
+        )
         out.append(
             f"no air temperature: {shadow.uncompensated} windows used without temperature compensation "
             + (
-                f"(before the first reading of {shadow.config.topic_air_temperature})"
+                f"(before the first accepted reading of {shadow.config.topic_air_temperature}{why})"
                 if shadow.buffer.temp_seen
-                else f"(topic {shadow.config.topic_air_temperature} delivered no accepted reading)"
+                else f"(topic {shadow.config.topic_air_temperature} delivered no accepted reading{why})"
             )
         )
     if shadow.stale_temperature:
