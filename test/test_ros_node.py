@@ -465,7 +465,7 @@ def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
             mean, _ = array_from_msg(player.last(MEAN_TOPIC))
             # the 10 s record is shorter than traffic_hold_s: held whole for the traffic screen,
             # then screened, closed and published at the quiet-input close (as replay's flush)
-            logged = lambda: f"closed {ref.windows} open window" in node.output()  # noqa: E731
+            logged = lambda: f"decided the {ref.windows} window(s) still held" in node.output()  # noqa: E731
             wait_until(logged, TIMEOUT_S, "the node to log the quiet-input close", node.check_alive)
     np.testing.assert_allclose(mean, ref.mean_m, rtol=1e-12, atol=0)
 
