@@ -26,7 +26,16 @@ def test_replay_json_outputs_and_plots(
     from bridge_shadow.contract import FLOAT_ARRAY_TYPE
 
     bag = root / "bags" / "baseline_1d"
-    js = _replay_json(capsys, str(bag), "--out", str(tmp_path / "out"), "--plots", str(tmp_path / "plots"))
+    js = _replay_json(
+        capsys,
+        str(bag),
+        "--out",
+        str(tmp_path / "out"),
+        "--storage",
+        "mcap",
+        "--plots",
+        str(tmp_path / "plots"),
+    )
     mean = np.array(js["posterior"]["mean_m"])
     cov = np.array(js["posterior"]["covariance_m2"])
     assert mean.shape == (2,) and cov.shape == (2, 2)
@@ -62,6 +71,11 @@ def test_replay_json_outputs_and_plots(
     last = get_typestore().deserialize_cdr(raw[MEAN_TOPIC][1][-1], FLOAT_ARRAY_TYPE)
     assert np.allclose(last.data, mean, rtol=1e-15)
     assert last.layout.dim[0].label == "support"
+    # ``--storage mcap``: an integrator's MCAP tooling reads the outputs (always sqlite3 before)
+    import yaml
+
+    meta = yaml.safe_load((tmp_path / "out" / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["storage_identifier"] == "mcap" and len(list((tmp_path / "out").glob("*.mcap"))) == 1
     # every diagnostic value is a str meant as one or JSON another program reads (numpy reprs and
     # Python dicts went out before: ``[np.float64(-1.8e-06), ...]``, ``{'nonfinite': 7}``)
     from bridge_shadow.contract import DIAGNOSTICS_TOPIC, DIAGNOSTICS_TYPE
@@ -329,20 +343,3 @@ def test_every_rejected_window_is_listed_with_or_without_plots(
     windows_rejected = {k: v for k, v in plain["rejected"].items() if k not in MESSAGE_REASONS and v}
     assert by_reason == windows_rejected
     assert [w["window"] for w in listed] == sorted({w["window"] for w in listed})
-
-
-def test_the_outputs_bag_takes_the_storage_asked_for(
-    root: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """``--storage mcap``: an integrator's MCAP tooling reads the outputs (always sqlite3 before)."""
-    import yaml
-
-    from bridge_shadow.bagio import read_raw_topics
-    from bridge_shadow.contract import FLOAT_ARRAY_TYPE
-
-    out = tmp_path / "out"
-    js = _replay_json(capsys, str(root / "bags" / "baseline_1d"), "--out", str(out), "--storage", "mcap")
-    meta = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
-    assert meta["storage_identifier"] == "mcap" and [p.suffix for p in out.glob("*.mcap")] == [".mcap"]
-    raw = read_raw_topics(out, {MEAN_TOPIC: FLOAT_ARRAY_TYPE})
-    assert len(raw[MEAN_TOPIC][1]) == js["windows"]["closed"]
