@@ -7,10 +7,13 @@ to loopback). The bundled bag has 3 force samples per 60 s window, so the tests 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -646,33 +649,37 @@ def test_the_flush_services_checkpoint_lets_the_next_bag_go_on_with_the_record(t
     import json
     from types import SimpleNamespace
 
+    stream = _paused_record_stream()
+    cut = stream["pauses"][0] - 90  # inside the later record, before its logger paused
+    ckpt = tmp_path / "shadow.ckpt"
+    with _in_process_node(checkpoint_path=str(ckpt)) as node:
+        _feed(node, stream, 0, cut)
+        answer = node._on_flush(None, SimpleNamespace(success=False, message=""))
+        assert answer.success and json.loads(answer.message)["windows"]["closed"] > 0
+        assert node.save_on_exit() == ckpt  # the stop after the flush: the same state again
+    with _in_process_node(checkpoint_path=str(ckpt)) as node:
+        assert node.shadow.holds_data  # the record's open window, held as before the close
+        _feed(node, stream, cut, len(stream["stamp"]), quiet_at=tuple(stream["pauses"]))
+        node.close_open_windows()
+        assert node.shadow.rejected.get("late", 0) == 0
+        np.testing.assert_allclose(node._last_posterior[0], stream["whole"].mean_m, rtol=1e-9, atol=0)
+
+
+@contextlib.contextmanager
+def _in_process_node(**parameters: object) -> Iterator[Any]:
+    """A ``ShadowNode`` in a context of its own, its callbacks called directly (no DDS traffic)."""
     import rclpy
     from rclpy.parameter import Parameter
 
     from bridge_shadow.ros.node import ShadowNode
 
-    stream = _paused_record_stream()
-    cut = stream["pauses"][0] - 90  # inside the later record, before its logger paused
-    ckpt = tmp_path / "shadow.ckpt"
     context = rclpy.Context()
     rclpy.init(context=context)
     try:
-        params = [Parameter("checkpoint_path", value=str(ckpt))]
+        params = [Parameter(k, value=v) for k, v in parameters.items()]
         node = ShadowNode(context=context, parameter_overrides=params)
         try:
-            _feed(node, stream, 0, cut)
-            answer = node._on_flush(None, SimpleNamespace(success=False, message=""))
-            assert answer.success and json.loads(answer.message)["windows"]["closed"] > 0
-            assert node.save_on_exit() == ckpt  # the stop after the flush: the same state again
-        finally:
-            node.destroy_node()
-        node = ShadowNode(context=context, parameter_overrides=params)
-        try:
-            assert node.shadow.holds_data  # the record's open window, held as before the close
-            _feed(node, stream, cut, len(stream["stamp"]), quiet_at=tuple(stream["pauses"]))
-            node.close_open_windows()
-            assert node.shadow.rejected.get("late", 0) == 0
-            np.testing.assert_allclose(node._last_posterior[0], stream["whole"].mean_m, rtol=1e-9, atol=0)
+            yield node
         finally:
             node.destroy_node()
     finally:
@@ -687,32 +694,20 @@ def test_a_settlement_event_reaches_the_nodes_log_once(tmp_path: Path) -> None:
     """
     from types import SimpleNamespace
 
-    import rclpy
-
-    from bridge_shadow.ros.node import ShadowNode
-
     stream = _paused_record_stream()
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    try:
-        node = ShadowNode(context=context)
+    with _in_process_node() as node:
         lines: list[str] = []
         log = SimpleNamespace(warn=lines.append, warning=lines.append, info=lines.append, error=lines.append)
         node.get_logger = lambda: log  # type: ignore[method-assign]
-        try:
-            _feed(node, stream, 0, len(stream["stamp"]), quiet_at=tuple(stream["pauses"]))
-            node.close_open_windows()
-            node.publish_diagnostics()
-            node.publish_diagnostics()
-            events = node.shadow.diagnostics()["events"]
-            said = [line for line in lines if line.startswith("settlement event: ")]
-            assert events and len(said) == len(events)
-            for e, line in zip(events, said, strict=True):
-                assert e["time"] in line and f"{1e3 * e['size_m'][0]:+.3f}" in line and "(95 %" in line
-        finally:
-            node.destroy_node()
-    finally:
-        rclpy.try_shutdown(context=context)
+        _feed(node, stream, 0, len(stream["stamp"]), quiet_at=tuple(stream["pauses"]))
+        node.close_open_windows()
+        node.publish_diagnostics()
+        node.publish_diagnostics()
+        events = node.shadow.diagnostics()["events"]
+        said = [line for line in lines if line.startswith("settlement event: ")]
+        assert events and len(said) == len(events)
+        for e, line in zip(events, said, strict=True):
+            assert e["time"] in line and f"{1e3 * e['size_m'][0]:+.3f}" in line and "(95 %" in line
 
 
 def test_topic_parameters_rename_the_node_graph(short_bag: Path, short_direct, tmp_path: Path) -> None:
