@@ -625,7 +625,7 @@ def traffic_info(shadow: Shadow) -> dict[str, Any]:
         "parked": parked_loads(shadow),
         # records longer than the hold: passed unscreened (a test car parked in them is data)
         "released_unscreened": [
-            {"since_ns": a, "since": iso_utc(a), "released_at_ns": b, "released_at": iso_utc(b)}
+            {"since_ns": a, "since": iso_utc(a), "past_hold_ns": b, "past_hold": iso_utc(b)}
             for a, b in shadow.buffer.released
         ],
     }

@@ -345,7 +345,7 @@ class WindowBuffer:
         self.traffic_margin_s = float(traffic_margin_s)
         self.traffic_vehicle_max_n = float(traffic_vehicle_max_n)
         self.record = _Record()
-        #: records that grew longer than the hold and passed unscreened: ``[first, release]`` stamps
+        #: records that grew longer than the hold and passed unscreened: ``[first stamp, first + hold]``
         self.released: list[list[int]] = []
         self.timeout_ns = round(timeout_s * ns)
         self.horizon_ns = round(max(timeout_s, stale_s) * ns)
@@ -482,7 +482,7 @@ class WindowBuffer:
                 start = rec.start_ns if rec.holding else None
                 ended.extend(rec.extend(int(seg[-1]), self.hold_ns))
                 if start is not None and rec.mode == 2:  # released: said (``released``), not screened
-                    self.released.append([int(start), int(seg[-1])])
+                    self.released.append([int(start), int(start) + self.hold_ns])  # when it passed the hold
         if rec.open and (final or end_ns - rec.last_ns >= self.gap_ns):
             ended.extend(rec.end())
         return ended
