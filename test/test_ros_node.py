@@ -127,6 +127,7 @@ def test_live_replay_equals_direct_replay(bag: Path, direct, tmp_path: Path) -> 
         live["posterior"]["covariance_m2"], ref["posterior"]["covariance_m2"], rtol=1e-12, atol=0
     )
     assert live["windows"] == ref["windows"]
+    assert live["rejected_windows"] == ref["rejected_windows"]  # every one, as the offline JSON
     assert live["live"]["windows_published"] == len(direct.outputs)
     # --out records every published posterior; the last one is the returned posterior
     raw = read_raw_topics(tmp_path / "out", {MEAN_TOPIC: FLOAT_ARRAY_TYPE})[MEAN_TOPIC][1]
@@ -663,6 +664,8 @@ def test_the_flush_services_checkpoint_lets_the_next_bag_go_on_with_the_record(t
         node.close_open_windows()
         assert node.shadow.rejected.get("late", 0) == 0
         np.testing.assert_allclose(node._last_posterior[0], stream["whole"].mean_m, rtol=1e-9, atol=0)
+        # the report lists every rejected window, the first node's too (what `replay --live` prints)
+        assert node.report()["rejected_windows"] == stream["whole"].rejected_windows() != []
 
 
 @contextlib.contextmanager

@@ -568,7 +568,7 @@ def run_live(
         "unconfirmed_changes": report["unconfirmed_changes"],
         "gaps": report["gaps"],
         "traffic": report["traffic"],
-        "rejected_windows": rejected_windows(history),
+        "rejected_windows": report.get("rejected_windows", rejected_windows(history)),
         "warnings": report["warnings"],
         "prior": report["prior"],
         "spline": report["spline"],

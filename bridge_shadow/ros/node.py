@@ -86,6 +86,7 @@ from bridge_shadow.contract import (
 from bridge_shadow.errors import BridgeShadowError
 from bridge_shadow.estimate import Shadow, ShadowConfig, WindowOutput
 from bridge_shadow.estimate.parameters.specs import SPECS
+from bridge_shadow.estimate.report import rejected_list
 from bridge_shadow.estimate.startup import open_shadow
 from bridge_shadow.estimate.state.checkpoint import CheckpointError, save_state
 from bridge_shadow.jsonvalues import jsonable
@@ -454,6 +455,9 @@ class ShadowNode(Node):
             "quiet_flushes_undone": self.quiet_flushes_undone,
             "arrival_age_s": self._ages(),
         }
+        # every rejected window since the state began (the checkpoint's too), as the offline JSON
+        # lists them; the live replay listed only the windows this process published
+        diag["rejected_windows"] = rejected_list(self.shadow)
         return diag
 
     def _ages(self) -> dict[str, float | None]:
