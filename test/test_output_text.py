@@ -329,3 +329,36 @@ def test_a_day_whose_imposed_steps_cannot_decide_does_not_say_the_model_explains
     assert "(probability 0.42) than the model as given (settlement_step, 0.09)" in unsure
     sure = text({"settlement_step": 0.71, "support_spring": 0.29})
     assert "The model explains the response to the imposed step(s) within the jacks' accuracy" in sure
+
+
+def test_the_imposed_steps_explanations_give_stiffnesses_in_kn_per_mm() -> None:
+    """They printed ``support_spring_south 5.91e+06`` (N/m, no unit) and a bare joint fraction."""
+    from bridge_shadow.commands.gap import _levels_lines
+
+    rows = [
+        {"effect": "slab_joint_opening", "probability": 0.82, "delta_log_evidence": 0.0},
+        {"effect": "connector_stiffness", "probability": 0.13, "delta_log_evidence": -1.84},
+        {"effect": "support_spring", "probability": 0.05, "delta_log_evidence": -2.85},
+        {"effect": "settlement_step", "probability": 0.0, "delta_log_evidence": -35.25},
+    ]
+    params = [
+        {"slab_joint_opening": 4.779e-4},
+        {"connector_stiffness": 1.861e7},
+        {"support_spring_south": 5.908e6, "support_spring_north": 1.205e7},
+        {},
+    ]
+    levels = {
+        "records": [0, 1],
+        "pairs": [],
+        "not_measured": [],
+        "imposed": {
+            "validation": "one imposed pair",
+            "explanations": [{**r, "parameters": p} for r, p in zip(rows, params, strict=True)],
+        },
+        "steps_between_records": [],
+    }
+    text = "\n".join(_levels_lines(levels))
+    assert "support_spring_south 5.908 kN/mm, support_spring_north 12.05 kN/mm" in text
+    assert "connector_stiffness 18.61 kN/mm per m" in text
+    assert "slab_joint_opening 0.0004779" in text and "1 = closed as built" in text
+    assert "settlement_step" in text and "as given" in text

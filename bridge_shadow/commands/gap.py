@@ -204,12 +204,25 @@ def _levels_lines(levels: dict | None) -> list[str]:
         lines.append(f"  {note}")
     imp = levels.get("imposed")
     if imp:
+        from bridge_shadow.gap.si import param_text
+        from bridge_shadow.model.parameters import PARAMETERS
+
         lines.append(f"  the imposed steps explained by ({imp['validation']}):")
         for r in imp["explanations"]:
-            params = ", ".join(f"{k} {v:.3g}" for k, v in r["parameters"].items()) or "as given"
+            # each in the text's units (kN/mm; a stiffness in SI and bare read as anything)
+            params = ", ".join(
+                param_text(f"{k} [{PARAMETERS[k].unit}]", v) if k in PARAMETERS else f"{k} {v:.3g}"
+                for k, v in r["parameters"].items()
+            )
+            params = params or "as given"
             lines.append(
                 f"    {r['effect']:<21} P {r['probability']:.2f}  "
                 f"dlogZ {r['delta_log_evidence']:7.2f}  {params}"
+            )
+        if any("slab_joint_opening" in r["parameters"] for r in imp["explanations"]):
+            lines.append(
+                "    (slab_joint_opening: the share of the slab joints' stiffness kept over the central "
+                "support, 1 = closed as built)"
             )
     for st in levels["steps_between_records"]:
         mark = "step" if st["significant"] else "no significant step"

@@ -61,6 +61,7 @@ PEOPLE_UNITS: dict[str, tuple[str, float]] = {
     "N/s": ("kN/day", 86.4),
     "N/K": ("kN/K", 1e-3),
     "N/m": ("kN/mm", 1e-6),
+    "N/m/m": ("kN/mm per m", 1e-6),
     "m/N": ("mm/kN", 1e6),
     "K": ("K", 1.0),
     "s": ("h", 1.0 / 3600.0),
