@@ -14,7 +14,13 @@ import numpy as np
 from bridge_shadow.contract import CHANNELS, SUPPORTS
 from bridge_shadow.estimate.compensation.fit import deck_sun_weight
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS
-from bridge_shadow.estimate.result import ChangeRecord, EventRecord, ReplayResult, WindowOutput
+from bridge_shadow.estimate.result import (
+    ChangeRecord,
+    EventRecord,
+    ReplayResult,
+    WindowOutput,
+    rejected_window,
+)
 from bridge_shadow.timefmt import iso_utc
 
 if TYPE_CHECKING:
@@ -585,10 +591,7 @@ def diagnostics(shadow: Shadow, now_ns: int | None = None) -> dict[str, Any]:
         "unconfirmed_changes": [c.to_json() for c in unconfirmed_changes(shadow)],
         "gaps": gaps(shadow),
         "state": posterior_state(shadow),
-        "recent_rejected_windows": [
-            {"time_ns": k * shadow._w_ns, "time": iso_utc(k * shadow._w_ns), "window": k, "reason": r}
-            for k, r in shadow.recent_rejected
-        ],
+        "recent_rejected_windows": [rejected_window(k, shadow._w_ns, r) for k, r in shadow.recent_rejected],
         "warnings": lines,
         "traffic": traffic_info(shadow),
         "windows": {
@@ -691,9 +694,8 @@ def rejected_list(shadow: Shadow) -> list[dict[str, Any]]:
     the caller kept (a replay streams them to ``--out`` and keeps none, or a decimated history
     for ``--plots``; it listed none, or a sample).
     """
-    w = shadow._w_ns
     return [
-        {"time_ns": k * w, "time": iso_utc(k * w), "window": k, "reason": reason}
+        rejected_window(k, shadow._w_ns, reason)
         for first, last, reason in shadow.rejected_runs
         for k in range(first, last + 1)
     ]

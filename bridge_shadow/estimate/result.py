@@ -16,7 +16,7 @@ __all__ = [
     "EventRecord",
     "ReplayResult",
     "WindowOutput",
-    "rejected_windows",
+    "rejected_window",
     "split_rejected",
 ]
 
@@ -230,16 +230,9 @@ def split_rejected(rejected: dict[str, int]) -> tuple[dict[str, int], dict[str, 
     return messages, windows
 
 
-def rejected_windows(outputs: list[WindowOutput]) -> list[dict[str, Any]]:
-    """Return the windows among ``outputs`` that did not join the estimate: time (start) and reason."""
-    out = []
-    for o in outputs:
-        if o.updated:
-            continue
-        start_ns = int(o.end_ns) // (int(o.index) + 1) * int(o.index)  # end = (k + 1) W exactly
-        when = {"time_ns": start_ns, "time": iso_utc(start_ns)}
-        out.append({**when, "window": int(o.index), "reason": o.reason})
-    return out
+def rejected_window(k: int, window_ns: int, reason: str) -> dict[str, Any]:
+    """Return one rejected window as the JSON lists it: its start (ns and UTC), index and reason."""
+    return {"time_ns": k * window_ns, "time": iso_utc(k * window_ns), "window": int(k), "reason": reason}
 
 
 @dataclass
@@ -266,8 +259,8 @@ class ReplayResult:
     state: dict[str, Any] = field(default_factory=dict)
     gaps: list[dict[str, Any]] = field(default_factory=list)
     traffic: dict[str, Any] = field(default_factory=dict)
-    #: every rejected window (time, window, reason) from the shadow's own log; None: from ``outputs``
-    rejected_list: list[dict[str, Any]] | None = None
+    #: every rejected window (``rejected_window``), from the shadow's own log (``report.rejected_list``)
+    rejected_list: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def messages_per_s(self) -> float:
@@ -290,7 +283,7 @@ class ReplayResult:
 
     def rejected_windows(self) -> list[dict[str, Any]]:
         """Every window that closed with data but did not join the estimate: its time and reason."""
-        return rejected_windows(self.outputs) if self.rejected_list is None else list(self.rejected_list)
+        return list(self.rejected_list)
 
     def to_json(self) -> dict[str, Any]:
         """Return the replay JSON object (contract keys first)."""

@@ -60,7 +60,7 @@ from bridge_shadow.contract import (
 )
 from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.estimate.parameters.specs import YEAR_S
-from bridge_shadow.estimate.result import rejected_windows, split_rejected
+from bridge_shadow.estimate.result import split_rejected
 from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
 from bridge_shadow.ros.node import (
@@ -568,7 +568,7 @@ def run_live(
         "unconfirmed_changes": report["unconfirmed_changes"],
         "gaps": report["gaps"],
         "traffic": report["traffic"],
-        "rejected_windows": report.get("rejected_windows", rejected_windows(history)),
+        "rejected_windows": report["rejected_windows"],  # the node's whole list (ShadowNode.report)
         "warnings": report["warnings"],
         "prior": report["prior"],
         "spline": report["spline"],
