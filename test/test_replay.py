@@ -343,3 +343,31 @@ def test_every_rejected_window_is_listed_with_or_without_plots(
     windows_rejected = {k: v for k, v in plain["rejected"].items() if k not in MESSAGE_REASONS and v}
     assert by_reason == windows_rejected
     assert [w["window"] for w in listed] == sorted({w["window"] for w in listed})
+
+
+@pytest.mark.parametrize(("window_s", "said"), [(0.01, True), (1.0, False)])
+def test_windows_too_short_for_the_data_rate_are_named(window_s: float, said: bool) -> None:
+    """A window as long as the sample period holds one sample: the warning says why none was used.
+
+    At 100 Hz a 0.01 s window has one sample of each load cell, fewer than ``window_min_samples``
+    (3): every window is ``sparse_window`` and the counts alone did not say that ``window_s`` is the
+    cause. A 1 s window (100 samples) gets no such line.
+    """
+    from bridge_shadow.estimate import Shadow, load_config
+    from bridge_shadow.model.surrogate_file import load_surrogate
+    from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+    t0 = 1_649_658_960_000_000_000  # 2022-04-11T06:36Z
+    stamp = t0 + np.arange(2000, dtype=np.int64) * 10_000_000  # 20 s at 100 Hz
+    rng = np.random.default_rng(3)
+    forces = {
+        ch: ForceSeries(stamp, level + rng.normal(0.0, 60.0, len(stamp)), ch)
+        for ch, level in (("frc_01", 2.1e5), ("frc_02", 1.9e5))
+    }
+    temp = TemperatureSeries(stamp[::100], np.full(20, 3.0), np.zeros(20))
+    shadow = Shadow(load_config().replace(window_s=window_s), load_surrogate())
+    shadow.run(MonitoringData(forces, temp))
+    lines = [w for w in shadow.warnings() if w.startswith("windows too short for the data")]
+    assert bool(lines) is said
+    if said:
+        assert "window_min_samples (3)" in lines[0] and "about 1 per window of window_s 0.01 s" in lines[0]

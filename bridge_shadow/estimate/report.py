@@ -351,6 +351,26 @@ def low_load_lines(shadow: Shadow) -> list[str]:
     ]
 
 
+def short_window_lines(shadow: Shadow) -> list[str]:
+    """One line when most windows were too sparse to use because ``window_s`` is short for the data.
+
+    A window needs ``window_min_samples`` accepted samples of each load cell; at a window as long as
+    the sample period (0.01 s at 100 Hz) almost none has them, and the counts alone
+    (``sparse_window``) did not say why. Said when at least half the closed windows were sparse.
+    """
+    sparse = int(shadow.counts.get("sparse_window", 0))
+    if not shadow.n_windows or 2 * sparse < shadow.n_windows:
+        return []
+    used = [shadow.ledgers[c].run_counts()[0] for c in range(len(CHANNELS))]
+    per_window = min(used) / shadow.n_windows
+    return [
+        f"windows too short for the data: {sparse} of {shadow.n_windows} windows had fewer than "
+        f"window_min_samples ({shadow.config.window_min_samples}) samples of a load cell, about "
+        f"{per_window:.2g} per window of window_s {shadow.config.window_s:g} s; choose window_s so "
+        "that a window holds many samples (the default 60 s)"
+    ]
+
+
 def warnings(shadow: Shadow) -> list[str]:
     """Problems a user must hear about (one line each): silent failures made loud."""
     out = []
@@ -400,6 +420,7 @@ def warnings(shadow: Shadow) -> list[str]:
             f"{shadow.config.topic_air_temperature} delivered {heard[2]} (the shadow reads the load cells)"
         )
     out.extend(silent_channel_lines(shadow))
+    out.extend(short_window_lines(shadow))
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")
     last = shadow._last_data_k
