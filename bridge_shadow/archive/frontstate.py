@@ -117,6 +117,28 @@ def add_bookkeeping(shadow: Any, end: FrontState, start: FrontState) -> None:
         value_e, value_s = float(e["last_value"]), float(s["last_value"])
         if not np.isnan(value_e) and not _equal(value_e, value_s):
             ledger.last_value = value_e
+        _add_tail(ledger, e, s)
+
+
+def _add_tail(ledger: Any, e: dict[str, Any], s: dict[str, Any]) -> None:
+    """Carry the run of rejected messages since the last accepted one (``TopicLedger.tail_n``).
+
+    A reduction that accepted a message ends with its own tail; one that accepted none adds its
+    rejected messages to the tail before it (the other front end's tail at ``start`` is its own).
+    """
+    ok_e, ok_s = int(e.get("last_ok_ns", -1)), int(s.get("last_ok_ns", -1))
+    n_e, n_s = int(e.get("tail_n", 0)), int(s.get("tail_n", 0))
+    first_e, last_e = int(e.get("tail_first_ns", -1)), int(e.get("tail_last_ns", -1))
+    if ok_e != ok_s:
+        ledger.last_ok_ns, ledger.tail_n = ok_e, n_e
+        ledger.tail_first_ns, ledger.tail_last_ns = first_e, last_e
+        return
+    if n_e <= n_s:
+        return
+    if not ledger.tail_n:
+        ledger.tail_first_ns = first_e
+    ledger.tail_n += n_e - n_s
+    ledger.tail_last_ns = max(ledger.tail_last_ns, last_e)
 
 
 def _rejected(ledger_state: dict[str, Any]) -> dict[str, int]:

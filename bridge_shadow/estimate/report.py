@@ -7,6 +7,7 @@ Plain functions of a ``Shadow`` (SI units; text for people only in the messages)
 
 from __future__ import annotations
 
+from collections import Counter
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -14,6 +15,7 @@ import numpy as np
 from bridge_shadow.contract import CHANNELS, SUPPORTS
 from bridge_shadow.estimate.compensation.fit import deck_sun_weight
 from bridge_shadow.estimate.inputs.ledger import TOPIC_KEYS
+from bridge_shadow.estimate.inputs.silence import MIN_SILENT_WINDOWS
 from bridge_shadow.estimate.result import (
     ChangeRecord,
     EventRecord,
@@ -371,6 +373,37 @@ def short_window_lines(shadow: Shadow) -> list[str]:
     ]
 
 
+def dead_input_lines(shadow: Shadow) -> list[str]:
+    """One line when both load cells' messages, to the end of the data, were all rejected.
+
+    Found with the 2022-04-11 records: the 10 mm record with both cells delivering NaN (or one
+    value held) throughout ended at the reference state, 0 ± 3.7 mm against -10 mm, no event, no
+    warning: no window of it closed, so neither the rejected windows nor a silent channel (whose
+    partner delivered) showed it, and every topic had accepted messages before. Said when both
+    channels' rejected messages since their last accepted one span at least two windows (a
+    stretch, as ``inputs.silence.MIN_SILENT_WINDOWS``).
+    """
+    span = MIN_SILENT_WINDOWS * shadow._w_ns
+    tails = [shadow.ledgers[c].dead_tail(span) for c in range(len(CHANNELS))]
+    if any(t is None for t in tails):
+        return []
+    last_ok = max(shadow.ledgers[c].last_ok_ns for c in range(len(CHANNELS)))
+    first = min(t[1] for t in tails if t is not None)
+    last = max(t[2] for t in tails if t is not None)
+    n0, n1 = (t[0] for t in tails if t is not None)
+    counts = f"{n0} messages of {CHANNELS[0]} and {n1} of {CHANNELS[1]}"
+    why: Counter = Counter()
+    for c in range(len(CHANNELS)):
+        why.update(shadow.ledgers[c].run_counts()[1])
+    reasons = ", ".join(f"{r} {n}" for r, n in why.most_common() if n)
+    since = f"after {iso_utc(last_ok)}" if last_ok >= 0 else "at all"
+    return [
+        f"no usable load-cell message {since}: the {counts} from {iso_utc(first)} to "
+        f"{iso_utc(last)} were all rejected (over the whole run: {reasons}): the settlement since is "
+        "unknown, and the posterior stands for the state before them"
+    ]
+
+
 def warnings(shadow: Shadow) -> list[str]:
     """Problems a user must hear about (one line each): silent failures made loud."""
     out = []
@@ -421,6 +454,7 @@ def warnings(shadow: Shadow) -> list[str]:
         )
     out.extend(silent_channel_lines(shadow))
     out.extend(short_window_lines(shadow))
+    out.extend(dead_input_lines(shadow))
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")
     last = shadow._last_data_k

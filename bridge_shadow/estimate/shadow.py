@@ -297,7 +297,7 @@ class Shadow:
         ok = self.gates[i](stamps, values, frame_id, self._clock_span(), local)
         if local:
             self.counts.update(local)
-        self.ledgers[i].note(ok, values, frame_id, Counter(), local)
+        self.ledgers[i].note(ok, values, frame_id, Counter(), local, stamps)
         n_ok = int(np.count_nonzero(ok))
         # the gate holds a large forward step for one message (one wild stamp costs only itself):
         # a message it held earlier and now takes joins this batch

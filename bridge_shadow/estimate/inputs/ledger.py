@@ -26,8 +26,8 @@ TOPIC_KEYS: tuple[str, str, str] = (*CHANNELS, "air_temperature")
 OLD_SHARE = 0.1
 _STAMP_REASONS = ("clock_jump", "out_of_order", "duplicate")
 _OLD_CAUSES = (
-    "not used: bags that overlap in time, or a checkpoint (or data before) whose clock is ahead "
-    "of these stamps"
+    "not used: bags that overlap in time, a logger's clock set back (an hour, where daylight saving "
+    "time ends), or a checkpoint (or data before) whose clock is ahead of these stamps"
 )
 
 
@@ -42,6 +42,10 @@ class TopicLedger:
         used: accepted messages; rejected: rejections by reason.
         last_frame: a frame id seen on a message rejected for its frame.
         last_value: a value seen on a message rejected as out of range.
+        last_ok_ns: stamp of the last message accepted (in arrival order; -1: none yet).
+        tail_n: messages rejected since that one (all of them when none was accepted), whose
+            stamps span ``tail_first_ns .. tail_last_ns`` (-1: none): a topic that goes on
+            delivering nothing usable to the end of the data (``dead_tail``).
 
     """
 
@@ -52,6 +56,10 @@ class TopicLedger:
     rejected: Counter = field(default_factory=Counter)
     last_frame: str | None = None
     last_value: float | None = None
+    last_ok_ns: int = -1
+    tail_n: int = 0
+    tail_first_ns: int = -1
+    tail_last_ns: int = -1
     #: the counts of a resumed checkpoint: the warnings judge this run's messages (not saved)
     used_before: int = 0
     rejected_before: Counter = field(default_factory=Counter)
@@ -63,9 +71,16 @@ class TopicLedger:
         frame_id: np.ndarray | str | None,
         counts_before: Counter,
         counts: Counter,
+        stamps: np.ndarray | None = None,
     ) -> None:
-        """Record one gated batch: ``ok`` mask, the values and frames, and the global counts around it."""
+        """Record one gated batch: ``ok`` mask, the values and frames, and the global counts around it.
+
+        ``stamps`` (the messages' stamps, ns; None: not followed) keep the run of rejected messages
+        since the last accepted one (``tail_n``).
+        """
         self.used += int(np.count_nonzero(ok))
+        if stamps is not None and len(ok):
+            self._follow_tail(ok, np.asarray(stamps, np.int64))
         for reason, n in counts.items():
             d = n - counts_before.get(reason, 0)
             if d:
@@ -82,6 +97,34 @@ class TopicLedger:
         out = bad & np.isfinite(values) & ((values < lo) | (values > hi))
         if out.any():
             self.last_value = float(values[np.flatnonzero(out)[-1]])
+
+    def _follow_tail(self, ok: np.ndarray, stamps: np.ndarray) -> None:
+        if ok[-1]:  # the common case: the batch's last message was taken
+            self.last_ok_ns = int(stamps[-1])
+            if self.tail_n:
+                self.tail_n, self.tail_first_ns, self.tail_last_ns = 0, -1, -1
+            return
+        taken = np.flatnonzero(ok)
+        if taken.size:
+            j = int(taken[-1])
+            self.last_ok_ns = int(stamps[j])
+            self.tail_n, self.tail_first_ns, self.tail_last_ns = 0, -1, -1
+            stamps = stamps[j + 1 :]
+        if not stamps.size:
+            return
+        first, last = int(stamps.min()), int(stamps.max())
+        self.tail_first_ns = first if self.tail_n == 0 else min(self.tail_first_ns, first)
+        self.tail_last_ns = max(self.tail_last_ns, last)
+        self.tail_n += len(stamps)
+
+    def dead_tail(self, min_ns: int) -> tuple[int, int, int] | None:
+        """``(messages, first_ns, last_ns)`` rejected since the last accepted one, if they span ``min_ns``.
+
+        None when the topic's last message was accepted, or its rejected ones since span less.
+        """
+        if self.tail_n and self.tail_last_ns - self.tail_first_ns >= min_ns:
+            return self.tail_n, self.tail_first_ns, self.tail_last_ns
+        return None
 
     def run_counts(self) -> tuple[int, Counter]:
         """Return this run's used messages and rejections by reason (those since a resumed checkpoint)."""
@@ -136,6 +179,10 @@ class TopicLedger:
             "last_frame": "" if self.last_frame is None else self.last_frame,
             "has_frame": self.last_frame is not None,
             "last_value": np.nan if self.last_value is None else self.last_value,
+            "last_ok_ns": self.last_ok_ns,
+            "tail_n": self.tail_n,
+            "tail_first_ns": self.tail_first_ns,
+            "tail_last_ns": self.tail_last_ns,
         }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
@@ -146,3 +193,8 @@ class TopicLedger:
         self.last_frame = str(state["last_frame"]) if bool(state["has_frame"]) else None
         v = float(state["last_value"])  # type: ignore[arg-type]
         self.last_value = None if np.isnan(v) else v
+        # checkpoints written before the tail was followed have none
+        self.last_ok_ns = int(state.get("last_ok_ns", -1))  # type: ignore[call-overload]
+        self.tail_n = int(state.get("tail_n", 0))  # type: ignore[call-overload]
+        self.tail_first_ns = int(state.get("tail_first_ns", -1))  # type: ignore[call-overload]
+        self.tail_last_ns = int(state.get("tail_last_ns", -1))  # type: ignore[call-overload]

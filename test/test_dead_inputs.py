@@ -1,0 +1,118 @@
+"""Load cells that go on delivering, every message rejected, to the end of the data: said out loud.
+
+Found with the 2022-04-11 records (a helper session's data-quality streams): the 10 mm record
+with both load cells delivering NaN throughout, or one value held, ended at the reference state,
+0 ± 3.7 mm against the -10 mm it held, with no event and no warning. No window of it closed, so
+neither the rejected windows nor a silent channel (whose partner delivered) showed it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from archive_fixtures import seamed_record, write_archive
+
+from bridge_shadow.archive.join import join_bags
+from bridge_shadow.archive.reduce import reduce_bag
+from bridge_shadow.estimate import Shadow, load_config
+from bridge_shadow.estimate.inputs.ledger import TopicLedger
+from bridge_shadow.model.surrogate_file import load_surrogate, placeholder_surrogate
+from bridge_shadow.replay import replay_bag
+from bridge_shadow.series import ForceSeries, MonitoringData
+from bridge_shadow.timefmt import iso_utc
+
+DEAD = "no usable load-cell message after"
+
+
+def _dead_from(
+    data: MonitoringData, from_ns: int, value: float | None = None, to_ns: int | None = None
+) -> MonitoringData:
+    """Both load cells' values over ``[from_ns, to_ns)`` NaN (or ``value`` held), stamps as they were."""
+    forces = {}
+    for ch, s in data.forces.items():
+        f = s.force_n.copy()
+        dead = (s.stamp_ns >= from_ns) & (
+            s.stamp_ns < (to_ns if to_ns is not None else np.iinfo(np.int64).max)
+        )
+        f[dead] = np.nan if value is None else value
+        forces[ch] = ForceSeries(s.stamp_ns, f, s.frame_id, log_ns=s.log_ns)
+    return MonitoringData(forces, data.temperature)
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("held", [False, True])
+def test_a_record_whose_every_message_is_rejected_is_said_with_its_times(
+    munich_data: Path, held: bool
+) -> None:
+    """The lowered record with both cells NaN (or each holding one value) throughout: said.
+
+    A WARN line says from when the load cells gave nothing usable and that the state since is
+    unknown; with a good record after it, the line goes and the lowering is found.
+    """
+    from bridge_shadow.twin.real_records import Piece, build
+
+    sur = load_surrogate()
+    sc = build(munich_data / "Settlements", sur.A, [Piece("ref", 0.0), Piece("lowered", 0.733)])
+    start = sc.starts_ns[1]
+    good = Shadow(load_config(), sur)
+    good.run(sc.data)
+    assert not [w for w in good.warnings() if DEAD in w]  # the record as it was: one event, no line
+    assert len(good.event_records()) == 1
+    shadow = Shadow(load_config(), sur)
+    shadow.run(_dead_from(sc.data, start, 250e3 if held else None))
+    (line,) = [w for w in shadow.warnings() if DEAD in w]
+    assert "the settlement since is unknown" in line
+    assert ("frozen" if held else "nonfinite") in line
+    # the last usable message: the reference record's end (NaN), or the held value's first seconds
+    last_ok = max(led.last_ok_ns for led in shadow.ledgers[:2])
+    ref_end = int(max(s.stamp_ns[s.stamp_ns < start].max() for s in sc.data.forces.values()))
+    assert (last_ok - start) < 60e9 if held else last_ok == ref_end
+    assert iso_utc(last_ok) in line
+    # a good record after it: the line goes, the lowering is found there
+    pieces = [Piece("ref", 0.0), Piece("lowered", 0.733), Piece("lowered", 1.5)]
+    more = build(munich_data / "Settlements", sur.A, pieces)
+    shadow = Shadow(load_config(), sur)
+    shadow.run(_dead_from(more.data, start, None, more.starts_ns[2]))
+    assert not [w for w in shadow.warnings() if DEAD in w]
+    np.testing.assert_allclose(shadow.posterior[0], [-0.01, -0.01], atol=1.5e-3)
+
+
+def test_the_ledger_keeps_the_rejected_tail_through_its_state() -> None:
+    """Accepted messages end the tail; rejected ones grow it; the state carries it (checkpoints)."""
+    led = TopicLedger("frc_01", "frc_01", (1.0, 5e6, "N"))
+    stamps = np.arange(10, dtype=np.int64) * 10**9
+    led.note(np.ones(10, bool), np.ones(10), None, {}, {}, stamps)
+    assert led.last_ok_ns == 9 * 10**9 and led.tail_n == 0
+    ok = np.array([True, True, False, False])
+    led.note(ok, np.ones(4), None, {}, {}, stamps[:4] + 10 * 10**9)
+    assert (led.last_ok_ns, led.tail_n, led.tail_first_ns, led.tail_last_ns) == (11e9, 2, 12e9, 13e9)
+    led.note(np.zeros(3, bool), np.ones(3), None, {}, {}, stamps[:3] + 20 * 10**9)
+    assert (led.tail_n, led.tail_first_ns, led.tail_last_ns) == (5, 12e9, 22e9)
+    assert led.dead_tail(10 * 10**9) == (5, 12 * 10**9, 22 * 10**9)
+    assert led.dead_tail(11 * 10**9) is None
+    again = TopicLedger("frc_01", "frc_01", (1.0, 5e6, "N"))
+    again.load_state_dict(led.state_dict())
+    assert again.dead_tail(10 * 10**9) == led.dead_tail(10 * 10**9)
+    led.note(np.array([False, True]), np.ones(2), None, {}, {}, stamps[:2] + 30 * 10**9)
+    assert led.tail_n == 0 and led.dead_tail(0) is None
+
+
+def test_an_archive_says_it_as_the_serial_replay_does(tmp_path: Path) -> None:
+    """Both cells dead from inside a bag to the end: the joined reductions say what the replay says.
+
+    The serial replay's warnings, the dead-input line among them, line for line.
+    """
+    data, seams = seamed_record(days=1.6)
+    t0 = int(data.forces["frc_01"].stamp_ns[0])
+    data = _dead_from(data, t0 + int(0.5 * 86400e9))  # inside bag 1, reduced: its tail carried
+    bags, whole = write_archive(tmp_path, data, seams)
+    config, surrogate = load_config(), placeholder_surrogate()
+    ref, _ = replay_bag(whole, Shadow(config, surrogate))
+    ref_json = ref.to_json()
+    assert [w for w in ref_json["warnings"] if DEAD in w]
+    shadow = Shadow(config, surrogate)
+    stats = join_bags(shadow, [reduce_bag(b, config, surrogate) for b in bags])
+    got = shadow.result([], stats.messages, 1.0).to_json()
+    assert got["warnings"] == ref_json["warnings"]
