@@ -404,6 +404,45 @@ def dead_input_lines(shadow: Shadow) -> list[str]:
     ]
 
 
+#: An event whose reaction change on one load cell is at most this share of the other's (and within
+#: two of its standard deviations of none) moved that cell alone: ``one_cell_lines``.
+ONE_CELL_SHARE = 0.05
+
+
+def one_cell_lines(shadow: Shadow) -> list[str]:
+    """One line per event that changed one load cell's reaction alone: a sensor fault fits it too.
+
+    A settlement moves both reactions through ``A``; the one that leaves a cell's reaction as it
+    was is a particular mix of both supports (``A^-1`` times that cell's unit change; on the
+    calibrated model south and north down in a ratio of about 1.4 to 1). A load cell whose offset
+    or gain jumped gives exactly that signature (found with the 2022-04-11 records: +50 kN on the
+    north cell of an unchanged second record read as a confirmed event of +6.2 / +8.4 mm, and a
+    2 % gain change as one too, with nothing to say that one cell moved), so the event is told with
+    its reaction changes and the alternative named. Not said for a change smaller than three
+    standard deviations of the cell that moved.
+    """
+    out = []
+    for e in event_records(shadow):
+        if not (np.all(np.isfinite(e.size_m)) and np.all(np.isfinite(e.covariance_m2))):
+            continue
+        d = shadow.A @ e.size_m
+        sd = np.sqrt(np.maximum(np.diag(shadow.A @ e.covariance_m2 @ shadow.A.T), 0.0))
+        moved = int(np.argmax(np.abs(d)))
+        still = 1 - moved
+        if abs(d[moved]) < 3.0 * sd[moved]:
+            continue
+        if abs(d[still]) > ONE_CELL_SHARE * abs(d[moved]) or abs(d[still]) > 2.0 * sd[still]:
+            continue
+        other = f"{CHANNELS[still]} {1e-3 * d[still]:+.2f} ± {1.96e-3 * sd[still]:.2f} kN"
+        out.append(
+            f"event at {iso_utc(e.time_ns)} changed one load cell's reaction alone: {CHANNELS[moved]} "
+            f"{1e-3 * d[moved]:+.1f} kN, {other}: "
+            f"a jump of {CHANNELS[moved]}'s offset or gain (a sensor fault) fits it as well as the "
+            "settlement read; check that load cell"
+        )
+    return out
+
+
 def warnings(shadow: Shadow) -> list[str]:
     """Problems a user must hear about (one line each): silent failures made loud."""
     out = []
@@ -455,6 +494,7 @@ def warnings(shadow: Shadow) -> list[str]:
     out.extend(silent_channel_lines(shadow))
     out.extend(short_window_lines(shadow))
     out.extend(dead_input_lines(shadow))
+    out.extend(one_cell_lines(shadow))
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")
     last = shadow._last_data_k

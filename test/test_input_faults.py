@@ -1,13 +1,15 @@
-"""Load cells that go on delivering, every message rejected, to the end of the data: said out loud.
+"""Faults of the load cells said out loud: every message rejected to the end, one cell's jump.
 
 Found with the 2022-04-11 records (a helper session's data-quality streams): the 10 mm record
 with both load cells delivering NaN throughout, or one value held, ended at the reference state,
 0 ± 3.7 mm against the -10 mm it held, with no event and no warning. No window of it closed, so
-neither the rejected windows nor a silent channel (whose partner delivered) showed it.
+neither the rejected windows nor a silent channel (whose partner delivered) showed it. And a jump
+of one cell's offset read as a confirmed settlement with nothing to say that one cell moved alone.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -116,3 +118,37 @@ def test_an_archive_says_it_as_the_serial_replay_does(tmp_path: Path) -> None:
     stats = join_bags(shadow, [reduce_bag(b, config, surrogate) for b in bags])
     got = shadow.result([], stats.messages, 1.0).to_json()
     assert got["warnings"] == ref_json["warnings"]
+
+
+@pytest.mark.realdata
+def test_an_event_on_one_load_cell_alone_names_a_sensor_fault(munich_data: Path) -> None:
+    """An unchanged record hours on with the north cell 50 kN higher (an offset, no settlement).
+
+    The shadow reads it as an event (the forces cannot tell), and says that one cell moved alone
+    and a fault of that cell fits it; the real 10 mm lowering, which moves both, gets no such line.
+    """
+    from bridge_shadow.twin.real_records import Piece, build
+
+    sur = load_surrogate()
+    folder = munich_data / "Settlements"
+    pair = build(folder, sur.A, [Piece("ref", 0.0), Piece("lowered", 0.733)])
+    shadow = Shadow(load_config(), sur)
+    shadow.run(pair.data)
+    assert len(shadow.event_records()) == 1
+    assert not [w for w in shadow.warnings() if "one load cell's reaction alone" in w]
+    sc = build(folder, sur.A, [Piece("ref", 0.0), Piece("ref", 1.25)])
+    north = sc.data.forces["frc_02"]
+    shifted = ForceSeries(
+        north.stamp_ns,
+        north.force_n + np.where(north.stamp_ns >= sc.starts_ns[1], 50e3, 0.0),
+        north.frame_id,
+        log_ns=north.log_ns,
+    )
+    shadow = Shadow(load_config(), sur)
+    shadow.run(MonitoringData({"frc_01": sc.data.forces["frc_01"], "frc_02": shifted}, sc.data.temperature))
+    assert len(shadow.event_records()) == 1
+    (line,) = [w for w in shadow.warnings() if "one load cell's reaction alone" in w]
+    moved = re.search(r"frc_02 ([-+0-9.]+) kN, frc_01 ([-+0-9.]+) ±", line)
+    assert moved is not None and "sensor fault" in line
+    assert float(moved.group(1)) == pytest.approx(50.0, abs=2.0)  # the offset, read back
+    assert abs(float(moved.group(2))) < 0.05 * 50.0
