@@ -152,3 +152,27 @@ def test_an_event_on_one_load_cell_alone_names_a_sensor_fault(munich_data: Path)
     assert moved is not None and "sensor fault" in line
     assert float(moved.group(1)) == pytest.approx(50.0, abs=2.0)  # the offset, read back
     assert abs(float(moved.group(2))) < 0.05 * 50.0
+
+
+@pytest.mark.realdata
+def test_a_cell_that_delivers_mostly_nan_is_said(munich_data: Path) -> None:
+    """The south cell NaN for 59 s of every minute: the share rejected for its values is said."""
+    from bridge_shadow.twin.real_records import Piece, build
+
+    sur = load_surrogate()
+    sc = build(munich_data / "Settlements", sur.A, [Piece("ref", 0.0), Piece("lowered", 0.733)])
+    south = sc.data.forces["frc_01"]
+    second = ((south.stamp_ns - south.stamp_ns[0]) // 10**9) % 60
+    bad = ForceSeries(south.stamp_ns, np.where(second > 0, np.nan, south.force_n), south.frame_id)
+    lines = {}
+    for name, data in (
+        ("clean", sc.data),
+        ("nan", MonitoringData({**sc.data.forces, "frc_01": bad}, sc.data.temperature)),
+    ):
+        shadow = Shadow(load_config(), sur)
+        shadow.run(data)
+        lines[name] = [w for w in shadow.warnings() if "rejected for their values" in w]
+    assert not lines["clean"]
+    (line,) = lines["nan"]
+    n = int(np.count_nonzero(second > 0))
+    assert line.startswith(f"topic frc_01: {n} of {len(south)} messages (98 %)") and f"nonfinite {n}" in line

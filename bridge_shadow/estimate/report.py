@@ -481,6 +481,9 @@ def warnings(shadow: Shadow) -> list[str]:
         line = ledger.all_rejected_message() or ledger.old_stamps_message()
         if line:
             out.append(line)
+        line = None if ledger.all_rejected_message() else ledger.bad_values_message()
+        if line:
+            out.append(line)
     out.extend(low_load_lines(shadow))
     heard = [used + sum(rejected.values()) for used, rejected in (led.run_counts() for led in shadow.ledgers)]
     # the air came (twice: a live feed's first message may be the air's, the forces' a moment later)

@@ -25,6 +25,7 @@ TOPIC_KEYS: tuple[str, str, str] = (*CHANNELS, "air_temperature")
 #: (``TopicLedger.old_stamps_message``); the bundled bags and the real records reject none.
 OLD_SHARE = 0.1
 _STAMP_REASONS = ("clock_jump", "out_of_order", "duplicate")
+_VALUE_REASONS = ("nonfinite", "out_of_range", "frozen", "frame_id")
 _OLD_CAUSES = (
     "not used: bags that overlap in time, a logger's clock set back (an hour, where daylight saving "
     "time ends), or a checkpoint (or data before) whose clock is ahead of these stamps"
@@ -169,6 +170,25 @@ class TopicLedger:
         return (
             f"topic {self.key}: {n} of {total} messages ({100.0 * n / total:.0f} %) rejected for "
             f"their stamps ({counts}), {_OLD_CAUSES}"
+        )
+
+    def bad_values_message(self) -> str | None:
+        """One line when at least ``OLD_SHARE`` of this run's messages were rejected for their values.
+
+        NaN, out of range, a held value (``frozen``) or a wrong frame: a cell that delivers mostly
+        garbage is failing, and the counts alone did not say so (a load cell NaN for 59 s of every
+        minute passed without a line).
+        """
+        used, rejected = self.run_counts()
+        bad = {r: rejected[r] for r in _VALUE_REASONS if rejected[r]}
+        total = used + sum(rejected.values())
+        n = sum(bad.values())
+        if not used or not total or n < OLD_SHARE * total:
+            return None  # all rejected: all_rejected_message says it
+        counts = ", ".join(f"{r} {c}" for r, c in bad.items())
+        return (
+            f"topic {self.key}: {n} of {total} messages ({100.0 * n / total:.0f} %) rejected for their "
+            f"values ({counts}): the estimate rests on the {used} others"
         )
 
     def state_dict(self) -> dict[str, object]:
