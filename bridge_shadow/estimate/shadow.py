@@ -327,6 +327,7 @@ class Shadow:
         if late:
             self.counts["late"] += late
             self.ledgers[c].rejected["late"] += late
+            self.ledgers[c].used -= late  # taken by the gate, refused by the windows
         n = len(stamps) - late
         self.used[CHANNELS[c]] += n
         return n

@@ -24,7 +24,7 @@ TOPIC_KEYS: tuple[str, str, str] = (*CHANNELS, "air_temperature")
 #: The share of a topic's messages rejected for their stamps that is said out loud
 #: (``TopicLedger.old_stamps_message``); the bundled bags and the real records reject none.
 OLD_SHARE = 0.1
-_STAMP_REASONS = ("clock_jump", "out_of_order", "duplicate")
+_STAMP_REASONS = ("clock_jump", "out_of_order", "duplicate", "late")
 _VALUE_REASONS = ("nonfinite", "out_of_range", "frozen", "frame_id")
 _OLD_CAUSES = (
     "not used: bags that overlap in time, a logger's clock set back (an hour, where daylight saving "
@@ -150,6 +150,8 @@ class TopicLedger:
             "nonfinite": "NaN or infinite values, expected finite numbers",
             "clock_jump": f"stamps far from the data before them, {_OLD_CAUSES}",
             "out_of_order": f"stamps older than the data before them, {_OLD_CAUSES}",
+            "late": "stamps in windows already closed: the data clock (every topic's stamps, the air's "
+            f"too) had passed them, {_OLD_CAUSES}",
         }.get(reason, reason)
         return f"topic {self.key}: all {total} messages rejected ({n} for {reason}: {detail})"
 
