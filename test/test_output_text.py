@@ -249,13 +249,15 @@ def test_forces_far_below_the_dead_load_are_said_out_loud(root) -> None:
     data = read_monitoring(root / "bags" / "baseline_1d")
     forces = np.column_stack([data.forces[ch].force_n for ch in data.forces])
     stamps, temp = data.forces["frc_01"].stamp_ns, data.temperature
-    for scale, said in ((1e-3, True), (1.0, False)):
+    for scale, said in ((1e-3, True), (0.15, True), (1.0, False)):
         shadow = Shadow(load_config())
         shadow.run(MonitoringData.from_arrays(stamps, scale * forces, temp.stamp_ns, temp.temp_c))
         lines = [w for w in shadow.warnings() if w.startswith("force level far below the dead load")]
         assert bool(lines) == said, lines
-        if said:
+        if said and scale < 0.01:
             assert "frc_01 0.235 kN of 235 kN (0.1 %)" in lines[0] and "kN where N" in lines[0]
+        elif said:  # a bearing near lift-off, not a unit mix-up: no word of kN
+            assert "(15 %)" in lines[0] and "kN where N" not in lines[0]
 
 
 def test_imposed_steps_are_read_at_their_exact_time_and_add_up_at_one_instant() -> None:
