@@ -371,3 +371,24 @@ def test_windows_too_short_for_the_data_rate_are_named(window_s: float, said: bo
     assert bool(lines) is said
     if said:
         assert "window_min_samples (3)" in lines[0] and "about 1 per window of window_s 0.01 s" in lines[0]
+
+
+def test_the_plots_break_their_lines_at_the_gaps_between_records() -> None:
+    """Two records 4 h apart: one NaN row between them, none inside a record (``broken_at_gaps``).
+
+    A line through the hours between records read as the settlement sliding from one state to
+    the next over 8 h of a load-test day, where the shadow reports steps.
+    """
+    from bridge_shadow.estimate.plots import broken_at_gaps
+
+    w = 60 * 10**9
+    end = np.concatenate([np.arange(1, 13) * w, (4 * 60 + np.arange(1, 13)) * w, [(4 * 60 + 20) * w]])
+    mean = np.arange(2 * len(end), dtype=float).reshape(-1, 2)
+    cov = np.ones((len(end), 2, 2))
+    t, m, c = broken_at_gaps(end, 600 * 10**9, mean, cov)
+    assert len(t) == len(end) + 1 and np.flatnonzero(np.isnan(t)).tolist() == [12]
+    assert np.isnan(m[12]).all() and np.isnan(c[12]).all() and m.shape == (len(end) + 1, 2)
+    np.testing.assert_array_equal(m[np.isfinite(t)], mean)  # every window kept, in order
+    np.testing.assert_array_equal(t[np.isfinite(t)], end.astype(float))
+    (t2,) = broken_at_gaps(end, 7 * 3600 * 10**9)
+    assert np.isfinite(t2).all()  # no gap that long: nothing broken

@@ -12,8 +12,25 @@ import numpy as np
 
 from bridge_shadow.contract import CHANNELS, SUPPORTS
 from bridge_shadow.fileio import atomic_write, output_dir
+from bridge_shadow.timefmt import iso_utc
 
-__all__ = ["write_plots"]
+__all__ = ["broken_at_gaps", "write_plots"]
+
+
+def broken_at_gaps(end_ns: np.ndarray, gap_ns: int, *series: np.ndarray) -> list[np.ndarray]:
+    """Return ``series`` (rows per window), a NaN row where the windows' ends jump by more than ``gap_ns``.
+
+    A line drawn through the hours between two records read as the settlement sliding from one
+    state to the next, where the shadow reports a step; the NaN row breaks it there. The first
+    array returned is ``end_ns`` itself (float, NaN at the breaks).
+    """
+    end = np.asarray(end_ns)
+    at = np.flatnonzero(np.diff(end) > gap_ns) + 1
+    out = [np.insert(end.astype(float), at, np.nan)]
+    for y in series:
+        y = np.asarray(y, float)
+        out.append(np.insert(y, at, np.full(y.shape[1:], np.nan), axis=0))
+    return out
 
 
 def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
@@ -29,7 +46,17 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
 
     out = output_dir(directory, "plot directory")
     h = result.history()
-    t_h = (h["end_ns"] - (h["end_ns"][0] if len(h["end_ns"]) else 0)) / 3.6e12
+    t0 = int(h["end_ns"][0]) if len(h["end_ns"]) else 0
+    since = f"time (h since {iso_utc(t0)})" if len(h["end_ns"]) else "time (h)"
+    end, force, comp, mean_m, cov = broken_at_gaps(
+        h["end_ns"],
+        round(shadow.config.gap_s * 1e9),
+        h["force_n"],
+        h["compensated_n"],
+        h["mean_m"],
+        h["covariance_m2"],
+    )
+    t_h = (end - t0) / 3.6e12
     drawn: list[tuple[Path, bytes]] = []
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
@@ -51,26 +78,26 @@ def write_plots(directory: str | Path, result: Any, shadow: Any) -> list[Path]:
 
     fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
     for c, ax in enumerate(axes):
-        ax.plot(t_h, 1e-3 * h["force_n"][:, c], "-", lw=0.8, label="raw")
-        ax.plot(t_h, 1e-3 * h["compensated_n"][:, c], "-", lw=0.8, label="compensated")
+        ax.plot(t_h, 1e-3 * force[:, c], "-", lw=0.8, label="raw")
+        ax.plot(t_h, 1e-3 * comp[:, c], "-", lw=0.8, label="compensated")
         ax.set(ylabel=f"{SUPPORTS[c]} (kN)")
         if not len(t_h):
             _note(ax, "no window closed")
         ax.legend()
-    axes[-1].set(xlabel="time (h)")
+    axes[-1].set(xlabel=since)
     drawn.append((out / "raw_vs_compensated.png", _png(fig)))
 
     fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
-    sd = np.sqrt(np.stack([h["covariance_m2"][:, 0, 0], h["covariance_m2"][:, 1, 1]], axis=1))
+    sd = np.sqrt(np.stack([cov[:, 0, 0], cov[:, 1, 1]], axis=1))
     for c, ax in enumerate(axes):
-        mu = 1e3 * h["mean_m"][:, c]
+        mu = 1e3 * mean_m[:, c]
         ax.fill_between(t_h, mu - 2e3 * sd[:, c], mu + 2e3 * sd[:, c], alpha=0.3, label="±2σ")
         ax.plot(t_h, mu, "-", label="posterior mean")
         ax.set(ylabel=f"{SUPPORTS[c]} settlement (mm)")
         if not len(t_h):
             _note(ax, "no window closed: the prior")
         ax.legend()
-    axes[-1].set(xlabel="time (h)")
+    axes[-1].set(xlabel=since)
     drawn.append((out / "posterior.png", _png(fig)))
 
     fig, ax = plt.subplots(figsize=(5.5, 5))
