@@ -175,3 +175,16 @@ def test_events_and_lost_topics_reach_diagnostics() -> None:
     assert "holds zero" not in events.values["event 1"]  # 1 mm is far outside its interval
     assert inputs.level == 1 and "topic air_temperature: all" in inputs.message and "'roof'" in inputs.message
     assert comp.level == 1 and "no air temperature" in comp.message
+
+
+def test_an_unconfirmed_change_no_window_has_measured_says_so_not_nan(diag: dict) -> None:
+    """A gap whose record is still held has no size yet: the events status says so (it read "+nan ± nan")."""
+    nan = float("nan")
+    base = {"time": "2022-04-11T07:20Z", "change_probability": 0.5, "likely": True, "kind": "gap"}
+    held = {**base, "size_m": [nan, nan], "sigma_m": [nan, nan]}
+    measured = {**base, "size_m": [-0.01, -0.0101], "sigma_m": [0.001, 0.001]}
+    ages = {"frc_01": 0.1, "frc_02": 0.1, "air_temperature": 0.1}
+    for change, text in ((held, "size not measured yet"), (measured, "south -10.000 ± 1.960, north -10.100")):
+        events = statuses({**diag, "unconfirmed_changes": [change]}, ages, timeout_s=60.0)[3]
+        value = events.values["unconfirmed 1"]
+        assert text in value and "nan" not in value and "probability 0.5" in value, value

@@ -9,6 +9,7 @@ statuses (settlement, inputs, compensation, events; plain data, testable without
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -165,10 +166,16 @@ def _events(diag: Mapping[str, Any]) -> Status:
         values[f"event {i + 1}"] = event_text(e)
     changes = diag.get("unconfirmed_changes", [])
     for i, c in enumerate(changes):
-        size = ", ".join(
-            f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f}"
-            for side, m, sd in zip(SUPPORTS, c["size_m"], c["sigma_m"], strict=True)
-        )
+        if all(math.isfinite(v) for v in (*c["size_m"], *c["sigma_m"])):
+            size = (
+                ", ".join(
+                    f"{side} {1e3 * m:+.3f} ± {1.96e3 * sd:.3f}"
+                    for side, m, sd in zip(SUPPORTS, c["size_m"], c["sigma_m"], strict=True)
+                )
+                + " mm (95 %"
+            )
+        else:  # a gap whose record is still held (the traffic screen): no window measured it yet
+            size = "size not measured yet, no window since (95 % interval: none"
         p = c.get("change_probability")
         unweighed = {
             "step": "not significant",
@@ -179,7 +186,7 @@ def _events(diag: Mapping[str, Any]) -> Status:
             "at_end": "left out",
         }.get(c["kind"], "used as data")
         how = unweighed if p is None else f"probability {p:.3g}"
-        values[f"unconfirmed {i + 1}"] = f"{c['kind']} at {c['time']}: {size} mm (95 %; {how})"
+        values[f"unconfirmed {i + 1}"] = f"{c['kind']} at {c['time']}: {size}; {how})"
     state = diag.get("state", {})
     if state.get("text"):
         values["posterior stands for"] = state["text"]
