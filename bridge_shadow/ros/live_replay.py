@@ -243,7 +243,11 @@ class Player:
         """
         pubs = [p.publish for p in self.publishers]
         asked: deque[Any] = deque()  # status requests in flight, one sent after each chunk
-        taken = sent = 0
+        sent = 0
+        # the node's count is its own since it started: what it took before this call (an earlier
+        # call's, another player's) is no room (compared with this call's count alone, a second
+        # bag to the same node overflowed its readers, "cannot publish data")
+        base = taken = self.taken(node) if in_flight else 0
         last_log = 0
         origin: int | None = None
         t_first = t_shown = time.perf_counter()
@@ -260,7 +264,7 @@ class Player:
             for start in range(0, n, step):
                 stop = min(start + step, n)
                 # the answer to the request sent after chunk k-2 is usually there by now: pipelined
-                while in_flight and sent + stop - start - taken > in_flight:
+                while in_flight and sent + stop - start - (taken - base) > in_flight:
                     if not asked:
                         asked.append(self.status_client.call_async(Trigger.Request()))
                     answer = self._answer(asked.popleft(), node, client=self.status_client)
