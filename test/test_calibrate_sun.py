@@ -215,7 +215,9 @@ def test_cli_check_with_the_sun_on_the_real_pair(munich_data, root, capsys, tmp_
     assert 0.0 < sun["exposure"][0] < sun["exposure"][1] < 1.0  # the morning sun rose from 08:42 to 09:26
     assert 0.0 < sun["sun_change_k"][0] < 1.0 and pair["held95"] == [True, True]
     assert main(["calibrate", "--check", default, "--baseline-change", "sun"]) == 0
-    assert "the sun: the deck's vertical difference changed by +0." in capsys.readouterr().out
+    # the prior's expectation, said to be one (it read as a measured change)
+    said = capsys.readouterr().out
+    assert "the sun, by its prior (not measured): the deck's vertical difference changes by +0." in said
     doc = yaml.safe_load((root / "config" / "surrogate.yaml").read_text())
     doc["thermal"].pop("vertical_gradient")
     bare = tmp_path / "no_sun.yaml"

@@ -146,10 +146,11 @@ def check_text(checks: list[PairCheck], surrogate_name: str) -> str:
             mean_k, sd_k = c.sun["sun_change_k"]
             before, after = c.sun["exposure"]
             lines.append(
-                f"    the sun: the deck's vertical difference changed by {mean_k:+.2f} ± {Z95 * sd_k:.2f} K "
-                f"(95 %) between the records (sun x clearness {before:.2f} -> {after:.2f}; prior at "
-                f"full sun {c.sun['g_prior_k'][0]:g} ± {c.sun['g_prior_k'][1]:g} K, g >= 0): its mean "
-                "subtracted, its spread in the interval"
+                f"    the sun, by its prior (not measured): the deck's vertical difference changes by "
+                f"{mean_k:+.2f} ± {Z95 * sd_k:.2f} K (95 %) between the records (sun x clearness "
+                f"{before:.2f} -> {after:.2f}; prior at full sun {c.sun['g_prior_k'][0]:g} ± "
+                f"{c.sun['g_prior_k'][1]:g} K, g >= 0): that expectation subtracted, its spread in the "
+                "interval"
             )
         lines.append(
             f"    common {c.common_m * mm:+8.2f} mm ± {Z95 * c.common_sd_m * mm:.2f}, "
