@@ -176,3 +176,33 @@ def test_a_cell_that_delivers_mostly_nan_is_said(munich_data: Path) -> None:
     (line,) = lines["nan"]
     n = int(np.count_nonzero(second > 0))
     assert line.startswith(f"topic frc_01: {n} of {len(south)} messages (98 %)") and f"nonfinite {n}" in line
+
+
+@pytest.mark.realdata
+def test_a_cell_stuck_at_its_old_value_reads_no_change_from_its_first_seconds(munich_data: Path) -> None:
+    """The north cell holding its reference value through the lowered record (a logger's hold).
+
+    The gate takes a run's first 10 s before it can tell a held value from a load; those samples
+    made the record's first window, north at the old value beside south's new one, and the gap's
+    change read -3.8 / -2.6 mm at probability 1 against -10 mm. Once the run is found frozen its
+    head is taken back: the north cell is silent for the whole record and said so, and no change
+    is read from it.
+    """
+    from bridge_shadow.twin.real_records import Piece, build
+
+    sur = load_surrogate()
+    sc = build(munich_data / "Settlements", sur.A, [Piece("ref", 0.0), Piece("lowered", 0.733)])
+    start = sc.starts_ns[1]
+    north = sc.data.forces["frc_02"]
+    late = north.stamp_ns >= start
+    held = float(north.force_n[~late][-1]) + 0.5  # the old value, its run beginning with the record
+    stuck = ForceSeries(
+        north.stamp_ns, np.where(late, held, north.force_n), north.frame_id, log_ns=north.log_ns
+    )
+    shadow = Shadow(load_config(), sur)
+    shadow.run(MonitoringData({"frc_01": sc.data.forces["frc_01"], "frc_02": stuck}, sc.data.temperature))
+    assert shadow.rejected["frozen"] == int(np.count_nonzero(late))  # the head too
+    assert not shadow.event_records()
+    for change in shadow.unconfirmed_changes():
+        assert not (change.windows and change.change_probability > 0.5), change
+    assert [w for w in shadow.warnings() if w.startswith("topic frc_02: nothing usable in 13 windows")]

@@ -295,6 +295,8 @@ class Shadow:
         values = np.atleast_1d(np.asarray(value, dtype=float))
         local: Counter = Counter()
         ok = self.gates[i](stamps, values, frame_id, self._clock_span(), local)
+        for since, until in self.gates[i].pop_frozen_heads():
+            ok = self._take_back_frozen_head(i, stamps, ok, since, until, local)
         if local:
             self.counts.update(local)
         self.ledgers[i].note(ok, values, frame_id, Counter(), local, stamps)
@@ -306,6 +308,27 @@ class Shadow:
         if len(stamps) and (self._first_ns is None or int(stamps[0]) < self._first_ns):
             self._first_ns = int(stamps[0])
         return stamps, values
+
+    def _take_back_frozen_head(
+        self, c: int, stamps: np.ndarray, ok: np.ndarray, since: int, until: int, local: Counter
+    ) -> np.ndarray:
+        """Reject the head of a run found frozen: in this batch, and in the windows still open.
+
+        A channel that stopped holds its last value; the gate takes the run's first ``frozen_ns``
+        before it can tell, and those samples made a window of the old value beside the other
+        cell's new one. Samples of windows already closed stay (with the default 30 s topic
+        timeout against the 10 s hold the head's windows are always open).
+        """
+        head = ok & (stamps >= since) & (stamps < until)
+        n = int(np.count_nonzero(head))
+        ok = ok & ~head
+        dropped = self.buffer.force[c].drop_between(since, until)
+        if dropped:
+            self.used[CHANNELS[c]] -= dropped
+            self.ledgers[c].used -= dropped
+        if n + dropped:
+            local["frozen"] += n + dropped
+        return ok
 
     def ingest_forces(
         self,

@@ -123,6 +123,9 @@ class TopicGate:
         self.held_value = float("nan")
         self._held_index = -1  # index of the held message in the current call's arrays, or -1
         self._released: list[tuple[int, float]] = []
+        #: runs found frozen in the last call: (first stamp of the run, its first frozen stamp);
+        #: the head before it was taken (``pop_frozen_heads``)
+        self._frozen_heads: list[tuple[int, int]] = []
 
     def __call__(
         self,
@@ -236,7 +239,24 @@ class TopicGate:
         count = np.where(carried, self.run_count + np.arange(1, len(v) + 1), np.arange(len(v)) - first + 1)
         self.run_since_ns, self.run_count = int(since[-1]), int(count[-1])
         self.run_value = float(v[-1])
-        return ((s - since) > frozen_ns) & (count > FROZEN_REPEATS)
+        frozen = ((s - since) > frozen_ns) & (count > FROZEN_REPEATS)
+        if frozen.any():  # each run's first frozen message (arrival order) bounds the head it took
+            runs, first = np.unique(since[frozen], return_index=True)
+            self._frozen_heads.extend(zip(runs.tolist(), s[frozen][first].tolist(), strict=True))
+        return frozen
+
+    def pop_frozen_heads(self) -> list[tuple[int, int]]:
+        """Return and forget the runs found frozen since the last call: ``(run start, first frozen)`` ns.
+
+        The gate took each run's first ``frozen_ns`` (nothing told it apart yet); a run that
+        turned out frozen is a channel that stopped, its head too (``Shadow._gate`` takes it back
+        from the windows still open: a cell stuck at its old value through a record read its first
+        seconds as the state beside the other cell's new one, a change 6 mm off at probability 1).
+        The same run found again later in its length is reported again; taking it back is then
+        nothing.
+        """
+        heads, self._frozen_heads = self._frozen_heads, []
+        return heads
 
     def _decide(
         self, s: np.ndarray, v: np.ndarray, clock_ns: tuple[int, int] | None, counts: Counter

@@ -209,6 +209,15 @@ class SampleBuffer:
         if index > 0:
             self.stamps, self.values = ([s[index:]], [v[index:]]) if index < len(s) else ([], [])
 
+    def drop_between(self, lo_ns: int, hi_ns: int) -> int:
+        """Forget the samples with ``lo_ns <= stamp < hi_ns``; return how many."""
+        s, v = self.arrays()
+        gone = (s >= lo_ns) & (s < hi_ns)
+        n = int(np.count_nonzero(gone))
+        if n:
+            self.stamps, self.values = ([s[~gone]], [v[~gone]]) if n < len(s) else ([], [])
+        return n
+
     def first_ns(self) -> int | None:
         """Earliest buffered stamp, or None."""
         return int(self.stamps[0][0]) if self.stamps else None
