@@ -2061,7 +2061,7 @@ def test_each_record_is_decided_when_the_next_one_begins_not_when_it_ends(folder
     for cut_h, truth in ((5.062, -0.01), (9.03, -0.02)):
         shadow = Shadow(load_config(), surrogate)
         shadow.run(sc.data.select(lambda s, c=cut_h: s < t0 + int(c * 3600e9)), flush=False)
-        mean, cov = shadow.posterior
+        mean, cov = shadow.filter.posterior()  # the state decided (the next record's gap still open)
         sd = np.sqrt(np.diag(cov))
         assert np.all(np.abs(mean - truth) < 0.1 * abs(truth)), (cut_h, mean)
         assert np.all(np.abs(mean - truth) < 1.96 * sd) and np.all(sd < 0.005), (cut_h, sd)
@@ -2069,3 +2069,35 @@ def test_each_record_is_decided_when_the_next_one_begins_not_when_it_ends(folder
     whole = Shadow(load_config(), surrogate).run(sc.data)
     assert len(whole.events) == 3
     np.testing.assert_allclose(whole.mean_m, -0.03, atol=0.003)
+
+
+@pytest.mark.realdata
+def test_while_a_record_after_a_gap_is_held_the_interval_holds_both_outcomes(folder: Path, surrogate) -> None:
+    """Inside the -20 and -30 mm records (held for the traffic screen until they end): honest.
+
+    The posterior was the state before the gap with its own interval, -9.4 ± 4.0 mm through the
+    whole -20 mm record (a helper session reading every output of a load-test day). While such a
+    record is held, the interval is the gap's two outcomes before data (``P + pi J``), and the
+    state says so; once the record ends its windows decide, as before.
+    """
+    day = [
+        Piece("ref", 0.0),
+        Piece("lowered", 0.733),
+        Piece("lowered", 5.06, (-0.01, -0.01)),
+        Piece("lowered", 9.02, (-0.02, -0.02)),
+    ]
+    sc = build(folder, surrogate.A, day)
+    t0 = sc.starts_ns[0]
+    for cut_h, before, truth in ((5.15, -0.01, -0.02), (9.1, -0.02, -0.03)):
+        shadow = Shadow(load_config(), surrogate)
+        shadow.run(sc.data.select(lambda s, c=cut_h: s < t0 + int(c * 3600e9)), flush=False)
+        mean, cov = shadow.posterior
+        sd = np.sqrt(np.diag(cov))
+        assert shadow.pending_gap_ns() is not None
+        np.testing.assert_allclose(mean, before, atol=0.001)  # the state before the gap
+        assert np.all(np.abs(mean - truth) < 1.96 * sd), (cut_h, mean, sd)  # the one after it too
+        assert "is held for the traffic screen until it ends" in shadow.diagnostics()["state"]["text"]
+        held = Shadow(load_config(), surrogate)
+        held.run(sc.data.select(lambda s, c=cut_h: s < t0 + int(c * 3600e9)), flush=True)
+        assert held.pending_gap_ns() is None  # the end of the data decides the record
+        np.testing.assert_allclose(held.posterior[0], truth, atol=0.1 * abs(truth))

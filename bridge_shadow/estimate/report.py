@@ -260,6 +260,16 @@ def posterior_state(shadow: Shadow) -> dict[str, Any]:
         if kind == "event" and _not_significant(shadow, s):
             what = "a step the detector found (its size not told from zero on the data: no event)"
         state["text"] = f"the state since {what} at {iso_utc(since)}"
+    held = shadow.pending_gap_ns()
+    if held is not None:
+        hours = (held - (shadow._last_usable_k + 1) * shadow._w_ns) / 3.6e12  # type: ignore[operator]
+        pi = shadow.config.change_prior_probability
+        state["pending_gap_since_ns"] = int(held)
+        state["text"] += (
+            f"; the record since {iso_utc(held)}, after a gap of {hours:.1f} h, is held for the traffic "
+            f"screen until it ends: whether the supports moved in the gap is open (probability {pi:.3g} "
+            "before its windows are judged), and the interval is widened by what a change could be"
+        )
     last = shadow._last_usable_k
     blind = [
         (a, key)

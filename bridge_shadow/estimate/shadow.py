@@ -1247,10 +1247,32 @@ class Shadow:
     # -- reporting ----------------------------------------------------------------------------
     @property
     def posterior(self) -> tuple[np.ndarray, np.ndarray]:
-        """Posterior mean (2,) m and published covariance (2, 2) m^2 (+ systematic + model terms)."""
+        """Posterior mean (2,) m and published covariance (2, 2) m^2 (+ systematic + model terms).
+
+        While the record after a gap is held for the traffic screen (``pending_gap_ns``) the
+        supports may have moved in the gap and no window has said yet: the covariance is the gap's
+        two outcomes before data, ``P + pi J`` (``segments.mixture_update`` without a
+        measurement). Until the record ended the old state was published with its own narrow
+        interval, which excluded the new state for the whole record (-9.4 ± 4.0 mm through the
+        -20 mm record of a load-test day, found by a helper session reading every output).
+        """
         self.settle()
         x, P = self.filter.posterior()
+        if self.pending_gap_ns() is not None:
+            P = P + self.config.change_prior_probability * self.filter.jump_cov
         return x, self._published_cov(x, P)
+
+    def pending_gap_ns(self) -> int | None:
+        """First stamp of a record held for the traffic screen that began after a gap (None: none).
+
+        Its windows are judged when it ends; a gap before it (``gap_s`` without a usable window)
+        is when the supports may have moved.
+        """
+        held = self.buffer.held_since_ns
+        last = self._last_usable_k
+        if held is None or last is None or not self.filter.starts:
+            return None
+        return held if held // self._w_ns - last - 1 >= self._gap_k else None
 
     def _published_cov(self, x: np.ndarray, P: np.ndarray) -> np.ndarray:
         """Filter covariance + ``A^-1 diag(systematic^2) A^-T`` + the surrogate's model covariance at x."""

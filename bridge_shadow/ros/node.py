@@ -178,6 +178,7 @@ class ShadowNode(Node):
         self._last_posterior: tuple[np.ndarray, np.ndarray] | None = None
         self.quiet_flushes = 0
         self.quiet_flushes_undone = 0
+        self._pending_gap_said: int | None = None  # the held record after a gap last published for
         # before the last quiet-input close: the state, its data clock, the outputs published so far
         self._before_quiet: tuple[dict[str, Any], int, int] | None = None
         self._warned: set[str] = set()
@@ -361,6 +362,12 @@ class ShadowNode(Node):
         self._last_drain = time.monotonic()
         self.ingest_pending(everything)
         self._publish(self.shadow.poll())
+        pending = self.shadow.pending_gap_ns()
+        if pending is not None and pending != self._pending_gap_said:
+            # a record after a gap is held for the traffic screen: the state may have moved in the
+            # gap, so the posterior's interval widens now, not when the record ends
+            self._pending_gap_said = pending
+            self._publish_posterior(*self.shadow.posterior)
         self.shadow.settle()  # a scheduled refit, after the posterior is out (Shadow._accept)
         self._next_end_ns = self._window_end()
 
