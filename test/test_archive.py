@@ -559,3 +559,31 @@ def test_a_bag_rewritten_with_its_size_and_mtime_kept_is_hashed_again(tmp_path: 
     assert data.stat().st_size == st.st_size and data.stat().st_mtime_ns == st.st_mtime_ns
     again = cache.digest(bag)
     assert again != first and again == real(bag) and len(hashed) == 2
+
+
+def test_bags_that_overlap_in_time_are_named(
+    root: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A record's forces and its air temperature as two bags of one bridge: the overlap is named.
+
+    The join takes a bridge's bags one after the other, so the later bag's messages before the
+    earlier one's end are rejected (a real-record day laid out so lost most of its forces with no
+    bag named, exit 0). Each overlapping bag is named with the one it overlaps, in the bridge's
+    warnings and ``overlapping_bags``.
+    """
+    from bridge_shadow.bagio import read_monitoring, write_monitoring
+    from bridge_shadow.cli import main
+    from bridge_shadow.series import MonitoringData
+
+    data = read_monitoring(root / "bags" / "baseline_1d")
+    nothing = data.select(lambda stamps: np.zeros(len(stamps), bool))
+    bridge = tmp_path / "bridge"
+    write_monitoring(bridge / "forces", MonitoringData(data.forces, nothing.temperature))
+    write_monitoring(bridge / "air", MonitoringData(nothing.forces, data.temperature))
+    assert main(["archive", str(bridge), "--out", str(tmp_path / "out"), "--json", "--workers", "1"]) == 0
+    out = capsys.readouterr()
+    js = json.loads(out.out)["bridges"]["bridge"]
+    (overlap,) = js["overlapping_bags"]
+    assert {Path(overlap["bag"]).name, Path(overlap["before"]).name} == {"forces", "air"}
+    (line,) = [w for w in js["warnings"] if w.startswith("bags overlap in time")]
+    assert "WARN: bridge: bags overlap in time" in out.err and overlap["bag"] in line

@@ -121,6 +121,38 @@ def bag_span_task(bag: str, config: Any) -> tuple[int | None, int | None]:
         return None, None
 
 
+def overlapping_bags(ordered: list[BagOutcome]) -> list[dict[str, Any]]:
+    """Return each bag (in time order) that begins before an earlier one has ended, with that one.
+
+    The join takes a bridge's bags one after the other; the messages of a bag that lie before the
+    end of one joined earlier are rejected (``late``, ``out_of_order``). A day whose load records
+    and air temperature came as separate bags lost most of its forces that way, with no bag
+    named (a helper session's real-record archives).
+    """
+    out = []
+    last: BagOutcome | None = None
+    for o in ordered:
+        if o.first_log_ns is None or o.last_log_ns is None:
+            continue
+        if last is not None and o.first_log_ns < int(last.last_log_ns or 0):
+            ends = last.last_log_ns
+            out.append({"bag": o.bag, "first_log_ns": o.first_log_ns, "before": last.bag, "ends_ns": ends})
+        if last is None or o.last_log_ns > int(last.last_log_ns or 0):
+            last = o
+    return out
+
+
+def _overlap_line(o: dict[str, Any]) -> str:
+    from bridge_shadow.timefmt import iso_utc
+
+    return (
+        f"bags overlap in time: {o['bag']} begins at {iso_utc(o['first_log_ns'])}, before {o['before']} "
+        f"ends at {iso_utc(o['ends_ns'])}: a bridge's bags are taken one after the other, so its "
+        "messages before that were rejected (late, out of order); import records that overlap into "
+        "one bag (import-csv of their files together)"
+    )
+
+
 def time_order(outcomes: list[BagOutcome]) -> list[BagOutcome]:
     """Return the bags that were read, by their first message (log time), then path; empty ones last."""
     ok = [o for o in outcomes if o.status != "failed"]
@@ -194,6 +226,9 @@ def join_task(
     failed = [(o.bag, o.error) for o in seen if o.status == "failed"]
     result["bridge"] = name
     result["bags"] = [o.bag for o in time_order(seen)]
+    overlaps = overlapping_bags(time_order(seen))
+    result["overlapping_bags"] = overlaps
+    result["warnings"] = [*result.get("warnings", []), *(_overlap_line(o) for o in overlaps)]
     result["failed_bags"] = [{"bag": b, "error": e} for b, e in failed]
     result["surrogate"] = surrogate.summary()  # as replay's (its condition number was missing)
     return BridgeOutcome(name, result, rows.finish(shadow), failed, stats.fed_whole, seconds)
