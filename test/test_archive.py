@@ -587,3 +587,26 @@ def test_bags_that_overlap_in_time_are_named(
     assert {Path(overlap["bag"]).name, Path(overlap["before"]).name} == {"forces", "air"}
     (line,) = [w for w in js["warnings"] if w.startswith("bags overlap in time")]
     assert "WARN: bridge: bags overlap in time" in out.err and overlap["bag"] in line
+
+
+@pytest.mark.realdata
+def test_the_summary_counts_the_events_confirmed_across_a_gap(munich_data: Path) -> None:
+    """The real pair: its one event is a change across the gap, which marks no window output.
+
+    The summary's ``events`` column counted marked outputs and read 0 on every row of a load-test
+    day; it counts the shadow's events that began up to each row.
+    """
+    from bridge_shadow.archive.summary import PeriodicRows
+    from bridge_shadow.twin.real_records import Piece, build
+
+    sur = load_surrogate()
+    sc = build(munich_data / "Settlements", sur.A, [Piece("ref", 0.0), Piece("lowered", 0.733)])
+    shadow = Shadow(load_config(), sur)
+    result = shadow.run(sc.data)
+    (event,) = shadow.event_records()
+    assert event.kind == "gap" and not any(out.event for out in result.outputs)
+    rows = PeriodicRows("bridge", 600.0)
+    rows.add(result.outputs)
+    table = rows.finish(shadow)
+    assert [r["events"] for r in table] == [int(r["end_ns"] >= event.time_ns) for r in table]
+    assert table[0]["events"] == 0 and table[-1]["events"] == 1

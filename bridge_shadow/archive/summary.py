@@ -12,6 +12,7 @@ correlation, updates, events``
 
 from __future__ import annotations
 
+import bisect
 import csv
 import datetime as dt
 import io
@@ -87,10 +88,18 @@ class PeriodicRows:
         return _row(self.bridge, out.index, out.end_ns, mean, cov, *self._counts)
 
     def finish(self, shadow: Any) -> list[dict[str, Any]]:
-        """Return the rows, the last with the shadow's final posterior (after its end-of-record refit)."""
+        """Return the rows, the last with the shadow's final posterior (after its end-of-record refit).
+
+        ``events`` counts the shadow's events (``event_records``) that began up to each row: a
+        window output marks only a step the detector found in the data, and a change confirmed
+        across a gap (every event of a load-test day) marks none, so the column read 0 throughout.
+        """
         if self._last is not None:
             mean, cov = shadow.posterior
             self.rows.append(self._row(self._last, mean, cov))
+        starts = sorted(int(e.time_ns) for e in shadow.event_records())
+        for row in self.rows:
+            row["events"] = bisect.bisect_right(starts, row["end_ns"])
         return self.rows
 
 
@@ -122,8 +131,10 @@ def plot_summary(path: Path, rows: list[dict[str, Any]]) -> Path:
         for ax, side in zip(axes, ("south", "north"), strict=True):
             m = 1e3 * np.array([r[f"mean_{side}_m"] for r in mine])
             s = 1e3 * 1.96 * np.array([r[f"sigma_{side}_m"] for r in mine])
-            (line,) = ax.plot(t, m, lw=1.0, label=name)
-            ax.fill_between(t, m - s, m + s, color=line.get_color(), alpha=0.2, lw=0)
+            # each row's posterior holds until the next row: steps, not ramps across the hours
+            # between a load-test day's records (a line drew every step as a slide)
+            (line,) = ax.plot(t, m, lw=1.0, label=name, drawstyle="steps-post")
+            ax.fill_between(t, m - s, m + s, color=line.get_color(), alpha=0.2, lw=0, step="post")
     for ax, side in zip(axes, ("south (FRC-01)", "north (FRC-02)"), strict=True):
         ax.set_ylabel(f"settlement {side}, mm")
         ax.grid(alpha=0.3)
