@@ -461,6 +461,13 @@ def test_sources_folder_glob_and_manifest(archive: dict[str, Any], tmp_path: Pat
             archive_sources(str(manifest))
     manifest.write_text(f"bridges:\n  2022.b-1_x:\n    bags: ['{folder}/day_*']\n")
     assert archive_sources(str(manifest))[0].name == "2022.b-1_x"
+    # a bag named twice (a glob and the bag itself, or a relative and an absolute path) is taken
+    # once, in the order first named: fed twice, its messages were rejected and a dead cell warned of
+    manifest.write_text(
+        f"bridges:\n  b:\n    bags: ['{folder}/day_03', '{folder}/day_*', '{folder}/../bridge/day_01']\n"
+    )
+    (twice,) = archive_sources(str(manifest))
+    assert [p.name for p in twice.bags] == ["day_03", "day_00", "day_01", "day_02", "day_04", "day_99_broken"]
 
 
 #: A valid other value for every parameter the cache key leaves out (``cache.ESTIMATOR_ONLY``).

@@ -164,6 +164,12 @@ def _from_manifest(manifest: Path) -> list[BridgeSource]:
                 bags += found
             else:
                 bags.append(path)  # a missing or broken bag is reported and skipped by the run
+        # a bag named twice (a glob that also matches a bag listed on its own) is taken once: fed
+        # twice, its messages were rejected the second time and a dead load cell was warned of
+        first: dict[Path, Path] = {}
+        for b in bags:
+            first.setdefault(b.resolve(), b)
+        bags = list(first.values())
         params = (
             _manifest_path(base, spec["params"], f"{where}: params", manifest) if "params" in spec else None
         )
