@@ -206,3 +206,28 @@ def test_a_cell_stuck_at_its_old_value_reads_no_change_from_its_first_seconds(mu
     for change in shadow.unconfirmed_changes():
         assert not (change.windows and change.change_probability > 0.5), change
     assert [w for w in shadow.warnings() if w.startswith("topic frc_02: nothing usable in 13 windows")]
+
+
+@pytest.mark.realdata
+def test_an_air_temperature_in_fahrenheit_is_said(munich_data: Path) -> None:
+    """A later record whose logger wrote °F: the jump no air makes is said; in °C nothing is."""
+    from bridge_shadow.series import TemperatureSeries
+    from bridge_shadow.twin.real_records import Piece, build
+
+    sur = load_surrogate()
+    pieces = [Piece("ref", 0.0), Piece("lowered", 0.733), Piece("lowered", 4.0, (-0.005, -0.005), 6.5)]
+    sc = build(munich_data / "Settlements", sur.A, pieces)
+    t = sc.data.temperature
+    later = t.stamp_ns >= sc.starts_ns[2] - 600 * 10**9
+    fahrenheit = TemperatureSeries(
+        t.stamp_ns, np.where(later, 32.0 + 1.8 * t.temp_c, t.temp_c), t.variance, t.frame_id
+    )
+    lines = {}
+    for name, temp in (("celsius", t), ("fahrenheit", fahrenheit)):
+        shadow = Shadow(load_config(), sur)
+        shadow.run(MonitoringData(sc.data.forces, temp))
+        lines[name] = [w for w in shadow.warnings() if w.startswith("air temperature jumped")]
+    assert not lines["celsius"]
+    (line,) = lines["fahrenheit"]
+    jump = float(re.search(r"jumped by \+([0-9.]+) K", line).group(1))
+    assert 30.0 < jump < 60.0 and "(°F?)" in line

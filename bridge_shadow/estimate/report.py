@@ -458,6 +458,22 @@ def one_cell_lines(shadow: Shadow) -> list[str]:
     return out
 
 
+def air_jump_lines(shadow: Shadow) -> list[str]:
+    """One line when the air jumped between windows more than air can (``Shadow._follow_air``)."""
+    air = shadow.air
+    if not air["jumps"] or air["worst"] is None:
+        return []
+    k0, k1, t0, t1 = air["worst"]
+    hours = (k1 - k0) * shadow.config.window_s / 3600.0
+    w = shadow._w_ns
+    more = f"; {air['jumps']} such jumps" if air["jumps"] > 1 else ""
+    return [
+        f"air temperature jumped by {t1 - t0:+.1f} K within {hours:.2g} h ({iso_utc(k0 * w)} -> "
+        f"{iso_utc(k1 * w)}, {t0:.1f} -> {t1:.1f} C), more than air does: a faulty sensor, or readings "
+        f"in another unit (°F?), look like this, and the compensation reads them as weather{more}"
+    ]
+
+
 def warnings(shadow: Shadow) -> list[str]:
     """Problems a user must hear about (one line each): silent failures made loud."""
     out = []
@@ -513,6 +529,7 @@ def warnings(shadow: Shadow) -> list[str]:
     out.extend(short_window_lines(shadow))
     out.extend(dead_input_lines(shadow))
     out.extend(one_cell_lines(shadow))
+    out.extend(air_jump_lines(shadow))
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")
     last = shadow._last_data_k

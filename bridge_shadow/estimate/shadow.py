@@ -81,6 +81,13 @@ from bridge_shadow.estimate.state.persistence import restore_shadow, shadow_stat
 from bridge_shadow.model.surrogate_file import ModelCovariance, Surrogate, load_surrogate
 from bridge_shadow.series import MonitoringData
 
+#: An air temperature that moves between windows by more than ``AIR_JUMP_K`` plus
+#: ``AIR_RATE_K_PER_H`` per hour between them is no air (``Shadow._follow_air``): the largest
+#: hourly changes of air temperature at a station are of the order of 10 K (a cold front's passage),
+#: and 5 K covers a sensor's and the temperature match's scatter over a window. The real day of
+#: 2022-04-11 warmed 12 K in 9 h; readings in °F of a day at 5-15 C read 36 K warmer.
+AIR_JUMP_K, AIR_RATE_K_PER_H = 5.0, 10.0
+
 __all__ = ["NOISE_FULL_DAY_S", "TOPIC_KEYS", "ReplayResult", "Shadow", "WindowOutput"]
 
 _NS = 1_000_000_000
@@ -234,6 +241,10 @@ class Shadow:
         self.n_windows = 0
         self.uncompensated = 0
         self.stale_temperature = 0  # windows used with a stale air temperature (widened, see windows)
+        #: the air between consecutive windows with a temperature: the last one ``[k, C]`` and the
+        #: jumps no air makes (``AIR_JUMP_K`` + ``AIR_RATE_K_PER_H`` per hour between them): their
+        #: count and the largest against its bound ``[k_from, k_to, C_from, C_to]``
+        self.air: dict[str, Any] = {"last": None, "jumps": 0, "worst": None, "excess": 0.0}
         # windows the traffic screen cut samples from: [k, cut south, cut north, kept south, kept north]
         self.traffic_windows: list[list[int]] = []
         # records that ended with vehicles parked on the bridge (``WindowBatch.parked``), cut from
@@ -380,6 +391,30 @@ class Shadow:
         self._maybe_checkpoint()
         return outputs
 
+    def _follow_air(self, w: Window) -> None:
+        """Note an air temperature that jumped more than air does since the last window with one.
+
+        A later record whose logger wrote °F (53.6 for 12 C) passed the range check: the sun term
+        and the curve read 40 K of warming in 3 h, and an event became an unconfirmed change with
+        nothing said. The bound is ``AIR_JUMP_K`` (a sensor's and the match's scatter) plus
+        ``AIR_RATE_K_PER_H`` per hour between the windows (report.air_jump_lines).
+        """
+        temp = w.temp[np.isfinite(w.temp)]
+        if not len(temp):
+            return
+        t = float(temp.mean())
+        last = self.air["last"]
+        self.air["last"] = [int(w.k), t]
+        if last is None:
+            return
+        hours = (w.k - last[0]) * self.config.window_s / 3600.0
+        excess = abs(t - last[1]) - (AIR_JUMP_K + AIR_RATE_K_PER_H * hours)
+        if excess > 0:
+            self.air["jumps"] += 1
+            if excess > self.air["excess"]:
+                self.air["excess"] = excess
+                self.air["worst"] = [int(last[0]), int(w.k), float(last[1]), t]
+
     def _decide_before_gap(self) -> list[WindowOutput]:
         """Decide what is held once every window that could follow without a gap has closed.
 
@@ -497,6 +532,7 @@ class Shadow:
             elif w.tvar > 0:
                 self.stale_temperature += 1
             self._queue.append(w)
+            self._follow_air(w)
             if w.reason:
                 continue
             if not self.filter.starts:

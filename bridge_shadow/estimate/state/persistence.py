@@ -183,6 +183,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "parked": json.dumps(shadow.parked),
         "silence": json.dumps(shadow.silence.state_dict()),
         "relax": json.dumps(shadow._relax),
+        "air": json.dumps(shadow.air),
         "scalars": {
             "last_usable_k": _opt(shadow._last_usable_k),
             "last_data_k": _opt(shadow._last_data_k),
@@ -340,6 +341,8 @@ def restore_shadow(
     if "relax" in state:  # checkpoints written before the relaxation allowance have none
         rl = json.loads(str(state["relax"]))
         shadow._relax = None if rl is None else (int(rl[0]), float(rl[1]), float(rl[2]))
+    if "air" in state:  # checkpoints written before the air's jumps were followed have none
+        shadow.air = json.loads(str(state["air"]))
     sc = state["scalars"]
     shadow._last_usable_k = _unopt(sc["last_usable_k"])
     # checkpoints written before logger outages were marked have neither
