@@ -30,8 +30,12 @@ reading is more than temperature_stale_s away are used with their compensation w
 across a gap or among the first windows (of the data or after a gap) is weighed by the data and
 reported, a run of windows rejected as an excursion that came back is reported with its size
 when it moved the reactions' sum by more than any vehicle (traffic_vehicle_max_n), a topic whose
-every message is rejected is named with the reason and the expected value (WARN lines on stderr
-and "warnings" in the JSON), and a replay in which no window updated the estimate exits with 1.
+every message is rejected is named with the reason and the expected value, and so is a tenth of
+a topic's messages rejected for their values or stamps (late ones too), load cells delivering
+nothing usable to the end of the data, an event that moved one load cell alone (a sensor fault
+fits it too), an air temperature that jumps more than air can, and windows too short for the
+data's rate (WARN lines on stderr and "warnings" in the JSON); a replay in which no window
+updated the estimate exits with 1.
 
 --out and --plots work in both modes (live: drawn from the node's history service and final
 checkpoint); --out never replaces an existing bag without --force. The text output's first line
