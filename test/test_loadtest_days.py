@@ -2101,3 +2101,29 @@ def test_while_a_record_after_a_gap_is_held_the_interval_holds_both_outcomes(fol
         held.run(sc.data.select(lambda s, c=cut_h: s < t0 + int(c * 3600e9)), flush=True)
         assert held.pending_gap_ns() is None  # the end of the data decides the record
         np.testing.assert_allclose(held.posterior[0], truth, atol=0.1 * abs(truth))
+
+
+@pytest.mark.realdata
+def test_every_window_output_of_a_cut_day_holds_the_truth_of_its_own_record(folder: Path, surrogate) -> None:
+    """The day's four records cut so that each begins or ends under the test car.
+
+    The car's rejected windows at a record's start, out before the gap's segment opened, carried
+    the state before the gap with its own interval: 5 of the 36 outputs excluded the truth of their
+    own record (16 under the node's quiet-input close, a helper session reading every output).
+    They carry the gap's two outcomes before data now, as ``Shadow.posterior`` does while the
+    record is held.
+    """
+    pieces = [
+        Piece("ref", 0.0, cut_min=(0, 8)),
+        Piece("lowered", 0.733, cut_min=(3, 12)),
+        Piece("lowered", 5.06, (-0.01, -0.01), cut_min=(2, 9)),
+        Piece("lowered", 9.02, (-0.02, -0.02), 7.0, cut_min=(4, 12)),
+    ]
+    sc = build(folder, surrogate.A, pieces)
+    res = Shadow(load_config(), surrogate).run(sc.data)
+    assert len(res.outputs) > 30
+    for out in res.outputs:
+        record = max(j for j, start in enumerate(sc.starts_ns) if start < out.end_ns)
+        sd = np.sqrt(np.diag(out.covariance_m2))
+        assert np.all(np.abs(out.mean_m - pieces[record].truth_m()) < 1.96 * sd), (out.index, record)
+    np.testing.assert_allclose(res.mean_m, -0.03, atol=0.003)
