@@ -587,8 +587,10 @@ def test_bags_that_overlap_in_time_are_named(
     bridge = tmp_path / "bridge"
     write_monitoring(bridge / "forces", MonitoringData(data.forces, nothing.temperature))
     write_monitoring(bridge / "air", MonitoringData(nothing.forces, data.temperature))
-    assert main(["archive", str(bridge), "--out", str(tmp_path / "out"), "--json", "--workers", "1"]) == 0
+    # exit 1: the result is not the stream's (its forces rejected as late, no bag named, exit 0)
+    assert main(["archive", str(bridge), "--out", str(tmp_path / "out"), "--json", "--workers", "1"]) == 1
     out = capsys.readouterr()
+    assert "error: bridge: bags overlap in time" in out.err
     js = json.loads(out.out)["bridges"]["bridge"]
     (overlap,) = js["overlapping_bags"]
     assert {Path(overlap["bag"]).name, Path(overlap["before"]).name} == {"forces", "air"}

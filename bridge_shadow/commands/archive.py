@@ -39,7 +39,10 @@ JSON of each bridge), summary.csv (every bridge's posterior once per --summary-p
 summary.png, index.json (bags, status, digests, failures, timings) and cache/ (the reductions).
 --json prints one object: {"bridges": {NAME: replay JSON}, "bags": counts by status,
 "failed_bags", "files", "seconds", "messages_per_s"}. Exit 1 when a bridge got no window into
-its estimate (the replay's rule), 0 otherwise (skipped bags are WARN lines on stderr).
+its estimate (the replay's rule), or when its bags overlap in time (each named: a bridge's bags
+are taken one after the other, so the later one's messages before the earlier one's end are lost;
+import records that belong together into one bag), 0 otherwise (skipped bags are WARN lines on
+stderr).
 
 Examples:
   bridge-shadow synth --archive /tmp/fleet --bridges 3 --days 7 --rate 1
@@ -150,6 +153,13 @@ def run(args: argparse.Namespace) -> int:
     for b in result.bridges:
         for line in b.result.get("warnings", []):
             print(f"bridge-shadow archive: WARN: {b.name}: {line}", file=sys.stderr)
+        if b.result.get("overlapping_bags"):
+            print(
+                f"bridge-shadow archive: error: {b.name}: bags overlap in time (named above): its result "
+                "is not the stream's, the later bags' messages before the earlier ones' end were rejected",
+                file=sys.stderr,
+            )
+            code = 1
         if not b.result["windows"]["updates"]:
             print(
                 f"bridge-shadow archive: error: {b.name}: no window updated the estimate (its posterior is "

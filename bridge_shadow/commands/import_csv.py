@@ -79,8 +79,7 @@ def _air_beyond_forces(data: object) -> list[str]:
         f"the air temperature runs {beyond_s / 3600.0:.1f} h past the last force record (to "
         f"{iso_utc(last_air)}, the forces to {iso_utc(last_force)}): a bag of later records replayed "
         "after this one (replay --checkpoint, or an archive) would have its forces before that time "
-        "rejected as late; import the records of a day together, each later one with its own stretch "
-        "of the air temperature, or all in one bag"
+        "rejected as late; import the records of a day together, into one bag"
     ]
 
 
