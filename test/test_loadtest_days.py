@@ -2038,6 +2038,15 @@ def test_windows_left_uncompensated_by_rejected_readings_say_so(folder: Path, su
     assert n > 0 and f"{n} of its readings were rejected: out_of_range {n} (accepted 5 .. " in line
 
 
+#: The day's four records at their times, each new state 10 mm lower (the withheld ones stand-ins).
+FOUR_RECORDS = [
+    Piece("ref", 0.0),
+    Piece("lowered", 0.733),
+    Piece("lowered", 5.06, (-0.01, -0.01)),
+    Piece("lowered", 9.02, (-0.02, -0.02)),
+]
+
+
 @pytest.mark.realdata
 def test_each_record_is_decided_when_the_next_one_begins_not_when_it_ends(folder: Path, surrogate) -> None:
     """The day's four records, the data cut as the third and the fourth begin (no end-of-data flush).
@@ -2050,13 +2059,7 @@ def test_each_record_is_decided_when_the_next_one_begins_not_when_it_ends(folder
     decided as soon as every window that could follow it without a gap has closed, and what the
     end of the data decides is unchanged.
     """
-    day = [
-        Piece("ref", 0.0),
-        Piece("lowered", 0.733),
-        Piece("lowered", 5.06, (-0.01, -0.01)),
-        Piece("lowered", 9.02, (-0.02, -0.02)),
-    ]
-    sc = build(folder, surrogate.A, day)
+    sc = build(folder, surrogate.A, FOUR_RECORDS)
     t0 = sc.starts_ns[0]
     for cut_h, truth in ((5.062, -0.01), (9.03, -0.02)):
         shadow = Shadow(load_config(), surrogate)
@@ -2080,13 +2083,7 @@ def test_while_a_record_after_a_gap_is_held_the_interval_holds_both_outcomes(fol
     record is held, the interval is the gap's two outcomes before data (``P + pi J``), and the
     state says so; once the record ends its windows decide, as before.
     """
-    day = [
-        Piece("ref", 0.0),
-        Piece("lowered", 0.733),
-        Piece("lowered", 5.06, (-0.01, -0.01)),
-        Piece("lowered", 9.02, (-0.02, -0.02)),
-    ]
-    sc = build(folder, surrogate.A, day)
+    sc = build(folder, surrogate.A, FOUR_RECORDS)
     t0 = sc.starts_ns[0]
     for cut_h, before, truth in ((5.15, -0.01, -0.02), (9.1, -0.02, -0.03)):
         shadow = Shadow(load_config(), surrogate)

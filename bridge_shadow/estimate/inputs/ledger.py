@@ -162,17 +162,11 @@ class TopicLedger:
         odds with the data before it: bags of one bridge that overlap in time, or a checkpoint
         whose clock is ahead of the records (every one of their messages too old).
         """
-        used, rejected = self.run_counts()
-        old = {r: rejected[r] for r in _STAMP_REASONS if rejected[r]}
-        total = used + sum(rejected.values())
-        n = sum(old.values())
-        if not used or not total or n < OLD_SHARE * total:
-            return None  # all rejected: all_rejected_message says it
-        counts = ", ".join(f"{r} {c}" for r, c in old.items())
-        return (
-            f"topic {self.key}: {n} of {total} messages ({100.0 * n / total:.0f} %) rejected for "
-            f"their stamps ({counts}), {_OLD_CAUSES}"
-        )
+        share = self._share_rejected(_STAMP_REASONS)
+        if share is None:
+            return None
+        head, counts = share
+        return f"{head} rejected for their stamps ({counts}), {_OLD_CAUSES}"
 
     def bad_values_message(self) -> str | None:
         """One line when at least ``OLD_SHARE`` of this run's messages were rejected for their values.
@@ -181,17 +175,26 @@ class TopicLedger:
         garbage is failing, and the counts alone did not say so (a load cell NaN for 59 s of every
         minute passed without a line).
         """
+        share = self._share_rejected(_VALUE_REASONS)
+        if share is None:
+            return None
+        head, counts = share
+        used = self.run_counts()[0]
+        return f"{head} rejected for their values ({counts}): the estimate rests on the {used} others"
+
+    def _share_rejected(self, reasons: tuple[str, ...]) -> tuple[str, str] | None:
+        """``("topic K: n of N messages (p %)", counts)`` when ``reasons`` took ``OLD_SHARE`` of this run's.
+
+        None when fewer, or when every message was rejected (``all_rejected_message`` says it).
+        """
         used, rejected = self.run_counts()
-        bad = {r: rejected[r] for r in _VALUE_REASONS if rejected[r]}
+        those = {r: rejected[r] for r in reasons if rejected[r]}
         total = used + sum(rejected.values())
-        n = sum(bad.values())
+        n = sum(those.values())
         if not used or not total or n < OLD_SHARE * total:
-            return None  # all rejected: all_rejected_message says it
-        counts = ", ".join(f"{r} {c}" for r, c in bad.items())
-        return (
-            f"topic {self.key}: {n} of {total} messages ({100.0 * n / total:.0f} %) rejected for their "
-            f"values ({counts}): the estimate rests on the {used} others"
-        )
+            return None
+        counts = ", ".join(f"{r} {c}" for r, c in those.items())
+        return f"topic {self.key}: {n} of {total} messages ({100.0 * n / total:.0f} %)", counts
 
     def state_dict(self) -> dict[str, object]:
         """Plain-data state."""
