@@ -38,6 +38,7 @@ the posterior then equals the paper's batch method on the whole record
 
 from __future__ import annotations
 
+import math
 import time
 from collections import Counter, deque
 from collections.abc import Callable
@@ -399,10 +400,10 @@ class Shadow:
         nothing said. The bound is ``AIR_JUMP_K`` (a sensor's and the match's scatter) plus
         ``AIR_RATE_K_PER_H`` per hour between the windows (report.air_jump_lines).
         """
-        temp = w.temp[np.isfinite(w.temp)]
-        if not len(temp):
+        known = [t for t in w.temp.tolist() if math.isfinite(t)]  # floats: a live window's few
+        if not known:
             return
-        t = float(temp.mean())
+        t = sum(known) / len(known)
         last = self.air["last"]
         self.air["last"] = [int(w.k), t]
         if last is None:
