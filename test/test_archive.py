@@ -580,6 +580,7 @@ def test_bags_that_overlap_in_time_are_named(
     """
     from bridge_shadow.bagio import read_monitoring, write_monitoring
     from bridge_shadow.cli import main
+    from bridge_shadow.engine import dask_client
     from bridge_shadow.series import MonitoringData
 
     data = read_monitoring(root / "bags" / "baseline_1d")
@@ -587,8 +588,11 @@ def test_bags_that_overlap_in_time_are_named(
     bridge = tmp_path / "bridge"
     write_monitoring(bridge / "forces", MonitoringData(data.forces, nothing.temperature))
     write_monitoring(bridge / "air", MonitoringData(nothing.forces, data.temperature))
-    # exit 1: the result is not the stream's (its forces rejected as late, no bag named, exit 0)
-    assert main(["archive", str(bridge), "--out", str(tmp_path / "out"), "--json", "--workers", "1"]) == 1
+    # exit 1: the result is not the stream's (its forces rejected as late, no bag named, exit 0);
+    # on a scheduler of this process (no worker processes to start)
+    argv = ["archive", str(bridge), "--out", str(tmp_path / "out"), "--json"]
+    with dask_client(workers=1, processes=False) as client:
+        assert main([*argv, "--scheduler", client.scheduler.address]) == 1
     out = capsys.readouterr()
     assert "error: bridge: bags overlap in time" in out.err
     js = json.loads(out.out)["bridges"]["bridge"]
