@@ -123,3 +123,32 @@ def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_is_said(
     for ch in ("frc_01", "frc_02"):
         (said,) = [w for w in js["warnings"] if w.startswith(f"topic {ch}: all")]
         assert "for late: stamps in windows already closed" in said and "bags that overlap in time" in said
+
+
+def test_bags_imported_with_the_air_near_their_forces_chain_through_the_checkpoint(
+    munich_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same two bags imported with ``--air-near-forces``: the later record is the new state.
+
+    Each bag keeps the air within 10 minutes of its forces, so the first bag's replay closes no
+    window past its records, and the later record's forces, replayed after it through the
+    checkpoint, are taken: one event of -10 mm, the -20 mm state, no late message.
+    """
+    folder = munich_data / "Settlements"
+    later = tmp_path / LATER
+    _later_record(folder / LOWERED, later, dt.timedelta(minutes=230), np.array([-0.01, -0.01]))
+    public, alone, ck = tmp_path / "public", tmp_path / "later", tmp_path / "ck"
+    near = "--air-near-forces"
+    args = [str(folder / REF), str(folder / LOWERED), str(folder / TEMPERATURE)]
+    assert main(["import-csv", *args, "--out", str(public), near, "--json"]) == 0
+    js = json.loads(capsys.readouterr().out)
+    assert js["warnings"] == [] and js["air_dropped"] > 20_000  # the day's air beyond the records
+    assert main(["import-csv", str(later), str(folder / TEMPERATURE), "--out", str(alone), near]) == 0
+    assert main(["replay", str(public), "--checkpoint", str(ck)]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(alone), "--checkpoint", str(ck), "--json"]) == 0
+    js = json.loads(capsys.readouterr().out)
+    assert js["rejected"]["late"] == 0 and js["messages"]["used_by_topic"]["frc_01"] > 70_000
+    mean = np.array(js["posterior"]["mean_m"])
+    assert np.all(np.abs(mean + 0.02) <= 0.002), mean
+    assert [e["kind"] for e in js["events"]][-1] == "gap"

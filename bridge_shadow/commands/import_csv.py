@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from datetime import date
+from typing import Any
 
 HELP = "convert munich-bridge-data force/temperature CSVs (or zips of them) into a monitoring bag"
 DESCRIPTION = """\
@@ -49,10 +50,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--compress", action="store_true", help="zstd-compressed chunks (mcap storage only)")
     parser.add_argument("--json", action="store_true", help="print one JSON summary object")
+    parser.add_argument(
+        "--air-near-forces",
+        action="store_true",
+        help="write only the air temperature within 10 minutes of a force sample (a bag that a later "
+        "record's bag will follow through replay --checkpoint or an archive; calibrate and gap read "
+        "the day's whole air for its warming, so keep the default for them)",
+    )
 
 
 #: The air temperature may run this far past the last force stamp before the import warns, s.
 AIR_BEYOND_S = 600.0
+
+
+def _air_near_forces(data: Any) -> tuple[Any, int]:
+    """Keep the air readings within ``AIR_BEYOND_S`` of a force sample; return the data and how many went."""
+    import numpy as np
+
+    from bridge_shadow.series import MonitoringData, TemperatureSeries
+    from bridge_shadow.windowing import sorted_union
+
+    forces = [f.stamp_ns for f in data.forces.values() if len(f)]
+    t = data.temperature
+    if not forces or not len(t):
+        return data, 0
+    both = sorted_union(forces)
+    at = np.searchsorted(both, t.stamp_ns)
+    before = both[np.clip(at - 1, 0, len(both) - 1)]
+    after = both[np.clip(at, 0, len(both) - 1)]
+    near = np.minimum(np.abs(t.stamp_ns - before), np.abs(after - t.stamp_ns))
+    keep = near <= round(AIR_BEYOND_S * 1e9)
+    fields = (t.stamp_ns, t.temp_c, t.variance, t.frame_id, t.log_ns)
+    air = TemperatureSeries(*(f[keep] for f in fields))
+    return MonitoringData(data.forces, air), int(np.count_nonzero(~keep))
 
 
 def _air_beyond_forces(data: object) -> list[str]:
@@ -79,7 +109,7 @@ def _air_beyond_forces(data: object) -> list[str]:
         f"the air temperature runs {beyond_s / 3600.0:.1f} h past the last force record (to "
         f"{iso_utc(last_air)}, the forces to {iso_utc(last_force)}): a bag of later records replayed "
         "after this one (replay --checkpoint, or an archive) would have its forces before that time "
-        "rejected as late; import the records of a day together, into one bag"
+        "rejected as late; import the records of a day together into one bag, or with --air-near-forces"
     ]
 
 
@@ -94,8 +124,11 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--compress needs --storage mcap")
     check_bag_target(args.out, args.force)  # before reading the records
     data, report = import_csv(args.files, date_hint=args.date)
+    air_dropped = 0
+    if args.air_near_forces:
+        data, air_dropped = _air_near_forces(data)
     out = write_monitoring(args.out, data, args.storage, overwrite=args.force, compress=args.compress)
-    summary = {"out": str(out), "storage": args.storage, **report.as_dict()}
+    summary = {"out": str(out), "storage": args.storage, **report.as_dict(), "air_dropped": air_dropped}
     warnings = []
     if not any(len(data.forces[ch]) for ch in data.forces):  # said nowhere before: a replay found nothing
         warnings.append(
@@ -127,5 +160,10 @@ def run(args: argparse.Namespace) -> int:
             name = source["file"] + (f"!{source['member']}" if source["member"] else "")
             lines.append(f"    {source['rows_rejected']} of {total} rows in {name}")
     lines.append(f"  UTC offsets (h): {[o / 3600.0 for o in report.utc_offsets_s]}")
+    if air_dropped:
+        lines.append(
+            f"  air temperature: {air_dropped} readings more than {AIR_BEYOND_S / 60:g} min from a force "
+            "sample not written (--air-near-forces)"
+        )
     sys.stdout.write("\n".join(lines) + "\n")
     return 0
