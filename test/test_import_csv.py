@@ -81,7 +81,7 @@ def test_april_force_date_swap_fixed_from_file_name(munich_data: Path) -> None:
     )
     assert data.forces["frc_01"].stamp_ns[0] == _ns("2022-04-11T06:36:24.897")  # 08:36 CEST = UTC+2
     assert data.forces["frc_01"].force_n[0] == pytest.approx(233.92928125e3, rel=1e-15)
-    assert report.utc_offsets_s == [7200.0]
+    assert report.utc_offsets_s == [7200.0]  # whole seconds of the zone table, converted, not computed
     np.testing.assert_allclose(
         np.mean([s.force_n[:1000] for s in data.forces.values()], axis=1), 234e3, rtol=0.01
     )

@@ -89,9 +89,14 @@ def test_the_ledger_keeps_the_rejected_tail_through_its_state() -> None:
     assert led.last_ok_ns == 9 * 10**9 and led.tail_n == 0
     ok = np.array([True, True, False, False])
     led.note(ok, np.ones(4), None, {}, {}, stamps[:4] + 10 * 10**9)
-    assert (led.last_ok_ns, led.tail_n, led.tail_first_ns, led.tail_last_ns) == (11e9, 2, 12e9, 13e9)
+    assert (led.last_ok_ns, led.tail_n, led.tail_first_ns, led.tail_last_ns) == (
+        11 * 10**9,
+        2,
+        12 * 10**9,
+        13 * 10**9,
+    )  # integer ns
     led.note(np.zeros(3, bool), np.ones(3), None, {}, {}, stamps[:3] + 20 * 10**9)
-    assert (led.tail_n, led.tail_first_ns, led.tail_last_ns) == (5, 12e9, 22e9)
+    assert (led.tail_n, led.tail_first_ns, led.tail_last_ns) == (5, 12 * 10**9, 22 * 10**9)
     assert led.dead_tail(10 * 10**9) == (5, 12 * 10**9, 22 * 10**9)
     assert led.dead_tail(11 * 10**9) is None
     again = TopicLedger("frc_01", "frc_01", (1.0, 5e6, "N"))

@@ -388,7 +388,7 @@ def test_the_plots_break_their_lines_at_the_gaps_between_records() -> None:
     t, m, c = broken_at_gaps(end, 600 * 10**9, mean, cov)
     assert len(t) == len(end) + 1 and np.flatnonzero(np.isnan(t)).tolist() == [12]
     assert np.isnan(m[12]).all() and np.isnan(c[12]).all() and m.shape == (len(end) + 1, 2)
-    np.testing.assert_array_equal(m[np.isfinite(t)], mean)  # every window kept, in order
-    np.testing.assert_array_equal(t[np.isfinite(t)], end.astype(float))
+    np.testing.assert_array_equal(m[np.isfinite(t)], mean)  # every window kept, in order (copies)
+    np.testing.assert_array_equal(t[np.isfinite(t)], end.astype(float))  # copies, no arithmetic
     (t2,) = broken_at_gaps(end, 7 * 3600 * 10**9)
     assert np.isfinite(t2).all()  # no gap that long: nothing broken
