@@ -130,15 +130,16 @@ def overlapping_bags(ordered: list[BagOutcome]) -> list[dict[str, Any]]:
     named (a helper session's real-record archives).
     """
     out = []
-    last: BagOutcome | None = None
+    latest: tuple[str, int] | None = None  # the bag that ends last so far, and its end
     for o in ordered:
         if o.first_log_ns is None or o.last_log_ns is None:
             continue
-        if last is not None and o.first_log_ns < int(last.last_log_ns or 0):
-            ends = last.last_log_ns
-            out.append({"bag": o.bag, "first_log_ns": o.first_log_ns, "before": last.bag, "ends_ns": ends})
-        if last is None or o.last_log_ns > int(last.last_log_ns or 0):
-            last = o
+        if latest is not None and o.first_log_ns < latest[1]:
+            out.append(
+                {"bag": o.bag, "first_log_ns": o.first_log_ns, "before": latest[0], "ends_ns": latest[1]}
+            )
+        if latest is None or o.last_log_ns > latest[1]:
+            latest = (o.bag, o.last_log_ns)
     return out
 
 

@@ -85,7 +85,7 @@ def _air_near_forces(data: Any) -> tuple[Any, int]:
     return MonitoringData(data.forces, air), int(np.count_nonzero(~keep))
 
 
-def _air_beyond_forces(data: object) -> list[str]:
+def _air_beyond_forces(data: Any) -> list[str]:
     """Say when the bag's air temperature runs past its last force by more than ``AIR_BEYOND_S``.
 
     The shadow's data clock follows every topic, the air's too: replaying this bag closes the
@@ -96,8 +96,8 @@ def _air_beyond_forces(data: object) -> list[str]:
     """
     from bridge_shadow.timefmt import iso_utc
 
-    forces = [s.stamp_ns for s in data.forces.values() if len(s)]  # type: ignore[attr-defined]
-    air = data.temperature.stamp_ns  # type: ignore[attr-defined]
+    forces = [s.stamp_ns for s in data.forces.values() if len(s)]
+    air = data.temperature.stamp_ns
     if not forces or not len(air):
         return []
     last_force = max(int(s.max()) for s in forces)

@@ -1273,7 +1273,7 @@ class Shadow:
             # at a record's start): the supports may have moved, as ``posterior`` says while the
             # record is held; it carried the state before the gap with its own narrow interval,
             # a stale value in the burst a record's end publishes
-            P = P + self.config.change_prior_probability * self.filter.jump_cov
+            P = self._gap_open(P)
         return WindowOutput(
             w.k,
             (w.k + 1) * self._w_ns,
@@ -1303,8 +1303,12 @@ class Shadow:
         self.settle()
         x, P = self.filter.posterior()
         if self.pending_gap_ns() is not None:
-            P = P + self.config.change_prior_probability * self.filter.jump_cov
+            P = self._gap_open(P)
         return x, self._published_cov(x, P)
+
+    def _gap_open(self, P: np.ndarray) -> np.ndarray:
+        """``P + pi J``: the covariance after a gap no window has measured (both outcomes, before data)."""
+        return P + self.config.change_prior_probability * self.filter.jump_cov
 
     def pending_gap_ns(self) -> int | None:
         """First stamp of a record held for the traffic screen that began after a gap (None: none).
