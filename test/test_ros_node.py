@@ -427,6 +427,79 @@ def test_the_message_that_closes_a_window_publishes_it_even_right_after_a_timers
         rclpy.try_shutdown(context=context)
 
 
+def test_a_subscriber_that_joins_late_is_sent_the_last_posterior() -> None:
+    """The posterior's topics are TRANSIENT_LOCAL: a dashboard started after the node gets the last one.
+
+    On a load-test day the node publishes a record's posterior at its quiet-input close and then
+    nothing for hours; a viewer started in between saw nothing (the topics kept no history). A
+    subscriber created after the node has published, asking for TRANSIENT_LOCAL durability, must
+    receive the mean and covariance the node published last (in-process node, DDS on loopback).
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Float64MultiArray
+
+    from bridge_shadow.bagio import encode_stamped_floats
+    from bridge_shadow.contract import CHANNELS, COVARIANCE_TOPIC, FORCE_FRAMES, TEMPERATURE_FRAME
+    from bridge_shadow.ros.node import ShadowNode
+
+    n = 300
+    stamp = 1_646_667_300 * 10**9 + np.arange(n, dtype=np.int64) * 10_000_000
+    rng = np.random.default_rng(5)
+    wrench = np.zeros((n, 6))
+    raws = []
+    for ch in CHANNELS:
+        wrench[:, 2] = 2.4e5 + rng.normal(0.0, 60.0, n)
+        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
+    raws.append(encode_stamped_floats(stamp, TEMPERATURE_FRAME, np.c_[np.full(n, 8.0), np.zeros(n)]))
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        overrides = [
+            Parameter("window_s", value=0.1),
+            Parameter("window_min_samples", value=5),
+            Parameter("topic_timeout_s", value=0.05),
+            Parameter("warmup_windows", value=5),
+            Parameter("traffic_hold_s", value=0.0),
+        ]
+        node = ShadowNode(context=context, parameter_overrides=overrides)
+        viewer = rclpy.create_node("late_viewer", context=context)
+        executor = SingleThreadedExecutor(context=context)
+        try:
+            callbacks = [node._callback(i) for i in range(3)]
+            for j in range(n):
+                if j % 5 == 0:
+                    node._on_drain_timer()
+                for i in (2, 0, 1):
+                    callbacks[i](raws[i][j])
+            assert node.posteriors_published > 3
+            sent_mean, sent_cov = node._last_posterior
+            got: dict[str, Any] = {}
+            latched = QoSProfile(
+                depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+            )
+            for topic in (MEAN_TOPIC, COVARIANCE_TOPIC):
+                viewer.create_subscription(
+                    Float64MultiArray, topic, lambda m, t=topic: got.__setitem__(t, m), latched
+                )
+            executor.add_node(node)
+            executor.add_node(viewer)
+            wait_until(lambda: executor.spin_once(timeout_sec=0.05) or len(got) == 2, TIMEOUT_S, "latched")
+            mean, _ = array_from_msg(got[MEAN_TOPIC])
+            cov, _ = array_from_msg(got[COVARIANCE_TOPIC])
+            # the published message's values, decoded: the same floats (a copy through CDR)
+            np.testing.assert_allclose(mean, sent_mean, rtol=1e-15, atol=0)
+            np.testing.assert_allclose(cov.reshape(2, 2), sent_cov, rtol=1e-15, atol=0)
+        finally:
+            executor.shutdown()
+            viewer.destroy_node()
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
 def test_quiet_inputs_close_the_open_window_on_the_wall_clock() -> None:
     """When every input stops, the windows holding the last data are closed and published anyway.
 

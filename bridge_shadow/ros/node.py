@@ -9,6 +9,7 @@ defaults are the contract's)::
         /bridge_shadow/settlement/mean        Float64MultiArray [south, north] m, dim ``support``
         /bridge_shadow/settlement/covariance  Float64MultiArray 2x2 m^2, dims ``row``, ``col``
         /bridge_shadow/compensated/frc_0{1,2} WrenchStamped, stamp = window end, N
+    (mean and covariance RELIABLE and TRANSIENT_LOCAL: a late subscriber asking for it gets the last)
     timer (diagnostics_period_s) --> /diagnostics  DiagnosticArray (settlement, inputs, compensation)
     service /bridge_shadow/flush (std_srvs/Trigger): end of a replay, close every window holding
         data, publish it and answer with the diagnostics as JSON (what the offline replay's
@@ -69,7 +70,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
@@ -144,6 +145,25 @@ def input_qos(depth: int) -> QoSProfile:
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=reliable)
 
 
+def posterior_qos(depth: int) -> QoSProfile:
+    """QoS of the posterior's topics: RELIABLE, and TRANSIENT_LOCAL with a bounded history.
+
+    A subscriber that asks for TRANSIENT_LOCAL durability (a dashboard started after the node, or
+    after a quiet-input close on a load-test day, when the next posterior may be hours away) is
+    sent the last ``depth`` posteriors at once, as a latched ``/map`` or ``/tf_static`` is; a
+    VOLATILE subscriber matches as before and gets only the new ones. ``depth <= 0`` (KEEP_ALL)
+    stays VOLATILE: a durable KEEP_ALL writer would keep every posterior for ever.
+    """
+    if depth <= 0:
+        return input_qos(depth)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+
+
 class ShadowNode(Node):
     """Wires the contract topics, a diagnostics timer and the flush service to one ``Shadow``.
 
@@ -195,15 +215,17 @@ class ShadowNode(Node):
         self._next_end_ns = self._window_end()
         self._timeout_s = max(cfg.topic_timeout_s, cfg.window_s)
         in_qos = input_qos(cfg.qos_depth)
-        out_qos = input_qos(cfg.qos_depth if cfg.qos_depth <= 0 else max(cfg.qos_depth, 100))
+        out_depth = cfg.qos_depth if cfg.qos_depth <= 0 else max(cfg.qos_depth, 100)
+        out_qos = input_qos(out_depth)
+        latched = posterior_qos(out_depth)
         types = (WrenchStamped, WrenchStamped, Temperature)
         self._subs = [
             self.create_subscription(t, topic, self._callback(i), in_qos, raw=True)
             for i, (t, topic) in enumerate(zip(types, cfg.input_topics(), strict=True))
         ]
         outs = cfg.output_topics()
-        self._pub_mean = self.create_publisher(Float64MultiArray, outs[MEAN_TOPIC], out_qos)
-        self._pub_cov = self.create_publisher(Float64MultiArray, outs[COVARIANCE_TOPIC], out_qos)
+        self._pub_mean = self.create_publisher(Float64MultiArray, outs[MEAN_TOPIC], latched)
+        self._pub_cov = self.create_publisher(Float64MultiArray, outs[COVARIANCE_TOPIC], latched)
         self._pub_comp = [
             self.create_publisher(WrenchStamped, outs[COMPENSATED_TOPICS[ch]], out_qos) for ch in CHANNELS
         ]
