@@ -625,7 +625,7 @@ def parked_start(s: np.ndarray, threshold_n: float, vehicle_max_n: float, margin
         if calm[max(k - margin, 0) : k + margin].all():
             # on a level: between two vehicles of about one load, the half reached on the first's
             # plateau; the arrival that completed it is the next one (none: a drift)
-            moved = np.flatnonzero(~calm[k:])
+            moved = np.flatnonzero(~calm[k:n])  # within this part (``calm`` spans the whole record)
             if not len(moved):
                 break  # nothing drove on there: a drift
             k += int(moved[0])
