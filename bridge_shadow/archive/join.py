@@ -78,11 +78,15 @@ def seam_synced(now: FrontState, snap: FrontState, end: FrontState, fresh: bool)
     return True
 
 
-def _rest_of_bag(path: str, head_end_ns: int | None, config: Any) -> Iterator[MonitoringData]:
-    """Yield the bag's messages from ``head_end_ns`` on (all when None), read as ``replay`` reads them."""
-    from bridge_shadow.bagio.stream import MonitoringStream
+def _rest_of_bag(red: BagReduction, head_end_ns: int | None, config: Any) -> Iterator[MonitoringData]:
+    """Yield the bag's messages from ``head_end_ns`` on (all when None), read as ``replay`` reads them.
 
-    with MonitoringStream(path, topics=config.input_topics(), required=False) as stream:
+    A merged unit (``red.bags``) is read merged again, as its reduction read it.
+    """
+    from bridge_shadow.bagio.merged import open_monitoring
+
+    paths = list(red.bags) or [red.bag]
+    with open_monitoring(paths, topics=config.input_topics(), required=False) as stream:
         for piece in stream:
             if head_end_ns is not None:
                 piece = split_log(piece, head_end_ns)[1]
@@ -133,7 +137,7 @@ def join_bags(
         if synced is None:
             # the seam did not settle: feed the rest of the bag as replay would
             stats.fed_whole.append(red.bag)
-            pieces = _rest_of_bag(red.bag, red.head_end_ns, shadow.config)
+            pieces = _rest_of_bag(red, red.head_end_ns, shadow.config)
             feed_shadow(shadow, arrival_chunks(pieces, DEFAULT_CHUNK), emit, flush=False)
         else:
             batch = red.windows_after(synced)

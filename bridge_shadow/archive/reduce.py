@@ -35,7 +35,7 @@ the 1 Hz benchmark archive, whose sensors drop out for minutes, were fed whole).
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -59,7 +59,7 @@ class BagReduction:
     """What the join needs of one bag (see the module docstring).
 
     Attributes:
-        bag: the bag's path.
+        bag: the bag's path (of a merged unit: its first bag, and ``bags`` holds them all).
         messages: input messages read (all three topics).
         first_log_ns, last_log_ns: log-time span of the bag (None when it holds no input message).
         head_end_ns: log time at which the head ends (the rest starts there), or None.
@@ -84,6 +84,9 @@ class BagReduction:
     end: FrontState | None = None
     backend: str = ""
     seconds: float = 0.0
+    #: the bags read as one merged stream when they overlap in time (``bag`` is the first); a
+    #: class default, so a reduction cached before the field existed reads as one bag
+    bags: tuple[str, ...] = ()
 
     def windows_after(self, j: int) -> WindowBatch:
         """Return the windows closed after head chunk ``j`` (by later chunks of this bag)."""
@@ -205,12 +208,18 @@ def head_cuts(first_log_ns: int, window_ns: int, n: int = HEAD_WINDOWS) -> list[
 
 
 def reduce_bag(
-    bag: str | Path, config: Any, surrogate: Any, chunk: int = DEFAULT_CHUNK, continuing: bool = False
+    bag: str | Path | Sequence[str | Path],
+    config: Any,
+    surrogate: Any,
+    chunk: int = DEFAULT_CHUNK,
+    continuing: bool = False,
 ) -> BagReduction:
     """Decode, gate and window one bag on its own (see the module docstring).
 
     Args:
-        bag: a rosbag2 bag (directory, ``.db3`` or ``.mcap``).
+        bag: a rosbag2 bag (directory, ``.db3`` or ``.mcap``), or several bags that overlap in
+            time, read as one stream merged by log time (``bagio.merged.MergedStream``; ties in
+            the order given).
         config: the bridge's ``ShadowConfig`` (its front-end parameters matter here).
         surrogate: the bridge's surrogate (the front end does not use it; a shadow needs one).
         chunk: messages per feed after the head.
@@ -224,14 +233,15 @@ def reduce_bag(
         BagError: the bag cannot be opened or read (one line naming it).
 
     """
-    from bridge_shadow.bagio.stream import MonitoringStream
+    from bridge_shadow.bagio.merged import open_monitoring
     from bridge_shadow.estimate.shadow import Shadow
 
     t0 = time.perf_counter()
     shadow = Shadow(config.replace(checkpoint_path=""), surrogate)
-    red = BagReduction(str(bag))
+    paths = [bag] if isinstance(bag, str | Path) else list(bag)
+    red = BagReduction(str(paths[0]), bags=tuple(map(str, paths)) if len(paths) > 1 else ())
     front = _Windowing(shadow)
-    with MonitoringStream(bag, topics=config.input_topics(), required=False) as stream:
+    with open_monitoring(paths, topics=config.input_topics(), required=False) as stream:
         red.backend = stream.backend
         pieces: Iterator[MonitoringData] | None = iter(stream)
         if stream.first_ns is not None:

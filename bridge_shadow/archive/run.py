@@ -1,8 +1,9 @@
 """Run an archive on Dask: a local cluster by default, a running scheduler when given its address.
 
-The graph, per bridge: one ``bag_span_task`` per bag (its first and last log times: the order, and
-which bags go on from the one before within ``gap_s``), one
-``reduce_task`` per bag (parallel, across bags and bridges) and one ``join_task`` that takes the
+The graph, per bridge: one ``bag_span_task`` per bag (its first and last log times: the order,
+which bags overlap in time and which go on from the one before within ``gap_s``), one
+``reduce_task`` per unit (a bag, or bags that overlap in time, read merged by log time; parallel,
+across units and bridges) and one ``join_task`` that takes the
 reductions in time order as they finish (parallel across bridges, overlapping the reductions).
 Dask schedules it all; nothing here waits on a worker except through Dask's own futures and
 progress bar.
@@ -25,7 +26,15 @@ from typing import Any
 
 from bridge_shadow.archive.sources import BridgeSource
 from bridge_shadow.archive.summary import DEFAULT_PERIOD_S
-from bridge_shadow.archive.tasks import BagOutcome, BridgeOutcome, bag_span_task, join_task, reduce_task
+from bridge_shadow.archive.tasks import (
+    BagOutcome,
+    BridgeOutcome,
+    bag_span_task,
+    join_task,
+    overlap_units,
+    overlapping_bags,
+    reduce_task,
+)
 
 __all__ = ["ArchiveRun", "plan_bridges", "run_archive", "write_outputs"]
 
@@ -77,6 +86,13 @@ def continuing_flags(spans: list[tuple[int | None, int | None]], gap_s: float) -
     return flags
 
 
+def _unit_span(spans: list[tuple[int | None, int | None]]) -> tuple[int | None, int | None]:
+    """Return the log-time span of a unit of bags (None: a bag of its own without one)."""
+    firsts = [f for f, _ in spans if f is not None]
+    lasts = [la for _, la in spans if la is not None]
+    return (min(firsts) if firsts else None, max(lasts) if lasts else None)
+
+
 def plan_bridges(sources: list[BridgeSource]) -> list[BridgePlan]:
     """Load and check each bridge's parameters and surrogate before anything runs.
 
@@ -125,8 +141,14 @@ def run_archive(
     for plan, span in zip(plans, spans, strict=True):
         name = plan.source.name
         ordered = sorted(zip(span, plan.source.bags, strict=True), key=_start_key)
-        bags = [b for _, b in ordered]
-        continuing = continuing_flags([sp for sp, _ in ordered], plan.config.gap_s)
+        # bags that overlap in time are reduced as one unit, merged by log time (nothing late)
+        units = overlap_units([sp for sp, _ in ordered])
+        bags = [[str(ordered[i][1]) for i in u] for u in units]
+        unit_spans = [_unit_span([ordered[i][0] for i in u]) for u in units]
+        continuing = continuing_flags(unit_spans, plan.config.gap_s)
+        merged = overlapping_bags(
+            [BagOutcome(str(b), first_log_ns=f, last_log_ns=la) for (f, la), b in ordered]
+        )
         queue = Queue(f"archive-{token}-{name}", client=client)
         # the join first (it waits outside the thread pool), then the bags in time order, whose
         # futures go into its queue as they are submitted
@@ -139,6 +161,7 @@ def run_archive(
                 queue.name,
                 len(bags),
                 summary_period_s,
+                merged,
                 key=f"join-{token}-{name}",
                 priority=1,
             )
@@ -148,7 +171,7 @@ def run_archive(
             futures.append(
                 client.submit(
                     reduce_task,
-                    str(bag),
+                    bag[0] if len(bag) == 1 else bag,
                     plan.config,
                     plan.surrogate,
                     str(cache),
@@ -206,6 +229,7 @@ def write_outputs(out: Path, run: ArchiveRun, plans: list[BridgePlan], cache: Pa
                         "first_log_ns": o.first_log_ns,
                         "last_log_ns": o.last_log_ns,
                         "seconds": o.seconds,
+                        **({"merged": o.merged} if o.merged else {}),
                         **({"error": o.error} if o.error else {}),
                     }
                     for o in bags

@@ -6,7 +6,9 @@ outcomes of its bridge in time order as they come (it waits outside the worker's
 the sequential part overlaps the reduction of later bags) and reads each reduction back from the
 cache, so a worker holds one bag's reduction at a time however long the archive is.
 ``bag_span_task`` finds a bag's first and last log times, which fix the order (and which bags go on
-from the one before) before anything is reduced.
+from the one before) before anything is reduced. Bags whose spans overlap (``overlap_units``: a
+day's load records and its air temperature as separate bags) are one *unit*: one ``reduce_task``
+reads them as one stream merged by log time (``bagio.merged``), so the join loses none of them.
 """
 
 from __future__ import annotations
@@ -20,7 +22,18 @@ from typing import Any
 from bridge_shadow.archive.cache import ReductionCache, front_key
 from bridge_shadow.archive.reduce import BagReduction, reduce_bag
 
-__all__ = ["BagOutcome", "BridgeOutcome", "bag_span_task", "join_task", "reduce_task", "time_order"]
+__all__ = [
+    "BagOutcome",
+    "BridgeOutcome",
+    "bag_span_task",
+    "join_task",
+    "merged_line",
+    "overlap_units",
+    "overlapping_bags",
+    "reduce_task",
+    "time_order",
+    "unit_digest",
+]
 
 
 @dataclass
@@ -34,6 +47,8 @@ class BagOutcome:
         entry: the cache entry holding its reduction.
         messages: input messages; first_log_ns, last_log_ns: its log-time span (None: empty).
         seconds: wall time of this task.
+        merged: the bags of a unit that overlap in time, reduced as one merged stream (``bag`` is the
+            first of them; empty for a bag on its own).
 
     """
 
@@ -46,31 +61,54 @@ class BagOutcome:
     first_log_ns: int | None = None
     last_log_ns: int | None = None
     seconds: float = 0.0
+    merged: list[str] = field(default_factory=list)
+
+    @property
+    def members(self) -> list[str]:
+        """The bags of this outcome: the merged unit's, or the one bag."""
+        return list(self.merged) or [self.bag]
+
+
+def unit_digest(digests: list[str]) -> str:
+    """Return the content digest of bags reduced as one merged unit: over their digests, in order.
+
+    The order counts (it breaks ties of log time), so the same bags in another order are another unit.
+    """
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=20)
+    h.update(("merged:" + ",".join(digests)).encode())
+    return h.hexdigest()
 
 
 def reduce_task(
-    bag: str, config: Any, surrogate: Any, cache_root: str, continuing: bool = False
+    bag: str | list[str], config: Any, surrogate: Any, cache_root: str, continuing: bool = False
 ) -> BagOutcome:
     """Reduce one bag into the cache (or find it there); a bag that cannot be read is ``failed``.
 
+    ``bag``: one bag, or the bags of a unit that overlap in time (in time order), reduced as one
+    stream merged by log time; its cache entry is keyed by every bag's content (``unit_digest``).
     ``continuing``: the bag goes on from the one before (``archive.reduce.reduce_bag``).
     """
     from bridge_shadow.bagio import BagError
 
     t0 = time.perf_counter()
     cache = ReductionCache(cache_root)
-    out = BagOutcome(bag)
-    path = Path(bag)
+    bags = [bag] if isinstance(bag, str) else list(bag)
+    out = BagOutcome(bags[0], merged=bags if len(bags) > 1 else [])
+    paths = [Path(b) for b in bags]
     try:
-        if not path.exists():
-            raise FileNotFoundError(f"{bag}: no such bag")
-        out.digest = cache.digest(path)
+        for b, path in zip(bags, paths, strict=True):
+            if not path.exists():
+                raise FileNotFoundError(f"{b}: no such bag")
+        digests = [cache.digest(path) for path in paths]
+        out.digest = digests[0] if len(digests) == 1 else unit_digest(digests)
         entry = cache.path(out.digest, front_key(config, continuing))
         red = cache.load(entry)
         if isinstance(red, BagReduction):
             out.status = "cached"
         else:
-            red = reduce_bag(path, config, surrogate, continuing=continuing)
+            red = reduce_bag(paths if len(paths) > 1 else paths[0], config, surrogate, continuing=continuing)
             cache.store(entry, red)
             out.status = "reduced"
     except (BagError, OSError) as err:
@@ -125,9 +163,11 @@ def overlapping_bags(ordered: list[BagOutcome]) -> list[dict[str, Any]]:
     """Return each bag (in time order) that begins before an earlier one has ended, with that one.
 
     The join takes a bridge's bags one after the other; the messages of a bag that lie before the
-    end of one joined earlier are rejected (``late``, ``out_of_order``). A day whose load records
-    and air temperature came as separate bags lost most of its forces that way, with no bag
-    named (a helper session's real-record archives).
+    end of one joined earlier would be rejected (``late``, ``out_of_order``). A day whose load
+    records and air temperature came as separate bags lost most of its forces that way. So
+    ``archive.run`` reduces bags that overlap as one unit merged by log time (``overlap_units``)
+    and names them here; an overlap left between the join's units (their spans not known before)
+    still loses messages.
     """
     out = []
     latest: tuple[str, int] | None = None  # the bag that ends last so far, and its end
@@ -141,6 +181,40 @@ def overlapping_bags(ordered: list[BagOutcome]) -> list[dict[str, Any]]:
         if latest is None or o.last_log_ns > latest[1]:
             latest = (o.bag, o.last_log_ns)
     return out
+
+
+def overlap_units(spans: list[tuple[int | None, int | None]]) -> list[list[int]]:
+    """Group bags in time order into units: runs of bags whose [first, last] log-time spans overlap.
+
+    A bag that begins before an earlier bag of its unit has ended joins that unit (connected
+    components of overlapping spans; a bag beginning at the very log time another ends does not
+    overlap it, as ``overlapping_bags`` says). A bag with no span (unreadable, empty) is a unit
+    of its own.
+    """
+    units: list[list[int]] = []
+    end: int | None = None  # the latest end of the last unit
+    for i, (first, last) in enumerate(spans):
+        if first is None or last is None:
+            units.append([i])
+            end = None
+            continue
+        if end is not None and first < end:
+            units[-1].append(i)
+            end = max(end, last)
+        else:
+            units.append([i])
+            end = last
+    return units
+
+
+def merged_line(o: dict[str, Any]) -> str:
+    """Return the information line of an overlap read merged (nothing lost)."""
+    from bridge_shadow.timefmt import iso_utc
+
+    return (
+        f"bags overlap in time: {o['bag']} begins at {iso_utc(o['first_log_ns'])}, before {o['before']} "
+        f"ends at {iso_utc(o['ends_ns'])}: read together as one stream merged by log time, nothing lost"
+    )
 
 
 def _overlap_line(o: dict[str, Any]) -> str:
@@ -178,14 +252,22 @@ def _outcomes(queue: str, n: int) -> Iterator[BagOutcome]:
 
 
 def join_task(
-    name: str, config: Any, surrogate: Any, queue: str, n_bags: int, summary_period_s: float
+    name: str,
+    config: Any,
+    surrogate: Any,
+    queue: str,
+    n_bags: int,
+    summary_period_s: float,
+    merged: list[dict[str, Any]] | None = None,
 ) -> BridgeOutcome:
     """Run the bridge's shadow over its bags in time order, each as soon as it is reduced.
 
     ``queue`` names the Dask queue that gets the bridge's ``n_bags`` reduce futures in the
     expected time order (by ``bag_span_task``); the join checks each bag's actual first message
     against it, and if a bag turns out earlier than one already joined, it starts over in the
-    actual order (exact either way).
+    actual order (exact either way). ``n_bags`` counts the units (a merged unit is one);
+    ``merged``: the overlaps within the units (``overlapping_bags`` of their bags), named in
+    the result as information.
     """
     from bridge_shadow.archive.join import join_bags
     from bridge_shadow.archive.summary import PeriodicRows
@@ -206,7 +288,7 @@ def join_task(
             last = order
             red = ReductionCache(Path(o.entry).parent).load(Path(o.entry))
             if not isinstance(red, BagReduction):  # removed while we ran: reduce it again
-                red = reduce_bag(Path(o.bag), config, surrogate)
+                red = reduce_bag([Path(b) for b in o.members], config, surrogate)
             yield red
 
     def run(source: Iterator[BagOutcome], check: bool) -> tuple[Any, Any, PeriodicRows]:
@@ -226,10 +308,12 @@ def join_task(
     result = shadow.result([], stats.messages, seconds).to_json()
     failed = [(o.bag, o.error) for o in seen if o.status == "failed"]
     result["bridge"] = name
-    result["bags"] = [o.bag for o in time_order(seen)]
-    overlaps = overlapping_bags(time_order(seen))
-    result["overlapping_bags"] = overlaps
-    result["warnings"] = [*result.get("warnings", []), *(_overlap_line(o) for o in overlaps)]
+    result["bags"] = [b for o in time_order(seen) for b in o.members]
+    # overlaps within a unit were read merged (information); one left between units lost messages
+    lost = [{**o, "merged": False} for o in overlapping_bags(time_order(seen))]
+    result["overlapping_bags"] = [{**o, "merged": True} for o in merged or []] + lost
+    result["merged_bags"] = [o.members for o in time_order(seen) if o.merged]
+    result["warnings"] = [*result.get("warnings", []), *(_overlap_line(o) for o in lost)]
     result["failed_bags"] = [{"bag": b, "error": e} for b, e in failed]
     result["surrogate"] = surrogate.summary()  # as replay's (its condition number was missing)
     return BridgeOutcome(name, result, rows.finish(shadow), failed, stats.fed_whole, seconds)

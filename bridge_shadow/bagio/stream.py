@@ -157,6 +157,8 @@ class MonitoringStream:
     Attributes:
         first_ns, last_ns: log-time range of the bag (None when empty), for progress.
         backend: ``"sqlite3"``, ``"mcap"`` or ``"rosbags"``.
+        present: the names of ``topics`` the bag holds (``bagio.merged`` checks ``required`` over
+            several bags with it).
         peak_pending: the most decoded messages held at once (memory check in tests).
 
     Opening checks the bag, the topics and their types; errors are the ``BagError``s of
@@ -187,6 +189,7 @@ class MonitoringStream:
                     raise UnexpectedTypeError(
                         f"{self.path}: topic {name} has type {found[name]}, expected {msgtype}"
                     )
+            self.present = frozenset(n for n in names if n in found)
             missing = sorted(must - set(found))
             if missing:
                 has = ", ".join(sorted(n for n in names if n in found)) or "none of the input topics"

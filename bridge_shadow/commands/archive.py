@@ -22,7 +22,9 @@ PATH is one of
                                    surrogate: YAML}}, paths relative to the manifest
 A bridge folder may hold shadow.yaml (parameters) and surrogate.yaml beside its bags (else
 config/shadow.yaml and the default surrogate). A bridge's bags are taken in the order of their
-first message.
+first message; bags of one bridge that overlap in time (a day's load records and its air
+temperature as separate bags) are read together as one stream merged by log time, so none of
+their messages is lost, and named as information.
 
 Engine: a local Dask cluster on this machine (one worker process per core, on loopback) unless
 --scheduler tcp://HOST:PORT names a running scheduler (`dask scheduler`, `dask worker ADDR`);
@@ -39,10 +41,9 @@ JSON of each bridge), summary.csv (every bridge's posterior once per --summary-p
 summary.png, index.json (bags, status, digests, failures, timings) and cache/ (the reductions).
 --json prints one object: {"bridges": {NAME: replay JSON}, "bags": counts by status,
 "failed_bags", "files", "seconds", "messages_per_s"}. Exit 1 when a bridge got no window into
-its estimate (the replay's rule), or when its bags overlap in time (each named: a bridge's bags
-are taken one after the other, so the later one's messages before the earlier one's end are lost;
-import records that belong together into one bag), 0 otherwise (skipped bags are WARN lines on
-stderr).
+its estimate (the replay's rule), or when bags overlap in time and could not be read merged (each
+named: the later one's messages before the earlier one's end were lost), 0 otherwise (skipped
+bags are WARN lines on stderr; bags read merged are info lines).
 
 Examples:
   bridge-shadow synth --archive /tmp/fleet --bridges 3 --days 7 --rate 1
@@ -91,8 +92,10 @@ def _summary(js: dict[str, Any]) -> str:
             f"{side} {1e3 * m:+.3f} ± {1.96e3 * s:.3f} mm"
             for side, m, s in zip(("south", "north"), mean, sd, strict=True)
         )
+        merged = res.get("merged_bags", [])
+        joined = f" ({sum(map(len, merged))} of them overlapping in time, read merged)" if merged else ""
         lines.append(
-            f"{name}: {post}; {_n(len(res['bags']), 'bag')}, {res['messages']['total']} messages, "
+            f"{name}: {post}; {_n(len(res['bags']), 'bag')}{joined}, {res['messages']['total']} messages, "
             f"{res['windows']['updates']} window updates, {_n(len(res.get('events', [])), 'event')}"
         )
     bags = js["bags"]
@@ -111,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
 
     from bridge_shadow.archive.run import plan_bridges, run_archive, write_outputs
     from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.archive.tasks import merged_line
     from bridge_shadow.commands.output import emit_json
     from bridge_shadow.engine import dask_client
     from bridge_shadow.errors import InputError
@@ -153,7 +157,10 @@ def run(args: argparse.Namespace) -> int:
     for b in result.bridges:
         for line in b.result.get("warnings", []):
             print(f"bridge-shadow archive: WARN: {b.name}: {line}", file=sys.stderr)
-        if b.result.get("overlapping_bags"):
+        for o in b.result.get("overlapping_bags", []):
+            if o.get("merged"):
+                print(f"bridge-shadow archive: info: {b.name}: {merged_line(o)}", file=sys.stderr)
+        if any(not o.get("merged") for o in b.result.get("overlapping_bags", [])):
             print(
                 f"bridge-shadow archive: error: {b.name}: bags overlap in time (named above): its result "
                 "is not the stream's, the later bags' messages before the earlier ones' end were rejected",
