@@ -204,3 +204,33 @@ def test_equal_log_times_keep_the_bags_order(tmp_path: Path) -> None:
         np.testing.assert_array_equal(got["log_ns"], np.repeat(log, 2))
         first = 0.0 if order is bags else 1.0
         np.testing.assert_array_equal(got["force_n"], np.tile([first, 1.0 - first], n))
+
+
+def test_replay_of_several_bags_reads_them_merged(
+    record: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``bridge-shadow replay FORCES AIR``: the result of ``replay`` of the one bag, nothing late.
+
+    One BAG is read as ever; several were refused by the argument parser (one BAG only), and fed
+    one after the other would have lost the later bag's messages before the earlier one's end.
+    """
+    import json
+
+    from bridge_shadow.cli import main
+
+    runs = []
+    for bags in ([record["whole"]], record["by_topic"][::-1], record["random"]):
+        assert main(["replay", *map(str, bags), "--json"]) == 0
+        runs.append(json.loads(capsys.readouterr().out))
+    ref = runs[0]
+    assert "bags" not in ref and ref["rejected"]["late"] == 0 and ref["windows"]["updates"] > 300
+    for js in runs[1:]:
+        assert len(js["bags"]) > 1 and js["bag"] == js["bags"][0]
+        np.testing.assert_allclose(js["posterior"]["mean_m"], ref["posterior"]["mean_m"], rtol=1e-10, atol=0)
+        np.testing.assert_allclose(
+            js["posterior"]["covariance_m2"], ref["posterior"]["covariance_m2"], rtol=1e-10, atol=0
+        )
+        assert js["rejected"] == ref["rejected"] and js["windows"] == ref["windows"]
+        assert js["messages"]["total"] == ref["messages"]["total"]
+    assert main(["replay", *map(str, record["by_topic"]), "--live"]) != 0
+    assert "--live plays one BAG" in capsys.readouterr().err

@@ -57,7 +57,13 @@ WINDOW_NOTES = (("uncompensated", "uncompensated"), ("stale_temperature", "with 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add BAG, --params, --live, --rate, --out, --plots, --checkpoint, --watch, --json."""
-    parser.add_argument("bag", metavar="BAG", help="rosbag2 directory (sqlite3 or MCAP)")
+    parser.add_argument(
+        "bag",
+        metavar="BAG",
+        nargs="+",
+        help="rosbag2 directory (sqlite3 or MCAP); several BAGs (e.g. a record's forces and its air "
+        "temperature, overlapping in time) are read as one stream merged by log time (not with --live)",
+    )
     parser.add_argument("--params", metavar="YAML", help="shadow parameter file (default config/shadow.yaml)")
     parser.add_argument(
         "--surrogate",
@@ -316,9 +322,13 @@ def run(args: argparse.Namespace) -> int:
         check_value("--rate", args.rate, "float", VALUE_SPECS["rate"])
     if args.watch and not args.live:
         raise InputError("--watch needs --live (it shows the node's topics)")
+    bags = [args.bag] if isinstance(args.bag, str | Path) else list(args.bag)
+    if len(bags) > 1 and args.live:
+        raise InputError("--live plays one BAG (merge several into one bag, or replay them without --live)")
+    bag = bags[0] if len(bags) == 1 else bags  # one bag: read as ever; several: merged
     # the outputs are checked before the replay runs, so a bad path costs no time
     if args.out:
-        check_bag_target(args.out, args.force, reading=[args.bag])
+        check_bag_target(args.out, args.force, reading=bags)
     if args.plots:
         check_output_dir(args.plots, "plot directory")
     over = {"surrogate_path": str(Path(args.surrogate).resolve())} if args.surrogate else None
@@ -330,13 +340,13 @@ def run(args: argparse.Namespace) -> int:
         # replay with exit 141 when the result is written, as any tool whose pipe was closed
         mode = " (live)" if args.live else ""
         used = describe_surrogate(surrogate, config.surrogate_path or None)
-        print(f"replay {args.bag}{mode}: surrogate {used}", flush=True)
+        print(f"replay {' + '.join(map(str, bags))}{mode}: surrogate {used}", flush=True)
     if args.live:
         from bridge_shadow.ros.live_replay import run_live
 
         before = _resumed_counts(config, surrogate, args.checkpoint)
         js = run_live(
-            args.bag,
+            bag,
             args.params,
             out=args.out,
             overwrite=args.force,
@@ -365,7 +375,7 @@ def run(args: argparse.Namespace) -> int:
     # history; the air temperature may be absent: the shadow then runs uncompensated and says so
     history = HISTORY_CAPACITY if args.plots else None
     result, _ = replay_bag(
-        args.bag,
+        bag,
         shadow,
         out=args.out,
         overwrite=args.force,
@@ -377,7 +387,9 @@ def run(args: argparse.Namespace) -> int:
     js = result.to_json()
     if before is not None:
         _this_run(js, before)
-    js["bag"] = str(args.bag)
+    js["bag"] = str(bags[0])
+    if len(bags) > 1:
+        js["bags"] = [str(b) for b in bags]  # read merged by log time
     js["surrogate"] = surrogate.summary()
     if args.out:
         js["out"] = str(args.out)

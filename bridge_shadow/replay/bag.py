@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Collection, Iterable
+from collections.abc import Callable, Collection, Iterable, Sequence
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
@@ -25,7 +25,7 @@ def _result(shadow: Any, stats: StreamReplay, outputs: list[Any]) -> Any:
 
 
 def replay_bag(
-    bag: str | Path,
+    bag: str | Path | Sequence[str | Path],
     shadow: Any,
     *,
     out: str | Path | None = None,
@@ -42,7 +42,9 @@ def replay_bag(
     """Replay a bag through ``shadow`` in bounded memory; return its ``ReplayResult`` and timings.
 
     Args:
-        bag: rosbag2 bag with the input topics (names from the shadow's ``topic_*`` parameters).
+        bag: rosbag2 bag with the input topics (names from the shadow's ``topic_*`` parameters), or
+            several bags read as one stream merged by log time (``bagio.merged.MergedStream``: bags
+            that overlap in time; ``required`` then holds over them all).
         shadow: a fresh (or resumed) ``estimate.Shadow``.
         out: write the window outputs to this new bag as they close.
         overwrite: replace an existing bag at ``out`` (``--force``), once the new one is complete.
@@ -71,11 +73,12 @@ def replay_bag(
         BagError: the bag cannot be read (before anything is fed or written).
 
     """
-    from bridge_shadow.bagio.stream import DEFAULT_BATCH, MonitoringStream
+    from bridge_shadow.bagio.merged import open_monitoring
+    from bridge_shadow.bagio.stream import DEFAULT_BATCH
 
     t0 = time.perf_counter()
     config = shadow.config
-    stream = MonitoringStream(
+    stream = open_monitoring(
         bag, topics=config.input_topics(), batch=batch or DEFAULT_BATCH, required=required
     )
     with stream:
