@@ -88,6 +88,10 @@ class NoiseModel:
         self.n = 0
         self.dof = np.zeros(2)
         self.dof_ar = np.zeros(2)
+        #: (2,) N^2: the residuals' per-sample-equivalent variance ``sum m e^2 / dof`` as i.i.d.
+        #: samples would show it (NaN until a fit): measured in both modes, so that ``fixed``
+        #: mode can say when its ``Sigma_E`` does not hold (``report.fixed_noise_lines``)
+        self.scatter = np.full(2, np.nan)
         self._cache()
 
     def update(self, moments: Moments, edf: np.ndarray, segment_windows: np.ndarray) -> None:
@@ -100,6 +104,8 @@ class NoiseModel:
         sizes = np.asarray(segment_windows, float)
         sizes = sizes[sizes > 0]
         self.dof = np.maximum(moments.n - len(sizes) - np.asarray(edf, float).reshape(2), 1.0)
+        if moments.n >= 3:
+            self.scatter = np.maximum(np.diag(moments.s2), 0.0) / self.dof
         if not self.adaptive or moments.n < 3:
             return
         self._update(moments, sizes, np.asarray(edf, float).reshape(2))
@@ -191,6 +197,7 @@ class NoiseModel:
             "n": self.n,
             "dof": self.dof.copy(),
             "dof_ar": self.dof_ar.copy(),
+            "scatter": self.scatter.copy(),
         }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
@@ -200,4 +207,6 @@ class NoiseModel:
         self.n = int(state["n"])  # type: ignore[call-overload]
         self.dof = np.asarray(state["dof"], float).reshape(2)
         self.dof_ar = np.asarray(state["dof_ar"], float).reshape(2)
+        # a checkpoint written before the field: unknown until the next fit
+        self.scatter = np.asarray(state.get("scatter", (np.nan, np.nan)), float).reshape(2)
         self._cache()
