@@ -331,3 +331,44 @@ def test_a_recording_split_into_bags_inside_a_record_replays_as_one(
     )
     assert [e["window"] for e in second["events"]] == [e["window"] for e in whole["events"]]
     assert second["rejected_windows"] == whole["rejected_windows"]  # every window, the checkpoint's too
+
+
+def test_a_replay_resumed_from_a_held_record_counts_this_run_apart(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A checkpoint of one short record, still held for the traffic screen, is a resume too.
+
+    It has closed no window but has taken every message of its record; the next bag's replay
+    reported both bags' counts as its own (the public records chained as two bags: ``145192 in,
+    290441 used``) and no ``resumed``, because the resume was recognised by closed windows.
+    """
+    import json
+
+    from bridge_shadow.estimate import load_config
+    from bridge_shadow.model.surrogate_file import load_surrogate
+    from bridge_shadow.series import MonitoringData
+
+    def open_shadow_windows(path: Path) -> int:
+        return Shadow.resume(path, load_config(), load_surrogate()).n_windows
+
+    rng = np.random.default_rng(9)
+    level = load_surrogate().reactions(np.zeros(2))
+    bags = []
+    for i, start_h in enumerate((0.0, 4.0)):  # two 12-minute records 4 h apart, 1 Hz
+        stamps = T0 + int(start_h * 3600e9) + np.arange(720, dtype=np.int64) * 10**9
+        forces = level + rng.normal(0.0, 60.0, (720, 2))
+        data = MonitoringData.from_arrays(stamps, forces, stamps[::10], np.full(72, 8.0 + i))
+        bags.append(write_monitoring(tmp_path / f"record{i}", data))
+    ck = tmp_path / "ck.npz"
+    assert main(["replay", str(bags[0]), "--checkpoint", str(ck), "--json"]) == 0
+    first = json.loads(capsys.readouterr().out)
+    assert first["messages"]["used"] == 720 * 2 + 72
+    # the checkpoint holds the state before the end-of-data close: the record held, no window closed
+    assert open_shadow_windows(ck) == 0
+    assert main(["replay", str(bags[1]), "--checkpoint", str(ck), "--json"]) == 0
+    out = capsys.readouterr()
+    js = json.loads(out.out)
+    msgs = js["messages"]
+    assert msgs["total"] == 720 * 2 + 72 and msgs["used"] + msgs["rejected"] == msgs["total"]
+    assert js["resumed"]["messages_used"] == first["messages"]["used"]
+    assert f"resumed from {ck}: {first['messages']['used']} messages, 0 windows" in out.err

@@ -370,7 +370,7 @@ def run(args: argparse.Namespace) -> int:
     shadow, notes = open_shadow(config, surrogate)  # an unusable checkpoint stops us before the bag
     for line in notes:
         print(f"bridge-shadow replay: {line}", file=sys.stderr)
-    before = _counts(shadow) if shadow.n_windows else None  # resumed: count this run apart
+    before = _counts(shadow) if _has_counted(shadow) else None  # resumed: count this run apart
     # streamed in bounded memory; outputs go to --out as windows close, --plots keeps a decimated
     # history; the air temperature may be absent: the shadow then runs uncompensated and says so
     history = HISTORY_CAPACITY if args.plots else None
@@ -401,6 +401,16 @@ def run(args: argparse.Namespace) -> int:
     return _report(js, args.json)
 
 
+def _has_counted(shadow: Any) -> bool:
+    """Whether a resumed shadow has counted anything: windows, or messages used or rejected.
+
+    A checkpoint of a 12-minute record still held for the traffic screen has closed no window yet
+    but has taken every message of it; the next bag's counts were then reported as the two bags'
+    together (``290441 used`` of ``145192 in``) and without ``resumed``.
+    """
+    return bool(shadow.n_windows or any(shadow.used.values()) or any(shadow.rejected.values()))
+
+
 def _counts(shadow: Any) -> dict[str, Any]:
     """Return what a (resumed) shadow has counted: messages used and rejected, windows, updates."""
     return {
@@ -427,7 +437,7 @@ def _resumed_counts(config: Any, surrogate: Any, checkpoint: str | None) -> dict
         if config.checkpoint_unusable == "fresh":
             return None  # the node sets it aside and starts from the prior
         raise CheckpointError(f"{err} ({UNUSABLE_HINT})") from None
-    return _counts(shadow) if shadow.n_windows else None
+    return _counts(shadow) if _has_counted(shadow) else None
 
 
 def _this_run(js: dict[str, Any], before: dict[str, Any]) -> None:

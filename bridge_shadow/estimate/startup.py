@@ -46,5 +46,7 @@ def open_shadow(config: ShadowConfig, surrogate: Surrogate) -> tuple[Shadow, lis
         what = f"set aside as {aside.name}, starting from the prior (checkpoint_unusable: fresh)"
         notes.append(f"{err}; {what}")
         return Shadow(config, surrogate), notes
-    notes.append(f"resumed from {file}: {shadow.n_windows} windows, {shadow.filter.n_updates} updates")
+    taken = sum(shadow.used.values()) + sum(shadow.rejected.values())
+    counts = f"{taken} messages, {shadow.n_windows} windows, {shadow.filter.n_updates} updates"
+    notes.append(f"resumed from {file}: {counts}")
     return shadow, notes
