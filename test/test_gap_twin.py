@@ -136,6 +136,19 @@ def test_the_json_has_no_unit_but_si(diagnoses):
         assert "hours_between" not in text
 
 
+def test_the_traffic_candidates_magnitude_is_a_share_not_a_force(diagnoses):
+    """Its magnitude is the bearings' two shares summed, unit 1 (it said N: the twin's weight unit)."""
+    seen = 0
+    for js in diagnoses.values():
+        for c in js["candidates"]:
+            if c["effect"] == "traffic" and c["magnitude"]["value"] is not None:
+                seen += 1
+                assert c["magnitude"]["unit"] == "1"
+                total = c["params"]["b_south [1]"] + c["params"]["b_north [1]"]
+                assert c["magnitude"]["value"] == pytest.approx(total, rel=1e-12, abs=1e-12)
+    assert seen
+
+
 def test_where_points_at_the_north_channel_for_a_north_sensor_drift(diagnoses):
     where = diagnoses["sensor_drift"]["where"]
     assert where["channel_share"]["north"] > 0.8

@@ -192,7 +192,10 @@ class Candidate:
             (for ``nonlinear`` candidates: its linearization at no change).
         grid: values of the nonlinear parameter (``(None,)`` when there is none).
         grid_name: name of the nonlinear parameter.
-        magnitude: ``(params, g) -> float``, the fitted value in the vocabulary's magnitude unit.
+        magnitude: ``(params, g) -> float``, the fitted value in the vocabulary's magnitude unit
+            (or ``magnitude_unit``).
+        magnitude_unit: the magnitude's unit where it is not the vocabulary's (the twin's
+            ``traffic`` is a vehicle's weight in N; the candidate fits the bearings' shares).
         discrete: the grid is a discrete choice (penalized by ``2 log K``).
         bounds: ``ctx -> [(low, high)]`` per linear parameter: its plausible range.
         nonlinear: fitted by :mod:`bridge_shadow.gap.spring` instead of linear least squares.
@@ -208,6 +211,7 @@ class Candidate:
     grid: tuple[Any, ...] = (None,)
     grid_name: str | None = None
     magnitude: Callable[[np.ndarray, Any], float] | None = None
+    magnitude_unit: str | None = None
     discrete: bool = False
     bounds: Bounds | None = None
     nonlinear: bool = False
@@ -525,6 +529,7 @@ CANDIDATES: tuple[Candidate, ...] = (
         ("b_south [1]", "b_north [1]"),
         _traffic,
         magnitude=lambda p, g: float(np.sum(p)),
+        magnitude_unit="1",  # the two bearings' shares of a crossing's excess, summed
         bounds=_fixed_bounds("traffic", 2),
     ),
 )

@@ -80,7 +80,8 @@ def candidate_json(
 
 def _magnitude(c: Candidate, value: float | None) -> dict[str, Any]:
     """Return the magnitude's JSON (SI: ``gap.si``; a lag's is its time constant, in hours in the fit)."""
-    unit, si_value = si_unit_value("h" if c.name == "thermal_lag" else EFFECTS[c.name].unit, value)
+    given = c.magnitude_unit or ("h" if c.name == "thermal_lag" else EFFECTS[c.name].unit)
+    unit, si_value = si_unit_value(given, value)
     return {"value": si_value, "unit": unit}
 
 
