@@ -58,6 +58,27 @@ def test_gap_after_adding_the_named_effects_is_the_papers_offset(demo):
     np.testing.assert_allclose(after["mean_m"], [7e-4, -7e-4], atol=2e-5)
 
 
+def test_the_events_of_each_run_are_said_where_the_change_moved_them(demo):
+    """Before and after carry the events their runs found; the text names them when they differ.
+
+    On the demo the run after the named effects finds a step (about -0.02 mm) that the run
+    before does not: its posterior read "the state since the settlement step at ..." with no
+    event anywhere in the output.
+    """
+    gap, replay, *_ = demo
+    from bridge_shadow.commands.gap import _human
+
+    before, after = gap["posterior"]["before"], gap["posterior"]["after"]
+    assert [e["time_ns"] for e in before["events"]] == [e["time_ns"] for e in replay["events"]]
+    if after["state"]["kind"] == "event":
+        assert after["events"] and after["events"][-1]["time_ns"] == after["state"]["since_ns"]
+    lines = [line.strip() for line in _human(gap).splitlines() if line.strip().startswith("events ")]
+    if [e["time"] for e in before["events"]] != [e["time"] for e in after["events"]]:
+        assert len(lines) == 2 and all(e["time"] in lines[1] for e in after["events"])
+    else:
+        assert lines == []
+
+
 def test_text_and_report_say_what_each_number_is(demo):
     gap, _, report, _ = demo
     from bridge_shadow.commands.gap import _human

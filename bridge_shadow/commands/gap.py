@@ -300,7 +300,20 @@ def _human(summary: dict) -> str:
         for label, p in rows:
             half = f"+-{1.96e3 * p['sigma_m'][0]:.3f} / {1.96e3 * p['sigma_m'][1]:.3f}"
             lines.append(f"  {label:<7} {_mm(p['mean_m'])}  ({half})  {p['what']}")
+        lines += _event_lines(b, a)
     return "\n".join(lines)
+
+
+def _event_lines(before: dict[str, Any], after: dict[str, Any]) -> list[str]:
+    """Say the settlement events of the runs before and after when the change moved them."""
+    times = [[e["time"] for e in p.get("events", [])] for p in (before, after)]
+    if times[0] == times[1]:
+        return []
+    out = []
+    for label, p in (("before", before), ("after", after)):
+        found = ", ".join(f"{e['time']} {_mm(e['size_m'])} mm ({e['kind']})" for e in p.get("events", []))
+        out.append(f"  events {label}: {found or 'none'}")
+    return out
 
 
 def _diagnose(

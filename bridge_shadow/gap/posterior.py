@@ -98,6 +98,11 @@ def _posterior_json(result: Any) -> dict[str, Any]:
         "interval95_m": [[float(m - 1.96 * v), float(m + 1.96 * v)] for m, v in zip(mean, sd, strict=True)],
         "updates": int(result.updates),
         "state": dict(result.state),  # which state it stands for (a state nobody saw: unseen_from)
+        # the settlement events this run found: a model change can add (or take away) one
+        "events": [
+            {"kind": e["kind"], "time_ns": e["time_ns"], "time": e["time"], "size_m": e["size_m"]}
+            for e in result.to_json().get("events", [])
+        ],
         "warnings": list(result.warnings),
     }
 
