@@ -371,6 +371,35 @@ def test_parameters_default_to_shadow_yaml_and_override() -> None:
         rclpy.try_shutdown(context=context)
 
 
+def _steady_100hz(n: int, seed: int) -> tuple[list[list[bytes]], list[Any]]:
+    """Return ``n`` raw messages per input topic at 100 Hz and the node's overrides.
+
+    Steady forces and a constant air; 0.1 s windows that publish a posterior each after a short
+    warm-up (an in-process node, its callbacks called directly).
+    """
+    from rclpy.parameter import Parameter
+
+    from bridge_shadow.bagio import encode_stamped_floats
+    from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, TEMPERATURE_FRAME
+
+    stamp = 1_646_667_300 * 10**9 + np.arange(n, dtype=np.int64) * 10_000_000
+    rng = np.random.default_rng(seed)
+    wrench = np.zeros((n, 6))
+    raws = []
+    for ch in CHANNELS:
+        wrench[:, 2] = 2.4e5 + rng.normal(0.0, 60.0, n)
+        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
+    raws.append(encode_stamped_floats(stamp, TEMPERATURE_FRAME, np.c_[np.full(n, 8.0), np.zeros(n)]))
+    overrides = [
+        Parameter("window_s", value=0.1),
+        Parameter("window_min_samples", value=5),
+        Parameter("topic_timeout_s", value=0.05),
+        Parameter("warmup_windows", value=5),
+        Parameter("traffic_hold_s", value=0.0),
+    ]
+    return raws, overrides
+
+
 def test_the_message_that_closes_a_window_publishes_it_even_right_after_a_timers_drain() -> None:
     """The closing message drains at once, also when the drain timer ran a moment before.
 
@@ -381,31 +410,14 @@ def test_the_message_that_closes_a_window_publishes_it_even_right_after_a_timers
     timer in that phase delayed every window of a live run by a sample period).
     """
     import rclpy
-    from rclpy.parameter import Parameter
 
-    from bridge_shadow.bagio import encode_stamped_floats
-    from bridge_shadow.contract import CHANNELS, FORCE_FRAMES, TEMPERATURE_FRAME
     from bridge_shadow.ros.node import ShadowNode
 
     n = 400
-    stamp = 1_646_667_300 * 10**9 + np.arange(n, dtype=np.int64) * 10_000_000
-    rng = np.random.default_rng(4)
-    wrench = np.zeros((n, 6))
-    raws = []
-    for ch in CHANNELS:
-        wrench[:, 2] = 2.4e5 + rng.normal(0.0, 60.0, n)
-        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
-    raws.append(encode_stamped_floats(stamp, TEMPERATURE_FRAME, np.c_[np.full(n, 8.0), np.zeros(n)]))
+    raws, overrides = _steady_100hz(n, 4)
     context = rclpy.Context()
     rclpy.init(context=context)
     try:
-        overrides = [
-            Parameter("window_s", value=0.1),
-            Parameter("window_min_samples", value=5),
-            Parameter("topic_timeout_s", value=0.05),
-            Parameter("warmup_windows", value=5),
-            Parameter("traffic_hold_s", value=0.0),
-        ]
         node = ShadowNode(context=context, parameter_overrides=overrides)
         try:
             temp_cb, f1_cb, f2_cb = node._callback(2), node._callback(0), node._callback(1)
@@ -437,33 +449,17 @@ def test_a_subscriber_that_joins_late_is_sent_the_last_posterior() -> None:
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from std_msgs.msg import Float64MultiArray
 
-    from bridge_shadow.bagio import encode_stamped_floats
-    from bridge_shadow.contract import CHANNELS, COVARIANCE_TOPIC, FORCE_FRAMES, TEMPERATURE_FRAME
+    from bridge_shadow.contract import COVARIANCE_TOPIC
     from bridge_shadow.ros.node import ShadowNode
 
     n = 300
-    stamp = 1_646_667_300 * 10**9 + np.arange(n, dtype=np.int64) * 10_000_000
-    rng = np.random.default_rng(5)
-    wrench = np.zeros((n, 6))
-    raws = []
-    for ch in CHANNELS:
-        wrench[:, 2] = 2.4e5 + rng.normal(0.0, 60.0, n)
-        raws.append(encode_stamped_floats(stamp, FORCE_FRAMES[ch], wrench))
-    raws.append(encode_stamped_floats(stamp, TEMPERATURE_FRAME, np.c_[np.full(n, 8.0), np.zeros(n)]))
+    raws, overrides = _steady_100hz(n, 5)
     context = rclpy.Context()
     rclpy.init(context=context)
     try:
-        overrides = [
-            Parameter("window_s", value=0.1),
-            Parameter("window_min_samples", value=5),
-            Parameter("topic_timeout_s", value=0.05),
-            Parameter("warmup_windows", value=5),
-            Parameter("traffic_hold_s", value=0.0),
-        ]
         node = ShadowNode(context=context, parameter_overrides=overrides)
         viewer = rclpy.create_node("late_viewer", context=context)
         executor = SingleThreadedExecutor(context=context)
