@@ -685,6 +685,57 @@ def test_an_air_bag_spanning_several_records_is_merged_with_them(
     assert [o.status for o in third.bags["bridge"] if not o.merged] == ["cached"] * 3
 
 
+def test_a_corrupt_bag_among_overlapping_ones_costs_only_itself(tmp_path: Path) -> None:
+    """A record whose chunks are corrupt (it opens, its messages do not decompress) is dropped alone.
+
+    The air of two records in a bag of its own joins them into one unit; one of the two force
+    bags is a compressed MCAP with bytes overwritten in its middle. The whole unit was skipped
+    (the good record and the air lost, 0 of their messages used) and the good first bag named as
+    the failed one. Now the unit is reduced again without the corrupt bag: it alone is named and
+    counted failed, the other record's forces and the air are used.
+    """
+    from archive_fixtures import cut
+
+    from bridge_shadow.archive.run import plan_bridges, run_archive, write_outputs
+    from bridge_shadow.archive.sources import archive_sources
+    from bridge_shadow.bagio import write_monitoring
+    from bridge_shadow.engine import dask_client
+    from bridge_shadow.series import MonitoringData
+
+    data, seams = seamed_record(days=1.6)
+    parts = cut(data, seams)
+    bridge = tmp_path / "bridge"
+    none = data.select(lambda stamps: np.zeros(len(stamps), bool))
+    keep = np.isin(
+        data.temperature.log_ns, np.concatenate([parts[1].temperature.log_ns, parts[2].temperature.log_ns])
+    )
+    write_monitoring(bridge / "day_01_forces", MonitoringData(parts[1].forces, none.temperature))
+    broken = write_monitoring(
+        bridge / "day_02_forces", MonitoringData(parts[2].forces, none.temperature), "mcap", compress=True
+    )
+    write_monitoring(bridge / "air_01_02", _only_air(data, keep, none), "mcap")
+    mcap = next(Path(broken).glob("*.mcap"))
+    raw = bytearray(mcap.read_bytes())
+    rng = np.random.default_rng(1)
+    for off in range(len(raw) // 3, 2 * len(raw) // 3, 997):
+        raw[off : off + 16] = rng.bytes(16)
+    mcap.write_bytes(bytes(raw))
+    save_surrogate(placeholder_surrogate(), bridge / "surrogate.yaml")
+    plans = plan_bridges(archive_sources(str(bridge)))
+    with dask_client(workers=1, processes=False) as client:
+        run = run_archive(client, plans, tmp_path / "cache")
+    (b,) = run.bridges
+    assert [Path(f).name for f, _ in b.failed] == ["day_02_forces"]
+    assert "corrupt" in b.failed[0][1]
+    read = sum(len(f.log_ns) for f in parts[1].forces.values()) + int(keep.sum())
+    assert b.result["messages"]["total"] == read  # the good record and the air, every message read
+    assert b.result["windows"]["updates"] > 100
+    assert sorted(Path(x).name for x in b.result["bags"]) == ["air_01_02", "day_01_forces"]
+    assert not [o for o in b.result["overlapping_bags"] if "day_02_forces" in (o["bag"], o["before"])]
+    index = write_outputs(tmp_path / "out", run, plans, tmp_path / "cache")
+    assert index["bags"] == {"reduced": 2, "cached": 0, "failed": 1}  # per bag, not per unit
+
+
 def _only_air(data: Any, keep: np.ndarray, none: Any) -> Any:
     from bridge_shadow.series import MonitoringData, TemperatureSeries
 

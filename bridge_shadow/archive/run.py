@@ -230,6 +230,7 @@ def write_outputs(out: Path, run: ArchiveRun, plans: list[BridgePlan], cache: Pa
                         "last_log_ns": o.last_log_ns,
                         "seconds": o.seconds,
                         **({"merged": o.merged} if o.merged else {}),
+                        **({"dropped": [{"bag": d, "error": e} for d, e in o.dropped]} if o.dropped else {}),
                         **({"error": o.error} if o.error else {}),
                     }
                     for o in bags
@@ -239,7 +240,13 @@ def write_outputs(out: Path, run: ArchiveRun, plans: list[BridgePlan], cache: Pa
                 "join_seconds": b.seconds,
             }
         )
-    statuses = [o.status for bags in run.bags.values() for o in bags]
+    # per bag, not per unit: a unit of bags read merged counts each of them, and its dropped members
+    statuses = [
+        status
+        for bags in run.bags.values()
+        for o in bags
+        for status in [o.status] * len(o.members) + ["failed"] * len(o.dropped)
+    ]
     index = {
         "bridges": bridges,
         "bags": {s: statuses.count(s) for s in ("reduced", "cached", "failed")},

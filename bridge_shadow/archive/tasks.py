@@ -49,6 +49,8 @@ class BagOutcome:
         seconds: wall time of this task.
         merged: the bags of a unit that overlap in time, reduced as one merged stream (``bag`` is the
             first of them; empty for a bag on its own).
+        dropped: members of such a unit that could not be read, each with its error: the unit was
+            reduced again without them (one corrupt record must not cost the day's other bags).
 
     """
 
@@ -62,6 +64,7 @@ class BagOutcome:
     last_log_ns: int | None = None
     seconds: float = 0.0
     merged: list[str] = field(default_factory=list)
+    dropped: list[tuple[str, str]] = field(default_factory=list)
 
     @property
     def members(self) -> list[str]:
@@ -88,20 +91,42 @@ def reduce_task(
 
     ``bag``: one bag, or the bags of a unit that overlap in time (in time order), reduced as one
     stream merged by log time; its cache entry is keyed by every bag's content (``unit_digest``).
-    ``continuing``: the bag goes on from the one before (``archive.reduce.reduce_bag``).
+    ``continuing``: the bag goes on from the one before (``archive.reduce.reduce_bag``). A member
+    of a unit that cannot be read (it opened, but a chunk is corrupt) is dropped and the unit
+    reduced again without it (``BagOutcome.dropped``): a day's air bag joins every record of the
+    day into one unit, and one corrupt record lost them all, a good bag named as the failed one.
     """
+    t0 = time.perf_counter()
+    bags = [bag] if isinstance(bag, str) else list(bag)
+    dropped: list[tuple[str, str]] = []
+    while True:
+        out, culprit = _reduce_unit(bags, config, surrogate, ReductionCache(cache_root), continuing)
+        if out.status != "failed" or len(bags) < 2 or culprit not in bags:
+            break
+        dropped.append((culprit, out.error))
+        bags = [b for b in bags if b != culprit]
+    out.dropped = dropped
+    out.seconds = time.perf_counter() - t0
+    return out
+
+
+def _reduce_unit(
+    bags: list[str], config: Any, surrogate: Any, cache: ReductionCache, continuing: bool
+) -> tuple[BagOutcome, str | None]:
+    """Reduce one unit (``reduce_task``); return its outcome and the member that failed (None: none known)."""
     from bridge_shadow.bagio import BagError
 
-    t0 = time.perf_counter()
-    cache = ReductionCache(cache_root)
-    bags = [bag] if isinstance(bag, str) else list(bag)
     out = BagOutcome(bags[0], merged=bags if len(bags) > 1 else [])
     paths = [Path(b) for b in bags]
+    culprit: str | None = None
     try:
+        digests = []
         for b, path in zip(bags, paths, strict=True):
+            culprit = b
             if not path.exists():
                 raise FileNotFoundError(f"{b}: no such bag")
-        digests = [cache.digest(path) for path in paths]
+            digests.append(cache.digest(path))
+        culprit = None
         out.digest = digests[0] if len(digests) == 1 else unit_digest(digests)
         entry = cache.path(out.digest, front_key(config, continuing))
         red = cache.load(entry)
@@ -113,12 +138,10 @@ def reduce_task(
             out.status = "reduced"
     except (BagError, OSError) as err:
         out.error = " ".join(str(err).split()) or type(err).__name__
-        out.seconds = time.perf_counter() - t0
-        return out
+        return out, culprit if culprit is not None else getattr(err, "bag", None)
     out.entry = str(entry)
     out.messages, out.first_log_ns, out.last_log_ns = red.messages, red.first_log_ns, red.last_log_ns
-    out.seconds = time.perf_counter() - t0
-    return out
+    return out, None
 
 
 @dataclass
@@ -306,12 +329,14 @@ def join_task(
         shadow, stats, rows = run(iter(everything), check=False)
     seconds = time.perf_counter() - t0
     result = shadow.result([], stats.messages, seconds).to_json()
-    failed = [(o.bag, o.error) for o in seen if o.status == "failed"]
+    failed = [(o.bag, o.error) for o in seen if o.status == "failed"] + [d for o in seen for d in o.dropped]
     result["bridge"] = name
     result["bags"] = [b for o in time_order(seen) for b in o.members]
     # overlaps within a unit were read merged (information); one left between units lost messages
     lost = [{**o, "merged": False} for o in overlapping_bags(time_order(seen))]
-    result["overlapping_bags"] = [{**o, "merged": True} for o in merged or []] + lost
+    gone = {b for o in seen for b, _ in o.dropped}  # unreadable members: not read with the others
+    read = [o for o in merged or [] if o["bag"] not in gone and o["before"] not in gone]
+    result["overlapping_bags"] = [{**o, "merged": True} for o in read] + lost
     result["merged_bags"] = [o.members for o in time_order(seen) if o.merged]
     result["warnings"] = [*result.get("warnings", []), *(_overlap_line(o) for o in lost)]
     result["failed_bags"] = [{"bag": b, "error": e} for b, e in failed]

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from bridge_shadow.bagio.cdr import concat_frames, frame_value
-from bridge_shadow.bagio.errors import MissingTopicError
+from bridge_shadow.bagio.errors import BagError, MissingTopicError
 from bridge_shadow.bagio.reader import _required_topics
 from bridge_shadow.bagio.stream import DEFAULT_BATCH, MonitoringStream
 from bridge_shadow.contract import CHANNELS, INPUT_TOPICS
@@ -97,7 +97,8 @@ class MergedStream:
         peak_pending: the most messages held at once by the merge (besides the bags' own).
 
     Raises:
-        BagError: a bag cannot be opened (one line naming it), or a required topic is in none.
+        BagError: a bag cannot be opened or read (one line naming it; its ``bag`` attribute is that
+            bag's path), or a required topic is in none.
 
     """
 
@@ -119,7 +120,11 @@ class MergedStream:
         self.streams: list[MonitoringStream] = []
         try:
             for p in self.paths:
-                stream = MonitoringStream(p, topics=names, required=False, batch=batch)
+                try:
+                    stream = MonitoringStream(p, topics=names, required=False, batch=batch)
+                except BagError as err:
+                    err.bag = str(p)  # type: ignore[attr-defined]  # which of the bags failed
+                    raise
                 self.streams.append(self._stack.enter_context(stream))
             self.present = frozenset().union(*(s.present for s in self.streams))
             must = {names[list(INPUT_TOPICS).index(t)] for t in _required_topics(required)}
@@ -154,7 +159,11 @@ class MergedStream:
         while active:
             # read on the bag that bounds the merge: one of unknown start, else the one furthest behind
             i = min(active, key=lambda k: (front[k] is not None, front[k] or 0, k))
-            piece = next(its[i], None)
+            try:
+                piece = next(its[i], None)
+            except BagError as err:
+                err.bag = str(self.paths[i])  # type: ignore[attr-defined]  # which of the bags failed
+                raise
             if piece is None:
                 active.remove(i)
             else:
