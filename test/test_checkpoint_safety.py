@@ -372,3 +372,30 @@ def test_a_replay_resumed_from_a_held_record_counts_this_run_apart(
     assert msgs["total"] == 720 * 2 + 72 and msgs["used"] + msgs["rejected"] == msgs["total"]
     assert js["resumed"]["messages_used"] == first["messages"]["used"]
     assert f"resumed from {ck}: {first['messages']['used']} messages, 0 windows" in out.err
+
+
+def test_the_resume_note_counts_messages_not_windows(tmp_path: Path) -> None:
+    """The note's message count is the messages taken: used and rejected as messages.
+
+    The rejected counts hold window reasons too; a chain of the real records said "290447
+    messages" where 290441 were used and none rejected, the six more its traffic windows.
+    """
+    from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
+    from bridge_shadow.series import MonitoringData
+
+    data = _data()
+    f = data.forces["frc_01"]
+    keep = np.ones(len(f.stamp_ns), bool)
+    keep[60:65] = False  # minute 10 keeps one sample of frc_01: a sparse window
+    stamp = np.r_[f.stamp_ns[keep], f.stamp_ns[3]]  # and one duplicate message
+    forces = dict(data.forces)
+    forces["frc_01"] = type(f)(stamp, np.r_[f.force_n[keep], f.force_n[3]], f.frame_id[0], stamp)
+    shadow = Shadow(ShadowConfig(**CFG), placeholder_surrogate())
+    shadow.run(MonitoringData(forces, data.temperature))
+    rejected = shadow.rejected
+    assert rejected["sparse_window"] >= 1 and rejected["duplicate"] == 1
+    path = tmp_path / "state.npz"
+    shadow.save_checkpoint(path)
+    _, notes = open_shadow(ShadowConfig(**CFG, checkpoint_path=str(path)), placeholder_surrogate())
+    taken = sum(shadow.used.values()) + sum(n for r, n in rejected.items() if r in MESSAGE_REASONS)
+    assert any(f": {taken} messages, " in line for line in notes), notes

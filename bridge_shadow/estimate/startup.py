@@ -9,6 +9,7 @@ readable and was saved under the parameters in force. Otherwise ``checkpoint_unu
 
 from __future__ import annotations
 
+from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
 from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.estimate.shadow import Shadow
 from bridge_shadow.estimate.state.checkpoint import CheckpointError, check_target, remove_orphans, set_aside
@@ -46,7 +47,8 @@ def open_shadow(config: ShadowConfig, surrogate: Surrogate) -> tuple[Shadow, lis
         what = f"set aside as {aside.name}, starting from the prior (checkpoint_unusable: fresh)"
         notes.append(f"{err}; {what}")
         return Shadow(config, surrogate), notes
-    taken = sum(shadow.used.values()) + sum(shadow.rejected.values())
+    # messages, not windows: the rejected counts hold window reasons too (traffic)
+    taken = sum(shadow.used.values()) + sum(n for r, n in shadow.rejected.items() if r in MESSAGE_REASONS)
     counts = f"{taken} messages, {shadow.n_windows} windows, {shadow.filter.n_updates} updates"
     notes.append(f"resumed from {file}: {counts}")
     return shadow, notes
