@@ -151,7 +151,9 @@ def posterior_qos(depth: int) -> QoSProfile:
     A subscriber that asks for TRANSIENT_LOCAL durability (a dashboard started after the node, or
     after a quiet-input close on a load-test day, when the next posterior may be hours away) is
     sent the last ``depth`` posteriors at once, as a latched ``/map`` or ``/tf_static`` is; a
-    VOLATILE subscriber matches as before and gets only the new ones. ``depth <= 0`` (KEEP_ALL)
+    VOLATILE subscriber matches as before and gets only the new ones (Fast DDS was seen to hand
+    the history to a best-effort VOLATILE reader in a process that also holds a TRANSIENT_LOCAL
+    reader of the topic; a reliable VOLATILE one never). ``depth <= 0`` (KEEP_ALL)
     stays VOLATILE: a durable KEEP_ALL writer would keep every posterior for ever.
     """
     if depth <= 0:
