@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from archive_fixtures import _keep, corrupt_bag, seamed_record, write_archive
+from archive_fixtures import HOUR_NS, _keep, corrupt_bag, seamed_record, write_archive
 
 from bridge_shadow.archive.join import join_bags
 from bridge_shadow.archive.reduce import HEAD_WINDOWS, head_windows, reduce_bag
@@ -25,6 +25,7 @@ from bridge_shadow.estimate.shadow import Shadow
 from bridge_shadow.jsonvalues import jsonable
 from bridge_shadow.model.surrogate_file import load_surrogate, placeholder_surrogate, save_surrogate
 from bridge_shadow.replay import replay_bag
+from bridge_shadow.series import MonitoringData, TemperatureSeries
 
 RTOL = 1e-10
 
@@ -767,3 +768,60 @@ def test_the_summary_counts_the_events_confirmed_across_a_gap(munich_data: Path)
     table = rows.finish(shadow)
     assert [r["events"] for r in table] == [int(r["end_ns"] >= event.time_ns) for r in table]
     assert table[0]["events"] == 0 and table[-1]["events"] == 1
+
+
+def _records_hours_apart(tmp_path: Path) -> tuple[list[Path], Path]:
+    """Four 12-minute records hours apart, one bag each, as a load-test day's real records come.
+
+    Each bag holds its record's forces and the air only near them (``import-csv
+    --air-near-forces``): the first from the forces' first sample; the second from 25 s before
+    them, after the start of their first window (a reading the previous record's last one
+    brackets in a serial replay); the third from 50 s before them, before that start; the fourth
+    from 15 s *after* them (its first forces rest on the third record's last reading in a serial
+    replay, which the bag's own front end never saw). Every record is shorter than
+    ``traffic_hold_s``: its own front end closes no window before the record ends.
+    """
+    from bridge_shadow.twin.simulate import simulate
+
+    data, _ = simulate(
+        days=0.5, rate_hz=2.0, seed=3, steps=[(0.2, -1e-3, -1e-3)], surrogate=placeholder_surrogate()
+    )
+    t = data.temperature
+    minute = 60 * 10**9
+    shift = 20 * 10**9 - int(t.stamp_ns[0]) % minute  # the air logger's readings 20 s past the minute
+    data = MonitoringData(
+        data.forces, TemperatureSeries(t.stamp_ns + shift, t.temp_c, t.variance, t.frame_id, t.log_ns + shift)
+    )
+    t0 = -(-int(data.forces["frc_01"].log_ns[0]) // minute) * minute
+    spans = [
+        (t0 + h * HOUR_NS + off * 10**9, lead * 10**9)
+        for h, off, lead in ((1, 0, 0), (3, 40, 25), (7, 10, 50), (8.5, 30, -15))
+    ]
+    force_in = lambda log: np.any([(log >= a) & (log < a + 12 * minute) for a, _ in spans], axis=0)  # noqa: E731
+    air_in = lambda log: np.any([(log >= a - lead) & (log < a + 12 * minute) for a, lead in spans], axis=0)  # noqa: E731
+    data = _keep(data, lambda log: ~force_in(log), lambda log: ~air_in(log))
+    seams = [a - lead - 30 * minute for a, lead in spans[1:]]
+    bags, whole = write_archive(tmp_path, data, seams)
+    return bags, whole
+
+
+def test_records_hours_apart_are_joined_from_their_windows(tmp_path: Path) -> None:
+    """Bags of records hours apart settle at their seams, and the result is the serial replay's.
+
+    The archive's front end holds the previous record's last air reading and knows it saw a
+    reading before; each bag's own holds neither (it closed no window, so forgot nothing). Neither
+    is read by a window still to close: the seam compares the buffers less those
+    (``WindowBuffer.behaviour_state``). Only the bag whose forces start before its air is fed
+    whole: the serial replay matches its first forces to the previous record's last reading.
+    """
+    bags, whole = _records_hours_apart(tmp_path)
+    config, surrogate = load_config(), placeholder_surrogate()
+    assert config.traffic_hold_s > 12 * 60
+    ref, _ = replay_bag(whole, Shadow(config, surrogate))
+    reductions = [reduce_bag(b, config, surrogate) for b in bags]
+    shadow = Shadow(config, surrogate)
+    stats = join_bags(shadow, reductions)
+    assert [Path(b).name for b in stats.fed_whole] == ["day_03"]
+    # each other seam settles within a few chunks of the bag's head (the bag is read once)
+    assert stats.head_chunks - len(reductions[3].head) <= 3 * len(bags) < sum(len(r.head) for r in reductions)
+    assert_same_result(shadow.result([], stats.messages, 1.0).to_json(), ref.to_json())

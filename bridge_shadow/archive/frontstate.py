@@ -75,13 +75,30 @@ def _equal(a: Any, b: Any) -> bool:
     return bool(a == b)
 
 
-def same_behaviour(a: FrontState, b: FrontState) -> bool:
-    """Whether two front ends will close the same windows from the same messages (gates, buffer)."""
-    return _equal(a.gates, b.gates) and _equal(_behaviour(a.buffer), _behaviour(b.buffer))
+def same_behaviour(a: FrontState, b: FrontState, window_buffer: Any = None) -> bool:
+    """Whether two front ends will close the same windows from the same messages (gates, buffer).
+
+    ``window_buffer``: a ``WindowBuffer`` of the front ends' parameters; with it the buffers are
+    compared less what no later window reads (``WindowBuffer.behaviour_state``: air readings
+    older than the open windows' left bracket, when the first reading came once every open
+    window sees it), which a front end forgets only when it closes a window. Without it, the
+    whole state less the bookkeeping.
+    """
+    return _equal(a.gates, b.gates) and _equal(
+        _behaviour(a.buffer, a.gates, window_buffer), _behaviour(b.buffer, b.gates, window_buffer)
+    )
 
 
-def _behaviour(buffer: dict[str, Any]) -> dict[str, Any]:
+def _behaviour(
+    buffer: dict[str, Any], gates: list[dict[str, Any]], window_buffer: Any = None
+) -> dict[str, Any]:
     """Return the buffer's state less its bookkeeping (``released``: records passed unscreened)."""
+    if window_buffer is not None:
+        # a force gate accepts only stamps after its last accepted one
+        floors = [
+            int(g["last_ns"]) + 1 if bool(g["has_last"]) else None for g in gates[: len(window_buffer.force)]
+        ]
+        return window_buffer.behaviour_state(buffer, floors)
     return {k: v for k, v in buffer.items() if k != "released"}
 
 

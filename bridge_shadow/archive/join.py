@@ -16,9 +16,15 @@ against the span of the data clock, whose start the bag's own front end does not
 this shadow has accepted data before the bag, a snapshot where a gate has not accepted yet only
 counts when that gate accepts nothing, and holds nothing back, to the bag's end.
 
+The buffers are compared less what no window still to close reads (``WindowBuffer.behaviour_state``):
+the archive's front end holds the previous record's last air reading across a gap, a bag's own
+front end that closed no window yet (a record held for the traffic screen) still holds its air
+readings from the bag's first; neither is read once the forces have started after them.
+
 A bag whose seam does not settle within its head (a clock jump held over the seam, a topic that
-starts late in the bag) is fed whole from the bag file, as ``replay`` would feed it: exact, only
-not parallel (``JoinStats.fed_whole`` counts those bags).
+starts late in the bag, forces that start before the bag's first air reading after a gap) is fed
+whole from the bag file, as ``replay`` would feed it: exact, only not parallel
+(``JoinStats.fed_whole`` counts those bags).
 """
 
 from __future__ import annotations
@@ -62,13 +68,17 @@ class JoinStats:
     windows_out: int = 0
 
 
-def seam_synced(now: FrontState, snap: FrontState, end: FrontState, fresh: bool) -> bool:
+def seam_synced(
+    now: FrontState, snap: FrontState, end: FrontState, fresh: bool, window_buffer: Any = None
+) -> bool:
     """Whether the archive's front end (``now``) continues exactly as the bag's own from ``snap``.
 
     ``fresh``: the archive's shadow had accepted nothing before this bag (then the data clock's
     start is the bag's own too). ``end`` is the bag's front end after its last message.
+    ``window_buffer``: the archive's ``WindowBuffer``, whose parameters say what of a buffer's
+    state no later window reads (``frontstate.same_behaviour``).
     """
-    if not same_behaviour(now, snap):
+    if not same_behaviour(now, snap, window_buffer):
         return False
     if fresh:
         return True
@@ -131,7 +141,7 @@ def join_bags(
             feed_shadow(shadow, [chunk], emit, flush=False)
             stats.head_chunks += 1
             now = front_state(shadow)
-            if seam_synced(now, red.snapshots[j], red.end, fresh):
+            if seam_synced(now, red.snapshots[j], red.end, fresh, shadow.buffer):
                 synced = j
                 break
         if synced is None:

@@ -677,6 +677,46 @@ class WindowBuffer:
             "released": [list(r) for r in self.released],
         }
 
+    def behaviour_state(
+        self, state: dict[str, object], force_floor_ns: list[int | None] | None = None
+    ) -> dict[str, object]:
+        """``state`` (a ``state_dict()`` of a buffer of these parameters) less what no later window reads.
+
+        Two buffers whose behaviour states are equal close equal windows from equal messages.
+        Beyond ``released`` (bookkeeping) that is, as a window's close forgets them (a buffer
+        that has closed no window yet, a record held for the traffic screen, still holds them):
+
+        - the air readings before the last one at or before every force stamp still to be matched
+          (``_match`` rests a stamp on the last reading at or before it and the first after it);
+        - when the first reading came, once every window such a stamp can fall in sees it (``_SEEN``).
+
+        Force stamps still to be matched lie at or after the first open window's start (earlier
+        ones are ``late``), and per channel at or after its first buffered stamp, or, with nothing
+        buffered, at or after ``force_floor_ns`` (None: not known; a gate accepts only stamps after
+        its last accepted one).
+        """
+        out = {k: v for k, v in state.items() if k != "released"}
+        k = int(state["next_k"])  # type: ignore[call-overload]
+        if k == _NONE:
+            return out
+        floors = list(force_floor_ns) if force_floor_ns is not None else [None] * len(self.force)
+        for c, fs in enumerate(state["force"]):  # type: ignore[attr-defined]
+            stamps = np.asarray(fs["stamps"], np.int64)
+            if len(stamps):
+                floors[c] = int(stamps[0])
+        low = k * self.w_ns
+        if all(f is not None for f in floors):
+            low = max(low, min(floors))  # type: ignore[type-var]
+        temp = state["temp"]
+        ts = np.asarray(temp["stamps"], np.int64)  # type: ignore[index]
+        i = int(np.searchsorted(ts, low, side="right")) - 1
+        if i > 0:
+            out["temp"] = {"stamps": ts[i:], "values": np.asarray(temp["values"])[i:]}  # type: ignore[index]
+        first = int(state["temp_first_ns"])  # type: ignore[call-overload]
+        if first not in (_NONE, _SEEN) and (low // self.w_ns + 1) * self.w_ns + self.horizon_ns > first:
+            out["temp_first_ns"] = _SEEN
+        return out
+
     def load_state_dict(self, state: dict[str, object]) -> None:
         """Restore the state."""
         for b, s in zip(self.force, state["force"], strict=True):  # type: ignore[call-overload]
