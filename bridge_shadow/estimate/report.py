@@ -486,9 +486,9 @@ def fixed_noise_lines(shadow: Shadow) -> list[str]:
     Under the fixed model the window means are ``Sigma_E / m`` apart from the curve, independent:
     ``sum m e^2 / sigma^2`` is chi-square with the fit's residual degrees of freedom. Where it
     exceeds that distribution's ``FIXED_NOISE_PROBABILITY`` quantile in a channel, the intervals and
-    the event tests rest on a noise the data contradict (the real records at 100 Hz: window means
-    scatter about 10 times what 60 N per sample implies, and a +0.09 mm "settlement step" was
-    reported with an interval of +-0.03 mm).
+    the event tests rest on a noise the data contradict (the real pair at 100 Hz: window means
+    scatter 57 / 31 times what ``noise_sigma_n`` per sample implies, and a +0.09 mm "settlement
+    step" was reported with an interval of +-0.03 mm).
     """
     from scipy import stats
 
