@@ -372,6 +372,14 @@ def test_a_replay_resumed_from_a_held_record_counts_this_run_apart(
     assert msgs["total"] == 720 * 2 + 72 and msgs["used"] + msgs["rejected"] == msgs["total"]
     assert js["resumed"]["messages_used"] == first["messages"]["used"]
     assert f"resumed from {ck}: {first['messages']['used']} messages, 0 windows" in out.err
+    # windows and updates add up over the chain less what each run's end-of-data close made,
+    # which the next run makes again: as one replay of both bags (read merged)
+    assert main(["replay", str(bags[0]), str(bags[1]), "--json"]) == 0
+    both = json.loads(capsys.readouterr().out)
+    for key, at in (("closed", "closed"), ("updates", "updates")):
+        chain = first["windows"][key] - first["windows"]["at_end"][at] + js["windows"][key]
+        assert chain == both["windows"][key], key
+    assert first["windows"]["at_end"]["closed"] == first["windows"]["closed"] > 0  # the record held whole
 
 
 def test_the_resume_note_counts_messages_not_windows(tmp_path: Path) -> None:

@@ -132,6 +132,7 @@ def _summary(js: dict[str, Any]) -> str:
         f"{js['messages_per_s']:.0f} msg/s",
         f"windows: {js['windows']['closed']} closed, {js['windows']['updates']} updates"
         + "".join(f", {n} {what}" for key, what in WINDOW_NOTES if (n := js["windows"].get(key, 0))),
+        *_at_end_line(js["windows"].get("at_end")),
     ]
     from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
 
@@ -374,7 +375,7 @@ def run(args: argparse.Namespace) -> int:
     # streamed in bounded memory; outputs go to --out as windows close, --plots keeps a decimated
     # history; the air temperature may be absent: the shadow then runs uncompensated and says so
     history = HISTORY_CAPACITY if args.plots else None
-    result, _ = replay_bag(
+    result, stats = replay_bag(
         bag,
         shadow,
         out=args.out,
@@ -387,6 +388,10 @@ def run(args: argparse.Namespace) -> int:
     js = result.to_json()
     if before is not None:
         _this_run(js, before)
+    if config.checkpoint_path:
+        # the checkpoint holds the state before the end-of-data close: the next bag's run closes
+        # these windows again and counts them too (a chain's windows add up less these)
+        js["windows"]["at_end"] = {"closed": stats.closed_at_end, "updates": stats.updates_at_end}
     js["bag"] = str(bags[0])
     if len(bags) > 1:
         js["bags"] = [str(b) for b in bags]  # read merged by log time
@@ -399,6 +404,16 @@ def run(args: argparse.Namespace) -> int:
 
         js["plots"] = [str(p) for p in write_plots(args.plots, result, shadow)]
     return _report(js, args.json)
+
+
+def _at_end_line(at_end: dict[str, int] | None) -> list[str]:
+    """Say what the end-of-data close did, which a replay resumed from the checkpoint does again."""
+    if not at_end or not (at_end["closed"] or at_end["updates"]):
+        return []
+    return [
+        f"  of them at the end of the data: {at_end['closed']} closed, {at_end['updates']} updates "
+        "(the checkpoint holds the state before: the next bag's replay makes them again, with its data)"
+    ]
 
 
 def _has_counted(shadow: Any) -> bool:

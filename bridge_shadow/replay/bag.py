@@ -109,10 +109,19 @@ def replay_bag(
             # would (written after the close, a bag split inside a record lost the next bag's
             # first seconds of that window as `late`: 7022 messages of the real records split 0.1 h
             # into the first record)
-            save = shadow.save_checkpoint if config.checkpoint_path else None
+            at_close: list[int] = []
+
+            def before_close() -> None:
+                at_close.extend((shadow.n_windows, shadow.n_updates))
+                if config.checkpoint_path:
+                    shadow.save_checkpoint()
+
             stats = feed_shadow(
-                shadow, reader if reader is not None else chunks, take, report, before_flush=save
+                shadow, reader if reader is not None else chunks, take, report, before_flush=before_close
             )
+            if at_close:
+                stats.closed_at_end = shadow.n_windows - at_close[0]
+                stats.updates_at_end = shadow.n_updates - at_close[1]
             if sink is not None:
                 t1 = time.perf_counter()
                 sink.finish()

@@ -28,6 +28,8 @@ class StreamReplay:
         write_s: wall seconds handing outputs on (``--out`` bag, plot history).
         windows_out: window outputs produced (all of them, whatever was kept).
         backend: how the bag was read (``sqlite3``, ``mcap`` or ``rosbags``).
+        closed_at_end, updates_at_end: windows closed and updates made by the end-of-data close
+            (``replay_bag``): a replay resumed from a checkpoint written before it makes them again.
 
     """
 
@@ -38,6 +40,8 @@ class StreamReplay:
     write_s: float = 0.0
     windows_out: int = 0
     backend: str = ""
+    closed_at_end: int = 0
+    updates_at_end: int = 0
 
 
 def _frames_arg(frames: np.ndarray) -> np.ndarray | str:
