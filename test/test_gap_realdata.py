@@ -285,6 +285,39 @@ def test_four_record_day_after_follows_the_named_stiffness(lowering_bag: Path):
     assert np.all(np.abs(np.asarray(after["mean_m"]) - final) <= 0.1 * np.abs(final))
 
 
+def test_steps_given_as_totals_on_a_load_test_day_are_said_to_fit_nothing(lowering_bag: Path):
+    """The day's three steps given as the totals since the reference (-10, -20, -30 mm).
+
+    Each later step's level carries hours of baseline drift, so the fit kept the jacks within
+    their accuracy and left the mismatch in the data: a stiffness was named at probability 0.97,
+    no warning, and the shadow after it missed the truth with a narrower interval than the right
+    steps give (a helper session, as a user who took calibrate's totals for gap's steps). The
+    data's chi-square says it now; the steps as made (-10 mm each) fit.
+    """
+    from bridge_shadow.bagio import read_monitoring
+    from bridge_shadow.commands.gap import parse_imposed
+    from bridge_shadow.gap import diagnose
+    from bridge_shadow.gap.levels import slice_data
+    from bridge_shadow.twin.loadtest import day_from_records
+
+    pair = read_monitoring(lowering_bag)
+    stamps = pair.forces["frc_01"].stamp_ns
+    split = int(stamps[np.argmax(np.diff(stamps)) + 1])
+    day, _ = day_from_records(
+        slice_data(pair, 0, split), slice_data(pair, split, 2**62), pair, load_surrogate().A
+    )
+    first = min(int(s.stamp_ns.min()) for s in day.forces.values())
+    times = ("2022-04-11T09:00", "2022-04-11T11:00", "2022-04-11T14:30")
+    for sizes, fits in (((-0.01, -0.01, -0.01), True), ((-0.01, -0.02, -0.03), False)):
+        imposed = parse_imposed([f"{t}={x},{x}" for t, x in zip(times, sizes, strict=True)], first)
+        s = diagnose(day, _as_built(), imposed=imposed, surrogate_path=str(_as_built_path())).summary
+        bad = s["levels"]["imposed"]["misfit"]
+        assert (bad is None) == fits, bad
+        if not fits:
+            assert bad["kind"] == "data" and bad["chi2_data"] > bad["bound"]
+            assert any(w.startswith("no explanation fits the measured changes") for w in s["warnings"])
+
+
 def test_gap_reads_the_records_levels_with_the_sun_when_asked(lowering_bag: Path):
     """``--baseline-change sun``: the pair's baseline change is the morning sun's, as calibrate reads it."""
     imposed = "2022-04-11T09:00=-0.01,-0.01"

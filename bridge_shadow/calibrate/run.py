@@ -52,6 +52,8 @@ from bridge_shadow.calibrate.errors import CalibrationError
 from bridge_shadow.calibrate.explain import (
     Explanation,
     common_and_differential,
+    data_misfit,
+    data_misfit_text,
     fit_explanation,
     in_sample_readings,
 )
@@ -138,9 +140,21 @@ class CalibrationResult:
             "identifiability": chosen.identifiability(),
             "in_sample": self.written_in_sample(),
             "reference": self._reference_dict(),
+            "misfit": (bad := self.misfit()),
+            "warnings": [data_misfit_text(bad)] if bad is not None else [],
             "fe_solves": self.store.solves,
             "seconds": self.seconds,
         }
+
+    def misfit(self) -> dict[str, Any] | None:
+        """Return the most probable explanation's misfit of the measured changes (None: it fits).
+
+        ``explain.data_misfit``: beyond their uncertainty at its MAP. The evidence ranks the
+        explanations against each other; a pair given with the wrong sign was explained at
+        probability 1.00 by the best of several that all fail (chi2 112.7 on 6).
+        """
+        best = self.table()[0]
+        return data_misfit(best["name"], best["chi2_data"], self.explanations[best["name"]].problem.n_data)
 
     def written_in_sample(self) -> list[dict[str, Any]]:
         """Per pair: ``x = A^-1 dR`` (m) through the written surrogate against the imposed settlement."""

@@ -191,6 +191,8 @@ def run(args: argparse.Namespace) -> int:
         doc["written_to"] = str(args.out)
     if args.report is not None:
         doc["figures"] = [str(p) for p in write_figures(result, args.report)]
+    for line in doc.get("warnings", []):
+        print(f"bridge-shadow calibrate: WARN: {line}", file=sys.stderr)
     if args.json:
         emit_json(doc)
     else:

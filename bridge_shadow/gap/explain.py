@@ -144,6 +144,10 @@ def statement(
 
 def misfit_text(bad: dict[str, Any]) -> str:
     """Return the sentence for an imposed step no explanation fits (``ImposedAnalysis.misfit``)."""
+    if bad.get("kind") == "data":
+        from bridge_shadow.calibrate.explain import data_misfit_text
+
+        return data_misfit_text(bad)
     return (
         f"no explanation fits the imposed step(s): even {bad['effect']} needs the jacks of "
         f"{bad['pair']} {1e3 * bad['jack_error_m']:+.2f} mm off what was imposed, {bad['in_sd']:.0f} "

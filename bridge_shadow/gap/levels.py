@@ -44,7 +44,7 @@ from bridge_shadow.calibrate.change import (
     record_level,
 )
 from bridge_shadow.calibrate.errors import CalibrationError
-from bridge_shadow.calibrate.explain import Explanation, fit_explanation
+from bridge_shadow.calibrate.explain import Explanation, data_misfit, fit_explanation
 from bridge_shadow.calibrate.problem import PairData
 from bridge_shadow.calibrate.run import evidence_weights
 from bridge_shadow.calibrate.surrogate_forward import SurrogateForward
@@ -293,7 +293,9 @@ class ImposedAnalysis:
         """Whether explanation ``name`` (default ``best``) needs the jacks far off what was imposed.
 
         Returns None when it fits: every jack error of its MAP within ``MISFIT_SD`` of the jacks'
-        accuracy. Otherwise the largest error and its size in those sds: the probabilities rank
+        accuracy and the measured changes within their uncertainty (``calibrate.explain.data_misfit``).
+        Otherwise the largest error and its size in those sds (``kind`` ``jacks``), or the data's
+        chi-square (``kind`` ``data``): the probabilities rank
         the explanations against each other, and the best of those that all fail is no answer
         (a step given with the wrong sign was "explained" by a softer deck at probability 1.00).
         ``rows``: ``table()`` by effect, when already built (else the explanation's own summary).
@@ -306,9 +308,17 @@ class ImposedAnalysis:
                 ratio = abs(value) / sd if sd > 0 else math.inf
                 if ratio > worst[0]:
                     worst = (ratio, pair, value)
-        if worst[0] <= MISFIT_SD:
-            return None
-        return {"effect": effect, "pair": worst[1], "jack_error_m": worst[2], "in_sd": worst[0]}
+        if worst[0] > MISFIT_SD:
+            return {
+                "effect": effect,
+                "kind": "jacks",
+                "pair": worst[1],
+                "jack_error_m": worst[2],
+                "in_sd": worst[0],
+            }
+        # the jacks within their accuracy, the data may still not fit: a later step's level carries
+        # hours of baseline drift, so the fit keeps its jack and leaves the mismatch in the data
+        return data_misfit(effect, float(row["chi2_data"]), self.explanations[effect].problem.n_data)
 
     def surrogate_after(self, base: Surrogate, name: str | None = None) -> Surrogate:
         """Return the model in use with explanation ``name`` (default ``best``) at its MAP.
