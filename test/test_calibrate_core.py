@@ -202,3 +202,42 @@ def test_evidence_and_interval_are_exact_for_a_prior_truncated_on_both_sides(y) 
     truncated = stats.truncnorm((a - m) / np.sqrt(v), (b - m) / np.sqrt(v), loc=m, scale=np.sqrt(v))
     assert truncated.cdf(post.hi95[0]) - truncated.cdf(post.lo95[0]) == pytest.approx(0.95, abs=1e-6)
     assert post.mean[0] == pytest.approx(truncated.mean(), abs=1e-7)  # the mode to the LM tolerance
+
+
+def test_truncated_moments_far_beyond_a_bound_are_the_exponential_limit() -> None:
+    """The truncated-normal moments of scipy 1080 sds beyond a bound came out NaN, with warnings.
+
+    Where scipy's are finite they are used as they are (exactly its values); far in a tail the
+    exponential limit (rate z / scale at the near bound) stands in, which scipy's own values
+    approach (within 0.2 % at 40 sds).
+    """
+    import warnings
+
+    from scipy import stats
+
+    from bridge_shadow.calibrate.posterior import _truncated_moments
+
+    for centre, lower, upper in ((0.0, -1.0, 2.0), (-3.0, 1.0, np.inf), (5.0, -np.inf, 1.0)):
+        a, b = lower - centre, upper - centre
+        dist = stats.truncnorm(a, b, loc=centre, scale=1.0)
+        got = _truncated_moments(dist, a, b, lower, upper, 1.0)
+        np.testing.assert_allclose(got, (dist.mean(), dist.std(), dist.median()), rtol=1e-12)
+    far = stats.truncnorm(40.0, np.inf, loc=-40.0, scale=1.0)
+    limit_sd = 1.0 / 40.0
+    np.testing.assert_allclose(far.std(), limit_sd, rtol=2e-3)
+    np.testing.assert_allclose(far.mean(), limit_sd, rtol=2e-3)
+    sd0 = 0.095
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for alpha, beta, lower, upper, sign in (
+            (1080.4, 1149.7, -3.29, -3.29 + 69.3 * sd0, 1.0),
+            (-1149.7, -1080.4, 3.29 - 69.3 * sd0, 3.29, -1.0),
+        ):
+            centre = lower - alpha * sd0 if sign > 0 else upper - beta * sd0
+            dist = stats.truncnorm(alpha, beta, loc=centre, scale=sd0)
+            mean, sd, median = _truncated_moments(dist, alpha, beta, lower, upper, sd0)
+            edge = lower if sign > 0 else upper
+            np.testing.assert_allclose(sd, sd0 / 1080.4, rtol=1e-6)
+            np.testing.assert_allclose(
+                [mean, median], [edge + sign * sd, edge + sign * sd * np.log(2.0)], rtol=1e-9
+            )

@@ -22,6 +22,7 @@ the central interval (the same thing for a Gaussian).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,6 +90,32 @@ def _hpd95(dist: stats.rv_continuous, mode: float, lower: float, upper: float) -
     return max(m - w, lower), min(m + w, upper)
 
 
+def _truncated_moments(
+    dist: stats.rv_continuous, alpha: float, beta: float, lower: float, upper: float, scale: float
+) -> tuple[float, float, float]:
+    """Mean, sd and median of a normal truncated to ``[lower, upper]`` (``alpha``, ``beta`` in sds).
+
+    scipy's moments cancel catastrophically when the centre lies hundreds of sds beyond a bound
+    (a fit that fits nothing: a pair given with the wrong sign put it 1080 sds off, and the sd
+    came out NaN with numpy's RuntimeWarnings on the terminal). There the density is the
+    exponential limit at the near bound: rate ``z / scale``, ``z`` the bound's distance in sds.
+    """
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        mean, sd, median = float(dist.mean()), float(dist.std()), float(dist.median())
+    if np.isfinite(mean) and np.isfinite(sd) and np.isfinite(median):
+        return mean, sd, median
+    if alpha <= 0.0 <= beta:  # the centre inside: the interval's own spread, no wider than the normal's
+        width = upper - lower
+        return (
+            float(np.clip(dist.kwds["loc"], lower, upper)),
+            min(scale, width / math.sqrt(12.0)),
+            float(np.clip(dist.kwds["loc"], lower, upper)),
+        )
+    edge, z, sign = (lower, alpha, 1.0) if alpha > 0 else (upper, -beta, -1.0)
+    tail = scale / z
+    return edge + sign * tail, tail, edge + sign * tail * math.log(2.0)
+
+
 def _feasible_probability(mean: np.ndarray, cov: np.ndarray, low: np.ndarray, high: np.ndarray) -> float:
     """``P(low <= d <= high)`` for ``d ~ N(mean, cov)`` (1-D exact, else scipy's Genz integration)."""
     if len(mean) == 0:
@@ -144,7 +171,7 @@ def laplace(
     for i in b:
         alpha, beta = (lower[i] - centre[i]) / sd0[i], (upper[i] - centre[i]) / sd0[i]
         dist = stats.truncnorm(alpha, beta, loc=centre[i], scale=sd0[i])
-        mean[i], sd[i], q500[i] = dist.mean(), dist.std(), dist.median()
+        mean[i], sd[i], q500[i] = _truncated_moments(dist, alpha, beta, lower[i], upper[i], sd0[i])
         lo95[i], hi95[i] = _hpd95(dist, centre[i], lower[i], upper[i])
     return Laplace(
         mode=u.copy(),
