@@ -364,3 +364,35 @@ def test_the_imposed_steps_explanations_give_stiffnesses_in_kn_per_mm() -> None:
     assert "connector_stiffness 18.61 kN/mm per m" in text
     assert "slab_joint_opening 0.0004779" in text and "1 = closed as built" in text
     assert "settlement_step" in text and "as given" in text
+
+
+def test_a_long_job_off_a_terminal_says_how_far_it_is_now_and_then(monkeypatch) -> None:
+    """Off a terminal ``progress`` was silent: calibrate with a day's pairs ran 5.6 minutes unsaid.
+
+    Now a plain line once ``PLAIN_EVERY_S`` have passed since the job began or its last line, and
+    "done" at the end of a job that said anything; a job done sooner says nothing.
+    """
+    import io
+
+    from bridge_shadow.commands import output
+
+    clock = [1000.0]
+    monkeypatch.setattr(output.time, "monotonic", lambda: clock[0])
+    err = io.StringIO()
+    monkeypatch.setattr(output.sys, "stderr", err)
+    for k in range(11):  # a call every 10 s for 100 s
+        output.progress(k / 10, "calibrate")
+        clock[0] += 10.0
+    lines = err.getvalue().splitlines()
+    assert lines == [
+        "calibrate: 30 % (30 s)",
+        "calibrate: 60 % (60 s)",
+        "calibrate: 90 % (90 s)",
+        "calibrate: done (100 s)",
+    ]
+    err.truncate(0)
+    err.seek(0)
+    for k in range(3):  # 20 s in all: nothing
+        output.progress(k / 2, "surrogate")
+        clock[0] += 10.0
+    assert err.getvalue() == ""

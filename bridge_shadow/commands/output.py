@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from typing import Any
 
 import numpy as np
@@ -36,12 +37,38 @@ def emit_json(obj: dict[str, Any]) -> None:
     sys.stdout.flush()
 
 
+#: Off a terminal (a log, a CI job, a service's journal) a long job says how far it is at most
+#: this often [s]: ``calibrate`` with a day's pairs runs 5-6 minutes, and said nothing until done.
+PLAIN_EVERY_S = 30.0
+_plain: dict[str, tuple[float, float]] = {}  # label -> (first call, last line) in monotonic seconds
+
+
 def progress(fraction: float, label: str = "", width: int = 30) -> None:
-    """Draw a one-line progress bar on stderr when it is a terminal (silent otherwise)."""
+    """Draw a one-line progress bar on stderr when it is a terminal, else a plain line now and then.
+
+    Off a terminal: ``label: N % (T s)`` once ``PLAIN_EVERY_S`` have passed since the job's first
+    call or its last line, nothing for a job done sooner (nothing in a short run's captured stderr).
+    """
     if not sys.stderr.isatty():
+        _plain_line(fraction, label)
         return
     fraction = min(max(fraction, 0.0), 1.0)
     filled = round(width * fraction)
     end = "\n" if fraction >= 1.0 else ""
     sys.stderr.write(f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {100 * fraction:5.1f}%{end}")
     sys.stderr.flush()
+
+
+def _plain_line(fraction: float, label: str) -> None:
+    now = time.monotonic()
+    first, last = _plain.setdefault(label, (now, now))
+    if fraction >= 1.0:
+        _plain.pop(label, None)
+        if last > first:  # it said how far it was: say it is done
+            sys.stderr.write(f"{label}: done ({now - first:.0f} s)\n")
+            sys.stderr.flush()
+        return
+    if now - last >= PLAIN_EVERY_S:
+        sys.stderr.write(f"{label}: {100 * min(max(fraction, 0.0), 1.0):.0f} % ({now - first:.0f} s)\n")
+        sys.stderr.flush()
+        _plain[label] = (first, now)
