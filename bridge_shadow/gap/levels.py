@@ -316,6 +316,8 @@ class ImposedAnalysis:
                 "jack_error_m": worst[2],
                 "in_sd": worst[0],
             }
+        if effect != self.best:
+            return None  # "even X" is said of the best; a likelier one may fit the data
         # the jacks within their accuracy, the data may still not fit: a later step's level carries
         # hours of baseline drift, so the fit keeps its jack and leaves the mismatch in the data
         return data_misfit(effect, float(row["chi2_data"]), self.explanations[effect].problem.n_data)
