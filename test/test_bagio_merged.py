@@ -142,9 +142,9 @@ def test_merged_bags_read_as_the_bag_holding_everything(record: dict[str, Any], 
         for a, b in zip(arrival_chunks(merged, 5_000), arrival_chunks(whole, 5_000), strict=True):
             assert a.messages == b.messages and a.last_log_ns == b.last_log_ns
             for x, y in zip([*a.forces, a.temperature], [*b.forces, b.temperature], strict=True):
-                np.testing.assert_array_equal(x[0], y[0])
+                np.testing.assert_array_equal(x[0], y[0])  # integer stamps (ns)
                 np.testing.assert_allclose(x[1], y[1], rtol=1e-12, atol=0)
-                np.testing.assert_array_equal(x[2], y[2])
+                np.testing.assert_array_equal(x[2], y[2])  # frame ids (strings)
 
 
 def _one_kind(path: Path, data: MonitoringData, forces: bool) -> Path:
@@ -201,8 +201,9 @@ def test_equal_log_times_keep_the_bags_order(tmp_path: Path) -> None:
     for order in (bags, bags[::-1]):
         with MergedStream(order, required=False, batch=7) as merged:
             got = _topics(list(merged))[0]
-        np.testing.assert_array_equal(got["log_ns"], np.repeat(log, 2))
+        np.testing.assert_array_equal(got["log_ns"], np.repeat(log, 2))  # integer ns
         first = 0.0 if order is bags else 1.0
+        # 0.0 and 1.0 written and read back (copies through CDR, no arithmetic): which bag came first
         np.testing.assert_array_equal(got["force_n"], np.tile([first, 1.0 - first], n))
 
 
@@ -263,6 +264,6 @@ def test_a_bag_is_read_only_once_the_merge_reaches_its_start(record: dict[str, A
         peak = merged.peak_pending
     assert peak <= 3 * batch  # the air's piece and the forces bag in progress, not nine pieces
     got = np.concatenate([p.forces["frc_01"].log_ns for p in pieces])
-    np.testing.assert_array_equal(got, data.forces["frc_01"].log_ns)
+    np.testing.assert_array_equal(got, data.forces["frc_01"].log_ns)  # integer ns
     air = np.concatenate([p.temperature.log_ns for p in pieces])
-    np.testing.assert_array_equal(air, data.temperature.log_ns)
+    np.testing.assert_array_equal(air, data.temperature.log_ns)  # integer ns
