@@ -86,13 +86,6 @@ def continuing_flags(spans: list[tuple[int | None, int | None]], gap_s: float) -
     return flags
 
 
-def _unit_span(spans: list[tuple[int | None, int | None]]) -> tuple[int | None, int | None]:
-    """Return the log-time span of a unit of bags (None: a bag of its own without one)."""
-    firsts = [f for f, _ in spans if f is not None]
-    lasts = [la for _, la in spans if la is not None]
-    return (min(firsts) if firsts else None, max(lasts) if lasts else None)
-
-
 def plan_bridges(sources: list[BridgeSource]) -> list[BridgePlan]:
     """Load and check each bridge's parameters and surrogate before anything runs.
 
@@ -123,6 +116,8 @@ def run_archive(
     """Submit every bag's reduction and every bridge's join; wait for them; return the outcomes."""
     from distributed import Queue, progress
 
+    from bridge_shadow.bagio.merged import joined_span
+
     t0 = time.perf_counter()
     run = ArchiveRun(
         workers=len(client.scheduler_info().get("workers", {})), scheduler=client.scheduler.address
@@ -144,7 +139,7 @@ def run_archive(
         # bags that overlap in time are reduced as one unit, merged by log time (nothing late)
         units = overlap_units([sp for sp, _ in ordered])
         bags = [[str(ordered[i][1]) for i in u] for u in units]
-        unit_spans = [_unit_span([ordered[i][0] for i in u]) for u in units]
+        unit_spans = [joined_span([ordered[i][0] for i in u]) for u in units]
         continuing = continuing_flags(unit_spans, plan.config.gap_s)
         merged = overlapping_bags(
             [BagOutcome(str(b), first_log_ns=f, last_log_ns=la) for (f, la), b in ordered]

@@ -32,10 +32,17 @@ from bridge_shadow.bagio.stream import DEFAULT_BATCH, MonitoringStream
 from bridge_shadow.contract import CHANNELS, INPUT_TOPICS
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
-__all__ = ["MergedStream", "open_monitoring"]
+__all__ = ["MergedStream", "joined_span", "open_monitoring"]
 
 #: Per topic: (log_ns, stamp_ns, value columns ..., frame_id), all of one length.
 _Cols = tuple[np.ndarray, ...]
+
+
+def joined_span(spans: Sequence[tuple[int | None, int | None]]) -> tuple[int | None, int | None]:
+    """Return the log-time span of several bags' ``(first, last)`` (None where none has one)."""
+    firsts = [f for f, _ in spans if f is not None]
+    lasts = [la for _, la in spans if la is not None]
+    return (min(firsts) if firsts else None, max(lasts) if lasts else None)
 
 
 def _columns(piece: MonitoringData) -> list[_Cols]:
@@ -138,10 +145,7 @@ class MergedStream:
         except BaseException:
             self.close()
             raise
-        firsts = [s.first_ns for s in self.streams if s.first_ns is not None]
-        lasts = [s.last_ns for s in self.streams if s.last_ns is not None]
-        self.first_ns: int | None = min(firsts) if firsts else None
-        self.last_ns: int | None = max(lasts) if lasts else None
+        self.first_ns, self.last_ns = joined_span([(s.first_ns, s.last_ns) for s in self.streams])
         backends = list(dict.fromkeys(s.backend for s in self.streams))
         self.backend = "+".join(backends)
 

@@ -129,6 +129,8 @@ class CalibrationResult:
         """Return the ``--json`` object (SI): surrogate, measured changes, evidence table, posterior."""
         chosen = self.explanations[self.chosen]
         doc = self.run.document()
+        table = self.table()
+        bad = self.misfit(table)
         return {
             "surrogate": doc,
             "chosen": self.chosen,
@@ -136,24 +138,24 @@ class CalibrationResult:
             "model_average": self.extra.get("model_average"),
             "prior_sensitivity": self.extra.get("prior_sensitivity"),
             "measured": {p.name: p.change.to_dict() for p in self.pairs},
-            "explanations": self.table(),
+            "explanations": table,
             "identifiability": chosen.identifiability(),
             "in_sample": self.written_in_sample(),
             "reference": self._reference_dict(),
-            "misfit": (bad := self.misfit()),
+            "misfit": bad,
             "warnings": [data_misfit_text(bad)] if bad is not None else [],
             "fe_solves": self.store.solves,
             "seconds": self.seconds,
         }
 
-    def misfit(self) -> dict[str, Any] | None:
+    def misfit(self, table: list[dict[str, Any]] | None = None) -> dict[str, Any] | None:
         """Return the most probable explanation's misfit of the measured changes (None: it fits).
 
         ``explain.data_misfit``: beyond their uncertainty at its MAP. The evidence ranks the
         explanations against each other; a pair given with the wrong sign was explained at
         probability 1.00 by the best of several that all fail (chi2 112.7 on 6).
         """
-        best = self.table()[0]
+        best = (table or self.table())[0]  # ``table``: ``table()`` when already built
         return data_misfit(best["name"], best["chi2_data"], self.explanations[best["name"]].problem.n_data)
 
     def written_in_sample(self) -> list[dict[str, Any]]:

@@ -101,7 +101,7 @@ def _posterior_json(result: Any) -> dict[str, Any]:
         # the settlement events this run found: a model change can add (or take away) one
         "events": [
             {"kind": e["kind"], "time_ns": e["time_ns"], "time": e["time"], "size_m": e["size_m"]}
-            for e in result.to_json().get("events", [])
+            for e in (ev.to_json() for ev in result.events)
         ],
         "warnings": list(result.warnings),
     }
