@@ -378,6 +378,7 @@ def test_a_long_job_off_a_terminal_says_how_far_it_is_now_and_then(monkeypatch) 
 
     clock = [1000.0]
     monkeypatch.setattr(output.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(output, "_plain", {})  # jobs of earlier tests in this process (real clock)
     err = io.StringIO()
     monkeypatch.setattr(output.sys, "stderr", err)
     for k in range(11):  # a call every 10 s for 100 s
@@ -396,3 +397,14 @@ def test_a_long_job_off_a_terminal_says_how_far_it_is_now_and_then(monkeypatch) 
         output.progress(k / 2, "surrogate")
         clock[0] += 10.0
     assert err.getvalue() == ""
+    # a job that never reported its end, then the same job again: it counts from its new start
+    for k in range(4):
+        output.progress(k / 10, "verify")
+        clock[0] += 10.0
+    err.truncate(0)
+    err.seek(0)
+    clock[0] += 1000.0
+    output.progress(0.0, "verify")
+    clock[0] += 40.0
+    output.progress(0.5, "verify")
+    assert err.getvalue().splitlines() == ["verify: 50 % (40 s)"]

@@ -40,7 +40,8 @@ def emit_json(obj: dict[str, Any]) -> None:
 #: Off a terminal (a log, a CI job, a service's journal) a long job says how far it is at most
 #: this often [s]: ``calibrate`` with a day's pairs runs 5-6 minutes, and said nothing until done.
 PLAIN_EVERY_S = 30.0
-_plain: dict[str, tuple[float, float]] = {}  # label -> (first call, last line) in monotonic seconds
+#: label -> (first call, last line) in monotonic seconds, and the fraction last seen
+_plain: dict[str, tuple[float, float, float]] = {}
 
 
 def progress(fraction: float, label: str = "", width: int = 30) -> None:
@@ -61,7 +62,10 @@ def progress(fraction: float, label: str = "", width: int = 30) -> None:
 
 def _plain_line(fraction: float, label: str) -> None:
     now = time.monotonic()
-    first, last = _plain.setdefault(label, (now, now))
+    first, last, seen = _plain.setdefault(label, (now, now, fraction))
+    if fraction < seen:  # the job began again (one that never reported its end ran before)
+        first, last = now, now
+    _plain[label] = (first, last, fraction)
     if fraction >= 1.0:
         _plain.pop(label, None)
         if last > first:  # it said how far it was: say it is done
@@ -71,4 +75,4 @@ def _plain_line(fraction: float, label: str) -> None:
     if now - last >= PLAIN_EVERY_S:
         sys.stderr.write(f"{label}: {100 * min(max(fraction, 0.0), 1.0):.0f} % ({now - first:.0f} s)\n")
         sys.stderr.flush()
-        _plain[label] = (first, now)
+        _plain[label] = (first, now, fraction)
