@@ -116,13 +116,22 @@ def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_is_said(
     capsys.readouterr()
     assert main(["replay", str(public), "--checkpoint", str(ck)]) == 0
     capsys.readouterr()
-    main(["replay", str(alone), "--checkpoint", str(ck), "--json"])
+    assert main(["replay", str(alone), "--checkpoint", str(ck), "--json"]) == 1  # nothing updated
     js = json.loads(capsys.readouterr().out)
     assert js["messages"]["used_by_topic"]["frc_01"] == js["messages"]["used_by_topic"]["frc_02"] == 0
     assert js["rejected"]["late"] > 100_000  # the 12-minute record's 72,000 samples of each cell
     for ch in ("frc_01", "frc_02"):
         (said,) = [w for w in js["warnings"] if w.startswith(f"topic {ch}: all")]
         assert "for late: stamps in windows already closed" in said and "bags that overlap in time" in said
+        assert "read merged by log time when given together" in said  # and what to do instead
+    # what the line says to do: the two bags given together, read merged, reach the -20 mm state
+    assert main(["replay", str(public), str(alone), "--json"]) == 0
+    js = json.loads(capsys.readouterr().out)
+    assert not js["rejected"].get("late")
+    mean, sd = np.array(js["posterior"]["mean_m"]), np.array(js["posterior"]["sigma_m"])
+    truth = np.array([-0.02, -0.02])  # the 10 mm lowering, and 10 mm more through A
+    assert np.all(np.abs(mean - truth) <= 0.1 * np.abs(truth)) and np.all(np.abs(mean - truth) < 1.96 * sd)
+    assert [e["kind"] for e in js["events"]] == ["gap", "gap"], js["events"]
 
 
 def test_bags_imported_with_the_air_near_their_forces_chain_through_the_checkpoint(

@@ -28,7 +28,9 @@ _STAMP_REASONS = ("clock_jump", "out_of_order", "duplicate", "late")
 _VALUE_REASONS = ("nonfinite", "out_of_range", "frozen", "frame_id")
 _OLD_CAUSES = (
     "not used: bags that overlap in time, a logger's clock set back (an hour, where daylight saving "
-    "time ends), or a checkpoint (or data before) whose clock is ahead of these stamps"
+    "time ends), or a checkpoint (or data before) whose clock is ahead of these stamps; bags that "
+    "overlap are read merged by log time when given together (replay BAG BAG ..., or archive), "
+    "from a checkpoint made before any of them"
 )
 
 
