@@ -8,7 +8,8 @@ window (``TopicGate._regular`` for a batch of regular messages, ``WindowBuffer._
 samples that all fall in one window, the temperature matched once where both load cells are
 stamped alike, the curve and its variance for both channels at once where every window has a
 temperature, the B-spline basis on plain floats at a few points, the clear sky from blocks of
-windows computed ahead, ``SunCovariate.values`` with ``window_ns``); the
+windows computed ahead, ``SunCovariate.values`` with ``window_ns``, the basis, the curve and its
+variance of one window in floats: ``Compensation.basis_one``, ``curve_one``); the
 other, the baseline, goes the general way (those disabled). Both must give the same window
 outputs (checked every window). Printed: each one's p50 / p99 per window and the ratio, paired
 window by window, so that the machine's speed, which drifts within minutes, cancels.
@@ -70,6 +71,11 @@ def main() -> None:
     comp = general.compensation
     comp._curve_rows_known = comp._curve_rows_by_channel  # type: ignore[method-assign]
     comp._curve_variance_known = comp._curve_variance_by_channel  # type: ignore[method-assign]
+    comp.curve_one = lambda *args: None  # type: ignore[method-assign]
+    rows = comp.basis_rows  # one window's basis through the rows (the lists it returns: two calls more)
+    comp.basis_one = lambda temp, sun=0.0: tuple(  # type: ignore[method-assign]
+        x[0].tolist() for x in rows(np.array([temp]), np.array([sun]))
+    )
     data = stream(int(seconds * 1e9 / TICK_NS), seed=1)
     per_window = int(cfg.window_s * 1e9) // TICK_NS
     times: dict[bool, list[float]] = {False: [], True: []}

@@ -62,3 +62,33 @@ def test_a_row_without_temperature_goes_down_the_channel_loop(fitted: Shadow) ->
     known = comp.curve_rows(fit, temps[:1], i0[:1], bv[:1])
     np.testing.assert_allclose(rows[:1], known, rtol=1e-15, atol=0.0)
     np.testing.assert_allclose(var[:1], comp.curve_variance(fit, i0[:1], bv[:1]), rtol=1e-15, atol=0.0)
+
+
+def test_one_window_in_floats_equals_the_rows(fitted: Shadow) -> None:
+    """``basis_one`` and ``curve_one`` (a live window in Python floats) give the rows' values.
+
+    Exact compares: the float path does the same operations in numpy's order (the recursion, sums
+    of at most five terms left to right, the quadratic form row by row), so the values are the
+    same bit for bit; that is what keeps a node's outputs those of the replay.
+    """
+    comp, fit = fitted.compensation, fitted.fit
+    rng = np.random.default_rng(1)
+    lo, hi = float(fit.t_lo.min()), float(fit.t_hi.max())
+    temps = rng.uniform(lo - 15.0, hi + 15.0, (60, 2))
+    temps[:4] = [[comp.t_min - 3.0, comp.t_max + 4.0], [lo, hi], [comp.t_min, comp.t_max], [np.nan, 7.0]]
+    temps[4] = [8.0, np.nan]
+    sun = rng.uniform(0.0, 1.0, 60)
+    i0, bv = comp.basis_rows(temps, sun)
+    for j in range(60):
+        one_i0, one_bv = comp.basis_one(temps[j].tolist(), float(sun[j]))
+        assert one_i0 == i0[j].tolist() and one_bv == bv[j].tolist()
+        one = comp.curve_one(fit, temps[j].tolist(), one_i0, one_bv)
+        if j in (3, 4):  # a channel without a temperature: the general paths decide
+            assert one is None
+            continue
+        assert one is not None
+        rows = comp.curve_rows(fit, temps[j : j + 1], i0[j : j + 1], bv[j : j + 1])
+        var = comp.curve_variance(fit, i0[j : j + 1], bv[j : j + 1])
+        assert list(one[0]) == rows[0].tolist() and list(one[1]) == var[0].tolist()
+    # no sun value given: the rows' sun covariate of 0
+    assert comp.basis_one([5.0, 6.0])[1] == comp.basis_rows(np.array([[5.0, 6.0]]))[1][0].tolist()

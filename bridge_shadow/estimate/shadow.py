@@ -504,7 +504,11 @@ class Shadow:
         if self.sun is not None:  # one air temperature for both channels: the first one known
             temp = np.where(np.isfinite(batch.temp_c[:, 0]), batch.temp_c[:, 0], batch.temp_c[:, 1])
             sun, svar = self.sun.values(batch.k * self._w_ns + self._w_ns // 2, temp, self._w_ns)
-        i0, bv = self.compensation.basis_rows(batch.temp_c, sun)
+        if n == 1:  # a live window: the basis in floats (``basis_one``), the same values
+            one = self.compensation.basis_one(batch.temp_c[0].tolist(), 0.0 if sun is None else float(sun[0]))
+            i0, bv = np.array([one[0]], dtype=np.int64), np.array([one[1]])
+        else:
+            i0, bv = self.compensation.basis_rows(batch.temp_c, sun)
         windows = [
             Window(
                 int(batch.k[j]),
@@ -572,11 +576,20 @@ class Shadow:
         """Evaluate the current curve (and its variance) at every window of a batch, at once."""
         if self.fit is None:
             return
-        g = self.compensation.curve_rows(self.fit, temp, i0, bv).tolist()
-        gvar = self.compensation.curve_variance(self.fit, i0, bv).tolist()
-        sun = self.fit.beta[:, -1] if self.compensation.sun else np.zeros(2)
+        comp = self.compensation
+        one = (
+            comp.curve_one(self.fit, temp[0].tolist(), i0[0].tolist(), bv[0].tolist())
+            if len(windows) == 1
+            else None
+        )
+        if one is not None:  # a live window: floats, the same values (``Compensation.curve_one``)
+            g, gvar = [one[0]], [one[1]]
+        else:
+            g = comp.curve_rows(self.fit, temp, i0, bv).tolist()
+            gvar = comp.curve_variance(self.fit, i0, bv).tolist()
+        sun = self.fit.beta[:, -1] if comp.sun else np.zeros(2)
         s0, s1 = float(sun[0]), float(sun[1])
-        t0, t1 = (float(x) for x in self.compensation.slope_fe)
+        t0, t1 = comp.slope_fe_floats
         for w, gw, vw in zip(windows, g, gvar, strict=True):
             w.g = (gw[0], gw[1])
             # the sun covariate's own uncertainty moves both channels' predictions together

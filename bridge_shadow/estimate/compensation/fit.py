@@ -45,6 +45,7 @@ from bridge_shadow.estimate.compensation.spline import (
     clamped_knots,
     gram_penalty,
     gram_slope,
+    nonzero_at,
     select_lambda,
 )
 from bridge_shadow.estimate.compensation.sums import FitSums, row_columns
@@ -220,6 +221,8 @@ class Compensation:
     ) -> None:
         self.knots = clamped_knots(np.linspace(t_min_c, t_max_c, segments + 1))
         self.t_min, self.t_max = float(self.knots[0]), float(self.knots[-1])
+        self._knot_floats = self.knots.tolist()  # the one-window basis (``basis_one``)
+        self._fit_floats: tuple[CompensationFit, tuple[list, ...]] | None = None
         self.sun = sun_slope is not None
         self.q_spline = qs = len(self.knots) - 4
         self.q = qs + int(self.sun)
@@ -239,6 +242,7 @@ class Compensation:
         self.mode = mode
         self.lam_fixed = float(lam)
         self.slope_fe = np.zeros(2) if slope_fe is None else np.asarray(slope_fe, float).reshape(2)
+        self.slope_fe_floats = self.slope_fe.tolist()
         self.slope_sd = float(slope_sd)
         self.omega1 = self._pad(gram_slope(self.knots))
         self.e = np.zeros(self.q)
@@ -279,6 +283,69 @@ class Compensation:
             return i0, bv
         s = np.zeros(len(t)) if sun is None else np.asarray(sun, float).reshape(-1)
         return i0, np.concatenate([bv, np.repeat(s[:, None, None], 2, axis=1)], axis=2)
+
+    def basis_one(self, temp: tuple[float, float], sun: float = 0.0) -> tuple[list[int], list[list[float]]]:
+        """``basis_rows`` of one window in floats: first spline index (2,) (-1 if NaN), values (2, width).
+
+        The same clipping and recursion (``spline.nonzero_at``), value for value: a live window
+        closes one at a time, and numpy's per-call cost made ``basis_rows`` of one row its slowest part.
+        """
+        i0, bv = [], []
+        for t in temp:
+            known = math.isfinite(t)
+            first, values = nonzero_at(
+                self._knot_floats, min(max(t if known else self.t_min, self.t_min), self.t_max), self.q_spline
+            )
+            i0.append(first if known else -1)
+            bv.append([*values, sun] if self.sun else values)
+        return i0, bv
+
+    def _floats(self, fit: CompensationFit) -> tuple[list, ...]:
+        """Return the fit's arrays the one-window curve reads, as lists (kept for the last fit asked)."""
+        if self._fit_floats is None or self._fit_floats[0] is not fit:
+            scale = (fit.kappa * self.slope_sd**2).tolist()
+            lists = (fit.beta.tolist(), fit.minv.tolist(), fit.mbar.tolist(), fit.sbar.tolist(), scale)
+            self._fit_floats = (fit, lists)
+        return self._fit_floats[1]
+
+    def curve_one(
+        self, fit: CompensationFit, temp: tuple[float, float], i0: list[int], bv: list[list[float]]
+    ) -> tuple[tuple[float, float], tuple[float, float]] | None:
+        """``curve_rows`` and ``curve_variance`` of one window with a temperature in both channels.
+
+        Python floats, the products and sums of ``_curve_rows_known`` and ``_curve_variance_known``
+        in numpy's order (a sum of at most five terms left to right, the quadratic form row by row,
+        ``(b_i M_ij) b_j``), so the values are the same bit for bit. None where the fast case does
+        not hold (a channel without a temperature, no curve): the general paths then.
+        """
+        if self.mode == "none" or i0[0] < 0 or i0[1] < 0:
+            return None
+        beta, minv, mbar, sbar, scale = self._floats(fit)
+        g, v = [0.0, 0.0], [0.0, 0.0]
+        last = self.q - 1
+        for c in range(2):
+            b, i, coef, m, mb = bv[c], i0[c], beta[c], minv[c], mbar[c]
+            cols = [i, i + 1, i + 2, i + 3, last] if self.sun else [i, i + 1, i + 2, i + 3]
+            out = 0.0
+            for k in range(4):
+                out += b[k] * coef[i + k]
+            if self.sun:
+                out += coef[-1] * b[4]
+            t = temp[c]
+            if t < self.t_min or t > self.t_max:
+                out += self.slope_fe_floats[c] * (t - min(max(t, self.t_min), self.t_max))
+            quad = 0.0
+            for bi, ci in zip(b, cols, strict=True):
+                row = m[ci]
+                for bj, cj in zip(b, cols, strict=True):
+                    quad += bi * row[cj] * bj
+            lin = 0.0
+            for bi, ci in zip(b, cols, strict=True):
+                lin += bi * mb[ci]
+            quad -= 2.0 * lin
+            g[c] = out
+            v[c] = scale[c] * max(quad + sbar[c], 0.0)
+        return (g[0], g[1]), (v[0], v[1])
 
     def sun_weight(self, kappa: float, c: int) -> tuple[float, float]:
         """Return the sun prior of channel ``c`` as data: its weight ``sigma^2 / sd_gamma^2`` and mean (N).

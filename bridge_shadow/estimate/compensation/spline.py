@@ -32,6 +32,7 @@ __all__ = [
     "clamped_knots",
     "gram_penalty",
     "gram_slope",
+    "nonzero_at",
     "select_lambda",
 ]
 
@@ -86,22 +87,29 @@ def _nonzero_few(knots: np.ndarray, xs: list[float], q: int) -> tuple[np.ndarray
     first = np.empty(len(xs), dtype=np.int64)
     values = np.empty((len(xs), _DEGREE + 1))
     for row, x in enumerate(xs):
-        i = min(max(bisect_right(t, x) - 1, _DEGREE), q - 1)
-        n = [1.0, 0.0, 0.0, 0.0]
-        left = [0.0] * (_DEGREE + 1)
-        right = [0.0] * (_DEGREE + 1)
-        for j in range(1, _DEGREE + 1):
-            left[j] = x - t[i + 1 - j]
-            right[j] = t[i + j] - x
-            saved = 0.0
-            for r in range(j):
-                temp = n[r] / (right[r + 1] + left[j - r])
-                n[r] = saved + right[r + 1] * temp
-                saved = left[j - r] * temp
-            n[j] = saved
-        first[row] = i - _DEGREE
-        values[row] = n
+        first[row], values[row] = nonzero_at(t, x, q)
     return first, values
+
+
+def nonzero_at(t: list[float], x: float, q: int) -> tuple[int, list[float]]:
+    """Return the four non-zero cubic B-splines at one point ``x`` (knots ``t`` floats): first index, values.
+
+    The Cox-de Boor recursion of ``basis_nonzero`` on Python floats, operation for operation.
+    """
+    i = min(max(bisect_right(t, x) - 1, _DEGREE), q - 1)
+    n = [1.0, 0.0, 0.0, 0.0]
+    left = [0.0] * (_DEGREE + 1)
+    right = [0.0] * (_DEGREE + 1)
+    for j in range(1, _DEGREE + 1):
+        left[j] = x - t[i + 1 - j]
+        right[j] = t[i + j] - x
+        saved = 0.0
+        for r in range(j):
+            temp = n[r] / (right[r + 1] + left[j - r])
+            n[r] = saved + right[r + 1] * temp
+            saved = left[j - r] * temp
+        n[j] = saved
+    return i - _DEGREE, n
 
 
 def gram_penalty(knots: np.ndarray) -> np.ndarray:
