@@ -1,7 +1,8 @@
 """The gate's batch of regular messages (``TopicGate._regular``) decides as the general path does.
 
 A live node gates a few dozen messages at a time, nearly all of them regular; ``_regular`` takes
-such a batch in a handful of numpy calls. The general path is the definition: a stream with every
+such a batch in a handful of numpy calls, or up to ``REGULAR_FEW`` messages in one pass over Python
+numbers (``_regular_few``). The general path is the definition: a stream with every
 kind of message the gate knows (NaN, inf, out of range, wrong and empty frame ids, duplicates,
 out of order, wild stamps, a clock jump, a gap, value repeats short and long), cut into random
 chunks, must be decided the same message by message, with the same counts, the same held and
@@ -16,6 +17,7 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
+from bridge_shadow.estimate.inputs import gate as gate_module
 from bridge_shadow.estimate.inputs.gate import FROZEN_S, TopicGate
 
 NS = 1_000_000_000
@@ -86,8 +88,11 @@ def _run(stamps, values, frames, cuts, regular: bool):
     return np.concatenate(masks), released, counts, gate.state_dict(), taken
 
 
+@pytest.mark.parametrize("few", [0, gate_module.REGULAR_FEW, 10**9], ids=["numpy", "default", "floats"])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_regular_batches_decide_as_the_general_path(seed: int) -> None:
+def test_regular_batches_decide_as_the_general_path(seed: int, few: int, monkeypatch) -> None:
+    """Chunks of 1 to about 60 messages: up to ``REGULAR_FEW`` tested in floats, in numpy beyond."""
+    monkeypatch.setattr(gate_module, "REGULAR_FEW", few)
     stamps, values, frames = _stream(seed)
     rng = np.random.default_rng(100 + seed)
     cuts = np.unique(np.concatenate([[0, len(stamps)], rng.integers(1, len(stamps), 400)]))
@@ -108,7 +113,9 @@ def test_regular_batches_decide_as_the_general_path(seed: int) -> None:
     assert slow[4] == 0
 
 
-def test_a_regular_batch_leaves_the_run_and_step_state_of_the_general_path() -> None:
+@pytest.mark.parametrize("few", [0, 10**9], ids=["numpy", "floats"])
+def test_a_regular_batch_leaves_the_run_and_step_state_of_the_general_path(few: int, monkeypatch) -> None:
+    monkeypatch.setattr(gate_module, "REGULAR_FEW", few)
     stamps = 1_650_000_000 * NS + np.arange(50, dtype=np.int64) * STEP
     values = 2.2e5 + np.arange(50.0)
     a, b = _gate(), _gate()
@@ -119,3 +126,50 @@ def test_a_regular_batch_leaves_the_run_and_step_state_of_the_general_path() -> 
     for key, value in b.state_dict().items():  # stamps, counts, copied values: exact
         np.testing.assert_array_equal(np.asarray(a.state_dict()[key]), np.asarray(value), err_msg=key)
     assert (a.last_ns, a.last_step_ns, a.run_count) == (int(stamps[-1]), STEP, 1)
+
+
+def test_a_shadow_takes_a_regular_batch_whole_as_its_general_path_does() -> None:
+    """``Shadow._gate`` takes a regular batch without the mask (``take_regular``): the same state.
+
+    Two shadows fed the irregular stream in the same random chunks, one with ``take_regular``
+    off (the general path, the definition), keep the same counts, ledgers, buffered samples and
+    clock, and close the same windows.
+    """
+    from bridge_shadow.estimate import Shadow, load_config
+    from bridge_shadow.model.surrogate_file import load_surrogate
+
+    stamps, values, frames = _stream(3)
+    cfg = load_config().replace(window_s=1.0, traffic_hold_s=0.0)
+    fast, slow = Shadow(cfg, load_surrogate()), Shadow(cfg, load_surrogate())
+    for gate in slow.gates:
+        gate.take_regular = lambda *args: False  # type: ignore[method-assign]
+    rng = np.random.default_rng(7)
+    cuts = np.unique(np.concatenate([[0, len(stamps)], rng.integers(1, len(stamps), 300)]))
+    taken = [0]
+    note_taken = fast.ledgers[0].note_taken
+
+    def counted(*args: int) -> None:
+        taken[0] += 1
+        note_taken(*args)
+
+    fast.ledgers[0].note_taken = counted  # type: ignore[method-assign]
+    outs: dict[int, list] = {0: [], 1: []}
+    for a, b in pairwise(cuts):
+        for s in (fast, slow):
+            t = stamps[a:b][::10]
+            s.ingest_temperature(t, 8.0 + np.zeros(len(t)), "air_temperature")
+            s.ingest_forces(0, stamps[a:b], values[a:b], frames[a:b])
+            s.ingest_forces(1, stamps[a:b], values[a:b] * 0.9, "frc_02")
+            outs[s is slow].extend(s.poll())
+    assert taken[0] > 0.5 * (len(cuts) - 1)  # most chunks were taken whole
+    assert fast.counts == slow.counts and fast.used == slow.used and fast._first_ns == slow._first_ns
+    for lf, ls in zip(fast.ledgers, slow.ledgers, strict=True):
+        assert {k: v for k, v in vars(lf).items() if k != "note_taken"} == vars(ls)  # (the counter)
+    for c in range(2):  # integer stamps and values copied from the input: exact
+        for x, y in zip(fast.buffer.force[c].arrays(), slow.buffer.force[c].arrays(), strict=True):
+            np.testing.assert_array_equal(x, y)
+    assert len(outs[0]) == len(outs[1]) > 10
+    for x, y in zip(outs[0], outs[1], strict=True):  # the same windows, the same arithmetic on them
+        assert x.index == y.index and x.reason == y.reason
+        np.testing.assert_array_equal(x.samples, y.samples)
+        np.testing.assert_allclose(x.mean_m, y.mean_m, rtol=0.0, atol=0.0)

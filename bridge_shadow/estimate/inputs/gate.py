@@ -69,6 +69,9 @@ FROZEN_REPEATS = 10
 #: message shows whether it was a real gap or a wild stamp (the bundled and real records step
 #: evenly: the largest ratio of two consecutive steps outside gaps is below 2).
 GAP_FACTOR = 4
+#: Up to this many messages ``TopicGate._regular`` tests them in Python numbers (``_regular_few``),
+#: more in numpy: a node's drain brings a few dozen per topic, where numpy's per-call cost dominates.
+REGULAR_FEW = 64
 #: Every rejection reason the shadow counts (message and window level), in report order.
 REASONS: tuple[str, ...] = (
     *MESSAGE_REASONS,
@@ -144,9 +147,8 @@ class TopicGate:
         """
         stamps = np.asarray(stamp_ns, dtype=np.int64)
         vals = np.asarray(value, dtype=float)
-        if self.last_ns is not None and self.held_ns is None and not self.pending and len(vals):
-            if self._regular(stamps, vals, frame_id):
-                return np.ones(len(vals), dtype=bool)
+        if self.take_regular(stamps, vals, frame_id):
+            return np.ones(len(vals), dtype=bool)
         ok = np.isfinite(vals)
         bad = int(np.count_nonzero(~ok))
         if bad:
@@ -177,6 +179,16 @@ class TopicGate:
         ok[idx[~keep]] = False
         return ok
 
+    def take_regular(self, stamps: np.ndarray, vals: np.ndarray, frame_id: np.ndarray | str | None) -> bool:
+        """Accept every message of a batch of regular ones (``_regular``); False: nothing done.
+
+        What ``__call__`` does with such a batch, without its mask: every message is taken, none is
+        held, released or counted (none held, waiting or released before: none is released now).
+        """
+        if self.last_ns is None or self.held_ns is not None or self.pending or self._released or not len(vals):
+            return False
+        return self._regular(stamps, vals, frame_id)
+
     def _regular(self, s: np.ndarray, v: np.ndarray, frame_id: np.ndarray | str | None) -> bool:
         """Take a batch of only regular messages at once; return False (nothing done) otherwise.
 
@@ -186,6 +198,8 @@ class TopicGate:
         accepted by the general path too, which leaves the same state (the common case of a live
         stream, decided in a handful of numpy calls instead of the general path's few dozen).
         """
+        if len(v) <= REGULAR_FEW:
+            return self._regular_few(s.tolist(), v.tolist(), frame_id)
         lo, hi = float(v.min()), float(v.max())  # NaN if any is NaN
         if not (math.isfinite(lo) and math.isfinite(hi) and self.lo <= lo and hi <= self.hi):
             return False
@@ -210,6 +224,44 @@ class TopicGate:
         if self.frozen_ns is not None:  # every value starts a run of its own (``_frozen``)
             self.run_value, self.run_since_ns, self.run_count = float(v[-1]), int(s[-1]), 1
         self.last_ns, self.last_step_ns = int(s[-1]), int(ds[-1])
+        return True
+
+    def _regular_few(self, s: list[int], v: list[float], frame_id: np.ndarray | str | None) -> bool:
+        """``_regular`` of a few messages in one pass over Python numbers: the same tests, the same state.
+
+        A node's drain brings a few dozen messages per topic; numpy's per-call cost made the
+        vectorized tests most of the gate's time there.
+        """
+        lo, hi = self.lo, self.hi
+        for x in v:
+            if not lo <= x <= hi or math.isinf(x):  # (NaN fails the range)
+                return False
+        if self.frame_id is not None and frame_id is not None:
+            if isinstance(frame_id, str):
+                if frame_id not in (self.frame_id, ""):
+                    return False
+            else:
+                expected = self.frame_id
+                frames = frame_id.tolist() if isinstance(frame_id, np.ndarray) else list(frame_id)
+                for f in frames:
+                    if not (f == expected or f == ""):
+                        return False
+        if self.frozen_ns is not None:
+            before = self.run_value
+            for x in v:
+                if x == before:
+                    return False
+                before = x
+        assert self.last_ns is not None
+        prev, step, jump = self.last_ns, self.last_step_ns, self.jump_ns
+        for t in s:
+            d = t - prev
+            if d <= 0 or d > jump or (step > 0 and d > GAP_FACTOR * step):
+                return False
+            prev, step = t, d
+        if self.frozen_ns is not None:  # every value starts a run of its own (``_frozen``)
+            self.run_value, self.run_since_ns, self.run_count = v[-1], s[-1], 1
+        self.last_ns, self.last_step_ns = s[-1], step
         return True
 
     def _good_frames(self, frame_id: np.ndarray | str, n: int) -> np.ndarray:

@@ -101,6 +101,13 @@ class TopicLedger:
         if out.any():
             self.last_value = float(values[np.flatnonzero(out)[-1]])
 
+    def note_taken(self, n: int, last_ns: int) -> None:
+        """``note`` of a batch of ``n`` messages all accepted, the last stamped ``last_ns`` (no rejection)."""
+        self.used += n
+        self.last_ok_ns = last_ns
+        if self.tail_n:
+            self.tail_n, self.tail_first_ns, self.tail_last_ns = 0, -1, -1
+
     def _follow_tail(self, ok: np.ndarray, stamps: np.ndarray) -> None:
         if ok[-1]:  # the common case: the batch's last message was taken
             self.last_ok_ns = int(stamps[-1])
