@@ -183,6 +183,32 @@ def test_windows_one_at_a_time_take_the_clear_sky_the_whole_batch_does(window_s:
     )
 
 
+@pytest.mark.parametrize("window_s", [0.1, 60.0])
+def test_one_window_in_python_numbers_is_the_batch_covariate(window_s: float) -> None:
+    """``value_one`` (a live window's covariate in Python numbers) equals ``values`` of the batch.
+
+    Across a day's change, NaN temperatures and blocks' edges, at random starts: exact, the same
+    integer and float operations (the state after each window is the batch's too).
+    """
+    w = round(window_s * NS)
+    rng = np.random.default_rng(5)
+    day_end = (1_649_721_600 - round(LON_DEG / 15.0 * 3600.0)) * NS  # a mean-solar midnight
+    n = int(30 * 3600 / window_s) if window_s >= 1 else 3 * SKY_BLOCK + 7
+    first = day_end // w - n // 2 if window_s >= 1 else day_end // w - SKY_BLOCK - 3
+    k = first + np.arange(n)
+    t = k * w + w // 2
+    temp = 2.0 + 10.0 * rng.random(n)
+    temp[rng.choice(n, n // 10, replace=False)] = np.nan
+    batch_sun, batch_var = SunCovariate().values(t, temp, w)
+    live = SunCovariate()
+    for j in range(n):
+        one = live.value_one(int(t[j]), float(temp[j]), w)
+        assert one == (float(batch_sun[j]), float(batch_var[j])), j  # exact: the same operations
+    ref = SunCovariate()
+    ref.values(t, temp)
+    assert live.state_dict() == pytest.approx(ref.state_dict(), nan_ok=True, rel=0.0, abs=0.0)
+
+
 def test_a_day_whose_data_begin_partway_up_the_rise_reads_its_clearness() -> None:
     """Data from 07:24 solar (a load-test day's first record): the warming is read over the rise left.
 

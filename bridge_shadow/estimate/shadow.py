@@ -508,13 +508,20 @@ class Shadow:
             self.traffic_windows.append(row)
         self.parked.extend([int(t), int(end), float(a), float(b)] for _, t, end, a, b in batch.parked)
         sun, svar = None, np.zeros(n)
-        if self.sun is not None:  # one air temperature for both channels: the first one known
-            temp = np.where(np.isfinite(batch.temp_c[:, 0]), batch.temp_c[:, 0], batch.temp_c[:, 1])
-            sun, svar = self.sun.values(batch.k * self._w_ns + self._w_ns // 2, temp, self._w_ns)
-        if n == 1:  # a live window: the basis in floats (``basis_one``), the same values
-            one = self.compensation.basis_one(batch.temp_c[0].tolist(), 0.0 if sun is None else float(sun[0]))
+        if n == 1:  # a live window: the sun covariate and the basis in Python numbers, the same values
+            temps = batch.temp_c[0].tolist()
+            sun_one = 0.0
+            if self.sun is not None:
+                mid = int(batch.k[0]) * self._w_ns + self._w_ns // 2
+                t = temps[0] if math.isfinite(temps[0]) else temps[1]
+                sun_one, var_one = self.sun.value_one(mid, t, self._w_ns)
+                svar = np.array([var_one])
+            one = self.compensation.basis_one(temps, sun_one)
             i0, bv = np.array([one[0]], dtype=np.int64), np.array([one[1]])
         else:
+            if self.sun is not None:  # one air temperature for both channels: the first one known
+                temp = np.where(np.isfinite(batch.temp_c[:, 0]), batch.temp_c[:, 0], batch.temp_c[:, 1])
+                sun, svar = self.sun.values(batch.k * self._w_ns + self._w_ns // 2, temp, self._w_ns)
             i0, bv = self.compensation.basis_rows(batch.temp_c, sun)
         windows = [
             Window(

@@ -185,7 +185,13 @@ class TopicGate:
         What ``__call__`` does with such a batch, without its mask: every message is taken, none is
         held, released or counted (none held, waiting or released before: none is released now).
         """
-        if self.last_ns is None or self.held_ns is not None or self.pending or self._released or not len(vals):
+        if (
+            self.last_ns is None
+            or self.held_ns is not None
+            or self.pending
+            or self._released
+            or not len(vals)
+        ):
             return False
         return self._regular(stamps, vals, frame_id)
 
