@@ -97,15 +97,21 @@ def test_a_held_record_too_long_only_for_a_recording_started_again_is_split_at_t
 def _one_by_one(match: str, ts: np.ndarray, tv: np.ndarray, one_window: bool, seed: int, alike: bool = False):
     """Close the windows of ``_data(seed, alike)`` one at a time (a live node's pace); return the batches.
 
-    Also the number of ``_match`` calls (the temperature matched at the force stamps).
+    Also the number of windows' temperature matches (at the force stamps), and of ``_match`` calls.
     """
     stamps, values, _, _ = _data(seed, alike)
     buf = WindowBuffer(60.0, 30.0, 120.0, match, min_samples=30)
     if not one_window:
         buf._one_window = lambda taken: None  # the general path alone
-    matches = []
-    inner = buf._match
-    buf._match = lambda *a: matches.append(1) or inner(*a)  # type: ignore[method-assign]
+    calls = {"_match": 0, "_match_one": 0}
+    for name in calls:
+        inner = getattr(buf, name)
+
+        def counted(*a, name=name, inner=inner):
+            calls[name] += 1
+            return inner(*a)
+
+        setattr(buf, name, counted)
     lasts = [int(s[-1]) for s in stamps]
     for c in range(2):
         buf.add_forces(c, stamps[c], values[c])
@@ -113,7 +119,8 @@ def _one_by_one(match: str, ts: np.ndarray, tv: np.ndarray, one_window: bool, se
     out = []
     while buf.next_k is not None and buf.holds_data:
         out.append(buf.close_until(buf.next_k + 1, lasts))
-    return out, len(matches)
+    # a window's match: ``_match_one`` at the live pace (``_match`` only where it falls back to it)
+    return out, (calls["_match_one"] if one_window else calls["_match"]), calls["_match"]
 
 
 @pytest.mark.parametrize("alike", [False, True])
@@ -127,11 +134,12 @@ def test_one_window_at_a_time_equals_the_general_aggregate(alike: bool) -> None:
     late = ts >= T0 + 12 * W  # the first reading after the first windows: those are blind to it
     cases = [("linear", ts, tv), ("hold", ts, tv), ("linear", ts[late], tv[late]), ("linear", ts[:0], tv[:0])]
     for seed, (match, t, v) in enumerate(cases):
-        fast, fast_matches = _one_by_one(match, t, v, True, seed, alike)
-        slow, slow_matches = _one_by_one(match, t, v, False, seed, alike)
+        fast, fast_matches, fast_general = _one_by_one(match, t, v, True, seed, alike)
+        slow, slow_matches, _ = _one_by_one(match, t, v, False, seed, alike)
         assert len(fast) == len(slow) == 30
         if len(t) and match == "linear" and len(t) == len(ts):  # every window sees a reading
             assert slow_matches == 60 and fast_matches == (30 if alike else 60)
+            assert fast_general < fast_matches / 2  # most between two readings: ``_match`` not called
         reasons = set()
         for a, b in zip(fast, slow, strict=True):
             np.testing.assert_array_equal(a.k, b.k)  # integers

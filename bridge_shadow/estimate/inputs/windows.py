@@ -623,7 +623,7 @@ class WindowBuffer:
             if not matching:
                 continue
             if c == 0 or not same_stamps:
-                matched, dist = self._match(stamps, np.int64(k), ts, tv)
+                matched, dist = self._match_one(stamps, k, ts, tv)
             temp[0, c] = np.bincount(rows, matched, minlength=1)[0] / len(values)
             age = max(age, float(dist.max()) / 1e9)
         sparse = bool(samples.min() < self.min_samples)
@@ -637,6 +637,29 @@ class WindowBuffer:
             np.zeros((1, 2), np.int64),
             np.array([age]),
         )
+
+    def _match_one(
+        self, t: np.ndarray, k: int, ts: np.ndarray, tv: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``_match`` of one window's stamps ``t`` (in stamp order), each between two visible readings.
+
+        The live case (``linear``): every stamp has a reading at or before it and one after it,
+        visible to window ``k``, so ``_match``'s masks are all true and its selections the plain
+        arrays: the same operations on the same numbers, a third of the numpy calls. Otherwise
+        ``_match``.
+        """
+        if self.match != "linear" or not len(ts):
+            return self._match(t, np.int64(k), ts, tv)
+        right = np.searchsorted(ts, t, side="right")
+        limit = int(np.searchsorted(ts, (k + 1) * self.w_ns + self.horizon_ns, side="left"))
+        if int(right[0]) < 1 or int(right[-1]) >= limit:  # (stamps in order: the first and last bound all)
+            return self._match(t, np.int64(k), ts, tv)
+        left = right - 1
+        t_left, t_right = ts[left], ts[right]
+        d_left, d_right = t - t_left, t_right - t
+        v_left = tv[left]
+        frac = d_left.astype(float) / (t_right - t_left).astype(float)
+        return v_left + frac * (tv[right] - v_left), np.minimum(d_left, d_right).astype(float)
 
     def _match(
         self, t: np.ndarray, k: np.ndarray, ts: np.ndarray, tv: np.ndarray
