@@ -503,9 +503,10 @@ class Shadow:
         if not n:
             return []
         self.n_windows += n
-        for j in np.flatnonzero(batch.cut.sum(axis=1) > 0):
-            row = [int(batch.k[j]), *map(int, batch.cut[j]), *map(int, batch.samples[j])]
-            self.traffic_windows.append(row)
+        if batch.cut.any():  # (counts: a row sums to more than 0 where any is)
+            for j in np.flatnonzero(batch.cut.sum(axis=1) > 0):
+                row = [int(batch.k[j]), *map(int, batch.cut[j]), *map(int, batch.samples[j])]
+                self.traffic_windows.append(row)
         self.parked.extend([int(t), int(end), float(a), float(b)] for _, t, end, a, b in batch.parked)
         sun, svar = None, np.zeros(n)
         if n == 1:  # a live window: the sun covariate and the basis in Python numbers, the same values
@@ -546,7 +547,7 @@ class Shadow:
             self._last_data_k = w.k
             if w.reason:
                 self.counts[w.reason] += 1
-            elif not np.isfinite(w.temp[0]):
+            elif not math.isfinite(w.temp[0]):
                 self.uncompensated += 1
             elif w.tvar > 0:
                 self.stale_temperature += 1

@@ -27,6 +27,7 @@ later record with temperature arrives before its windows close (the traffic scre
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -607,33 +608,32 @@ class WindowBuffer:
         k = int(s0[0]) // w
         if int(s0[-1]) // w != k or int(s1[0]) // w != k or int(s1[-1]) // w != k:
             return None
-        samples = np.array([[len(s0), len(s1)]], dtype=np.int64)
-        force = np.full((1, 2), np.nan)
-        temp = np.full((1, 2), np.nan)
+        force, temp = [math.nan, math.nan], [math.nan, math.nan]
         age = 0.0
         ts, tv = self.temp.arrays()
         # no reading at all, or none visible yet: the temperature stays NaN and the age 0
         first = self.temp_first_ns
         matching = first is not None and (k + 1) * w + self.horizon_ns > first
         # a logger that samples both load cells at once stamps them alike: one match serves both
-        same_stamps = matching and len(s0) == len(s1) and bool(np.array_equal(s0, s1))
+        same_stamps = matching and len(s0) == len(s1) and bool((s0 == s1).all())
+        rows = np.zeros(len(s0), dtype=np.intp)
         for c, (stamps, values) in enumerate(taken):
-            rows = np.zeros(len(values), dtype=np.intp)
-            force[0, c] = np.bincount(rows, values, minlength=1)[0] / len(values)
+            if len(rows) != len(values):
+                rows = np.zeros(len(values), dtype=np.intp)
+            force[c] = float(np.bincount(rows, values, minlength=1)[0]) / len(values)
             if not matching:
                 continue
             if c == 0 or not same_stamps:
                 matched, dist = self._match_one(stamps, k, ts, tv)
-            temp[0, c] = np.bincount(rows, matched, minlength=1)[0] / len(values)
+            temp[c] = float(np.bincount(rows, matched, minlength=1)[0]) / len(values)
             age = max(age, float(dist.max()) / 1e9)
-        sparse = bool(samples.min() < self.min_samples)
-        reason = np.array(["sparse_window" if sparse else ""], dtype=object)
+        sparse = min(len(s0), len(s1)) < self.min_samples
         return WindowBatch(
             np.array([k], dtype=np.int64),
-            samples,
-            force,
-            temp,
-            reason,
+            np.array([[len(s0), len(s1)]], dtype=np.int64),
+            np.array([force]),
+            np.array([temp]),
+            np.array(["sparse_window" if sparse else ""], dtype=object),
             np.zeros((1, 2), np.int64),
             np.array([age]),
         )
