@@ -9,7 +9,9 @@ samples that all fall in one window, the temperature matched once where both loa
 stamped alike, the curve and its variance for both channels at once where every window has a
 temperature, the B-spline basis on plain floats at a few points, the clear sky from blocks of
 windows computed ahead, ``SunCovariate.values`` with ``window_ns``, the basis, the curve and its
-variance of one window in floats: ``Compensation.basis_one``, ``curve_one``); the
+variance of one window in floats: ``Compensation.basis_one``, ``curve_one``, the sun covariate's
+``SunCovariate.value_one``; a regular gate batch in floats, ``TopicGate._regular_few``, taken whole
+by ``Shadow._gate``; the temperature match between two readings, ``WindowBuffer._match_one``); the
 other, the baseline, goes the general way (those disabled). Both must give the same window
 outputs (checked every window). Printed: each one's p50 / p99 per window and the ratio, paired
 window by window, so that the machine's speed, which drifts within minutes, cancels.
@@ -68,6 +70,9 @@ def main() -> None:
     if general.sun is not None:  # the clear sky of each call's windows at once, not from blocks
         sun_values = general.sun.values
         general.sun.values = lambda t, temp, window_ns=None: sun_values(t, temp)  # type: ignore[method-assign]
+        general.sun.value_one = lambda t, temp, window_ns: tuple(  # type: ignore[method-assign]
+            float(x[0]) for x in sun_values(np.array([t]), np.array([temp]))
+        )
     comp = general.compensation
     comp._curve_rows_known = comp._curve_rows_by_channel  # type: ignore[method-assign]
     comp._curve_variance_known = comp._curve_variance_by_channel  # type: ignore[method-assign]
