@@ -341,22 +341,22 @@ class ShadowNode(Node):
         absent) for ``REORDER_HOLD_S`` or the message has waited that long.
         """
         stamp, _, _, t_dec = self._pending[i]
-        n_aged = int(np.searchsorted(t_dec, now - REORDER_HOLD_S, side="right"))
         horizon = None
         for j in range(3):
             if j == i:
                 continue
             if self._latest[j] is None:
-                if now - self._started < REORDER_HOLD_S:
-                    return n_aged  # topic j may be about to deliver its first messages
+                if now - self._started < REORDER_HOLD_S:  # topic j may be about to deliver its first
+                    return int(np.searchsorted(t_dec, now - REORDER_HOLD_S, side="right"))
                 continue
             if now - self._arrival[j] < REORDER_HOLD_S:
                 horizon = self._latest[j] if horizon is None else min(horizon, self._latest[j])
-        if horizon is None:
+        # every message in step (the usual drain): all of them, whatever has waited how long
+        if horizon is None or int(stamp.max()) <= horizon:
             return len(stamp)
         ahead = np.flatnonzero(stamp > horizon)
-        n_horizon = int(ahead[0]) if len(ahead) else len(stamp)
-        return max(n_horizon, n_aged)
+        n_aged = int(np.searchsorted(t_dec, now - REORDER_HOLD_S, side="right"))
+        return max(int(ahead[0]), n_aged)
 
     def ingest_pending(self, everything: bool = False) -> None:
         """Decode the buffers and ingest what is in step across topics (all with ``everything``).
