@@ -173,3 +173,18 @@ def test_a_shadow_takes_a_regular_batch_whole_as_its_general_path_does() -> None
         assert x.index == y.index and x.reason == y.reason
         np.testing.assert_array_equal(x.samples, y.samples)
         np.testing.assert_allclose(x.mean_m, y.mean_m, rtol=0.0, atol=0.0)
+
+
+@pytest.mark.parametrize("few", [0, 10**9], ids=["numpy", "floats"])
+def test_an_open_range_still_declines_infinite_values(few: int, monkeypatch) -> None:
+    """With an infinite bound the range test lets inf through: the regular batch still declines it."""
+    monkeypatch.setattr(gate_module, "REGULAR_FEW", few)
+    stamps = 1_650_000_000 * NS + np.arange(20, dtype=np.int64) * STEP
+    values = 2.2e5 + np.arange(20.0)
+    values[7] = np.inf
+    gate = TopicGate("frc_01", -np.inf, np.inf, 3600 * NS, 3, round(FROZEN_S * NS))
+    counts: Counter = Counter()
+    assert gate(stamps[:1], values[:1], "frc_01", None, counts).all()
+    assert not gate._regular(stamps[1:], values[1:], "frc_01")
+    ok = gate(stamps[1:], values[1:], "frc_01", None, counts)
+    assert ok.sum() == 18 and not ok[6] and counts == Counter(nonfinite=1)

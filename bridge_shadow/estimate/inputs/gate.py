@@ -239,9 +239,14 @@ class TopicGate:
         vectorized tests most of the gate's time there.
         """
         lo, hi = self.lo, self.hi
-        for x in v:
-            if not lo <= x <= hi or math.isinf(x):  # (NaN fails the range)
-                return False
+        if math.isinf(lo) or math.isinf(hi):
+            for x in v:
+                if not lo <= x <= hi or math.isinf(x):  # (NaN fails the range)
+                    return False
+        else:
+            for x in v:
+                if not lo <= x <= hi:  # (NaN and inf fail a finite range)
+                    return False
         if self.frame_id is not None and frame_id is not None:
             if isinstance(frame_id, str):
                 if frame_id not in (self.frame_id, ""):
