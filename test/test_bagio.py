@@ -436,3 +436,16 @@ def test_decode_buffer_gathers_scattered_messages() -> None:
     np.testing.assert_array_equal(stamp, [5, 6, 7])  # exact: decoded bytes, no arithmetic
     assert list(frames) == ["a", "bbbbbbbbbbbb", "a"]
     np.testing.assert_array_equal(values, np.arange(18.0).reshape(3, 6))
+
+
+def test_a_uniform_frame_id_view_is_read_only_and_shared() -> None:
+    """``uniform_frames`` (kept for the last few asked) is a read-only view: sharing it is safe."""
+    from bridge_shadow.bagio.cdr import concat_frames, frame_value, uniform_frames
+
+    a = uniform_frames("frc_01", 25)
+    assert a is uniform_frames("frc_01", 25) and a.shape == (25,) and frame_value(a) == "frc_01"
+    assert list(a) == ["frc_01"] * 25 and list(uniform_frames("frc_01", 3)) == ["frc_01"] * 3
+    with pytest.raises(ValueError, match="read-only"):
+        a[0] = "frc_02"
+    joined = concat_frames([a, uniform_frames("frc_01", 5)])
+    assert frame_value(joined) == "frc_01" and len(joined) == 30

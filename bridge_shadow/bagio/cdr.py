@@ -17,6 +17,7 @@ blocks, one per (length, frame_id length): no Python work per message beyond ``l
 
 from __future__ import annotations
 
+import functools
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -145,8 +146,13 @@ def _decode_frames(chars: np.ndarray) -> np.ndarray | str:
     return text[inverse.ravel()]
 
 
+@functools.lru_cache(maxsize=256)
 def uniform_frames(text: str, n: int) -> np.ndarray:
-    """Return ``n`` times the frame_id ``text`` as a read-only ``(n,)`` object view (no copies)."""
+    """Return ``n`` times the frame_id ``text`` as a read-only ``(n,)`` object view (no copies).
+
+    Kept for the last few (text, n) asked (read-only, so shared safely): a live node's drains ask
+    for the same few again and again, and ``broadcast_to`` costs about ten microseconds.
+    """
     one = np.empty(1, dtype=object)
     one[0] = text
     return np.broadcast_to(one, (n,))
