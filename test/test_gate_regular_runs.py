@@ -153,6 +153,14 @@ def test_a_shadow_takes_a_regular_batch_whole_as_its_general_path_does() -> None
         note_taken(*args)
 
     fast.ledgers[0].note_taken = counted  # type: ignore[method-assign]
+    tested = [0]  # a batch is tested for regularity once, not again on the general path
+    regular = fast.gates[0]._regular
+
+    def counted_regular(*args: object) -> bool:
+        tested[0] += 1
+        return regular(*args)  # type: ignore[arg-type]
+
+    fast.gates[0]._regular = counted_regular  # type: ignore[method-assign]
     outs: dict[int, list] = {0: [], 1: []}
     for a, b in pairwise(cuts):
         for s in (fast, slow):
@@ -162,6 +170,7 @@ def test_a_shadow_takes_a_regular_batch_whole_as_its_general_path_does() -> None
             s.ingest_forces(1, stamps[a:b], values[a:b] * 0.9, "frc_02")
             outs[s is slow].extend(s.poll())
     assert taken[0] > 0.5 * (len(cuts) - 1)  # most chunks were taken whole
+    assert taken[0] < tested[0] <= len(cuts) - 1  # the others tested once each
     assert fast.counts == slow.counts and fast.used == slow.used and fast._first_ns == slow._first_ns
     for lf, ls in zip(fast.ledgers, slow.ledgers, strict=True):
         assert {k: v for k, v in vars(lf).items() if k != "note_taken"} == vars(ls)  # (the counter)

@@ -313,7 +313,7 @@ class Shadow:
                 self._first_ns = int(stamps[0])
             return stamps.copy(), values.copy()
         local: Counter = Counter()
-        ok = self.gates[i](stamps, values, frame_id, self._clock_span(), local)
+        ok = gate(stamps, values, frame_id, self._clock_span(), local, try_regular=False)  # (just tested)
         for since, until in self.gates[i].pop_frozen_heads():
             ok = self._take_back_frozen_head(i, stamps, ok, since, until, local)
         if local:

@@ -137,17 +137,19 @@ class TopicGate:
         frame_id: np.ndarray | str | None,
         clock_ns: tuple[int, int] | None,
         counts: Counter,
+        try_regular: bool = True,
     ) -> np.ndarray:
         """Return the boolean mask of accepted messages and add rejections to ``counts``.
 
         ``clock_ns`` is the span (first, latest) of accepted stamps over all topics, or None; a
         topic's first message must lie within ``clock_jump_s`` of it. A message held in an earlier
         call and accepted in this one is not in the mask: take it with ``pop_released`` (or use
-        ``with_released``), it comes before the messages accepted here.
+        ``with_released``), it comes before the messages accepted here. ``try_regular`` False:
+        the caller has just found the batch not regular (``take_regular``), not tested again.
         """
         stamps = np.asarray(stamp_ns, dtype=np.int64)
         vals = np.asarray(value, dtype=float)
-        if self.take_regular(stamps, vals, frame_id):
+        if try_regular and self.take_regular(stamps, vals, frame_id):
             return np.ones(len(vals), dtype=bool)
         ok = np.isfinite(vals)
         bad = int(np.count_nonzero(~ok))
