@@ -51,12 +51,20 @@ def _later_record(src: Path, out: Path, shift: dt.timedelta, step_m: np.ndarray)
         z.writestr(name, buf.getvalue().encode("cp1252"))
 
 
+@pytest.fixture(scope="module")
+def later(munich_data: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The later record's zip (the 10 mm record 230 min on, 10 mm lower): written once, read by each test."""
+    path = tmp_path_factory.mktemp("later") / LATER
+    _later_record(
+        munich_data / "Settlements" / LOWERED, path, dt.timedelta(minutes=230), np.array([-0.01, -0.01])
+    )
+    return path
+
+
 def test_a_later_record_in_its_own_zip_is_a_new_state_through_import_and_replay(
-    munich_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    munich_data: Path, later: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     folder = munich_data / "Settlements"
-    later = tmp_path / LATER
-    _later_record(folder / LOWERED, later, dt.timedelta(minutes=230), np.array([-0.01, -0.01]))
     bag = tmp_path / "day"
     args = ["import-csv", str(folder / REF), str(folder / LOWERED), str(later), str(folder / TEMPERATURE)]
     assert main([*args, "--out", str(bag)]) == 0
@@ -79,7 +87,7 @@ def test_a_later_record_in_its_own_zip_is_a_new_state_through_import_and_replay(
 
 
 def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_is_said(
-    munich_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    munich_data: Path, later: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A later record's bag replayed after one whose air ran past it: its loss is said.
 
@@ -91,8 +99,6 @@ def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_is_said(
     replay names both load cells, every message rejected as late, and why.
     """
     folder = munich_data / "Settlements"
-    later = tmp_path / LATER
-    _later_record(folder / LOWERED, later, dt.timedelta(minutes=230), np.array([-0.01, -0.01]))
     public, alone, ck = tmp_path / "public", tmp_path / "later", tmp_path / "ck"
     assert (
         main(
@@ -135,7 +141,7 @@ def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_is_said(
 
 
 def test_bags_imported_with_the_air_near_their_forces_chain_through_the_checkpoint(
-    munich_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    munich_data: Path, later: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """The same two bags imported with ``--air-near-forces``: the later record is the new state.
 
@@ -144,8 +150,6 @@ def test_bags_imported_with_the_air_near_their_forces_chain_through_the_checkpoi
     checkpoint, are taken: one event of -10 mm, the -20 mm state, no late message.
     """
     folder = munich_data / "Settlements"
-    later = tmp_path / LATER
-    _later_record(folder / LOWERED, later, dt.timedelta(minutes=230), np.array([-0.01, -0.01]))
     public, alone, ck = tmp_path / "public", tmp_path / "later", tmp_path / "ck"
     near = "--air-near-forces"
     args = [str(folder / REF), str(folder / LOWERED), str(folder / TEMPERATURE)]
