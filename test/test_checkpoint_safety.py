@@ -287,10 +287,35 @@ def test_replay_checkpoint_option_resumes_and_refuses_other_parameters(small_bag
     assert _digest(ckpt) == before
 
 
+@pytest.fixture(scope="module")
+def two_records(munich_data: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[object, dict]:
+    """The reference record and a record 4 h on, 20 mm lower, and ``replay --json`` of them as one bag.
+
+    Made once for both splits of the test below (the same bag and replay for each).
+    """
+    import contextlib
+    import io
+    import json
+
+    from bridge_shadow.model.surrogate_file import load_surrogate
+    from bridge_shadow.twin.real_records import Piece, build
+
+    sc = build(
+        munich_data / "Settlements",
+        load_surrogate().A,
+        [Piece("ref", 0.0), Piece("ref", 4.0, (-0.02, -0.02), 6.5)],
+    )
+    whole = write_monitoring(tmp_path_factory.mktemp("two_records") / "whole", sc.data)
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["replay", str(whole), "--json"]) == 0
+    return sc, json.loads(out.getvalue())
+
+
 @pytest.mark.realdata
 @pytest.mark.parametrize("split_h", [0.1, 4.07])
 def test_a_recording_split_into_bags_inside_a_record_replays_as_one(
-    munich_data: Path, tmp_path: Path, capsys, split_h: float
+    two_records: tuple, tmp_path: Path, capsys, split_h: float
 ) -> None:
     """The reference record and a record 4 h on, 20 mm lower, written as two bags split inside a record.
 
@@ -303,16 +328,8 @@ def test_a_recording_split_into_bags_inside_a_record_replays_as_one(
     """
     import json
 
-    from bridge_shadow.model.surrogate_file import load_surrogate
-    from bridge_shadow.twin.real_records import Piece, build
-
-    sc = build(
-        munich_data / "Settlements",
-        load_surrogate().A,
-        [Piece("ref", 0.0), Piece("ref", 4.0, (-0.02, -0.02), 6.5)],
-    )
+    sc, whole = two_records
     cut = int(sc.starts_ns[0] + split_h * 3600e9)
-    write_monitoring(tmp_path / "whole", sc.data)
     write_monitoring(tmp_path / "p1", sc.data.select(lambda t: t < cut))
     write_monitoring(tmp_path / "p2", sc.data.select(lambda t: t >= cut))
 
@@ -320,7 +337,6 @@ def test_a_recording_split_into_bags_inside_a_record_replays_as_one(
         assert main(["replay", *args, "--json"]) == 0
         return json.loads(capsys.readouterr().out)
 
-    whole = replay(str(tmp_path / "whole"))
     ckpt = str(tmp_path / "c.npz")
     replay(str(tmp_path / "p1"), "--checkpoint", ckpt)
     second = replay(str(tmp_path / "p2"), "--checkpoint", ckpt)
