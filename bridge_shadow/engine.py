@@ -73,7 +73,9 @@ def dask_client(
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError, ValueError) as err:
             raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({err})") from None
-        with client, _filtered(logging.getLogger("tornado.application"), _SyncCancelFailure()):
+        # the filter outlives the client: the interrupted call's cancel runs on the loop thread, at
+        # the latest before the client's close (the loop's callbacks run in order)
+        with _filtered(logging.getLogger("tornado.application"), _SyncCancelFailure()), client:
             yield client
         return
     n = workers if workers is not None else (os.cpu_count() or 1)
@@ -87,6 +89,10 @@ def dask_client(
     environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()}
     environ.pop("MALLOC_TRIM_THRESHOLD_", None)
     with (
+        # first, so removed last: the interrupted call's cancel runs on the loop thread, and the
+        # block's exit went on to remove the filter before it ran (a CI run under load printed
+        # distributed's traceback after the command's line); by the client's close it has run
+        _filtered(logging.getLogger("tornado.application"), _SyncCancelFailure()),
         dask.config.set(
             {
                 "distributed.nanny.pre-spawn-environ": environ,
@@ -114,7 +120,6 @@ def dask_client(
             **where,
         ) as cluster,
         Client(cluster) as client,
-        _filtered(logging.getLogger("tornado.application"), _SyncCancelFailure()),
     ):
         try:
             yield client
@@ -130,8 +135,9 @@ class _SyncCancelFailure(logging.Filter):
 
     On Ctrl-C distributed's ``sync()`` cancels its future from a loop callback that raises
     (``NameError: cannot access free variable 'future'``, a bug of distributed's); tornado logs it
-    with its traceback, 15 lines after the command's one, whenever the callback runs before the
-    interrupt reaches this process's handler (read by an interrupt test under load).
+    with its traceback, 15 lines after the command's one, whenever the call's coroutine had not
+    started. The callback runs on the loop thread, possibly after the interrupted block's exit
+    began: the filter is installed before the client and removed after its close.
     """
 
     def filter(self, record: logging.LogRecord) -> bool:
