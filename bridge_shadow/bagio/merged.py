@@ -32,7 +32,7 @@ from bridge_shadow.bagio.stream import DEFAULT_BATCH, MonitoringStream
 from bridge_shadow.contract import CHANNELS, INPUT_TOPICS
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
-__all__ = ["MergedStream", "joined_span", "open_monitoring"]
+__all__ = ["HeldStream", "MergedStream", "joined_span", "open_monitoring"]
 
 #: Per topic: (log_ns, stamp_ns, value columns ..., frame_id), all of one length.
 _Cols = tuple[np.ndarray, ...]
@@ -86,6 +86,35 @@ def _split(cols: _Cols, horizon: int | None) -> tuple[_Cols, _Cols]:
     return tuple(c[:i] for c in cols), tuple(c[i:] for c in cols)
 
 
+class HeldStream:
+    """Messages held in memory (a checkpoint's air past its bag's last force), read as a bag is.
+
+    Offers what ``MergedStream`` reads of a ``MonitoringStream``: one piece, its log-time span, the
+    input topics it holds and a context manager.
+    """
+
+    backend = ""
+
+    def __init__(self, piece: MonitoringData, names: Sequence[str]) -> None:
+        self.piece = piece
+        logs = [s.log_ns for s in piece.forces.values()] + [piece.temperature.log_ns]
+        logs = [x for x in logs if x is not None and len(x)]
+        self.first_ns = min(int(x[0]) for x in logs) if logs else None
+        self.last_ns = max(int(x[-1]) for x in logs) if logs else None
+        sizes = [len(piece.forces[ch]) for ch in CHANNELS] + [len(piece.temperature)]
+        self.present = frozenset(name for name, n in zip(names, sizes, strict=True) if n)
+
+    def __iter__(self) -> Iterator[MonitoringData]:
+        if self.first_ns is not None:
+            yield self.piece
+
+    def __enter__(self) -> HeldStream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+
 class MergedStream:
     """Several bags' input topics as one stream of ``MonitoringData`` pieces in arrival order.
 
@@ -95,9 +124,12 @@ class MergedStream:
         required: True (all three topics), False (none) or the contract names of those that must be
             in *some* bag.
         batch: messages per read of each bag.
+        held: messages held in memory, merged before the bags at equal log times (the air a
+            checkpoint kept past its bag's last force: ``replay.air_tail``); then ``paths`` may
+            name one bag.
 
     Attributes:
-        paths, streams: the bags and their open ``MonitoringStream`` s.
+        paths, streams: the bags and their open ``MonitoringStream`` s (``held`` first).
         first_ns, last_ns: log-time range over all the bags (None when all are empty).
         backend: the bags' back end, or theirs joined by ``+`` (in bag order) when they differ.
         present: the names of ``topics`` some bag holds.
@@ -116,6 +148,7 @@ class MergedStream:
         topics: Sequence[str] | None = None,
         required: bool | Collection[str] = True,
         batch: int = DEFAULT_BATCH,
+        held: MonitoringData | None = None,
     ) -> None:
         if not paths:
             raise ValueError("MergedStream needs at least one bag")
@@ -124,7 +157,11 @@ class MergedStream:
         self.names = names
         self.peak_pending = 0
         self._stack = ExitStack()
-        self.streams: list[MonitoringStream] = []
+        self.streams: list[MonitoringStream | HeldStream] = []
+        self._labels = [str(p) for p in self.paths]
+        if held is not None:
+            self.streams.append(HeldStream(held, names))
+            self._labels.insert(0, "the checkpoint's held air temperature")
         try:
             for p in self.paths:
                 try:
@@ -146,7 +183,7 @@ class MergedStream:
             self.close()
             raise
         self.first_ns, self.last_ns = joined_span([(s.first_ns, s.last_ns) for s in self.streams])
-        backends = list(dict.fromkeys(s.backend for s in self.streams))
+        backends = list(dict.fromkeys(s.backend for s in self.streams if s.backend))
         self.backend = "+".join(backends)
 
     def __iter__(self) -> Iterator[MonitoringData]:
@@ -166,7 +203,7 @@ class MergedStream:
             try:
                 piece = next(its[i], None)
             except BagError as err:
-                err.bag = str(self.paths[i])  # type: ignore[attr-defined]  # which of the bags failed
+                err.bag = self._labels[i]  # type: ignore[attr-defined]  # which of the bags failed
                 raise
             if piece is None:
                 active.remove(i)
@@ -225,11 +262,14 @@ def _empty(k: int) -> _Cols:
 
 
 def open_monitoring(
-    paths: str | Path | Sequence[str | Path], **kwargs: Any
+    paths: str | Path | Sequence[str | Path], held: MonitoringData | None = None, **kwargs: Any
 ) -> MonitoringStream | MergedStream:
-    """Open a ``MonitoringStream`` of one bag (a path or a sequence of one), a ``MergedStream`` of several."""
+    """Open a ``MonitoringStream`` of one bag (a path or a sequence of one), a ``MergedStream`` of several.
+
+    ``held``: messages in memory merged with the bags (``MergedStream``), also with one bag.
+    """
     if isinstance(paths, str | Path):
-        return MonitoringStream(paths, **kwargs)
-    if len(paths) == 1:
+        paths = [paths]
+    if len(paths) == 1 and held is None:
         return MonitoringStream(paths[0], **kwargs)
-    return MergedStream(paths, **kwargs)
+    return MergedStream(paths, held=held, **kwargs)

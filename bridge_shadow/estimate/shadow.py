@@ -80,7 +80,7 @@ from bridge_shadow.estimate.small import congruence, quad_inv
 from bridge_shadow.estimate.state.checkpoint import CheckpointError, restore, save_state
 from bridge_shadow.estimate.state.persistence import restore_shadow, shadow_state
 from bridge_shadow.model.surrogate_file import ModelCovariance, Surrogate, load_surrogate
-from bridge_shadow.series import MonitoringData
+from bridge_shadow.series import MonitoringData, TemperatureSeries
 
 #: An air temperature that moves between windows by more than ``AIR_JUMP_K`` plus
 #: ``AIR_RATE_K_PER_H`` per hour between them is no air (``Shadow._follow_air``): the largest
@@ -265,6 +265,12 @@ class Shadow:
         self._pending_refit: bool | None = None  # a scheduled refit not yet run: reselect lambda?
         self._lambda_at = 0
         self._ckpt_ns: int | None = None
+        #: no periodic checkpoint write while True (``replay_bag`` feeding the air past a bag's last
+        #: force after its checkpoint was written without it)
+        self.checkpoints_paused = False
+        #: air messages not yet fed, kept in the checkpoint: the air past the last force of the bag
+        #: whose replay wrote it (``replay.air_tail``); the next bag's replay merges them in
+        self.held_air: TemperatureSeries | None = None
         #: the last periodic checkpoint write that failed (data clock ns, why); None after a success
         self.checkpoint_failure: tuple[int, str] | None = None
         self._first_ns: int | None = None
@@ -1433,7 +1439,7 @@ class Shadow:
         return restore(path, config, surrogate, cls.from_state_dict)  # refuses unusable/incompatible files
 
     def _maybe_checkpoint(self) -> None:
-        if not self.config.checkpoint_path or self.clock_ns is None:
+        if not self.config.checkpoint_path or self.clock_ns is None or self.checkpoints_paused:
             return
         if self._ckpt_ns is None:
             self._ckpt_ns = self.clock_ns

@@ -50,5 +50,7 @@ def open_shadow(config: ShadowConfig, surrogate: Surrogate) -> tuple[Shadow, lis
     # messages, not windows: the rejected counts hold window reasons too (traffic)
     taken = sum(shadow.used.values()) + sum(n for r, n in shadow.rejected.items() if r in MESSAGE_REASONS)
     counts = f"{taken} messages, {shadow.n_windows} windows, {shadow.filter.n_updates} updates"
+    if shadow.held_air is not None:  # a replay's: the air past its bag's last force (``replay.air_tail``)
+        counts += f", {len(shadow.held_air)} air readings past its bag's last force held unfed"
     notes.append(f"resumed from {file}: {counts}")
     return shadow, notes

@@ -8,6 +8,8 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
+from bridge_shadow.contract import CHANNELS
+from bridge_shadow.replay.air_tail import AirTail, air_piece
 from bridge_shadow.replay.chunks import DEFAULT_CHUNK, FeedChunk, arrival_chunks
 from bridge_shadow.replay.feed import StreamReplay, feed_shadow
 from bridge_shadow.replay.outputs import OutputBag, WindowHistory
@@ -22,6 +24,12 @@ def _result(shadow: Any, stats: StreamReplay, outputs: list[Any]) -> Any:
     The same ``Shadow.result`` that ``Shadow.run`` uses (posterior, counts, events, warnings).
     """
     return shadow.result(outputs, stats.messages, stats.pipeline_s)
+
+
+def _add(stats: StreamReplay, more: StreamReplay) -> None:
+    """Add the counts and times of a later feed (the held air and the close) to ``stats``."""
+    for name in ("messages", "pipeline_s", "read_s", "write_s", "windows_out"):
+        setattr(stats, name, getattr(stats, name) + getattr(more, name))
 
 
 def replay_bag(
@@ -78,9 +86,14 @@ def replay_bag(
 
     t0 = time.perf_counter()
     config = shadow.config
+    # the air past the last force of the bag that wrote the checkpoint: merged with this bag's own
+    # messages by log time, as one replay of both bags reads them (``air_tail``)
+    held = shadow.held_air
+    held_piece = air_piece(held, CHANNELS) if held is not None and len(held) else None
     stream = open_monitoring(
-        bag, topics=config.input_topics(), batch=batch or DEFAULT_BATCH, required=required
+        bag, held=held_piece, topics=config.input_topics(), batch=batch or DEFAULT_BATCH, required=required
     )
+    shadow.held_air = None
     with stream:
         kept = WindowHistory(history) if history else None
         every: list[Any] = []
@@ -100,7 +113,9 @@ def replay_bag(
 
         open_s = time.perf_counter() - t0
         with ExitStack() as stack:
-            chunks: Iterable[FeedChunk] = arrival_chunks(stream, chunk)
+            # a checkpoint chain holds the air past the bag's last force (``air_tail``)
+            tail = AirTail(stream) if config.checkpoint_path else None
+            chunks: Iterable[FeedChunk] = arrival_chunks(tail if tail is not None else stream, chunk)
             reader = stack.enter_context(Prefetch(chunks)) if prefetch else None
             if sink is not None:
                 stack.enter_context(sink)
@@ -108,17 +123,36 @@ def replay_bag(
             # resumed from it goes on with the last record still open, as one replay of both bags
             # would (written after the close, a bag split inside a record lost the next bag's
             # first seconds of that window as `late`: 7022 messages of the real records split 0.1 h
-            # into the first record)
+            # into the first record); and before the air past the bag's last force, which it holds
+            # unfed for the next bag (fed, it closed windows hours past the record, and the next
+            # bag's forces before the air's end were `late`)
             at_close: list[int] = []
 
             def before_close() -> None:
                 at_close.extend((shadow.n_windows, shadow.n_updates))
-                if config.checkpoint_path:
-                    shadow.save_checkpoint()
 
             stats = feed_shadow(
-                shadow, reader if reader is not None else chunks, take, report, before_flush=before_close
+                shadow,
+                reader if reader is not None else chunks,
+                take,
+                report,
+                flush=tail is None,
+                before_flush=before_close,
             )
+            if tail is not None:
+                before_close()
+                shadow.held_air = tail.tail
+                try:
+                    shadow.save_checkpoint()
+                finally:
+                    shadow.held_air = None
+                # this bag's result goes on to the air's end; no periodic write replaces that checkpoint
+                shadow.checkpoints_paused = True
+                try:
+                    rest = arrival_chunks([air_piece(tail.tail, CHANNELS)], chunk) if tail.tail else []
+                    _add(stats, feed_shadow(shadow, rest, take, report))
+                finally:
+                    shadow.checkpoints_paused = False
             if at_close:
                 stats.closed_at_end = shadow.n_windows - at_close[0]
                 stats.updates_at_end = shadow.n_updates - at_close[1]

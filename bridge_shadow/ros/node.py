@@ -188,6 +188,13 @@ class ShadowNode(Node):
         surrogate = load_surrogate(cfg.surrogate_path or None)
         self._surrogate = surrogate
         self.shadow, notes = open_shadow(cfg, surrogate)
+        held = self.shadow.held_air
+        if held is not None:
+            # a replay's checkpoint holds the air past its bag's last force unfed (``replay.air_tail``):
+            # live data come after it, so it goes in first
+            self.shadow.held_air = None
+            self.shadow.ingest_temperature(held.stamp_ns, held.temp_c, held.frame_id)
+            notes.append(f"resumed with the checkpoint's {len(held)} air readings past its bag's last force")
         log = self.get_logger()
         for line in startup_lines(cfg, surrogate, params_files):
             log.info(line)

@@ -21,6 +21,7 @@ from bridge_shadow.estimate.inputs.closed_window import Window
 from bridge_shadow.estimate.inputs.gate import REASONS
 from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.model.surrogate_file import Surrogate
+from bridge_shadow.series import TemperatureSeries
 
 if TYPE_CHECKING:
     from bridge_shadow.estimate.shadow import Shadow
@@ -184,6 +185,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "silence": json.dumps(shadow.silence.state_dict()),
         "relax": json.dumps(shadow._relax),
         "air": json.dumps(shadow.air),
+        **({"held_air": _held_air(shadow.held_air)} if shadow.held_air is not None else {}),
         "scalars": {
             "last_usable_k": _opt(shadow._last_usable_k),
             "last_data_k": _opt(shadow._last_data_k),
@@ -201,6 +203,23 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "last_judged": shadow._last_judged,
         },
     }
+
+
+def _held_air(t: TemperatureSeries) -> dict[str, np.ndarray]:
+    """Return the air messages a checkpoint holds unfed (frame ids as strings: no pickle in the file)."""
+    return {
+        "stamp_ns": t.stamp_ns,
+        "temp_c": t.temp_c,
+        "variance": np.asarray(t.variance, float),
+        "frame_id": np.asarray(t.frame_id, dtype=str),
+        "log_ns": np.asarray(t.log_ns, np.int64),
+    }
+
+
+def _restore_held_air(d: dict[str, Any]) -> TemperatureSeries:
+    frames = np.asarray(d["frame_id"]).ravel().astype(object)
+    arrays = [np.asarray(d[k]).ravel() for k in ("stamp_ns", "temp_c", "variance")]
+    return TemperatureSeries(*arrays, frames, np.asarray(d["log_ns"]).ravel())
 
 
 def restore_shadow(
@@ -343,6 +362,8 @@ def restore_shadow(
         shadow._relax = None if rl is None else (int(rl[0]), float(rl[1]), float(rl[2]))
     if "air" in state:  # checkpoints written before the air's jumps were followed have none
         shadow.air = json.loads(str(state["air"]))
+    if "held_air" in state:
+        shadow.held_air = _restore_held_air(state["held_air"])
     sc = state["scalars"]
     shadow._last_usable_k = _unopt(sc["last_usable_k"])
     # checkpoints written before logger outages were marked have neither

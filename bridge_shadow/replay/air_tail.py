@@ -1,0 +1,115 @@
+"""The air temperature past a bag's last force: held back for a checkpoint chain, fed with the next bag.
+
+A bag of one record often carries the whole day's air temperature (``import-csv`` of a record
+with the day's temperature file). Replayed with ``--checkpoint``, that air, hours past the
+record's last force, moved the window clock on (a force channel silent while the air flows closes
+its windows live), and the next bag's forces, earlier than the air's end, were all ``late``: a
+chain of ``replay --checkpoint`` lost the later records that one ``replay BAG BAG`` of the same
+bags, read merged by log time, keeps.
+
+``AirTail`` passes a stream's pieces on in arrival order but holds the air messages after the last
+force seen so far; they go on, as a piece of their own, just before the next piece with forces.
+What is held when the stream ends (``tail``) is the run past the bag's last force. ``replay_bag``
+writes the checkpoint before feeding it (the state after the last force, the tail beside it),
+then feeds it and closes the windows for this bag's own result. The next bag's replay merges the
+checkpoint's tail with its own messages by log time (``bagio.merged.MergedStream``'s ``held``),
+so the chain reads what one merged replay of both bags reads, in the same order.
+
+Re-cutting into chunks happens after this (``arrival_chunks``), so holding air between pieces
+changes no chunk but the last: the shadow's calls are those of a replay without it, up to where
+the tail begins.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+
+import numpy as np
+
+from bridge_shadow.bagio.cdr import concat_frames
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+__all__ = ["HELD_AIR_LIMIT", "AirTail", "air_piece", "split_air"]
+
+#: Most air messages held at once (23 days at 1 Hz). Past it the held air goes on to the shadow,
+#: and a checkpoint can hold only what came after: a longer air-only run is no bag of a record.
+HELD_AIR_LIMIT = 2_000_000
+
+
+def split_air(t: TemperatureSeries, from_log_ns: int) -> tuple[TemperatureSeries, TemperatureSeries]:
+    """Return (messages of ``t`` with log time < ``from_log_ns``, the others), each in its order."""
+    keep = np.asarray(t.log_ns) < from_log_ns
+    return _part(t, keep), _part(t, ~keep)
+
+
+def _part(t: TemperatureSeries, m: np.ndarray) -> TemperatureSeries:
+    return TemperatureSeries(t.stamp_ns[m], t.temp_c[m], t.variance[m], t.frame_id[m], t.log_ns[m])  # type: ignore[index]
+
+
+def _join(parts: list[TemperatureSeries]) -> TemperatureSeries:
+    if len(parts) == 1:
+        return parts[0]
+    fields = ("stamp_ns", "temp_c", "variance", "log_ns")
+    cat = [np.concatenate([getattr(p, f) for p in parts]) for f in fields]
+    return TemperatureSeries(cat[0], cat[1], cat[2], concat_frames([p.frame_id for p in parts]), cat[3])
+
+
+def air_piece(t: TemperatureSeries, channels: Iterable[str]) -> MonitoringData:
+    """Return a ``MonitoringData`` piece holding the air messages ``t`` and no forces."""
+    none = np.empty(0, np.int64)
+    forces = {ch: ForceSeries(none, np.empty(0), np.empty(0, dtype=object), none) for ch in channels}
+    return MonitoringData(forces, t)
+
+
+class AirTail:
+    """Pieces of a stream in arrival order, the air after the last force held until forces follow.
+
+    Args:
+        pieces: ``MonitoringData`` pieces, each wholly before the next in arrival order (log time,
+            then frc_01, frc_02, air temperature).
+        limit: most air messages held at once (``HELD_AIR_LIMIT``).
+
+    Attributes:
+        tail: once iterated to the end, the air messages after the stream's last force (None when
+            there are none, or none was held because the stream has no force at all).
+        released: air messages that went on past ``limit`` with no force after them yet.
+
+    """
+
+    def __init__(self, pieces: Iterable[MonitoringData], limit: int = HELD_AIR_LIMIT) -> None:
+        self._pieces = pieces
+        self.limit = int(limit)
+        self.tail: TemperatureSeries | None = None
+        self.released = 0
+        self._channels: list[str] = []
+
+    def __iter__(self) -> Iterator[MonitoringData]:
+        held: list[TemperatureSeries] = []
+        n_held = 0
+        seen_force = False
+        for piece in self._pieces:
+            self._channels = list(piece.forces)
+            logs = [f.log_ns for f in piece.forces.values() if len(f)]
+            if not logs:  # air only: held while a force has come before it
+                if not seen_force or not len(piece.temperature):
+                    yield piece
+                    continue
+                held.append(piece.temperature)
+                n_held += len(piece.temperature)
+                if n_held > self.limit:
+                    self.released += n_held
+                    yield air_piece(_join(held), self._channels)
+                    held, n_held = [], 0
+                continue
+            seen_force = True
+            if held:
+                yield air_piece(_join(held), self._channels)
+                held, n_held = [], 0
+            # at one log time the air comes after the forces: from the last force's time on, it is past them
+            last = max(int(x[-1]) for x in logs)
+            before, after = split_air(piece.temperature, last)
+            yield MonitoringData(piece.forces, before)
+            if len(after):
+                held.append(after)
+                n_held += len(after)
+        self.tail = _join(held) if held else None

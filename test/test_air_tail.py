@@ -1,0 +1,202 @@
+"""The air past a bag's last force is held for a checkpoint chain: one merged replay's answer, nothing late.
+
+``replay.air_tail.AirTail`` passes a stream's pieces on in arrival order, holding the air after the
+last force seen until forces follow; ``replay_bag`` writes a chain's checkpoint before the held
+tail and keeps the tail in it; the next bag's replay merges it with its own bag
+(``MergedStream(held=...)``). The real records' case (the public records' bag with the day's air,
+then a later record's bag) is in ``test_later_records_cli.py``; here the pieces, the merge and a
+chain cut in small reads and chunks, with periodic checkpoint writes that must not replace the
+held tail's.
+"""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bridge_shadow.bagio import write_monitoring
+from bridge_shadow.bagio.merged import MergedStream
+from bridge_shadow.contract import CHANNELS
+from bridge_shadow.estimate import Shadow, ShadowConfig
+from bridge_shadow.model.surrogate_file import placeholder_surrogate
+from bridge_shadow.replay import replay_bag
+from bridge_shadow.replay.air_tail import AirTail, air_piece
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+T0 = 1_700_000_040 * 10**9
+S = 10**9
+
+
+def _arrival(pieces: list[MonitoringData]) -> list[tuple[int, int, int, float]]:
+    """Every message of ``pieces`` as (log_ns, topic, stamp_ns, value), in arrival order."""
+    out = []
+    for p in pieces:
+        msgs = []
+        for k, ch in enumerate(CHANNELS):
+            f = p.forces[ch]
+            msgs += [
+                (int(lg), k, int(s), float(v))
+                for lg, s, v in zip(f.log_ns, f.stamp_ns, f.force_n, strict=True)
+            ]
+        t = p.temperature
+        msgs += [
+            (int(lg), 2, int(s), float(v)) for lg, s, v in zip(t.log_ns, t.stamp_ns, t.temp_c, strict=True)
+        ]
+        out += sorted(msgs, key=lambda m: (m[0], m[1]))
+    return out
+
+
+def _pieces(rng: np.random.Generator) -> list[MonitoringData]:
+    """Pieces of a stream: forces for a while, air throughout and beyond, some pieces air only."""
+    logs_f = np.sort(rng.choice(np.arange(0, 400), 120, replace=False)) * S
+    logs_a = np.arange(0, 900, 7) * S
+    logs_a[5] = logs_f[-1]  # an air reading at the last force's log time comes after it
+    logs_a.sort()
+    cuts = [0, 100, 250, 380, 500, 700, 900]
+    pieces = []
+    for a, b in itertools.pairwise(cuts):
+        f = logs_f[(logs_f >= a * S) & (logs_f < b * S)]
+        t = logs_a[(logs_a >= a * S) & (logs_a < b * S)]
+        forces = {
+            ch: ForceSeries(f, rng.normal(size=len(f)), np.full(len(f), ch, dtype=object), f)
+            for ch in CHANNELS
+        }
+        pieces.append(MonitoringData(forces, TemperatureSeries(t, rng.normal(size=len(t)), log_ns=t)))
+    return pieces
+
+
+def test_the_air_past_the_last_force_is_held_and_everything_else_goes_on_in_arrival_order() -> None:
+    rng = np.random.default_rng(3)
+    pieces = _pieces(rng)
+    tail = AirTail(pieces)
+    passed = list(tail)
+    assert tail.tail is not None and tail.released == 0
+    last_force = max(int(p.forces[ch].log_ns[-1]) for p in pieces for ch in CHANNELS if len(p.forces[ch]))
+    # the tail: every air message from the last force's log time on, nothing else
+    air = np.concatenate([p.temperature.log_ns for p in pieces])
+    np.testing.assert_array_equal(tail.tail.log_ns, air[air >= last_force])
+    # what went on, then the tail, is the stream in its arrival order, message for message
+    whole = _arrival(pieces)
+    assert _arrival([*passed, air_piece(tail.tail, CHANNELS)]) == whole
+    assert max(m[0] for m in _arrival(passed)) <= last_force
+    # air held between forces goes on before the next forces (the two air-only pieces of 100-250 s
+    # would be held only if no force came after them; here forces do)
+    assert all(p.n_messages for p in passed)
+
+
+def test_air_past_the_limit_goes_on_and_only_the_rest_is_held() -> None:
+    pieces = _pieces(np.random.default_rng(4))
+    tail = AirTail(pieces, limit=30)
+    passed = list(tail)
+    assert tail.released > 30
+    assert _arrival([*passed, air_piece(tail.tail, CHANNELS)]) == _arrival(pieces)
+    assert len(tail.tail) < 31
+
+
+def test_a_stream_without_forces_holds_nothing() -> None:
+    t = np.arange(10, dtype=np.int64) * S
+    none = np.empty(0, np.int64)
+    piece = MonitoringData(
+        {ch: ForceSeries(none, np.empty(0), np.empty(0, dtype=object), none) for ch in CHANNELS},
+        TemperatureSeries(t, np.ones(10), log_ns=t),
+    )
+    tail = AirTail([piece])
+    assert [p.n_messages for p in tail] == [10] and tail.tail is None
+
+
+def _record(start_s: int, minutes: int, step_m: np.ndarray, air_h: float, seed: int) -> MonitoringData:
+    """A record of forces every 10 s from ``start_s`` on, and the air every minute for ``air_h`` hours."""
+    rng = np.random.default_rng(seed)
+    sur = placeholder_surrogate()
+    stamps = T0 + (start_s + np.arange(minutes * 6, dtype=np.int64) * 10) * S
+    forces = sur.reactions(step_m) + rng.normal(0.0, 60.0, (len(stamps), 2))
+    t_stamps = T0 + np.arange(int(air_h * 60), dtype=np.int64) * 60 * S  # the day's air, from its start
+    temp = 8.0 + 2.0 * np.sin(np.arange(len(t_stamps)) / 200.0)
+    return MonitoringData.from_arrays(stamps, forces, t_stamps, temp)
+
+
+@pytest.fixture(scope="module")
+def day(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """Two bags of one day, each with the day's whole air (6 h): a record at 0 h, a lower one at 2 h."""
+    root = tmp_path_factory.mktemp("air_tail")
+    one = write_monitoring(root / "one", _record(0, 30, np.array([2e-4, -1e-4]), 6.0, 1))
+    two = write_monitoring(root / "two", _record(7200, 30, np.array([-8e-3, -8e-3]), 6.0, 2))
+    return one, two
+
+
+def test_merging_the_held_air_is_merging_the_bag_it_came_from(day: tuple[Path, Path]) -> None:
+    one, two = day
+    from bridge_shadow.bagio.reader import read_monitoring
+
+    air = read_monitoring(one).temperature
+    held = air_piece(air, CHANNELS)
+    with MergedStream([two], held=held, batch=97) as with_held, MergedStream([one, two], batch=97) as both:
+        got, want = list(with_held), list(both)
+        assert with_held.first_ns == both.first_ns and with_held.last_ns == both.last_ns
+    only_air = [m for m in _arrival(want) if m[1] == 2 or m[2] >= T0 + 7200 * S]  # bag one's forces out
+    assert _arrival(got) == only_air
+
+
+def test_a_checkpoint_chain_of_bags_whose_air_runs_past_their_forces_is_one_merged_replay(
+    day: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """Replay one bag, then the other through the checkpoint: the merged replay's posterior, nothing late.
+
+    Reads of 97 messages and chunks of 50 put the held air in many pieces; a periodic checkpoint
+    every minute of data would, while the tail is fed for the first bag's own result, replace the
+    checkpoint holding it (the chain then lost the second record: all its forces late).
+    """
+    one, two = day
+    sur = placeholder_surrogate()
+    cfg = ShadowConfig(warmup_windows=5, window_min_samples=2)
+    chained = cfg.replace(checkpoint_path=str(tmp_path / "ck.npz"), checkpoint_period_s=60.0)
+    first, _ = replay_bag(one, Shadow(chained, sur), batch=97, chunk=50)
+    alone, _ = replay_bag(one, Shadow(cfg, sur), batch=97, chunk=50)
+    np.testing.assert_allclose(first.mean_m, alone.mean_m, rtol=1e-12)
+    resumed = Shadow.resume(chained.checkpoint_path, chained, sur)
+    assert resumed.held_air is not None and len(resumed.held_air) > 200  # 5.5 h of the air past the record
+    second, _ = replay_bag(two, resumed, batch=97, chunk=50)
+    merged, _ = replay_bag([one, two], Shadow(cfg, sur), batch=97, chunk=50)
+    assert second.rejected["late"] == 0 and merged.rejected["late"] == 0
+    assert second.used["frc_01"] == merged.used["frc_01"] == 360  # both records' forces, all taken
+    np.testing.assert_allclose(second.mean_m, merged.mean_m, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(second.covariance_m2, merged.covariance_m2, rtol=1e-9, atol=1e-16)
+    assert np.all(np.abs(second.mean_m + 8e-3) < 1e-3)  # the second record's state
+
+
+def test_a_node_resumed_from_a_chains_checkpoint_takes_the_held_air_first(
+    day: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """A node started on a replay's checkpoint ingests the air the replay held, before any live data.
+
+    Live data come after the checkpoint's, so the node cannot merge; it takes the held air at
+    once (its windows close at the first poll) and says so, instead of dropping it.
+    """
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from bridge_shadow.cli import main
+    from bridge_shadow.ros.node import ShadowNode
+
+    one, _ = day
+    ck = tmp_path / "ck.npz"
+    assert main(["replay", str(one), "--checkpoint", str(ck)]) == 0
+    held = Shadow.resume(ck).held_air
+    assert held is not None and len(held) > 200
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = ShadowNode(context=context, parameter_overrides=[Parameter("checkpoint_path", value=str(ck))])
+        try:
+            assert node.shadow.held_air is None
+            before = Shadow.resume(ck).used["air_temperature"]
+            assert node.shadow.used["air_temperature"] == before + len(held)
+            clock = node.shadow.clock_ns
+            assert clock is not None and clock >= int(held.stamp_ns[-1])
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
