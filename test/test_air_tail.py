@@ -200,3 +200,24 @@ def test_a_node_resumed_from_a_chains_checkpoint_takes_the_held_air_first(
             node.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_shadow_run_holds_and_merges_the_air_as_replay_bag_does(
+    day: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """The in-memory ``Shadow.run`` chain: the same checkpoint tail, the merged replay's answer."""
+    from bridge_shadow.bagio.reader import read_monitoring
+
+    one, two = day
+    sur = placeholder_surrogate()
+    cfg = ShadowConfig(warmup_windows=5, window_min_samples=2)
+    chained = cfg.replace(checkpoint_path=str(tmp_path / "ck.npz"), checkpoint_period_s=60.0)
+    Shadow(chained, sur).run(read_monitoring(one), chunk=50)
+    resumed = Shadow.resume(chained.checkpoint_path, chained, sur)
+    assert resumed.held_air is not None and len(resumed.held_air) > 200
+    second = resumed.run(read_monitoring(two), chunk=50)
+    assert resumed.held_air is None  # fed, not saved again
+    merged, _ = replay_bag([one, two], Shadow(cfg, sur), batch=97, chunk=50)
+    assert second.rejected["late"] == 0 and second.used["frc_01"] == 360
+    np.testing.assert_allclose(second.mean_m, merged.mean_m, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(second.covariance_m2, merged.covariance_m2, rtol=1e-9, atol=1e-16)

@@ -110,6 +110,17 @@ _RANGE_MARGIN_K = 0.5
 RECENT_REJECTED = 50
 
 
+def _with_air_first(data: MonitoringData, held: TemperatureSeries) -> MonitoringData:
+    """Return ``data`` with the air ``held`` merged in by log time (``held`` first at equal times)."""
+    t = data.temperature
+    fields = ("log_ns", "stamp_ns", "temp_c", "variance")
+    cols = [np.concatenate([getattr(held, f), getattr(t, f)]) for f in fields]
+    order = np.argsort(cols[0], kind="stable")
+    frames = np.concatenate([np.asarray(held.frame_id, object), np.asarray(t.frame_id, object)])[order]
+    log, stamp, temp, var = (c[order] for c in cols)
+    return MonitoringData(data.forces, TemperatureSeries(stamp, temp, var, frames, log))
+
+
 def _sun_var(w: Window) -> float:
     """Return the variance of window ``w``'s sun covariate (0 without temperature: no curve, no sun term)."""
     return w.svar if w.i0[0] >= 0 else 0.0
@@ -1465,8 +1476,16 @@ class Shadow:
         progress: Callable[[float], None] | None = None,
         flush: bool = True,
     ) -> ReplayResult:
-        """Feed ``data`` in arrival (log time) order, ``chunk`` messages per call; return the result."""
+        """Feed ``data`` in arrival (log time) order, ``chunk`` messages per call; return the result.
+
+        As ``replay.replay_bag``: air a resumed checkpoint holds (``held_air``) is merged in by log
+        time, and with ``checkpoint_path`` the checkpoint is written before the air past the data's
+        last force and holds it (``replay.air_tail``).
+        """
         t0 = time.perf_counter()
+        if self.held_air is not None:
+            data = _with_air_first(data, self.held_air)
+            self.held_air = None
         series = [data.forces[ch] for ch in CHANNELS]
         temp = data.temperature
         logs = [s.log_ns for s in series] + [temp.log_ns]
@@ -1478,8 +1497,15 @@ class Shadow:
         topic, pos = topic[order], pos[order]
         outputs: list[WindowOutput] = []
         chunk = max(int(chunk), 1)
-        for start in range(0, total, chunk):
-            t_chunk, p_chunk = topic[start : start + chunk], pos[start : start + chunk]
+        # arrival positions [0, head) go first; [head, total) is the air past the last force
+        forces_at = np.flatnonzero(topic < 2)
+        holding = flush and bool(self.config.checkpoint_path)
+        head = int(forces_at[-1]) + 1 if holding and len(forces_at) else total
+        for start in [*range(0, head, chunk), *range(head, total, chunk)]:
+            stop = min(start + chunk, head if start < head else total)
+            if start == head:
+                self._save_holding(temp, pos[head:total])
+            t_chunk, p_chunk = topic[start:stop], pos[start:stop]
             for i in range(3):
                 sel = p_chunk[t_chunk == i]
                 if not len(sel):
@@ -1493,11 +1519,28 @@ class Shadow:
                     self.ingest_temperature(temp.stamp_ns[sl], temp.temp_c[sl], temp.frame_id[sl])
             outputs.extend(self.poll())
             if progress is not None:
-                progress(min(start + chunk, total) / max(total, 1))
+                progress(stop / max(total, 1))
         if flush:
             # the state before the end-of-data close: a run resumed from it goes on with the
             # records still open, as one run over both would (``replay.bag.replay_bag``)
-            if self.config.checkpoint_path:
+            if holding and head == total:
                 self.save_checkpoint()
+            self.checkpoints_paused = False
             outputs.extend(self.flush())
         return self.result(outputs, total, time.perf_counter() - t0)
+
+    def _save_holding(self, temp: TemperatureSeries, at: np.ndarray) -> None:
+        """Write the checkpoint holding the air messages ``temp[at]`` unfed; pause periodic writes."""
+        held = TemperatureSeries(
+            temp.stamp_ns[at],
+            temp.temp_c[at],
+            temp.variance[at],  # type: ignore[index]
+            temp.frame_id[at],
+            temp.log_ns[at],  # type: ignore[index]
+        )
+        self.held_air = held
+        try:
+            self.save_checkpoint()
+        finally:
+            self.held_air = None
+        self.checkpoints_paused = True
