@@ -119,16 +119,17 @@ def _record(start_s: int, minutes: int, step_m: np.ndarray, air_h: float, seed: 
 
 
 @pytest.fixture(scope="module")
-def day(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """Two bags of one day, each with the day's whole air (6 h): a record at 0 h, a lower one at 2 h."""
+def day(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
+    """Three bags of one day, each with the day's whole air (6 h): records at 0 h, 2 h and 4 h, lowered."""
     root = tmp_path_factory.mktemp("air_tail")
     one = write_monitoring(root / "one", _record(0, 30, np.array([2e-4, -1e-4]), 6.0, 1))
     two = write_monitoring(root / "two", _record(7200, 30, np.array([-8e-3, -8e-3]), 6.0, 2))
-    return one, two
+    three = write_monitoring(root / "three", _record(14400, 30, np.array([-1.6e-2, -1.6e-2]), 6.0, 3))
+    return one, two, three
 
 
-def test_merging_the_held_air_is_merging_the_bag_it_came_from(day: tuple[Path, Path]) -> None:
-    one, two = day
+def test_merging_the_held_air_is_merging_the_bag_it_came_from(day: tuple[Path, Path, Path]) -> None:
+    one, two, _ = day
     from bridge_shadow.bagio.reader import read_monitoring
 
     air = read_monitoring(one).temperature
@@ -141,34 +142,37 @@ def test_merging_the_held_air_is_merging_the_bag_it_came_from(day: tuple[Path, P
 
 
 def test_a_checkpoint_chain_of_bags_whose_air_runs_past_their_forces_is_one_merged_replay(
-    day: tuple[Path, Path], tmp_path: Path
+    day: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    """Replay one bag, then the other through the checkpoint: the merged replay's posterior, nothing late.
+    """Replay the bags one after the other through the checkpoint: the merged replay's answer, nothing late.
 
     Reads of 97 messages and chunks of 50 put the held air in many pieces; a periodic checkpoint
-    every minute of data would, while the tail is fed for the first bag's own result, replace the
-    checkpoint holding it (the chain then lost the second record: all its forces late).
+    every minute of data would, while the tail is fed for a bag's own result, replace the
+    checkpoint holding it (the chain then lost the next record: all its forces late). The second
+    bag's tail holds the first bag's held air and its own copy of it (the day's air is in every
+    bag): the third bag's replay rejects the copies as the merged replay does.
     """
-    one, two = day
     sur = placeholder_surrogate()
     cfg = ShadowConfig(warmup_windows=5, window_min_samples=2)
     chained = cfg.replace(checkpoint_path=str(tmp_path / "ck.npz"), checkpoint_period_s=60.0)
-    first, _ = replay_bag(one, Shadow(chained, sur), batch=97, chunk=50)
-    alone, _ = replay_bag(one, Shadow(cfg, sur), batch=97, chunk=50)
+    first, _ = replay_bag(day[0], Shadow(chained, sur), batch=97, chunk=50)
+    alone, _ = replay_bag(day[0], Shadow(cfg, sur), batch=97, chunk=50)
     np.testing.assert_allclose(first.mean_m, alone.mean_m, rtol=1e-12)
-    resumed = Shadow.resume(chained.checkpoint_path, chained, sur)
-    assert resumed.held_air is not None and len(resumed.held_air) > 200  # 5.5 h of the air past the record
-    second, _ = replay_bag(two, resumed, batch=97, chunk=50)
-    merged, _ = replay_bag([one, two], Shadow(cfg, sur), batch=97, chunk=50)
-    assert second.rejected["late"] == 0 and merged.rejected["late"] == 0
-    assert second.used["frc_01"] == merged.used["frc_01"] == 360  # both records' forces, all taken
-    np.testing.assert_allclose(second.mean_m, merged.mean_m, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(second.covariance_m2, merged.covariance_m2, rtol=1e-9, atol=1e-16)
-    assert np.all(np.abs(second.mean_m + 8e-3) < 1e-3)  # the second record's state
+    for k, bag in enumerate(day[1:], start=2):
+        resumed = Shadow.resume(chained.checkpoint_path, chained, sur)
+        assert resumed.held_air is not None and len(resumed.held_air) > 100  # the air past the record
+        last, _ = replay_bag(bag, resumed, batch=97, chunk=50)
+        merged, _ = replay_bag(list(day[:k]), Shadow(cfg, sur), batch=97, chunk=50)
+        assert last.rejected["late"] == 0 and merged.rejected["late"] == 0
+        assert last.used["frc_01"] == merged.used["frc_01"] == 180 * k  # every record's forces, all taken
+        assert sum(last.rejected.values()) == sum(merged.rejected.values())
+        np.testing.assert_allclose(last.mean_m, merged.mean_m, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(last.covariance_m2, merged.covariance_m2, rtol=1e-9, atol=1e-16)
+    assert np.all(np.abs(last.mean_m + 1.6e-2) < 1e-3)  # the last record's state
 
 
 def test_a_node_resumed_from_a_chains_checkpoint_takes_the_held_air_first(
-    day: tuple[Path, Path], tmp_path: Path
+    day: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
     """A node started on a replay's checkpoint ingests the air the replay held, before any live data.
 
@@ -181,7 +185,7 @@ def test_a_node_resumed_from_a_chains_checkpoint_takes_the_held_air_first(
     from bridge_shadow.cli import main
     from bridge_shadow.ros.node import ShadowNode
 
-    one, _ = day
+    one = day[0]
     ck = tmp_path / "ck.npz"
     assert main(["replay", str(one), "--checkpoint", str(ck)]) == 0
     held = Shadow.resume(ck).held_air
@@ -203,12 +207,12 @@ def test_a_node_resumed_from_a_chains_checkpoint_takes_the_held_air_first(
 
 
 def test_shadow_run_holds_and_merges_the_air_as_replay_bag_does(
-    day: tuple[Path, Path], tmp_path: Path
+    day: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
     """The in-memory ``Shadow.run`` chain: the same checkpoint tail, the merged replay's answer."""
     from bridge_shadow.bagio.reader import read_monitoring
 
-    one, two = day
+    one, two, _ = day
     sur = placeholder_surrogate()
     cfg = ShadowConfig(warmup_windows=5, window_min_samples=2)
     chained = cfg.replace(checkpoint_path=str(tmp_path / "ck.npz"), checkpoint_period_s=60.0)
