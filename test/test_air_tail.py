@@ -225,3 +225,26 @@ def test_shadow_run_holds_and_merges_the_air_as_replay_bag_does(
     assert second.rejected["late"] == 0 and second.used["frc_01"] == 360
     np.testing.assert_allclose(second.mean_m, merged.mean_m, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(second.covariance_m2, merged.covariance_m2, rtol=1e-9, atol=1e-16)
+
+
+def test_the_replay_says_what_the_checkpoint_holds_and_the_next_run_counts_it(
+    day: tuple[Path, Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``windows.at_end.held_air`` and its text line; the next run's ``resumed.held_air``; counts add up."""
+    import json
+
+    from bridge_shadow.cli import main
+    from bridge_shadow.commands.replay import _summary
+
+    ck = str(tmp_path / "ck.npz")
+    assert main(["replay", str(day[0]), "--checkpoint", ck, "--json"]) == 0
+    first = json.loads(capsys.readouterr().out)
+    held = Shadow.resume(ck).held_air
+    assert held is not None and first["windows"]["at_end"]["held_air"] == len(held) > 200
+    assert f"holds the {len(held)} air readings past the last force unfed" in _summary(first)
+    assert main(["replay", str(day[1]), "--checkpoint", ck, "--json"]) == 0
+    second = json.loads(capsys.readouterr().out)
+    assert second["resumed"]["held_air"] == len(held)
+    msgs = second["messages"]
+    assert msgs["used"] + msgs["rejected"] == msgs["total"]  # the held air is read, and counted, this run
+    assert f"{len(held)} air readings held" in _summary(second)

@@ -209,6 +209,7 @@ def test_a_resumed_replay_counts_this_run(root, tmp_path) -> None:
         "windows": fresh["windows"]["closed"] - closed,
         "updates": fresh["windows"]["updates"] - updates,
         "messages_used": fresh["messages"]["used"],
+        "held_air": fresh["windows"]["at_end"]["held_air"],
     }
     # the posterior is the checkpoint's (the end-of-record refit runs once more: rounding)
     np.testing.assert_allclose(again["posterior"]["mean_m"], fresh["posterior"]["mean_m"], rtol=1e-9)

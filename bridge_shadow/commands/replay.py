@@ -117,7 +117,9 @@ def _summary(js: dict[str, Any]) -> str:
         *(
             [
                 f"resumed from a checkpoint of {resumed['windows']} windows ({resumed['updates']} updates, "
-                f"{resumed['messages_used']} messages used): the counts below are this run's"
+                f"{resumed['messages_used']} messages used"
+                + (f", {resumed['held_air']} air readings held" if resumed.get("held_air") else "")
+                + "): the counts below are this run's"
             ]
             if resumed
             else []
@@ -391,7 +393,11 @@ def run(args: argparse.Namespace) -> int:
     if config.checkpoint_path:
         # the checkpoint holds the state before the end-of-data close: the next bag's run closes
         # these windows again and counts them too (a chain's windows add up less these)
-        js["windows"]["at_end"] = {"closed": stats.closed_at_end, "updates": stats.updates_at_end}
+        js["windows"]["at_end"] = {
+            "closed": stats.closed_at_end,
+            "updates": stats.updates_at_end,
+            "held_air": stats.held_air,
+        }
     js["bag"] = str(bags[0])
     if len(bags) > 1:
         js["bags"] = [str(b) for b in bags]  # read merged by log time
@@ -410,9 +416,11 @@ def _at_end_line(at_end: dict[str, int] | None) -> list[str]:
     """Say what the end-of-data close did, which a replay resumed from the checkpoint does again."""
     if not at_end or not (at_end["closed"] or at_end["updates"]):
         return []
+    held = at_end.get("held_air", 0)
+    air = f" and holds the {held} air readings past the last force unfed" if held else ""
     return [
         f"  of them at the end of the data: {at_end['closed']} closed, {at_end['updates']} updates "
-        "(the checkpoint holds the state before: the next bag's replay makes them again, with its data)"
+        f"(the checkpoint holds the state before{air}: the next bag's replay makes them again, with its data)"
     ]
 
 
@@ -433,6 +441,7 @@ def _counts(shadow: Any) -> dict[str, Any]:
         "rejected": dict(shadow.rejected),
         "windows": int(shadow.n_windows),
         "updates": int(shadow.n_updates),
+        "held_air": len(shadow.held_air) if shadow.held_air is not None else 0,
         "uncompensated": int(shadow.uncompensated),
         "stale_temperature": int(shadow.stale_temperature),
     }
@@ -481,6 +490,7 @@ def _this_run(js: dict[str, Any], before: dict[str, Any]) -> None:
         "windows": before["windows"],
         "updates": before["updates"],
         "messages_used": int(sum(before["used"].values())),
+        "held_air": before["held_air"],  # fed this run, merged with the bag (counted in its messages)
     }
 
 

@@ -141,6 +141,7 @@ def replay_bag(
             )
             if tail is not None:
                 before_close()
+                stats.held_air = len(tail.tail) if tail.tail is not None else 0
                 shadow.held_air = tail.tail
                 try:
                     shadow.save_checkpoint()

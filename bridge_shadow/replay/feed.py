@@ -30,6 +30,8 @@ class StreamReplay:
         backend: how the bag was read (``sqlite3``, ``mcap`` or ``rosbags``).
         closed_at_end, updates_at_end: windows closed and updates made by the end-of-data close
             (``replay_bag``): a replay resumed from a checkpoint written before it makes them again.
+        held_air: air messages past the last force that the checkpoint holds unfed (``air_tail``);
+            fed for this result too, and again, merged, by the next bag's replay.
 
     """
 
@@ -42,6 +44,7 @@ class StreamReplay:
     backend: str = ""
     closed_at_end: int = 0
     updates_at_end: int = 0
+    held_air: int = 0
 
 
 def _frames_arg(frames: np.ndarray) -> np.ndarray | str:
