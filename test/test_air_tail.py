@@ -248,3 +248,26 @@ def test_the_replay_says_what_the_checkpoint_holds_and_the_next_run_counts_it(
     msgs = second["messages"]
     assert msgs["used"] + msgs["rejected"] == msgs["total"]  # the held air is read, and counted, this run
     assert f"{len(held)} air readings held" in _summary(second)
+
+
+def test_a_bag_replayed_after_a_checkpoint_of_later_data_exits_1(
+    day: tuple[Path, Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The chain in the wrong order: the earlier bag gives nothing, and the exit code says so.
+
+    The checkpoint of the later record holds its windows open, so closing them updated the
+    estimate and the run exited 0, every force of the earlier bag rejected (WARN lines only).
+    """
+    import json
+
+    from bridge_shadow.cli import main
+
+    ck = str(tmp_path / "ck.npz")
+    assert main(["replay", str(day[1]), "--checkpoint", ck]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(day[0]), "--checkpoint", ck, "--json"]) == 1
+    out = capsys.readouterr()
+    js = json.loads(out.out)
+    assert js["windows"]["updates"] > 0  # the later record's windows the checkpoint held open
+    assert js["messages"]["used_by_topic"]["frc_01"] == js["messages"]["used_by_topic"]["frc_02"] == 0
+    assert "error: none of this run's load-cell messages was used" in out.err

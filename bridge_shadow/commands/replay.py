@@ -276,11 +276,26 @@ def _windows_text(reason: str, count: int, js: dict[str, Any]) -> str:
 
 
 def _loud(js: dict[str, Any]) -> int:
-    """WARN lines on stderr for what must not pass silently; the exit code (1 when nothing updated)."""
+    """WARN lines on stderr for what must not pass silently; the exit code.
+
+    1 when no window updated the estimate, or when none of this run's load-cell messages was used
+    (a bag replayed after a checkpoint of later data: the windows the checkpoint held open may
+    still update, but nothing of the bag reached the estimate).
+    """
     import sys
+
+    from bridge_shadow.contract import CHANNELS
 
     for line in js.get("warnings", []):
         print(f"bridge-shadow replay: WARN: {line}", file=sys.stderr)
+    used = js["messages"]["used_by_topic"]
+    if js.get("resumed") and js["windows"]["updates"] and not any(used.get(ch, 0) for ch in CHANNELS):
+        print(
+            "bridge-shadow replay: error: none of this run's load-cell messages was used (the updates are "
+            "of the data the checkpoint held); see the WARN lines and the rejected counts",
+            file=sys.stderr,
+        )
+        return 1
     if not js["windows"]["updates"]:
         what = "the checkpoint's" if js.get("resumed") else "the prior"
         print(
