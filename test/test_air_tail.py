@@ -271,3 +271,35 @@ def test_a_bag_replayed_after_a_checkpoint_of_later_data_exits_1(
     assert js["windows"]["updates"] > 0  # the later record's windows the checkpoint held open
     assert js["messages"]["used_by_topic"]["frc_01"] == js["messages"]["used_by_topic"]["frc_02"] == 0
     assert "error: none of this run's load-cell messages was used" in out.err
+
+
+def test_a_periodic_checkpoint_in_the_next_bag_keeps_the_held_air_not_fed_yet(
+    day: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    """A run of the next bag stopped after a periodic checkpoint write: the held air still to come is in it.
+
+    Written without it, the real records' chain (the day's air, then a record's bag without air,
+    stopped there and replayed again) lost the 25,219 air readings of the next record's replay.
+    """
+    sur = placeholder_surrogate()
+    cfg = ShadowConfig(warmup_windows=5, window_min_samples=2)
+    chained = cfg.replace(checkpoint_path=str(tmp_path / "ck.npz"), checkpoint_period_s=60.0)
+    replay_bag(day[0], Shadow(chained, sur), batch=97, chunk=50)
+    held = Shadow.resume(chained.checkpoint_path, chained, sur).held_air
+    assert held is not None
+    shadow = Shadow.resume(chained.checkpoint_path, chained, sur)
+    writes = []
+
+    def stop_after_three(*args: object, **kwargs: object) -> object:
+        writes.append(Shadow.save_checkpoint(shadow, *args, **kwargs))  # type: ignore[arg-type]
+        if len(writes) == 3:
+            raise KeyboardInterrupt
+        return writes[-1]
+
+    shadow.save_checkpoint = stop_after_three  # type: ignore[method-assign]
+    with pytest.raises(KeyboardInterrupt):
+        replay_bag(day[1], shadow, batch=97, chunk=50)
+    left = Shadow.resume(chained.checkpoint_path, chained, sur).held_air
+    assert left is not None and 0 < len(left) < len(held)
+    assert int(left.log_ns[-1]) == int(held.log_ns[-1])  # to the held air's end
+    np.testing.assert_array_equal(left.log_ns, held.log_ns[held.log_ns >= left.log_ns[0]])

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Collection, Iterable, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
 from bridge_shadow.contract import CHANNELS
-from bridge_shadow.replay.air_tail import AirTail, air_piece
+from bridge_shadow.replay.air_tail import AirTail, air_piece, split_air
 from bridge_shadow.replay.chunks import DEFAULT_CHUNK, FeedChunk, arrival_chunks
 from bridge_shadow.replay.feed import StreamReplay, feed_shadow
 from bridge_shadow.replay.outputs import OutputBag, WindowHistory
@@ -30,6 +30,18 @@ def _add(stats: StreamReplay, more: StreamReplay) -> None:
     """Add the counts and times of a later feed (the held air and the close) to ``stats``."""
     for name in ("messages", "pipeline_s", "read_s", "write_s", "windows_out"):
         setattr(stats, name, getattr(stats, name) + getattr(more, name))
+
+
+def _held_unfed(chunks: Iterable[FeedChunk], shadow: Any, held: Any) -> Iterator[FeedChunk]:
+    """Yield ``chunks``; meanwhile ``shadow.held_air`` is ``held`` from the last yielded chunk's log time on.
+
+    A periodic checkpoint written while they are fed then keeps the held air still to come (written
+    without it, a run interrupted after it lost the rest of the day's air for the bags after). The
+    held air at a chunk's last log time is kept: one fed already comes again as a duplicate.
+    """
+    for c in chunks:
+        shadow.held_air = split_air(held, c.last_log_ns)[1]
+        yield c
 
 
 def replay_bag(
@@ -131,9 +143,12 @@ def replay_bag(
             def before_close() -> None:
                 at_close.extend((shadow.n_windows, shadow.n_updates))
 
+            fed: Iterable[FeedChunk] = reader if reader is not None else chunks
+            if held_piece is not None:
+                fed = _held_unfed(fed, shadow, held)
             stats = feed_shadow(
                 shadow,
-                reader if reader is not None else chunks,
+                fed,
                 take,
                 report,
                 flush=tail is None,
