@@ -96,15 +96,15 @@ def test_air_past_the_limit_goes_on_and_only_the_rest_is_held() -> None:
     assert len(tail.tail) < 31
 
 
-def test_a_stream_without_forces_holds_nothing() -> None:
+def test_a_stream_without_forces_holds_all_its_air() -> None:
     t = np.arange(10, dtype=np.int64) * S
     none = np.empty(0, np.int64)
     piece = MonitoringData(
         {ch: ForceSeries(none, np.empty(0), np.empty(0, dtype=object), none) for ch in CHANNELS},
         TemperatureSeries(t, np.ones(10), log_ns=t),
     )
-    tail = AirTail([piece])
-    assert [p.n_messages for p in tail] == [10] and tail.tail is None
+    tail = AirTail([piece, piece])
+    assert list(tail) == [] and tail.tail is not None and len(tail.tail) == 20
 
 
 def _record(start_s: int, minutes: int, step_m: np.ndarray, air_h: float, seed: int) -> MonitoringData:
@@ -303,3 +303,30 @@ def test_a_periodic_checkpoint_in_the_next_bag_keeps_the_held_air_not_fed_yet(
     assert left is not None and 0 < len(left) < len(held)
     assert int(left.log_ns[-1]) == int(held.log_ns[-1])  # to the held air's end
     np.testing.assert_array_equal(left.log_ns, held.log_ns[held.log_ns >= left.log_ns[0]])
+
+
+def test_a_chain_that_starts_with_a_bag_of_the_air_alone_is_one_merged_replay(
+    day: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    """The day's air in a bag of its own, replayed first: held whole, the records after it all taken.
+
+    Fed whole before the checkpoint, it moved the data clock to the air's end: the real records'
+    chain (the air, the reference record, the 10 mm record, each without air) lost all 144,000
+    forces of the 10 mm record as ``late``, the state the prior's, where the merged replay has the
+    -10 mm event.
+    """
+    from bridge_shadow.bagio.reader import read_monitoring
+
+    air = write_monitoring(tmp_path / "air", air_piece(read_monitoring(day[0]).temperature, CHANNELS))
+    sur = placeholder_surrogate()
+    cfg = ShadowConfig(warmup_windows=5, window_min_samples=2)
+    chained = cfg.replace(checkpoint_path=str(tmp_path / "ck.npz"))
+    replay_bag(air, Shadow(chained, sur), batch=97, chunk=50, required=False)
+    held = Shadow.resume(chained.checkpoint_path, chained, sur).held_air
+    assert held is not None and len(held) == 360  # the whole air, unfed
+    for bag in day[:2]:
+        last, _ = replay_bag(bag, Shadow.resume(chained.checkpoint_path, chained, sur), batch=97, chunk=50)
+    merged, _ = replay_bag([air, *day[:2]], Shadow(cfg, sur), batch=97, chunk=50)
+    assert last.rejected["late"] == 0 and last.used["frc_01"] == merged.used["frc_01"] == 360
+    np.testing.assert_allclose(last.mean_m, merged.mean_m, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(last.covariance_m2, merged.covariance_m2, rtol=1e-9, atol=1e-16)

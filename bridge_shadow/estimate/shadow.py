@@ -1497,10 +1497,11 @@ class Shadow:
         topic, pos = topic[order], pos[order]
         outputs: list[WindowOutput] = []
         chunk = max(int(chunk), 1)
-        # arrival positions [0, head) go first; [head, total) is the air past the last force
+        # arrival positions [0, head) go first; [head, total) is the air past the last force (all
+        # of it without forces, as ``AirTail``)
         forces_at = np.flatnonzero(topic < 2)
         holding = flush and bool(self.config.checkpoint_path)
-        head = int(forces_at[-1]) + 1 if holding and len(forces_at) else total
+        head = (int(forces_at[-1]) + 1 if len(forces_at) else 0) if holding else total
         for start in [*range(0, head, chunk), *range(head, total, chunk)]:
             stop = min(start + chunk, head if start < head else total)
             if start == head:

@@ -70,8 +70,9 @@ class AirTail:
         limit: most air messages held at once (``HELD_AIR_LIMIT``).
 
     Attributes:
-        tail: once iterated to the end, the air messages after the stream's last force (None when
-            there are none, or none was held because the stream has no force at all).
+        tail: once iterated to the end, the air messages after the stream's last force, all of them
+            when it has no force (a bag of the air alone: fed before the next bag's forces, it
+            made them all ``late``); None when there are none.
         released: air messages that went on past ``limit`` with no force after them yet.
 
     """
@@ -86,12 +87,11 @@ class AirTail:
     def __iter__(self) -> Iterator[MonitoringData]:
         held: list[TemperatureSeries] = []
         n_held = 0
-        seen_force = False
         for piece in self._pieces:
             self._channels = list(piece.forces)
             logs = [f.log_ns for f in piece.forces.values() if len(f)]
-            if not logs:  # air only: held while a force has come before it
-                if not seen_force or not len(piece.temperature):
+            if not logs:  # air only: held until forces follow (before the first force too)
+                if not len(piece.temperature):
                     yield piece
                     continue
                 held.append(piece.temperature)
@@ -101,7 +101,6 @@ class AirTail:
                     yield air_piece(_join(held), self._channels)
                     held, n_held = [], 0
                 continue
-            seen_force = True
             if held:
                 yield air_piece(_join(held), self._channels)
                 held, n_held = [], 0
