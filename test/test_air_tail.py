@@ -241,13 +241,15 @@ def test_the_replay_says_what_the_checkpoint_holds_and_the_next_run_counts_it(
     first = json.loads(capsys.readouterr().out)
     held = Shadow.resume(ck).held_air
     assert held is not None and first["windows"]["at_end"]["held_air"] == len(held) > 200
-    assert f"holds the {len(held)} air readings past the last force unfed" in _summary(first)
+    assert f"the checkpoint holds {len(held)} air readings unfed" in _summary(first)
     assert main(["replay", str(day[1]), "--checkpoint", ck, "--json"]) == 0
     second = json.loads(capsys.readouterr().out)
     assert second["resumed"]["held_air"] == len(held)
     msgs = second["messages"]
     assert msgs["used"] + msgs["rejected"] == msgs["total"]  # the held air is read, and counted, this run
-    assert f"{len(held)} air readings held" in _summary(second)
+    assert f"{len(held)} air readings held): the counts below are this run's, the held air's" in _summary(
+        second
+    )
 
 
 def test_a_bag_replayed_after_a_checkpoint_of_later_data_exits_1(
@@ -273,14 +275,18 @@ def test_a_bag_replayed_after_a_checkpoint_of_later_data_exits_1(
     assert "error: none of this run's load-cell messages was used" in out.err
 
 
+@pytest.mark.parametrize("feed", ["replay_bag", "Shadow.run"])
 def test_a_periodic_checkpoint_in_the_next_bag_keeps_the_held_air_not_fed_yet(
-    day: tuple[Path, Path, Path], tmp_path: Path
+    day: tuple[Path, Path, Path], tmp_path: Path, feed: str
 ) -> None:
     """A run of the next bag stopped after a periodic checkpoint write: the held air still to come is in it.
 
     Written without it, the real records' chain (the day's air, then a record's bag without air,
     stopped there and replayed again) lost the 25,219 air readings of the next record's replay.
+    ``Shadow.run`` (the in-memory feed) lost them alike.
     """
+    from bridge_shadow.bagio.reader import read_monitoring
+
     sur = placeholder_surrogate()
     cfg = ShadowConfig(warmup_windows=5, window_min_samples=2)
     chained = cfg.replace(checkpoint_path=str(tmp_path / "ck.npz"), checkpoint_period_s=60.0)
@@ -298,7 +304,10 @@ def test_a_periodic_checkpoint_in_the_next_bag_keeps_the_held_air_not_fed_yet(
 
     shadow.save_checkpoint = stop_after_three  # type: ignore[method-assign]
     with pytest.raises(KeyboardInterrupt):
-        replay_bag(day[1], shadow, batch=97, chunk=50)
+        if feed == "replay_bag":
+            replay_bag(day[1], shadow, batch=97, chunk=50)
+        else:
+            shadow.run(read_monitoring(day[1]), chunk=50)
     left = Shadow.resume(chained.checkpoint_path, chained, sur).held_air
     assert left is not None and 0 < len(left) < len(held)
     assert int(left.log_ns[-1]) == int(held.log_ns[-1])  # to the held air's end

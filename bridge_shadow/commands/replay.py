@@ -118,8 +118,9 @@ def _summary(js: dict[str, Any]) -> str:
             [
                 f"resumed from a checkpoint of {resumed['windows']} windows ({resumed['updates']} updates, "
                 f"{resumed['messages_used']} messages used"
-                + (f", {resumed['held_air']} air readings held" if resumed.get("held_air") else "")
+                + (f", {h} air readings held" if (h := resumed.get("held_air")) else "")
                 + "): the counts below are this run's"
+                + (", the held air's among them" if h else "")
             ]
             if resumed
             else []
@@ -429,14 +430,20 @@ def run(args: argparse.Namespace) -> int:
 
 def _at_end_line(at_end: dict[str, int] | None) -> list[str]:
     """Say what the end-of-data close did, which a replay resumed from the checkpoint does again."""
-    if not at_end or not (at_end["closed"] or at_end["updates"]):
+    if not at_end:
         return []
-    held = at_end.get("held_air", 0)
-    air = f" and holds the {held} air readings past the last force unfed" if held else ""
-    return [
-        f"  of them at the end of the data: {at_end['closed']} closed, {at_end['updates']} updates "
-        f"(the checkpoint holds the state before{air}: the next bag's replay makes them again, with its data)"
-    ]
+    lines = []
+    if at_end["closed"] or at_end["updates"]:
+        lines.append(
+            f"  of them at the end of the data: {at_end['closed']} closed, {at_end['updates']} updates "
+            "(the checkpoint holds the state before: the next bag's replay makes them again, with its data)"
+        )
+    if held := at_end.get("held_air", 0):
+        lines.append(
+            f"  the checkpoint holds {held} air readings unfed (past the bag's last force, or all of a bag "
+            "without forces): read in this run's counts, and again, merged, by the next bag's replay"
+        )
+    return lines
 
 
 def _has_counted(shadow: Any) -> bool:

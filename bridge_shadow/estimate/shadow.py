@@ -121,6 +121,14 @@ def _with_air_first(data: MonitoringData, held: TemperatureSeries) -> Monitoring
     return MonitoringData(data.forces, TemperatureSeries(stamp, temp, var, frames, log))
 
 
+def _air_from(t: TemperatureSeries, log_ns: int) -> TemperatureSeries | None:
+    """Return the messages of ``t`` with log time ``log_ns`` or later (None when there are none)."""
+    m = np.asarray(t.log_ns) >= log_ns
+    if not m.any():
+        return None
+    return TemperatureSeries(t.stamp_ns[m], t.temp_c[m], t.variance[m], t.frame_id[m], t.log_ns[m])  # type: ignore[index]
+
+
 def _sun_var(w: Window) -> float:
     """Return the variance of window ``w``'s sun covariate (0 without temperature: no curve, no sun term)."""
     return w.svar if w.i0[0] >= 0 else 0.0
@@ -1483,9 +1491,9 @@ class Shadow:
         last force and holds it (``replay.air_tail``).
         """
         t0 = time.perf_counter()
-        if self.held_air is not None:
-            data = _with_air_first(data, self.held_air)
-            self.held_air = None
+        held = self.held_air
+        if held is not None:
+            data = _with_air_first(data, held)
         series = [data.forces[ch] for ch in CHANNELS]
         temp = data.temperature
         logs = [s.log_ns for s in series] + [temp.log_ns]
@@ -1495,6 +1503,7 @@ class Shadow:
         pos = np.concatenate([np.arange(n) for n in sizes])
         order = np.argsort(np.concatenate(logs), kind="stable")
         topic, pos = topic[order], pos[order]
+        arrival_log = np.concatenate(logs)[order] if held is not None else None
         outputs: list[WindowOutput] = []
         chunk = max(int(chunk), 1)
         # arrival positions [0, head) go first; [head, total) is the air past the last force (all
@@ -1518,9 +1527,14 @@ class Shadow:
                     self.ingest_forces(i, s.stamp_ns[sl], s.force_n[sl], s.frame_id[sl])
                 else:
                     self.ingest_temperature(temp.stamp_ns[sl], temp.temp_c[sl], temp.frame_id[sl])
+            if held is not None and arrival_log is not None and start < head:
+                # a periodic checkpoint written in this poll keeps the held air still to come (one
+                # at this chunk's last log time may be fed: it comes again as a duplicate)
+                self.held_air = _air_from(held, int(arrival_log[stop - 1]))
             outputs.extend(self.poll())
             if progress is not None:
                 progress(stop / max(total, 1))
+        self.held_air = None
         if flush:
             # the state before the end-of-data close: a run resumed from it goes on with the
             # records still open, as one run over both would (``replay.bag.replay_bag``)

@@ -51,6 +51,6 @@ def open_shadow(config: ShadowConfig, surrogate: Surrogate) -> tuple[Shadow, lis
     taken = sum(shadow.used.values()) + sum(n for r, n in shadow.rejected.items() if r in MESSAGE_REASONS)
     counts = f"{taken} messages, {shadow.n_windows} windows, {shadow.filter.n_updates} updates"
     if shadow.held_air is not None:  # a replay's: the air past its bag's last force (``replay.air_tail``)
-        counts += f", {len(shadow.held_air)} air readings past its bag's last force held unfed"
+        counts += f", {len(shadow.held_air)} air readings held unfed for the next bag"
     notes.append(f"resumed from {file}: {counts}")
     return shadow, notes

@@ -194,7 +194,9 @@ class ShadowNode(Node):
             # live data come after it, so it goes in first
             self.shadow.held_air = None
             self.shadow.ingest_temperature(held.stamp_ns, held.temp_c, held.frame_id)
-            notes.append(f"resumed with the checkpoint's {len(held)} air readings past its bag's last force")
+            notes.append(
+                f"resumed with the {len(held)} air readings the checkpoint held unfed: ingested first"
+            )
         log = self.get_logger()
         for line in startup_lines(cfg, surrogate, params_files):
             log.info(line)
