@@ -116,14 +116,10 @@ def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_chains_through_
     assert "replay --live --checkpoint" in line and "WARN: the air temperature runs" in out.err
     assert main(["import-csv", str(later), str(folder / TEMPERATURE), "--out", str(alone), "--json"]) == 0
     capsys.readouterr()
-    first = replay(str(public), "--checkpoint", str(ck))
+    replay(str(public), "--checkpoint", str(ck))  # its own answer as without (test_air_tail.py)
     held = Shadow.resume(ck).held_air  # the air past the public records' last force, unfed
     assert held is not None and len(held) > 20_000
     assert held.log_ns[0] > 0 and np.all(np.diff(held.log_ns) >= 0)
-    alone_first = replay(str(public))  # holding the air back changes nothing of the first bag's answer
-    for key in ("mean_m", "covariance_m2"):
-        np.testing.assert_allclose(first["posterior"][key], alone_first["posterior"][key], rtol=1e-12)
-    assert first["events"] == alone_first["events"] and first["rejected"] == alone_first["rejected"]
     second = replay(str(alone), "--checkpoint", str(ck))
     merged = replay(str(public), str(alone))
     assert second["rejected"]["late"] == 0 and second["messages"]["used_by_topic"]["frc_01"] > 70_000
