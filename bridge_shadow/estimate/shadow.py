@@ -461,12 +461,20 @@ class Shadow:
         results are the same; ``_open_gap`` then finds nothing held.
         """
         last, next_k = self._last_usable_k, self.buffer.next_k
-        if not self.warm or last is None or next_k is None or next_k < last + 1 + self._gap_k:
+        if last is None or next_k is None or next_k < last + 1 + self._gap_k:
             return []
+        outputs: list[WindowOutput] = []
+        if not self.warm:
+            # the first record, shorter than the warm-up (the test car cut from it): fitted now, as
+            # the next record's first windows would leave it (``_finish_warmup`` holds them fresh)
+            if len(self._warm) <= MIN_DIFFERENCES or any(w.seg != self.filter.segment for w in self._warm):
+                return []
+            self._finish_warmup()
+            outputs.extend(self._drain())
         if not self._fresh_open and not self.detector.pending:
-            return []
+            return outputs
         self.settle()
-        outputs = self._release_fresh(at_gap=True)
+        outputs.extend(self._release_fresh(at_gap=True))
         outputs.extend(self._close_run(self.detector.close_run(at_gap=True)))
         outputs.extend(self._drain())
         return outputs
