@@ -465,8 +465,9 @@ def run_live(
     from bridge_shadow.bagio.stream import MonitoringStream
     from bridge_shadow.estimate import load_config
     from bridge_shadow.model.surrogate_file import load_surrogate
-    from bridge_shadow.ros.netenv import confine_to_loopback
+    from bridge_shadow.ros.netenv import check_domain_id, confine_to_loopback
 
+    check_domain_id()  # a domain DDS cannot use ends the node's process with no line of ours
     if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in os.environ:  # before rclpy starts (Player, node)
         confine_to_loopback()
     config = load_config(params_path, overrides)

@@ -26,7 +26,7 @@ from typing import Any
 
 from bridge_shadow.contract import NODE_NAME
 from bridge_shadow.errors import BridgeShadowError
-from bridge_shadow.ros.netenv import confine_to_loopback
+from bridge_shadow.ros.netenv import check_domain_id, confine_to_loopback
 
 __all__ = ["main", "params_files", "user_args"]
 
@@ -175,6 +175,7 @@ def _main(args: list[str] | None) -> int:
         return 2
     files = params_files(argv)
     try:  # the warnings once rcl has read the files too (an error of its own is the one line)
+        check_domain_id()
         unaddressed = [w for file in files if (w := _check_params_file(file, node_sections(argv)))]
     except BridgeShadowError as err:
         print(f"{prog}: {err}", file=sys.stderr)

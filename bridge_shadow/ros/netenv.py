@@ -8,12 +8,36 @@ from __future__ import annotations
 import os
 from collections.abc import MutableMapping
 
-__all__ = ["confine_to_loopback", "unique_domain_id"]
+__all__ = ["DOMAIN_ID_MAX", "check_domain_id", "confine_to_loopback", "unique_domain_id"]
+
+#: The largest ROS domain id whose DDS ports fit (Fast DDS: 7400 + 250 id + 11 below 65536; the
+#: ROS 2 documentation's "Domain ID" page gives 232 as the limit on Linux).
+DOMAIN_ID_MAX = 232
 
 
 def unique_domain_id(pid: int | None = None) -> int:
     """Return a ROS domain id in [20, 219] derived from a process id (valid for Fast DDS ports)."""
     return (os.getpid() if pid is None else pid) % 200 + 20
+
+
+def check_domain_id(environ: MutableMapping[str, str] | None = None) -> None:
+    """Refuse a ``ROS_DOMAIN_ID`` that is not an integer in [0, ``DOMAIN_ID_MAX``] (ConfigError).
+
+    Must run before ``rclpy``: Fast DDS ends the process (exit 1, one RTPS line on stdout) when it
+    creates a node in such a domain, so ``replay --live --json`` printed no JSON and no error line
+    of its own.
+    """
+    from bridge_shadow.errors import ConfigError
+
+    env = os.environ if environ is None else environ
+    raw = env.get("ROS_DOMAIN_ID", "").strip()
+    if not raw:
+        return
+    if not raw.isdigit() or int(raw) > DOMAIN_ID_MAX:
+        raise ConfigError(
+            f"ROS_DOMAIN_ID={raw}: a ROS domain id is an integer from 0 to {DOMAIN_ID_MAX} (DDS derives "
+            "its ports from it); set another, or unset it for one of this process's own"
+        )
 
 
 def confine_to_loopback(
