@@ -339,3 +339,20 @@ def test_a_chain_that_starts_with_a_bag_of_the_air_alone_is_one_merged_replay(
     assert last.rejected["late"] == 0 and last.used["frc_01"] == merged.used["frc_01"] == 360
     np.testing.assert_allclose(last.mean_m, merged.mean_m, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(last.covariance_m2, merged.covariance_m2, rtol=1e-9, atol=1e-16)
+
+
+def test_bags_that_each_hold_the_days_air_read_merged_are_said_to_repeat_it(
+    day: tuple[Path, Path, Path],
+) -> None:
+    """The day's air in every bag, read merged: its copies are repeats, not a clock gone wrong.
+
+    The line named a logger's clock set back, a checkpoint ahead of the data, and advised reading
+    the bags merged, which the run had just done (a judging helper session, 84,990 copies of the
+    real day's air in four bags read merged; the archive said "nothing lost" beside it).
+    """
+    sur = placeholder_surrogate()
+    merged, _ = replay_bag(list(day), Shadow(ShadowConfig(warmup_windows=5, window_min_samples=2), sur))
+    assert merged.rejected["duplicate"] > 600 and not merged.rejected["out_of_order"]
+    (line,) = [w for w in merged.warnings if w.startswith("topic air_temperature:")]
+    assert "repeat the stamp of the message taken just before them" in line
+    assert "clock set back" not in line and "when given together" not in line

@@ -175,6 +175,14 @@ class TopicLedger:
         if share is None:
             return None
         head, counts = share
+        if counts.startswith("duplicate") and "," not in counts:
+            # only repeats of the stamp just taken: bags that hold the same readings, read merged
+            # (each record's bag with the day's air), lose nothing; the causes below misled there
+            return (
+                f"{head} repeat the stamp of the message taken just before them ({counts}): readings "
+                "given twice, as by bags that each hold the day's air temperature, read merged, or a "
+                "logger that repeats its stamps; each stamp is used once, its first message"
+            )
         return f"{head} rejected for their stamps ({counts}), {_OLD_CAUSES}"
 
     def bad_values_message(self) -> str | None:
