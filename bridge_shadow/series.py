@@ -8,7 +8,7 @@ unless a source says otherwise).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -95,6 +95,20 @@ class TemperatureSeries:
     def __len__(self) -> int:
         return len(self.stamp_ns)
 
+    def take(self, index: np.ndarray) -> TemperatureSeries:
+        """Return the messages at ``index`` (a boolean mask, or positions in the order wanted)."""
+        v, lg = self.variance[index], self.log_ns[index]  # type: ignore[index]  # set by __post_init__
+        return TemperatureSeries(self.stamp_ns[index], self.temp_c[index], v, self.frame_id[index], lg)
+
+    @staticmethod
+    def concat(parts: Sequence[TemperatureSeries]) -> TemperatureSeries:
+        """Return the messages of ``parts``, one part after the other."""
+        if len(parts) == 1:
+            return parts[0]
+        cols = [np.concatenate([getattr(p, f) for p in parts]) for f in ("stamp_ns", "temp_c", "variance")]
+        frames = np.concatenate([np.asarray(p.frame_id, dtype=object) for p in parts])
+        return TemperatureSeries(*cols, frames, np.concatenate([p.log_ns for p in parts]))  # type: ignore[misc]
+
 
 @dataclass
 class MonitoringData:
@@ -133,10 +147,7 @@ class MonitoringData:
             m = keep(getattr(f, by))
             forces[ch] = ForceSeries(f.stamp_ns[m], f.force_n[m], f.frame_id[m], f.log_ns[m])
         t = self.temperature
-        m = keep(getattr(t, by))
-        return MonitoringData(
-            forces, TemperatureSeries(t.stamp_ns[m], t.temp_c[m], t.variance[m], t.frame_id[m], t.log_ns[m])
-        )
+        return MonitoringData(forces, t.take(keep(getattr(t, by))))
 
     @property
     def n_messages(self) -> int:

@@ -31,7 +31,10 @@ S = 10**9
 
 
 def _arrival(pieces: list[MonitoringData]) -> list[tuple[int, int, int, float]]:
-    """Every message of ``pieces`` as (log_ns, topic, stamp_ns, value), in arrival order."""
+    """Every message of ``pieces`` as (log_ns, topic, stamp_ns, value), in arrival order.
+
+    Compared exactly: stamps are integers and the values are copies passed on, never computed.
+    """
     out = []
     for p in pieces:
         msgs = []

@@ -110,25 +110,6 @@ _RANGE_MARGIN_K = 0.5
 RECENT_REJECTED = 50
 
 
-def _with_air_first(data: MonitoringData, held: TemperatureSeries) -> MonitoringData:
-    """Return ``data`` with the air ``held`` merged in by log time (``held`` first at equal times)."""
-    t = data.temperature
-    fields = ("log_ns", "stamp_ns", "temp_c", "variance")
-    cols = [np.concatenate([getattr(held, f), getattr(t, f)]) for f in fields]
-    order = np.argsort(cols[0], kind="stable")
-    frames = np.concatenate([np.asarray(held.frame_id, object), np.asarray(t.frame_id, object)])[order]
-    log, stamp, temp, var = (c[order] for c in cols)
-    return MonitoringData(data.forces, TemperatureSeries(stamp, temp, var, frames, log))
-
-
-def _air_from(t: TemperatureSeries, log_ns: int) -> TemperatureSeries | None:
-    """Return the messages of ``t`` with log time ``log_ns`` or later (None when there are none)."""
-    m = np.asarray(t.log_ns) >= log_ns
-    if not m.any():
-        return None
-    return TemperatureSeries(t.stamp_ns[m], t.temp_c[m], t.variance[m], t.frame_id[m], t.log_ns[m])  # type: ignore[index]
-
-
 def _sun_var(w: Window) -> float:
     """Return the variance of window ``w``'s sun covariate (0 without temperature: no curve, no sun term)."""
     return w.svar if w.i0[0] >= 0 else 0.0
@@ -1444,15 +1425,26 @@ class Shadow:
         return restore_shadow(cls, state, config, surrogate)
 
     def save_checkpoint(
-        self, path: str | Path | None = None, state: dict[str, Any] | None = None
+        self,
+        path: str | Path | None = None,
+        state: dict[str, Any] | None = None,
+        held_air: TemperatureSeries | None = None,
     ) -> Path | None:
         """Write the state atomically to ``path`` (default ``checkpoint_path``); None if disabled.
 
         ``state``: a ``state_dict`` taken earlier (the state before an end-of-data close), else now.
+        ``held_air``: air messages not fed, written as the checkpoint's ``held_air`` (the air past a
+        bag's last force, ``replay.air_tail``; empty: none).
         """
         target = path if path is not None else self.config.checkpoint_path
         if not target:
             return None
+        if held_air is not None and state is None:
+            before, self.held_air = self.held_air, held_air if len(held_air) else None
+            try:
+                return self.save_checkpoint(path)
+            finally:
+                self.held_air = before
         self._ckpt_ns = self.clock_ns
         written = save_state(self.state_dict() if state is None else state, target)
         self.checkpoint_failure = None
@@ -1500,8 +1492,9 @@ class Shadow:
         """
         t0 = time.perf_counter()
         held = self.held_air
-        if held is not None:
-            data = _with_air_first(data, held)
+        if held is not None:  # merged by log time, the held air first at equal times
+            air = TemperatureSeries.concat([held, data.temperature])
+            data = MonitoringData(data.forces, air.take(np.argsort(air.log_ns, kind="stable")))
         series = [data.forces[ch] for ch in CHANNELS]
         temp = data.temperature
         logs = [s.log_ns for s in series] + [temp.log_ns]
@@ -1509,20 +1502,23 @@ class Shadow:
         total = sum(sizes)
         topic = np.concatenate([np.full(n, i, dtype=np.int8) for i, n in enumerate(sizes)])
         pos = np.concatenate([np.arange(n) for n in sizes])
-        order = np.argsort(np.concatenate(logs), kind="stable")
+        all_logs = np.concatenate(logs)
+        order = np.argsort(all_logs, kind="stable")
         topic, pos = topic[order], pos[order]
-        arrival_log = np.concatenate(logs)[order] if held is not None else None
         outputs: list[WindowOutput] = []
         chunk = max(int(chunk), 1)
         # arrival positions [0, head) go first; [head, total) is the air past the last force (all
-        # of it without forces, as ``AirTail``)
-        forces_at = np.flatnonzero(topic < 2)
+        # of it without forces, as ``AirTail``), held in the checkpoint
         holding = flush and bool(self.config.checkpoint_path)
-        head = (int(forces_at[-1]) + 1 if len(forces_at) else 0) if holding else total
+        head = total
+        if holding:
+            forces_at = np.flatnonzero(topic < 2)
+            head = int(forces_at[-1]) + 1 if len(forces_at) else 0
         for start in [*range(0, head, chunk), *range(head, total, chunk)]:
             stop = min(start + chunk, head if start < head else total)
             if start == head:
-                self._save_holding(temp, pos[head:total])
+                self.save_checkpoint(held_air=temp.take(pos[head:total]))
+                self.checkpoints_paused = True  # this result goes on to the air's end
             t_chunk, p_chunk = topic[start:stop], pos[start:stop]
             for i in range(3):
                 sel = p_chunk[t_chunk == i]
@@ -1535,10 +1531,11 @@ class Shadow:
                     self.ingest_forces(i, s.stamp_ns[sl], s.force_n[sl], s.frame_id[sl])
                 else:
                     self.ingest_temperature(temp.stamp_ns[sl], temp.temp_c[sl], temp.frame_id[sl])
-            if held is not None and arrival_log is not None and start < head:
+            if held is not None and start < head:
                 # a periodic checkpoint written in this poll keeps the held air still to come (one
                 # at this chunk's last log time may be fed: it comes again as a duplicate)
-                self.held_air = _air_from(held, int(arrival_log[stop - 1]))
+                rest = held.take(held.log_ns >= all_logs[order[stop - 1]])  # type: ignore[operator]
+                self.held_air = rest if len(rest) else None
             outputs.extend(self.poll())
             if progress is not None:
                 progress(stop / max(total, 1))
@@ -1551,19 +1548,3 @@ class Shadow:
             self.checkpoints_paused = False
             outputs.extend(self.flush())
         return self.result(outputs, total, time.perf_counter() - t0)
-
-    def _save_holding(self, temp: TemperatureSeries, at: np.ndarray) -> None:
-        """Write the checkpoint holding the air messages ``temp[at]`` unfed; pause periodic writes."""
-        held = TemperatureSeries(
-            temp.stamp_ns[at],
-            temp.temp_c[at],
-            temp.variance[at],  # type: ignore[index]
-            temp.frame_id[at],
-            temp.log_ns[at],  # type: ignore[index]
-        )
-        self.held_air = held
-        try:
-            self.save_checkpoint()
-        finally:
-            self.held_air = None
-        self.checkpoints_paused = True

@@ -26,7 +26,6 @@ from collections.abc import Iterable, Iterator
 
 import numpy as np
 
-from bridge_shadow.bagio.cdr import concat_frames
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
 __all__ = ["HELD_AIR_LIMIT", "AirTail", "air_piece", "split_air"]
@@ -39,19 +38,7 @@ HELD_AIR_LIMIT = 2_000_000
 def split_air(t: TemperatureSeries, from_log_ns: int) -> tuple[TemperatureSeries, TemperatureSeries]:
     """Return (messages of ``t`` with log time < ``from_log_ns``, the others), each in its order."""
     keep = np.asarray(t.log_ns) < from_log_ns
-    return _part(t, keep), _part(t, ~keep)
-
-
-def _part(t: TemperatureSeries, m: np.ndarray) -> TemperatureSeries:
-    return TemperatureSeries(t.stamp_ns[m], t.temp_c[m], t.variance[m], t.frame_id[m], t.log_ns[m])  # type: ignore[index]
-
-
-def _join(parts: list[TemperatureSeries]) -> TemperatureSeries:
-    if len(parts) == 1:
-        return parts[0]
-    fields = ("stamp_ns", "temp_c", "variance", "log_ns")
-    cat = [np.concatenate([getattr(p, f) for p in parts]) for f in fields]
-    return TemperatureSeries(cat[0], cat[1], cat[2], concat_frames([p.frame_id for p in parts]), cat[3])
+    return t.take(keep), t.take(~keep)
 
 
 def air_piece(t: TemperatureSeries, channels: Iterable[str]) -> MonitoringData:
@@ -98,11 +85,11 @@ class AirTail:
                 n_held += len(piece.temperature)
                 if n_held > self.limit:
                     self.released += n_held
-                    yield air_piece(_join(held), self._channels)
+                    yield air_piece(TemperatureSeries.concat(held), self._channels)
                     held, n_held = [], 0
                 continue
             if held:
-                yield air_piece(_join(held), self._channels)
+                yield air_piece(TemperatureSeries.concat(held), self._channels)
                 held, n_held = [], 0
             # at one log time the air comes after the forces: from the last force's time on, it is past them
             last = max(int(x[-1]) for x in logs)
@@ -111,4 +98,4 @@ class AirTail:
             if len(after):
                 held.append(after)
                 n_held += len(after)
-        self.tail = _join(held) if held else None
+        self.tail = TemperatureSeries.concat(held) if held else None

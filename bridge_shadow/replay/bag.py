@@ -157,11 +157,8 @@ def replay_bag(
             if tail is not None:
                 before_close()
                 stats.held_air = len(tail.tail) if tail.tail is not None else 0
-                shadow.held_air = tail.tail
-                try:
-                    shadow.save_checkpoint()
-                finally:
-                    shadow.held_air = None
+                shadow.held_air = None  # the checkpoint's held air is all fed now
+                shadow.save_checkpoint(held_air=tail.tail)
                 # this bag's result goes on to the air's end; no periodic write replaces that checkpoint
                 shadow.checkpoints_paused = True
                 try:
