@@ -175,7 +175,8 @@ class TopicLedger:
         if share is None:
             return None
         head, counts = share
-        if counts.startswith("duplicate") and "," not in counts:
+        rejected = self.run_counts()[1]
+        if not any(rejected[r] for r in _STAMP_REASONS if r != "duplicate"):
             # only repeats of the stamp just taken: bags that hold the same readings, read merged
             # (each record's bag with the day's air), lose nothing; the causes below misled there
             return (
