@@ -9,6 +9,7 @@ reordered sum could move them), every count exactly, the events, the warnings, t
 
 from __future__ import annotations
 
+import itertools
 import json
 import shutil
 from pathlib import Path
@@ -817,11 +818,77 @@ def test_records_hours_apart_are_joined_from_their_windows(tmp_path: Path) -> No
     bags, whole = _records_hours_apart(tmp_path)
     config, surrogate = load_config(), placeholder_surrogate()
     assert config.traffic_hold_s > 12 * 60
-    ref, _ = replay_bag(whole, Shadow(config, surrogate))
+    ref, _ = replay_bag(whole, Shadow(config, surrogate), keep_all=True)
     reductions = [reduce_bag(b, config, surrogate) for b in bags]
     shadow = Shadow(config, surrogate)
-    stats = join_bags(shadow, reductions)
+    outputs: list[Any] = []
+    stats = join_bags(shadow, reductions, on_outputs=outputs.extend)
     assert [Path(b).name for b in stats.fed_whole] == ["day_03"]
     # each other seam settles within a few chunks of the bag's head (the bag is read once)
     assert stats.head_chunks - len(reductions[3].head) <= 3 * len(bags) < sum(len(r.head) for r in reductions)
     assert_same_result(shadow.result([], stats.messages, 1.0).to_json(), ref.to_json())
+    assert_same_outputs(outputs, ref.outputs)
+
+
+def assert_same_outputs(got: list[Any], ref: list[Any]) -> None:
+    """Assert that the archive's window outputs are the serial replay's, window by window.
+
+    The archive's join took each bag's windows in one batch and decided a record that ends in its
+    bag only when the next record's first window came (``Shadow._process``): the whole first
+    record of a judge's four-record day published the jump prior's width (+-18.5 mm, where replay's
+    polls had said +-1.9 mm) though the final answers agreed. Now both decide at the gap.
+    """
+    assert [o.index for o in got] == [o.index for o in ref]
+    for g, r in zip(got, ref, strict=True):
+        assert (g.updated, g.reason, g.event) == (r.updated, r.reason, r.event), g.index
+        at = f"window {g.index}"
+        np.testing.assert_allclose(g.mean_m, r.mean_m, rtol=RTOL, atol=1e-15, err_msg=at)
+        np.testing.assert_allclose(g.covariance_m2, r.covariance_m2, rtol=RTOL, atol=1e-21, err_msg=at)
+
+
+@pytest.mark.realdata
+def test_a_load_test_day_in_one_unit_gives_replays_window_outputs(munich_data: Path, tmp_path: Path) -> None:
+    """Four real records hours apart in one merged unit (the day's air in a bag of its own).
+
+    The unit's windows went to the shadow in one batch, across the records' gaps: the first
+    record, whose windows were held when it ended, was decided only at the next record's first
+    window, so its 13 outputs published the jump prior's width (+-18.5 / 14.8 mm, where replay's
+    polls said +-1.9 / 1.8 mm); a replay whose chunk spanned the gap did the same. The final
+    answers agreed, the published ones did not. The shadow now decides a held record at the first
+    window after the gap whatever the batch (``Shadow._process``) and the join at a bag's end
+    (``Shadow.decide_at_gap``): outputs, window by window, are the replay's at any chunk.
+    """
+    from archive_fixtures import cut
+
+    from bridge_shadow.bagio import write_monitoring
+    from bridge_shadow.twin.real_records import Piece, build
+
+    sur = load_surrogate()
+    pieces = [
+        Piece("ref", 0.0),
+        Piece("lowered", 0.733),
+        Piece("lowered", 4.0, (-0.01, -0.01), temp_at_h=2.0),
+        Piece("lowered", 6.0, (-0.02, -0.02)),
+    ]
+    sc = build(munich_data / "Settlements", sur.A, pieces)
+    seams = [(a + b) // 2 for a, b in itertools.pairwise(sc.starts_ns)]
+    none = sc.data.select(lambda stamps: np.zeros(len(stamps), bool))
+    unit = [
+        write_monitoring(tmp_path / f"record_{n}", MonitoringData(part.forces, none.temperature))
+        for n, part in enumerate(cut(sc.data, seams))
+    ]
+    unit.append(write_monitoring(tmp_path / "air", MonitoringData(none.forces, sc.data.temperature), "mcap"))
+    config = load_config()
+    ref, _ = replay_bag(unit, Shadow(config, sur), keep_all=True)
+    shadow = Shadow(config, sur)
+    outputs: list[Any] = []
+    stats = join_bags(shadow, [reduce_bag(unit, config, sur)], on_outputs=outputs.extend)
+    assert not stats.fed_whole and stats.windows_taken > 30
+    first = [o for o in ref.outputs if o.end_ns <= sc.starts_ns[1]]
+    assert len(first) > 10 and all(np.sqrt(np.diag(o.covariance_m2)).max() < 3e-3 for o in first[3:])
+    assert_same_outputs(outputs, ref.outputs)
+    assert_same_result(shadow.result([], stats.messages, 1.0).to_json(), ref.to_json())
+    whole, _ = replay_bag(unit, Shadow(config, sur), keep_all=True, chunk=10**7)  # one chunk: all
+    assert_same_outputs(whole.outputs, ref.outputs)
+    events = [e["kind"] for e in ref.to_json()["events"]]
+    assert len(events) == 3, events

@@ -401,7 +401,7 @@ class Shadow:
         wall clock when all inputs stop; leave it None to stay on stamp time (replay-exact).
         """
         outputs = self._process(self.close_windows(now_ns))
-        outputs.extend(self._decide_before_gap())
+        outputs.extend(self.decide_at_gap())
         self._maybe_checkpoint()
         return outputs
 
@@ -429,7 +429,15 @@ class Shadow:
                 self.air["excess"] = excess
                 self.air["worst"] = [int(last[0]), int(w.k), float(last[1]), t]
 
-    def _decide_before_gap(self) -> list[WindowOutput]:
+    def decide_at_gap(self) -> list[WindowOutput]:
+        """Decide what is held if the windows closed so far end in a gap after the last usable one.
+
+        ``poll``'s last step; the archive's join calls it after taking a bag's windows
+        (``take_windows``) and its front end's state, as the polls of a replay would have.
+        """
+        return self._decide_before_gap(self.buffer.next_k)
+
+    def _decide_before_gap(self, next_k: int | None) -> list[WindowOutput]:
         """Decide what is held once every window that could follow without a gap has closed.
 
         The next usable window will open a gap (``_open_gap``), and what the gap decides of the
@@ -439,9 +447,10 @@ class Shadow:
         held for the traffic screen until then): the engineer saw the 10 mm state hours late, and
         in between the posterior of the gap before it (windows 0, the jump prior's width, 18 mm).
         The same calls ``_open_gap`` makes, on the same held windows and state, only earlier: the
-        results are the same; ``_open_gap`` then finds nothing held.
+        results are the same; ``_open_gap`` then finds nothing held. ``next_k``: the first window
+        not yet judged (``poll``: the buffer's next; ``_process``: the window about to be judged).
         """
-        last, next_k = self._last_usable_k, self.buffer.next_k
+        last = self._last_usable_k
         if last is None or next_k is None or next_k < last + 1 + self._gap_k:
             return []
         outputs: list[WindowOutput] = []
@@ -554,6 +563,10 @@ class Shadow:
         ]
         outputs: list[WindowOutput] = []
         for j, w in enumerate(windows):
+            # what ``poll`` decides once the gap is certain, decided at the same window whatever
+            # the batch: a batch that runs over the gap (the archive's join, a chunk holding both
+            # records) decides it before its first window after the gap, as polls between would
+            outputs.extend(self._decide_before_gap(w.k))
             self.settle()  # the state this window is judged against
             self.silence.note(w.k, w.samples)
             if self._last_data_k is not None and w.k - self._last_data_k > 1:
