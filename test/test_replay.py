@@ -170,7 +170,7 @@ def test_replay_on_the_real_records(
     ]
     data, _ = import_csv(files)
     write_monitoring(tmp_path / "real", data)
-    js = _replay_json(capsys, str(tmp_path / "real"))
+    js = _replay_json(capsys, str(tmp_path / "real"), "--out", str(tmp_path / "out"))
     mean = np.array(js["posterior"]["mean_m"])
     sd = np.sqrt(np.diag(js["posterior"]["covariance_m2"]))
     assert np.all(np.isfinite(mean)) and np.all(np.isfinite(sd))
@@ -186,6 +186,19 @@ def test_replay_on_the_real_records(
     # the test car's excursions are cut (traffic screen): the car-free windows remain
     assert js["windows"]["updates"] >= 5 and js["traffic"]["windows_cut"] >= 8
     assert js["messages"]["used"] > 100_000
+    # the bag's last posterior is the replay's answer: the day's air runs on past the record, so
+    # its held windows were decided at the gap and the end-of-data refit (lambda reselected) came
+    # with no window output; the bag ended at the posterior before it (-0.907 mm against -0.860 mm
+    # south), as the node's topics did not (``OutputBag.write_final_posterior``)
+    from bridge_shadow.bagio import get_typestore, read_raw_topics
+    from bridge_shadow.contract import COVARIANCE_TOPIC, FLOAT_ARRAY_TYPE, MEAN_TOPIC
+
+    topics = (MEAN_TOPIC, COVARIANCE_TOPIC)
+    raw = read_raw_topics(tmp_path / "out", dict.fromkeys(topics, FLOAT_ARRAY_TYPE))
+    last = [get_typestore().deserialize_cdr(raw[t][1][-1], FLOAT_ARRAY_TYPE).data for t in topics]
+    np.testing.assert_allclose(last[0], mean, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(last[1].reshape(2, 2), js["posterior"]["covariance_m2"], rtol=1e-12, atol=0)
+    assert len(raw[MEAN_TOPIC][1]) == js["windows"]["closed"] + 1  # the windows', then that posterior
 
 
 def test_topic_parameters_rename_what_replay_reads_and_writes(

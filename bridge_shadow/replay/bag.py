@@ -154,6 +154,8 @@ def replay_bag(
                 flush=tail is None,
                 before_flush=before_close,
             )
+            if sink is not None and tail is None:  # the flush's refit, when no output carried it
+                sink.write_final_posterior(*shadow.posterior)
             if tail is not None:
                 before_close()
                 stats.held_air = len(tail.tail) if tail.tail is not None else 0

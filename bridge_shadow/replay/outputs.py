@@ -66,6 +66,7 @@ class OutputBag:
         self.names = shadow.config.output_topics()
         self.writer = BagOutputWriter(self.path, storage, overwrite=overwrite)
         self.last_end_ns: int | None = None
+        self.last_posterior: tuple[np.ndarray, np.ndarray] | None = None
 
     def __enter__(self) -> OutputBag:
         self.writer.__enter__()
@@ -139,6 +140,37 @@ class OutputBag:
             }
             writer.write_diagnostics(names[DIAGNOSTICS_TOPIC], t, t, [status])
             self.last_end_ns = t
+        self.last_posterior = (np.array(outs[-1].mean_m), np.array(outs[-1].covariance_m2))
+
+    def write_final_posterior(self, mean_m: np.ndarray, covariance_m2: np.ndarray) -> bool:
+        """Write the end-of-data posterior once more when no window output carried it; return whether.
+
+        ``Shadow.flush`` refits with lambda reselected and puts the result on its last output;
+        when every window was decided before (a record followed by air only, its held windows
+        decided once the gap was certain), no output carries it, and the bag's last mean and
+        covariance were not the replay's answer (the public pair: -9.438 mm published, -9.433 mm
+        in the JSON). The node publishes it on its own then (``ShadowNode.close_open_windows``);
+        so does the bag, at the last window's stamp, mean and covariance only.
+        """
+        from bridge_shadow.contract import (
+            COVARIANCE_LAYOUT_LABELS,
+            COVARIANCE_TOPIC,
+            MEAN_LAYOUT_LABEL,
+            MEAN_TOPIC,
+        )
+
+        last = self.last_posterior
+        if self.last_end_ns is None or last is None:
+            return False
+        if all(np.array_equal(a, b) for a, b in zip((mean_m, covariance_m2), last, strict=True)):
+            return False
+        t = self.last_end_ns
+        self.writer.write_float64_array(self.names[MEAN_TOPIC], t, mean_m, [MEAN_LAYOUT_LABEL])
+        self.writer.write_float64_array(
+            self.names[COVARIANCE_TOPIC], t, covariance_m2, list(COVARIANCE_LAYOUT_LABELS)
+        )
+        self.last_posterior = (np.array(mean_m), np.array(covariance_m2))
+        return True
 
     def finish(self) -> Path:
         """Write the final diagnostics (after the last window) and return the bag path."""
