@@ -133,6 +133,13 @@ def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_chains_through_
         sum(r[k] for k in ("duplicate", "out_of_order")) for r in (second["rejected"], merged["rejected"])
     ]
     assert air_rejected[0] == air_rejected[1] > 20_000
+    # and the chain says why: the later bag's copy of the air the first run took is older than the
+    # checkpoint's clock (``out_of_order``), which the generic line put down to overlapping bags, a
+    # clock set back or a checkpoint ahead of the data, all at once
+    (line,) = [w for w in second["warnings"] if w.startswith("topic air_temperature")]
+    older = second["rejected"]["out_of_order"]
+    assert older > 1000 and "stamped at or before the last one the checkpoint's run took" in line
+    assert int(line.split("), ")[1].split(" of them")[0]) >= older and "replayed one by one" in line
     mean, sd = np.array(second["posterior"]["mean_m"]), np.array(second["posterior"]["sigma_m"])
     truth = np.array([-0.02, -0.02])  # the 10 mm lowering, and 10 mm more through A
     assert np.all(np.abs(mean - truth) <= 0.1 * np.abs(truth)) and np.all(np.abs(mean - truth) < 1.96 * sd)

@@ -15,6 +15,7 @@ import numpy as np
 
 from bridge_shadow.contract import CHANNELS
 from bridge_shadow.series import frame_ids
+from bridge_shadow.timefmt import iso_utc
 
 __all__ = ["TOPIC_KEYS", "TopicLedger"]
 
@@ -66,6 +67,10 @@ class TopicLedger:
     #: the counts of a resumed checkpoint: the warnings judge this run's messages (not saved)
     used_before: int = 0
     rejected_before: Counter = field(default_factory=Counter)
+    #: the stamp of the last message the resumed checkpoint's run took (-1: not resumed), and this
+    #: run's rejected messages stamped at or before it (not saved: the warnings judge this run)
+    resumed_ok_ns: int = -1
+    rejected_before_resume: int = 0
 
     def note(
         self,
@@ -83,7 +88,10 @@ class TopicLedger:
         """
         self.used += int(np.count_nonzero(ok))
         if stamps is not None and len(ok):
-            self._follow_tail(ok, np.asarray(stamps, np.int64))
+            stamps = np.asarray(stamps, np.int64)
+            if self.resumed_ok_ns >= 0 and not ok.all():
+                self.rejected_before_resume += int(np.count_nonzero(~ok & (stamps <= self.resumed_ok_ns)))
+            self._follow_tail(ok, stamps)
         for reason, n in counts.items():
             d = n - counts_before.get(reason, 0)
             if d:
@@ -184,6 +192,19 @@ class TopicLedger:
                 "given twice, as by bags that each hold the day's air temperature, read merged, or a "
                 "logger that repeats its stamps; each stamp is used once, its first message"
             )
+        older = rejected["out_of_order"] + rejected["late"] + rejected["clock_jump"]
+        if self.resumed_ok_ns >= 0 and older <= self.rejected_before_resume:
+            # a checkpoint chain of bags that each hold the day's air: the next bag's copy of the
+            # readings the run before took is older than the checkpoint's clock, the rest repeat
+            # the held ones; every other cause of old stamps misled there as well
+            taken = iso_utc(self.resumed_ok_ns, "seconds")
+            return (
+                f"{head} rejected for their stamps ({counts}), {self.rejected_before_resume} of them "
+                f"stamped at or before the last one the checkpoint's run took ({taken}): "
+                "readings that run was given already, as by bags that each hold the day's air "
+                "temperature replayed one by one, or data older than the checkpoint; each stamp is used "
+                "once, its first message"
+            )
         return f"{head} rejected for their stamps ({counts}), {_OLD_CAUSES}"
 
     def bad_values_message(self) -> str | None:
@@ -238,6 +259,7 @@ class TopicLedger:
         self.last_value = None if np.isnan(v) else v
         # checkpoints written before the tail was followed have none
         self.last_ok_ns = int(state.get("last_ok_ns", -1))  # type: ignore[call-overload]
+        self.resumed_ok_ns, self.rejected_before_resume = self.last_ok_ns, 0
         self.tail_n = int(state.get("tail_n", 0))  # type: ignore[call-overload]
         self.tail_first_ns = int(state.get("tail_first_ns", -1))  # type: ignore[call-overload]
         self.tail_last_ns = int(state.get("tail_last_ns", -1))  # type: ignore[call-overload]
