@@ -106,6 +106,41 @@ def test_the_ledger_keeps_the_rejected_tail_through_its_state() -> None:
     assert led.tail_n == 0 and led.dead_tail(0) is None
 
 
+def test_a_resumed_ledger_says_when_its_old_stamps_are_the_checkpoints_own() -> None:
+    """Old stamps at or before the checkpoint's last taken one are named as such; any later, generic.
+
+    A checkpoint chain of bags that each hold the day's air rejects the later bag's copy of what
+    the first run took (``out_of_order``): the line says so. Old stamps after that point (a clock
+    set back within this run) keep the line of every cause.
+    """
+    s = 10**9
+    first = TopicLedger("air_temperature", None, (-60.0, 80.0, "C"))
+    first.note(np.ones(10, bool), np.ones(10), None, {}, {}, np.arange(10, dtype=np.int64) * s)
+    assert first.old_stamps_message() is None and first.resumed_ok_ns == -1
+
+    def resumed(stamps: np.ndarray) -> TopicLedger:
+        led = TopicLedger("air_temperature", None, (-60.0, 80.0, "C"))
+        led.load_state_dict(first.state_dict())
+        led.note(np.ones(20, bool), np.ones(20), None, {}, {}, np.arange(10, 30, dtype=np.int64) * s)
+        ok = np.zeros(len(stamps), bool)
+        led.note(ok, np.ones(len(stamps)), None, {}, {"out_of_order": len(stamps)}, stamps)
+        return led
+
+    copy = resumed(np.arange(5, dtype=np.int64) * s)  # the first run's readings again
+    line = copy.old_stamps_message()
+    assert line is not None and copy.rejected_before_resume == 5
+    assert "5 of them stamped at or before the last one the checkpoint's run took" in line
+    assert iso_utc(9 * s, "seconds") in line and "bags that overlap in time" not in line
+    later = resumed(np.array([5, 6, 7, 15, 16], dtype=np.int64) * s)  # two after the checkpoint's last
+    line = later.old_stamps_message()
+    assert line is not None and later.rejected_before_resume == 3
+    assert "checkpoint's run took" not in line and "bags that overlap in time" in line
+    fresh = TopicLedger("air_temperature", None, (-60.0, 80.0, "C"))  # no checkpoint: generic
+    fresh.note(np.ones(20, bool), np.ones(20), None, {}, {}, np.arange(10, 30, dtype=np.int64) * s)
+    fresh.note(np.zeros(5, bool), np.ones(5), None, {}, {"out_of_order": 5}, np.arange(5, dtype=np.int64) * s)
+    assert "bags that overlap in time" in (fresh.old_stamps_message() or "")
+
+
 def test_an_archive_says_it_as_the_serial_replay_does(tmp_path: Path) -> None:
     """Both cells dead from inside a bag to the end: the joined reductions say what the replay says.
 
