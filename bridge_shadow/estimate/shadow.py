@@ -234,9 +234,12 @@ class Shadow:
         #: reason (the replay JSON's ``rejected_windows``, whatever outputs a caller keeps)
         self.rejected_runs: list[list[Any]] = []
         self.confirmed_at: dict[int, int] = {}  # provisional segment start -> window that confirmed it
-        self.gaps: list[dict[str, int]] = []  # {"from_k", "to_k", "segment"}: gaps in usable windows
+        #: {"from_k", "to_k", "segment"} (ints) and "sun_covariate" [before, after]: gaps in usable windows
+        self.gaps: list[dict[str, Any]] = []
         self._gap_k = max(1, round(config.gap_s / config.window_s))  # missing windows that make a gap
         self._last_usable_k: int | None = None
+        #: the sun covariate of that window (None: no sun term, or its air temperature unknown)
+        self._last_usable_sun: float | None = None
         self._last_data_k: int | None = None  # the last window with force data (usable or not)
         self._outage_since_usable = False  # a window without any force data since the last usable one
         self.n_windows = 0
@@ -587,6 +590,7 @@ class Shadow:
             elif self._last_usable_k is not None and w.k - self._last_usable_k - 1 >= self._gap_k:
                 outputs.extend(self._open_gap(w))
             self._last_usable_k = w.k
+            self._last_usable_sun = self._window_sun(w)
             if self._outage_since_usable:  # (a gap's first window too: kind "gap" says it already)
                 self.filter.mark_outage(w.k)
                 self._outage_since_usable = False
@@ -667,7 +671,16 @@ class Shadow:
             outputs.extend(self._drain())
         else:
             self._split_warm_segment()
-        gap = {"from_k": int(self._last_usable_k or w.k), "to_k": w.k, "segment": self.filter.segment + 1}
+        gap: dict[str, Any] = {
+            "from_k": int(self._last_usable_k or w.k),
+            "to_k": w.k,
+            "segment": self.filter.segment + 1,
+        }
+        after = self._window_sun(w)
+        if self._last_usable_sun is not None and after is not None:
+            # the sun covariate on either side: what the deck's sun could have done across the gap
+            # (``report.sun_ambiguity_lines``)
+            gap["sun_covariate"] = [self._last_usable_sun, after]
         self.gaps.append(gap)
         self.filter.open_segment(
             w.k, self._drift_jump(w.k), kind="gap", change_prior=self.config.change_prior_probability
@@ -675,6 +688,12 @@ class Shadow:
         self.detector.prev = None  # innovations after the gap refer to a new estimate
         self._fresh_open = self.warm  # (during the warm-up its own search covers the segment)
         return outputs
+
+    def _window_sun(self, w: Window) -> float | None:
+        """Return the sun covariate window ``w`` entered the compensation with (None: no sun term, no air)."""
+        if not self.compensation.sun or w.i0[0] < 0:
+            return None
+        return float(w.bv[0][-1])
 
     def _ramp_going_on(self) -> bool:
         """Whether the windows held after a gap end in a ramp still in progress (hold them on).

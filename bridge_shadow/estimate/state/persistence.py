@@ -175,6 +175,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             ]
         ),
         "gaps": json.dumps(shadow.gaps),
+        "last_usable_sun": json.dumps(shadow._last_usable_sun),
         "confirmed_at": json.dumps([[k, v] for k, v in shadow.confirmed_at.items()]),
         "unconfirmed_runs": json.dumps(shadow.unconfirmed_runs),
         "excursions": json.dumps(shadow.excursions),
@@ -341,7 +342,13 @@ def restore_shadow(
     shadow.events = [
         {**e, "step_n": np.asarray(e["step_n"], float)} for e in json.loads(str(state["events"]))
     ]
-    shadow.gaps = [{k: int(v) for k, v in g.items()} for g in json.loads(str(state["gaps"]))]
+    shadow.gaps = [
+        {k: [float(x) for x in v] if k == "sun_covariate" else int(v) for k, v in g.items()}
+        for g in json.loads(str(state["gaps"]))
+    ]
+    if "last_usable_sun" in state:  # checkpoints written before the gaps' sun was kept have none
+        sun = json.loads(str(state["last_usable_sun"]))
+        shadow._last_usable_sun = None if sun is None else float(sun)
     shadow.confirmed_at = {int(k): int(v) for k, v in json.loads(str(state["confirmed_at"]))}
     shadow.unconfirmed_runs = list(json.loads(str(state["unconfirmed_runs"])))
     if "excursions" in state:  # checkpoints written before excursions were reported have none
