@@ -696,9 +696,9 @@ def sun_ambiguity_lines(shadow: Shadow) -> list[str]:
         out.append(
             f"a settlement across the gap {iso_utc(start)} .. {iso_utc(end)} ({judged}) cannot be told "
             f"from the deck's sun: its covariate went from {before:.2f} to {after:.2f}, and with the sun's "
-            f"g known to +-{sd_k:.1f} K a settlement of both supports of up to {hidden * 1e3:.1f} mm (95 %) "
-            "reads as sun there and the posterior as no change; records at other hours of sun fix g "
-            "(`gap`: its vertical_gradient candidate)"
+            f"g known to ± {1.96 * sd_k:.1f} K (95 %) a settlement of both supports of up to "
+            f"{hidden * 1e3:.1f} mm reads as sun there and the posterior as no change; records at other "
+            "hours of sun fix g"
         )
     return out
 
