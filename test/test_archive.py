@@ -864,11 +864,11 @@ def test_a_load_test_day_in_one_unit_gives_replays_window_outputs(munich_data: P
     from bridge_shadow.twin.real_records import Piece, build
 
     sur = load_surrogate()
-    pieces = [
+    pieces = [  # the records after the first cut to 6 minutes (the first's outputs are the case)
         Piece("ref", 0.0),
-        Piece("lowered", 0.733),
-        Piece("lowered", 4.0, (-0.01, -0.01), temp_at_h=2.0),
-        Piece("lowered", 6.0, (-0.02, -0.02)),
+        Piece("lowered", 0.733, cut_min=(0.0, 6.0)),
+        Piece("lowered", 4.0, (-0.01, -0.01), temp_at_h=2.0, cut_min=(0.0, 6.0)),
+        Piece("lowered", 6.0, (-0.02, -0.02), cut_min=(0.0, 6.0)),
     ]
     sc = build(munich_data / "Settlements", sur.A, pieces)
     seams = [(a + b) // 2 for a, b in itertools.pairwise(sc.starts_ns)]
@@ -883,7 +883,7 @@ def test_a_load_test_day_in_one_unit_gives_replays_window_outputs(munich_data: P
     shadow = Shadow(config, sur)
     outputs: list[Any] = []
     stats = join_bags(shadow, [reduce_bag(unit, config, sur)], on_outputs=outputs.extend)
-    assert not stats.fed_whole and stats.windows_taken > 30
+    assert not stats.fed_whole and stats.windows_taken > 20
     first = [o for o in ref.outputs if o.end_ns <= sc.starts_ns[1]]
     assert len(first) > 10 and all(np.sqrt(np.diag(o.covariance_m2)).max() < 3e-3 for o in first[3:])
     assert_same_outputs(outputs, ref.outputs)
