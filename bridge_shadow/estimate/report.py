@@ -674,8 +674,8 @@ def sun_ambiguity_lines(shadow: Shadow) -> list[str]:
     (``docs/limitations.md``). This says it: the gap's sun covariates (before, after; ``gaps``), the
     sun term's ``g`` sd now (``spline_info``), ``A^-1`` of its force per kelvin, common mode: the
     95 % settlement the sun could hide there. Said from ``SUN_AMBIGUITY_M`` on, for a gap merged
-    (no change) or still provisional; a change the data confirmed is an event. Nothing estimated
-    changes.
+    (no change) or still provisional with a change probability below one half (the posterior
+    leaning to no change); a change the data confirmed is an event. Nothing estimated changes.
     """
     sun = _sun_reach(shadow)
     if sun is None:
@@ -690,8 +690,10 @@ def sun_ambiguity_lines(shadow: Shadow) -> list[str]:
         hidden = 1.96 * sd_k * abs(per_k * (after - before))
         if hidden < SUN_AMBIGUITY_M:
             continue
-        start, end = (g["from_k"] + 1) * shadow._w_ns, g["to_k"] * shadow._w_ns
         p = 0.0 if s < 0 else float(shadow.filter.segment_probability(s)[0])
+        if p >= 0.5:  # the posterior leans to the change already (not confirmed yet): no misreading
+            continue
+        start, end = (g["from_k"] + 1) * shadow._w_ns, g["to_k"] * shadow._w_ns
         judged = "judged no change" if s < 0 else f"a change weighed at probability {p:.2f}, not confirmed"
         out.append(
             f"a settlement across the gap {iso_utc(start)} .. {iso_utc(end)} ({judged}) cannot be told "
