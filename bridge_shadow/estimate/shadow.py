@@ -693,7 +693,8 @@ class Shadow:
         """Return the sun covariate window ``w`` entered the compensation with (None: no sun term, no air)."""
         if not self.compensation.sun or w.i0[0] < 0:
             return None
-        return float(w.bv[0][-1])
+        sun = float(w.bv[0][-1])
+        return sun if math.isfinite(sun) else None
 
     def _ramp_going_on(self) -> bool:
         """Whether the windows held after a gap end in a ramp still in progress (hold them on).
