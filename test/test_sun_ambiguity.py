@@ -92,5 +92,13 @@ def test_the_line_survives_a_checkpoint_at_the_gap(munich_data: Path, tmp_path: 
     first.run(sc.data.select(lambda stamps: stamps < cut), flush=False)
     second = Shadow.from_state_dict(first.state_dict(), load_config(), sur)
     second.run(sc.data.select(lambda stamps: stamps >= cut))
-    assert second.gaps == whole.gaps
-    assert [w for w in second.warnings() if SUN in w] == [w for w in whole.warnings() if SUN in w]
+    for got, ref in zip(second.gaps, whole.gaps, strict=True):  # indices exact, the sun to rounding
+        assert {k: v for k, v in got.items() if k != "sun_covariate"} == {
+            k: v for k, v in ref.items() if k != "sun_covariate"
+        }
+        np.testing.assert_allclose(got["sun_covariate"], ref["sun_covariate"], rtol=1e-12, atol=0)
+    lines = [[w for w in s.warnings() if SUN in w] for s in (second, whole)]
+    assert len(lines[0]) == len(lines[1]) == 1
+    numbers = [np.array(re.findall(r"(?<![\w.])\d+\.\d+", line[0]), float) for line in lines]
+    np.testing.assert_allclose(numbers[0], numbers[1], atol=0.1)  # as printed: one decimal, two
+    assert re.sub(r"[\d.]+", "#", lines[0][0]) == re.sub(r"[\d.]+", "#", lines[1][0])
