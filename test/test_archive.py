@@ -855,8 +855,8 @@ def test_a_load_test_day_in_one_unit_gives_replays_window_outputs(munich_data: P
     window, so its 13 outputs published the jump prior's width (+-18.5 / 14.8 mm, where replay's
     polls said +-1.9 / 1.8 mm); a replay whose chunk spanned the gap did the same. The final
     answers agreed, the published ones did not. The shadow now decides a held record at the first
-    window after the gap whatever the batch (``Shadow._process``) and the join at a bag's end
-    (``Shadow.decide_at_gap``): outputs, window by window, are the replay's at any chunk.
+    window after the gap whatever the batch (``Shadow._process``), the join's batches too:
+    outputs, window by window, are the replay's at any chunk.
     """
     from archive_fixtures import cut
 

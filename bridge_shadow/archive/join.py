@@ -155,7 +155,6 @@ def join_bags(
             add_bookkeeping(shadow, red.end, red.snapshots[synced])
             emit(shadow.take_windows(batch))
             load_behaviour(shadow, red.end)
-            emit(shadow.decide_at_gap())  # a record that ends in the bag: decided there, as polls would
         fresh = fresh and front_state(shadow).never_accepted
     if flush:
         emit(shadow.flush())

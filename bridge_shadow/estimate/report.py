@@ -216,8 +216,12 @@ def gaps(shadow: Shadow) -> list[dict[str, Any]]:
     the sun's uncertain ``g`` could hide across the gap, 95 %, m (``sun_hidden_m``,
     ``sun_ambiguity_lines``).
     """
+    return _gaps(shadow, _sun_reach(shadow))
+
+
+def _gaps(shadow: Shadow, sun: tuple[float, float] | None) -> list[dict[str, Any]]:
+    """``gaps`` with the sun's reach (``_sun_reach``) given."""
     out = []
-    sun = _sun_reach(shadow)
     for g in shadow.gaps:
         s = g["segment"]
         start_ns, end_ns = (g["from_k"] + 1) * shadow._w_ns, g["to_k"] * shadow._w_ns
@@ -654,12 +658,15 @@ def _sun_reach(shadow: Shadow) -> tuple[float, float] | None:
     The sd is ``spline_info``'s. None without a sun term, a fit, or a gap with the sun covariate
     on both sides.
     """
-    comp = shadow.compensation
-    if not comp.sun or shadow.fit is None or not any("sun_covariate" in g for g in shadow.gaps):
+    if (
+        not shadow.compensation.sun
+        or shadow.fit is None
+        or not any("sun_covariate" in g for g in shadow.gaps)
+    ):
         return None
     info = spline_info(shadow)
     sd_k = float(np.mean([info[ch].get("sun_gradient_sd_k", np.nan) for ch in CHANNELS]))
-    per_k = float(np.mean(shadow.filter.a_inv @ np.asarray(comp.sun_slope, float)))
+    per_k = float(np.mean(shadow.filter.a_inv @ np.asarray(shadow.compensation.sun_slope, float)))
     return (sd_k, per_k) if np.isfinite(sd_k) and np.isfinite(per_k) else None
 
 
@@ -680,27 +687,22 @@ def sun_ambiguity_lines(shadow: Shadow) -> list[str]:
     sun = _sun_reach(shadow)
     if sun is None:
         return []
-    sd_k, per_k = sun
     out = []
-    for g in shadow.gaps:
-        s = int(g["segment"])
-        if "sun_covariate" not in g or (s >= 0 and _confirmed(shadow, s)):
+    for g in _gaps(shadow, sun):
+        hidden, p = g.get("sun_hidden_m", 0.0), g["change_probability"]
+        # a change the data confirmed is an event; one they favour (not yet confirmed) no misreading
+        if g["confirmed"] or p >= 0.5 or hidden < SUN_AMBIGUITY_M:
             continue
         before, after = g["sun_covariate"]
-        hidden = 1.96 * sd_k * abs(per_k * (after - before))
-        if hidden < SUN_AMBIGUITY_M:
-            continue
-        p = 0.0 if s < 0 else float(shadow.filter.segment_probability(s)[0])
-        if p >= 0.5:  # the posterior leans to the change already (not confirmed yet): no misreading
-            continue
-        start, end = (g["from_k"] + 1) * shadow._w_ns, g["to_k"] * shadow._w_ns
-        judged = "judged no change" if s < 0 else f"a change weighed at probability {p:.2f}, not confirmed"
+        judged = (
+            "judged no change" if g["merged"] else f"a change weighed at probability {p:.2f}, not confirmed"
+        )
         out.append(
-            f"a settlement across the gap {iso_utc(start)} .. {iso_utc(end)} ({judged}) cannot be told "
+            f"a settlement across the gap {g['from']} .. {g['to']} ({judged}) cannot be told "
             f"from the deck's sun: its covariate went from {before:.2f} to {after:.2f}, and with the sun's "
-            f"g known to ± {1.96 * sd_k:.1f} K (95 %) a settlement of both supports of up to "
-            f"{hidden * 1e3:.1f} mm reads as sun there and the posterior as no change; records at other "
-            "hours of sun fix g"
+            f"g known to ± {1.96 * sun[0]:.1f} K (95 %) a settlement of both supports "
+            f"of up to {hidden * 1e3:.1f} mm reads as sun there and the posterior as no change; records at "
+            "other hours of sun fix g"
         )
     return out
 

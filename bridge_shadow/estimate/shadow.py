@@ -404,7 +404,7 @@ class Shadow:
         wall clock when all inputs stop; leave it None to stay on stamp time (replay-exact).
         """
         outputs = self._process(self.close_windows(now_ns))
-        outputs.extend(self.decide_at_gap())
+        outputs.extend(self._decide_before_gap(self.buffer.next_k))
         self._maybe_checkpoint()
         return outputs
 
@@ -431,14 +431,6 @@ class Shadow:
             if excess > self.air["excess"]:
                 self.air["excess"] = excess
                 self.air["worst"] = [int(last[0]), int(w.k), float(last[1]), t]
-
-    def decide_at_gap(self) -> list[WindowOutput]:
-        """Decide what is held if the windows closed so far end in a gap after the last usable one.
-
-        ``poll``'s last step; the archive's join calls it after taking a bag's windows
-        (``take_windows``) and its front end's state, as the polls of a replay would have.
-        """
-        return self._decide_before_gap(self.buffer.next_k)
 
     def _decide_before_gap(self, next_k: int | None) -> list[WindowOutput]:
         """Decide what is held once every window that could follow without a gap has closed.
