@@ -87,7 +87,7 @@ def test_a_later_record_in_its_own_zip_is_a_new_state_through_import_and_replay(
 
 
 def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_chains_through_the_checkpoint(
-    munich_data: Path, later: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    munich_data: Path, later: Path, tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
     """A later record's bag after one whose air ran past it: nothing late, one merged replay's answer.
 
@@ -97,7 +97,9 @@ def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_chains_through_
     forces were all ``late``: 144,000 messages lost, said but not recovered (a helper session
     playing the judge with the withheld records' stand-ins). Now the first replay writes its
     checkpoint before the air past its last force and holds that air in it; the second merges it
-    with its own bag by log time: the chain gives what one replay of both bags gives.
+    with its own bag by log time: the chain gives what one replay of both bags gives. The same
+    chain with the later bag played live (``replay --live --checkpoint``, ``ros.live_chain``): its
+    forces were all ``late`` too (exit 1, the chain at the 10 mm state); now the merged answer.
     """
     from bridge_shadow.estimate.shadow import Shadow
 
@@ -106,17 +108,19 @@ def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_chains_through_
 
     def replay(*args: str, rc: int = 0) -> dict:
         assert main(["replay", *args, "--json"]) == rc
-        return json.loads(capsys.readouterr().out)
+        return json.loads(capfd.readouterr().out)
 
     records = [str(folder / REF), str(folder / LOWERED), str(folder / TEMPERATURE)]
     assert main(["import-csv", *records, "--out", str(public), "--json"]) == 0
-    out = capsys.readouterr()
-    (line,) = json.loads(out.out)["warnings"]  # what a live node fed the bags one by one would lose
+    out = capfd.readouterr()
+    (line,) = json.loads(out.out)["warnings"]  # what a running node fed the bags one by one would lose
     assert line.startswith("the air temperature runs 8.3 h past the last force record")
-    assert "replay --live --checkpoint" in line and "WARN: the air temperature runs" in out.err
+    assert "a player of its own" in line and "WARN: the air temperature runs" in out.err
     assert main(["import-csv", str(later), str(folder / TEMPERATURE), "--out", str(alone), "--json"]) == 0
-    capsys.readouterr()
+    capfd.readouterr()
     replay(str(public), "--checkpoint", str(ck))  # its own answer as without (test_air_tail.py)
+    live_ck = tmp_path / "live_ck"
+    live_ck.write_bytes(ck.read_bytes())  # the chain once more, its later bag played to a node
     held = Shadow.resume(ck).held_air  # the air past the public records' last force, unfed
     assert held is not None and len(held) > 20_000
     assert held.log_ns[0] > 0 and np.all(np.diff(held.log_ns) >= 0)
@@ -142,6 +146,12 @@ def test_a_later_record_in_a_bag_after_one_whose_air_ran_past_it_chains_through_
     assert int(line.split("), ")[1].split(" of them")[0]) >= older and "replayed one by one" in line
     mean, sd = np.array(second["posterior"]["mean_m"]), np.array(second["posterior"]["sigma_m"])
     truth = np.array([-0.02, -0.02])  # the 10 mm lowering, and 10 mm more through A
+    live = replay(str(alone), "--live", "--checkpoint", str(live_ck))
+    assert live["rejected"]["late"] == 0 and live["messages"]["used"] == second["messages"]["used"]
+    for key in ("mean_m", "covariance_m2"):
+        np.testing.assert_allclose(live["posterior"][key], merged["posterior"][key], rtol=1e-9)
+    assert [(e["kind"], e["window"]) for e in live["events"]] == kinds[1]
+    assert live["windows"]["at_end"] == second["windows"]["at_end"]  # the same checkpoint for the next
     assert np.all(np.abs(mean - truth) <= 0.1 * np.abs(truth)) and np.all(np.abs(mean - truth) < 1.96 * sd)
 
 

@@ -88,23 +88,21 @@ def short_direct(short_bag: Path):
 
 
 def test_a_live_replay_writes_its_temporary_checkpoint_at_the_flush_only(tmp_path: Path) -> None:
-    """Without ``--checkpoint`` the node's checkpoint is a temporary file read once, after the flush.
+    """The node's checkpoint is a temporary file of the replay's, read after its writes, never periodic.
 
     Its periodic writes (every ``checkpoint_period_s`` of stamp time: 144 on the bundled day, a
     quarter of the node's CPU as fast as it takes them) served nothing: the period is the longest
-    the parameter takes. A checkpoint named keeps the period given, and the parameter file's own
-    checkpoint path (a running node's) is never the one used.
+    the parameter takes. A checkpoint named (``--checkpoint``) is copied there and written back
+    at the end (``live_chain``, ``test_live_chain.py``); the parameter file's own checkpoint path (a
+    running node's) is never the one used.
     """
     from bridge_shadow.estimate.parameters.specs import YEAR_S
     from bridge_shadow.ros.live_replay import _node_config
 
     given = load_config(None, {"checkpoint_path": str(tmp_path / "node.npz"), "checkpoint_period_s": 60.0})
-    temporary = _node_config(given, None, tmp_path / "tmp")
+    temporary = _node_config(given, tmp_path / "tmp")
     assert temporary.checkpoint_path == str(tmp_path / "tmp" / "checkpoint.npz")
     assert temporary.checkpoint_period_s == YEAR_S  # exact: the constant passed through
-    named = _node_config(given, tmp_path / "mine.npz", tmp_path / "tmp")
-    assert named.checkpoint_path == str(tmp_path / "mine.npz")
-    assert named.checkpoint_period_s == 60.0  # exact: the value given, passed through
 
 
 def test_live_replay_equals_direct_replay(bag: Path, direct, tmp_path: Path) -> None:

@@ -54,9 +54,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--air-near-forces",
         action="store_true",
         help="write only the air temperature within 10 minutes of a force sample (a bag that a later "
-        "record's bag will follow through a live node, replay --live --checkpoint; replay --checkpoint "
-        "and archive do not need it; calibrate and gap read the day's whole air for its warming, so keep "
-        "the default for them)",
+        "record's bag will follow into a running node fed by a player of its own; replay --checkpoint, "
+        "replay --live --checkpoint and archive do not need it; calibrate and gap read the day's whole "
+        "air for its warming, so keep the default for them)",
     )
 
 
@@ -90,12 +90,13 @@ def _air_beyond_forces(data: Any) -> list[str]:
     """Say when the bag's air temperature runs past its last force by more than ``AIR_BEYOND_S``.
 
     The shadow's data clock follows every topic, the air's too: feeding this bag closes the
-    windows up to the air's last reading. ``replay --checkpoint`` holds the air past the last force
-    in its checkpoint for the next bag, and ``archive`` and ``replay BAG BAG`` read overlapping
-    bags merged, so none of them loses a later record's forces; a live node fed one bag after
-    the other (``replay --live --checkpoint``) cannot hold it, and rejects the forces of a later
-    record before the air's end as ``late`` (found with a withheld 13:39 record imported on its
-    own after the public records, each bag with the day's whole temperature file).
+    windows up to the air's last reading. ``replay --checkpoint`` (and ``--live`` with it: the
+    player holds that air back, ``ros.live_chain``) holds the air past the last force in its
+    checkpoint for the next bag, and ``archive`` and ``replay BAG BAG`` read overlapping bags
+    merged, so none of them loses a later record's forces; a running node fed one bag after the
+    other by a player of its own cannot hold it, and rejects the forces of a later record before
+    the air's end as ``late`` (found with a withheld 13:39 record imported on its own after the
+    public records, each bag with the day's whole temperature file).
     """
     from bridge_shadow.timefmt import iso_utc
 
@@ -110,10 +111,10 @@ def _air_beyond_forces(data: Any) -> list[str]:
         return []
     return [
         f"the air temperature runs {beyond_s / 3600.0:.1f} h past the last force record (to "
-        f"{iso_utc(last_air)}, the forces to {iso_utc(last_force)}): replay --checkpoint and archive "
-        "keep it for a bag of later records, but a live node fed such a bag after this one (replay "
-        "--live --checkpoint) rejects its forces before that time as late; for that, import the "
-        "records of a day together into one bag, or with --air-near-forces"
+        f"{iso_utc(last_air)}, the forces to {iso_utc(last_force)}): replay --checkpoint (live or "
+        "not) and archive keep it for a bag of later records, but a running node fed such a bag after "
+        "this one by a player of its own rejects its forces before that time as late; for that, import "
+        "the records of a day together into one bag, or with --air-near-forces"
     ]
 
 

@@ -39,6 +39,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from rclpy.duration import Duration
 from rclpy.experimental import EventsExecutor
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Temperature
@@ -61,9 +62,12 @@ from bridge_shadow.contract import (
 from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.estimate.parameters.specs import YEAR_S
 from bridge_shadow.estimate.result import split_rejected
+from bridge_shadow.estimate.state.checkpoint import load_state
 from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
+from bridge_shadow.ros.live_chain import RawAirTail, decode_air, merge_held, prepare
 from bridge_shadow.ros.node import (
+    CHECKPOINT_SERVICE,
     FLUSH_SERVICE,
     HISTORY_SERVICE,
     STATUS_SERVICE,
@@ -92,6 +96,23 @@ _OUTPUT_TYPES = {
 }
 
 
+def posterior_reader_qos(latched_depth: int) -> QoSProfile:
+    """Return the QoS of a player's posterior readers: every sample, those before they matched too.
+
+    ``latched_depth``: the node's posterior writers keep their last ``latched_depth`` samples for
+    late readers (``node.posterior_qos``, ``qos_depth`` > 0); the reader asks for them
+    (TRANSIENT_LOCAL) and keeps all it gets. 0: the node's writers are VOLATILE (``qos_depth`` <=
+    0, or not a node of ours), and so is the reader (a TRANSIENT_LOCAL reader would not match them).
+    """
+    if latched_depth <= 0:
+        return input_qos(0)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_ALL,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+
+
 def merge_log_order(log_ns: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Merge per-topic log times into one arrival order (stable: ties keep topic order).
 
@@ -114,7 +135,8 @@ class Player:
     Publishes raw input messages (RELIABLE, KEEP_ALL), records every output message raw with its
     receive time (wall ns), and calls the node's flush service. ``inputs`` (frc_01, frc_02, air
     temperature) and ``outputs`` (contract output topic -> name in the graph) follow the node's
-    ``topic_*`` parameters; the defaults are the contract's names.
+    ``topic_*`` parameters; the defaults are the contract's names. ``latched_depth``: how many
+    posteriors the node keeps for late readers (``posterior_reader_qos``; 0: none).
 
     Attributes:
         records: contract output topic (and each ``extra`` topic) -> list of
@@ -130,6 +152,7 @@ class Player:
         extra: dict[str, Any] | None = None,
         inputs: Sequence[str] = INPUT_ORDER,
         outputs: dict[str, str] | None = None,
+        latched_depth: int = 0,
     ) -> None:
         self.context = rclpy.Context()
         # no rclpy signal handlers: Ctrl-C stays a KeyboardInterrupt, and callers' finally blocks
@@ -144,9 +167,14 @@ class Player:
         names = {t: t for t in _OUTPUT_TYPES} | dict(outputs or {})
         self.records: dict[str, list[tuple[int, bytes]]] = {topic: [] for topic in _OUTPUT_TYPES}
         topics = [t for t in _OUTPUT_TYPES if record_diagnostics or t != DIAGNOSTICS_TOPIC]
+        # the posterior the node publishes before this reader matched (a node resumed holding a
+        # record after a gap says its widened interval at start) is had from its TRANSIENT_LOCAL
+        # history; a VOLATILE reader lost it, and the replay waited for a posterior it never got
+        durable = posterior_reader_qos(latched_depth)
+        special = {DIAGNOSTICS_TOPIC: 10, MEAN_TOPIC: durable, COVARIANCE_TOPIC: durable}
         self._subs = [
             self.node.create_subscription(
-                _OUTPUT_TYPES[t], names[t], self._recorder(t), 10 if t == DIAGNOSTICS_TOPIC else qos, raw=True
+                _OUTPUT_TYPES[t], names[t], self._recorder(t), special.get(t, qos), raw=True
             )
             for t in topics
         ]
@@ -158,6 +186,7 @@ class Player:
         self.flush_client = self.node.create_client(Trigger, FLUSH_SERVICE)
         self.status_client = self.node.create_client(Trigger, STATUS_SERVICE)
         self.history_client = self.node.create_client(Trigger, HISTORY_SERVICE)
+        self.checkpoint_client = self.node.create_client(Trigger, CHECKPOINT_SERVICE)
         self.executor = EventsExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._stop = threading.Event()
@@ -349,6 +378,13 @@ class Player:
             if not p.wait_for_all_acked(Duration(seconds=timeout_s)):
                 raise NodeError(f"{p.topic_name}: not acknowledged within {timeout_s:g} s")
 
+    def checkpoint(self, node: NodeProcess | None = None, timeout_s: float = 30.0) -> dict[str, Any]:
+        """Call the node's checkpoint service (write its state now, no window closed early)."""
+        alive = node.check_alive if node is not None else None
+        client = self.checkpoint_client  # not in ``graph_ready``: a bare echo node has no such service
+        wait_until(client.service_is_ready, timeout_s, "the node's checkpoint service", alive)
+        return self._call(client, node, timeout_s)
+
     def flush(self, node: NodeProcess | None = None, timeout_s: float = 30.0) -> dict[str, Any]:
         """Call the node's flush service; return its report (``Shadow.diagnostics()`` + ``node``)."""
         return self._call(self.flush_client, node, timeout_s, query=False)
@@ -401,19 +437,19 @@ def _write_outputs(
     return Path(path)
 
 
-def _node_config(config: ShadowConfig, checkpoint: str | Path | None, tmp: Path) -> ShadowConfig:
-    """Return the node's parameters of a live replay: its checkpoint and how often it is written.
+def _node_config(config: ShadowConfig, tmp: Path) -> ShadowConfig:
+    """Return the node's parameters of a live replay: a checkpoint of its own in ``tmp``, written rarely.
 
-    A fresh checkpoint in ``tmp`` unless one is named: the replay must not resume an earlier run
-    nor overwrite a running node's state (the params file's ``checkpoint_path`` is the node's).
-    That temporary file is read once, after the flush (the plots' curve), and removed with
-    ``tmp``: nothing resumes from a periodic write of it, which in a replay as fast as the node
-    takes it came every ``checkpoint_period_s`` of stamp time (a 1440-window day: 144 writes, a
-    quarter of the node's CPU). It is written at the flush and at exit only (a period of a year
-    of stamp time, the longest the parameter takes). A named checkpoint keeps the period given.
+    The replay must not resume an earlier run nor overwrite a running node's state (the params
+    file's ``checkpoint_path`` is the node's). A checkpoint named (``--checkpoint``) is copied
+    there first (``live_chain.prepare``) and written back once the run is complete
+    (``LiveChain.finish``). The node's file is read after the checkpoint service's write (a
+    chain's state) and after the flush (the plots' curve), and is removed with ``tmp``: nothing
+    resumes from a periodic write of it, which in a replay as fast as the node takes it came every
+    ``checkpoint_period_s`` of stamp time (a 1440-window day: 144 writes, a quarter of the node's
+    CPU). It is written when asked, at the flush and at exit only (a period of a year of stamp
+    time, the longest the parameter takes).
     """
-    if checkpoint is not None:
-        return config.replace(checkpoint_path=str(checkpoint))
     return config.replace(checkpoint_path=str(tmp / "checkpoint.npz"), checkpoint_period_s=YEAR_S)
 
 
@@ -446,9 +482,12 @@ def run_live(
         overrides: parameter overrides applied after the file (as ``-p name:=value``).
         timeout_s: limit for discovery, acknowledgement, flush and outputs, each.
         progress: called with the fraction of the bag published (a progress bar).
-        checkpoint: the node resumes from this file if it exists and writes it (at flush and exit);
-            default: a fresh temporary one, so the replay never touches a running node's state
-            (the ``checkpoint_path`` of the parameter file is not used).
+        checkpoint: resume from this file if it exists, and write it once the run is complete: the
+            state after the bag's last force, with the air past that force held unfed for the next
+            bag (``live_chain``: a chain of live replays gives what one replay of the bags merged
+            gives); an interrupted run leaves it as it was. Default: none (the node's checkpoint is
+            a temporary one, so the replay never touches a running node's state; the
+            ``checkpoint_path`` of the parameter file is not used).
         watch: print the node's latest outputs once a second on stderr (``watch.TopicWatch``).
 
     Network: unless the environment sets ``ROS_AUTOMATIC_DISCOVERY_RANGE`` (an explicit choice is
@@ -479,7 +518,10 @@ def run_live(
         MonitoringStream(bag, topics=inputs, required=list(INPUT_TOPICS)[:2]) as stream,
         tempfile.TemporaryDirectory(prefix="bridge_shadow_live_") as tmp,
     ):
-        node_config = _node_config(config, checkpoint, Path(tmp))
+        node_config = _node_config(config, Path(tmp))
+        # a chain: the node resumes from a copy, the held air is played merged with the bag
+        copy = Path(node_config.checkpoint_path)
+        chain = None if checkpoint is None else prepare(config, surrogate, checkpoint, copy)
         params_file = write_params_file(node_config.to_params(), Path(tmp))
         node = NodeProcess(["--ros-args", "--params-file", str(params_file)])
         player = None
@@ -491,7 +533,8 @@ def run_live(
                 fraction = lambda _sent, log: progress(min(max(log - (first or 0), 0) / span, 1.0))  # noqa: E731
             t0 = time.perf_counter()
             node.start()
-            player = Player(inputs=inputs, outputs=config.output_topics())
+            latched = max(config.qos_depth, 100) if config.qos_depth > 0 else 0  # the node's ``out_depth``
+            player = Player(inputs=inputs, outputs=config.output_topics(), latched_depth=latched)
             discovery_s = _discover(player, node, timeout_s)
             in_flight = min(config.qos_depth if config.qos_depth > 0 else MAX_IN_FLIGHT, MAX_IN_FLIGHT)
             if watch:
@@ -499,8 +542,21 @@ def run_live(
 
                 watcher = TopicWatch(player.records)
                 fraction = lambda _sent, log: watcher(min(max(log - (first or 0), 0) / span, 1.0))  # noqa: E731
-            pieces = _merged_pieces(stream)
+            pieces: Iterable[Any] = _merged_pieces(stream)
+            hold = None
+            if chain is not None:  # the air past the bag's last force is held (``live_chain``)
+                pieces = hold = RawAirTail(merge_held(pieces, chain.held))
             t_first, t_last, total = player.publish_pieces(pieces, rate, in_flight, node, fraction)
+            captured: dict[str, Any] = {}
+            if chain is not None and hold is not None:
+                # the state after the last force, before the tail: the offline chain's checkpoint
+                sent = f"the node to take {total} messages"
+                wait_until(lambda: player.taken(node) >= total, timeout_s, sent)
+                player.checkpoint(node, timeout_s)
+                captured = load_state(chain.private)
+                if hold.tail:  # then the tail, for this bag's own result
+                    _, t_last, more = player.publish_pieces(hold.tail, rate, in_flight, node, fraction)
+                    total += more
             wait_until(lambda: player.taken(node) >= total, timeout_s, f"the node to take {total} messages")
             report = player.flush(node, timeout_s)
             t_done = time.perf_counter()
@@ -538,6 +594,9 @@ def run_live(
             elif code != 0:
                 raise NodeError(f"bridge_shadow_node exited with code {code}: {node.output().strip()[-300:]}")
             records = player.records
+            if chain is not None and hold is not None:
+                tail, malformed_tail = decode_air(hold.tail)
+                chain.finish(captured, tail)
         finally:
             if player is not None:
                 player.close()
@@ -590,6 +649,19 @@ def run_live(
             "received": counters["received"],
         },
     }
+    if chain is not None:
+        # as the offline chain's: the windows the next bag's run closes again, the air it holds
+        js["windows"]["at_end"] = {
+            "closed": js["windows"]["closed"] - int(captured["scalars"]["n_windows"]),
+            "updates": js["windows"]["updates"] - int(captured["filter"]["n_updates"]),
+            "held_air": len(tail) if tail is not None else 0,
+        }
+        js["warnings"] = [*chain.notes, *js["warnings"]]
+        if malformed_tail:
+            js["warnings"].append(
+                f"{malformed_tail} air message(s) past the bag's last force could not be decoded: not "
+                "held in the checkpoint (the node dropped them as malformed)"
+            )
     if out is not None:
         js["out"] = str(_write_outputs(out, records, config.output_topics(), overwrite, storage))
     if plots is not None:

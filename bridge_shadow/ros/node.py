@@ -18,6 +18,9 @@ defaults are the contract's)::
         (the live replay's flow control).
     service /bridge_shadow/history (std_srvs/Trigger): the last ``HISTORY_WINDOWS`` window outputs
         as JSON (SI units): what a late-joining viewer, or ``replay --live --plots``, draws.
+    service /bridge_shadow/checkpoint (std_srvs/Trigger): ingest what was taken, close the windows
+        that are due and write the checkpoint now, no window held closed early (a save before
+        maintenance; ``replay --live --checkpoint`` calls it after a bag's last force).
 
 Subscriptions take raw CDR (no Python message object per sample) and the buffers are decoded in
 blocks: when one holds ``BATCH`` messages, when a message brings the last topic past the end of
@@ -99,6 +102,7 @@ from bridge_shadow.ros.parameters import declare_parameters, is_ros_own, plain_v
 
 __all__ = [
     "BATCH",
+    "CHECKPOINT_SERVICE",
     "DRAIN_PERIOD_S",
     "FLUSH_SERVICE",
     "HISTORY_SERVICE",
@@ -122,6 +126,8 @@ FLUSH_SERVICE = f"{NODE_NAME}/flush"
 STATUS_SERVICE = f"{NODE_NAME}/status"
 #: Service answering with the recent window outputs (``window_history``) as JSON.
 HISTORY_SERVICE = f"{NODE_NAME}/history"
+#: Service that writes the checkpoint now, closing only the windows that are due.
+CHECKPOINT_SERVICE = f"{NODE_NAME}/checkpoint"
 #: Window outputs the node keeps for the history service: one week of 60 s windows (about 1 MB).
 HISTORY_WINDOWS = 10_080
 #: Buffered messages per topic that trigger a decode-and-ingest.
@@ -246,6 +252,7 @@ class ShadowNode(Node):
         self._flush_srv = self.create_service(Trigger, FLUSH_SERVICE, self._on_flush)
         self._status_srv = self.create_service(Trigger, STATUS_SERVICE, self._on_status)
         self._history_srv = self.create_service(Trigger, HISTORY_SERVICE, self._on_history)
+        self._checkpoint_srv = self.create_service(Trigger, CHECKPOINT_SERVICE, self._on_checkpoint)
 
     # -- parameters ------------------------------------------------------------------------
     def _read_parameters(self) -> ShadowConfig:
@@ -560,6 +567,32 @@ class ShadowNode(Node):
                 self.shadow.checkpoint_failure = (int(self.shadow.clock_ns or 0), str(err))
         response.success = True
         response.message = json.dumps(jsonable(self.report()))
+        return response
+
+    def _on_checkpoint(self, request: Any, response: Any) -> Any:
+        """Ingest every message taken, close the windows due, write the checkpoint; answer ``{"path": ...}``.
+
+        No window is closed early (a flush would decide the open ones): the state written is the
+        one a replay's checkpoint holds after its bag's last force (``replay_bag``), which is what
+        ``replay --live --checkpoint`` asks for before it plays the air past that force
+        (``live_chain``). After a quiet-input close no data has decided, the state from before it is
+        written, as at exit. Fails (success false, the reason) without ``checkpoint_path`` or when
+        the write fails; the node goes on either way.
+        """
+        if not self.config.checkpoint_path:
+            response.success = False
+            response.message = "checkpoint_path is empty: the node writes no checkpoint"
+            return response
+        self.drain(everything=True)
+        before = self._before_quiet[0] if self._before_quiet is not None else None
+        try:
+            path = self.shadow.save_checkpoint(state=before)
+        except CheckpointError as err:
+            response.success = False
+            response.message = str(err)
+            return response
+        response.success = True
+        response.message = json.dumps({"path": str(path)})
         return response
 
     def save_on_exit(self) -> Path | None:

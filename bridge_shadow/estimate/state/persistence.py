@@ -26,7 +26,7 @@ from bridge_shadow.series import TemperatureSeries
 if TYPE_CHECKING:
     from bridge_shadow.estimate.shadow import Shadow
 
-__all__ = ["restore_shadow", "shadow_state"]
+__all__ = ["held_air_arrays", "held_air_series", "restore_shadow", "shadow_state"]
 
 _VERSION = 5  # 5: the sun term (basis width, the FE vertical-gradient response, the fit's bbar)
 _NONE = -(2**62)
@@ -186,7 +186,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "silence": json.dumps(shadow.silence.state_dict()),
         "relax": json.dumps(shadow._relax),
         "air": json.dumps(shadow.air),
-        **({"held_air": _held_air(shadow.held_air)} if shadow.held_air is not None else {}),
+        **({"held_air": held_air_arrays(shadow.held_air)} if shadow.held_air is not None else {}),
         "scalars": {
             "last_usable_k": _opt(shadow._last_usable_k),
             "last_data_k": _opt(shadow._last_data_k),
@@ -206,7 +206,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
     }
 
 
-def _held_air(t: TemperatureSeries) -> dict[str, np.ndarray]:
+def held_air_arrays(t: TemperatureSeries) -> dict[str, np.ndarray]:
     """Return the air messages a checkpoint holds unfed (frame ids as strings: no pickle in the file)."""
     return {
         "stamp_ns": t.stamp_ns,
@@ -217,7 +217,8 @@ def _held_air(t: TemperatureSeries) -> dict[str, np.ndarray]:
     }
 
 
-def _restore_held_air(d: dict[str, Any]) -> TemperatureSeries:
+def held_air_series(d: dict[str, Any]) -> TemperatureSeries:
+    """Return the air messages ``held_air_arrays`` wrote, as a ``TemperatureSeries``."""
     frames = np.asarray(d["frame_id"]).ravel().astype(object)
     arrays = [np.asarray(d[k]).ravel() for k in ("stamp_ns", "temp_c", "variance")]
     return TemperatureSeries(*arrays, frames, np.asarray(d["log_ns"]).ravel())
@@ -370,7 +371,7 @@ def restore_shadow(
     if "air" in state:  # checkpoints written before the air's jumps were followed have none
         shadow.air = json.loads(str(state["air"]))
     if "held_air" in state:
-        shadow.held_air = _restore_held_air(state["held_air"])
+        shadow.held_air = held_air_series(state["held_air"])
     sc = state["scalars"]
     shadow._last_usable_k = _unopt(sc["last_usable_k"])
     # checkpoints written before logger outages were marked have neither

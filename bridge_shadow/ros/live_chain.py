@@ -1,0 +1,227 @@
+"""A live replay's checkpoint chain: the air past a bag's last force held, as the offline chain holds it.
+
+A bag of one record often carries the whole day's air temperature (``import-csv`` of a record with
+the day's temperature file). Played to a node with ``replay --live --checkpoint``, that air, hours
+past the record's last force, moved the node's data clock on, and the next bag's forces, earlier
+than the air's end, were all ``late``: a chain of live replays lost every later record (exit 1),
+where the offline chain (``replay --checkpoint``, ``replay.air_tail``) gives what one replay of
+all the bags merged by log time gives.
+
+The player holds what the offline chain holds, on the raw pieces it publishes:
+
+- ``prepare``: the node resumes from a private copy of the named checkpoint without its held air
+  (a node ingests a checkpoint's held air first, before any live data: right for a node going
+  live after an offline chain, too early for the next bag of a replay); the held air is
+  published merged with the bag by log time, before the bag's messages of equal log time, as
+  ``bagio.merged.MergedStream(held=...)`` reads it (``merge_held``);
+- ``RawAirTail``: the air after the last force seen is held until forces follow (``AirTail``'s
+  rule on raw pieces); what is held at the bag's end is the tail;
+- after the last force the player asks the node's checkpoint service for the state then (the
+  offline chain's checkpoint, written before the tail is fed), plays the tail for this bag's own
+  result, and flushes;
+- ``finish``: once the run is complete, the named checkpoint becomes that state with the tail as
+  its held air (written atomically). An interrupted run leaves it as it was: its rerun replays the
+  bag whole from there.
+
+No ROS import: the player (``live_replay``) publishes what these yield.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bridge_shadow.bagio.cdr import CdrFormatError, decode_stamped_floats, encode_stamped_floats
+from bridge_shadow.estimate.state.checkpoint import load_state, save_state
+from bridge_shadow.estimate.state.persistence import held_air_arrays, held_air_series
+from bridge_shadow.replay.air_tail import HELD_AIR_LIMIT
+from bridge_shadow.series import TemperatureSeries
+
+__all__ = ["AIR", "LiveChain", "RawAirTail", "RawPiece", "decode_air", "merge_held", "prepare"]
+
+#: A player's piece: (topic index per message, position in that topic's raws, raws per topic, log times).
+RawPiece = tuple[np.ndarray, np.ndarray, Sequence[Sequence[bytes]], np.ndarray]
+#: Topic index of the air temperature (frc_01, frc_02, air temperature).
+AIR = 2
+#: Float64 fields of a ``sensor_msgs/Temperature`` after its header: temperature, variance.
+_AIR_FLOATS = 2
+
+
+@dataclass
+class LiveChain:
+    """The named checkpoint of a live replay, the node's private copy of it, the air it held.
+
+    Attributes:
+        checkpoint: the checkpoint named (``--checkpoint``): read before, written once at the end.
+        private: the node's copy (resumed from and written by the node; removed with the run's
+            temporary directory).
+        held: the air the named checkpoint held unfed (None: none), published merged with the bag.
+        notes: what opening the named checkpoint did (set aside as unusable, stale writers' files).
+
+    """
+
+    checkpoint: Path
+    private: Path
+    held: TemperatureSeries | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def finish(self, state: dict[str, Any], tail: TemperatureSeries | None) -> Path:
+        """Write ``state`` (the node's, after the bag's last force) with ``tail`` held, to ``checkpoint``."""
+        state = dict(state)
+        state.pop("held_air", None)
+        if tail is not None and len(tail):
+            state["held_air"] = held_air_arrays(tail)
+        return save_state(state, self.checkpoint)
+
+
+def prepare(config: Any, surrogate: Any, checkpoint: str | Path, private: Path) -> LiveChain:
+    """Open ``checkpoint`` as the node would, and write the node's copy of it without held air to ``private``.
+
+    Raises:
+        CheckpointError: it cannot be written, or it is unusable and ``checkpoint_unusable`` is
+            ``stop`` (``fresh``: set aside, and the node starts from the prior).
+
+    """
+    from bridge_shadow.estimate.startup import open_shadow
+
+    file = Path(checkpoint)
+    _, notes = open_shadow(config.replace(checkpoint_path=str(file)), surrogate)
+    # what a user must hear of (a file set aside, a killed writer's left), not "resumed" or "none yet"
+    chain = LiveChain(file, private, notes=[n for n in notes if not n.startswith(("resumed", "checkpoint "))])
+    if file.is_file():  # resumable (an unusable one is set aside by now)
+        state = load_state(file)
+        held = state.pop("held_air", None)
+        chain.held = held_air_series(held) if held is not None else None
+        save_state(state, private)
+    return chain
+
+
+def _air_raws(held: TemperatureSeries) -> list[bytes]:
+    values = np.column_stack([held.temp_c, np.asarray(held.variance, float)])
+    return encode_stamped_floats(held.stamp_ns, np.asarray(held.frame_id, dtype=object), values)
+
+
+def merge_held(pieces: Iterable[RawPiece], held: TemperatureSeries | None) -> Iterator[RawPiece]:
+    """Yield ``pieces`` with ``held``'s air merged in by log time, before the pieces' own at equal log time.
+
+    A held message goes into the first piece whose last log time is not before its own; what is
+    left after the last piece follows as a piece of its own.
+    """
+    if held is None or not len(held):
+        yield from pieces
+        return
+    logs = np.asarray(held.log_ns, np.int64)
+    raws = _air_raws(held)
+    i, n = 0, len(logs)
+    for topic, pos, piece_raws, piece_logs in pieces:
+        if not len(topic):
+            continue
+        j = int(np.searchsorted(logs, piece_logs[-1], side="right")) if i < n else n
+        if j == i:
+            yield topic, pos, piece_raws, piece_logs
+            continue
+        base = len(piece_raws[AIR])
+        air = [*piece_raws[AIR], *raws[i:j]]
+        t = np.concatenate([np.full(j - i, AIR, np.int64), topic])
+        p = np.concatenate([base + np.arange(j - i, dtype=np.int64), pos])
+        lg = np.concatenate([logs[i:j], piece_logs])
+        order = np.argsort(lg, kind="stable")  # the held air first at equal log time
+        yield t[order], p[order], [piece_raws[0], piece_raws[1], air], lg[order]
+        i = j
+    if i < n:
+        yield np.full(n - i, AIR, np.int64), np.arange(n - i, dtype=np.int64), [[], [], raws[i:]], logs[i:]
+
+
+def _take(piece: RawPiece, keep: np.ndarray) -> RawPiece:
+    topic, pos, raws, logs = piece
+    return topic[keep], pos[keep], raws, logs[keep]
+
+
+class RawAirTail:
+    """A player's pieces in order, the air after the last force held until forces follow (``AirTail``).
+
+    The rule of ``replay.air_tail.AirTail``, on raw pieces: in a piece with forces, the air whose
+    log time is at or after the piece's last force is held (it goes on just before the next piece
+    with forces); a piece of air alone is held whole; past ``limit`` messages held, they go on.
+
+    Attributes:
+        tail: once iterated to the end, the pieces held then (the air past the bag's last force).
+        released: air messages that went on past ``limit`` with no force after them yet.
+
+    """
+
+    def __init__(self, pieces: Iterable[RawPiece], limit: int = HELD_AIR_LIMIT) -> None:
+        self._pieces = pieces
+        self.limit = int(limit)
+        self.tail: list[RawPiece] = []
+        self.released = 0
+
+    def __iter__(self) -> Iterator[RawPiece]:
+        held: list[RawPiece] = []
+        n_held = 0
+        for piece in self._pieces:
+            topic, _, _, logs = piece
+            forces = np.flatnonzero(topic != AIR)
+            if not len(forces):
+                if len(topic):
+                    held.append(piece)
+                    n_held += len(topic)
+                    if n_held > self.limit:
+                        self.released += n_held
+                        yield from held
+                        held, n_held = [], 0
+                continue
+            yield from held
+            held, n_held = [], 0
+            after = (topic == AIR) & (logs >= logs[forces[-1]])
+            yield _take(piece, ~after)
+            if after.any():
+                held.append(_take(piece, after))
+                n_held += int(np.count_nonzero(after))
+        self.tail = held
+
+    @property
+    def n_tail(self) -> int:
+        """Messages held at the end (0 before the iteration ends)."""
+        return sum(len(p[0]) for p in self.tail)
+
+
+def decode_air(pieces: Sequence[RawPiece]) -> tuple[TemperatureSeries | None, int]:
+    """Return the air messages of ``pieces`` decoded (None: none), and how many could not be.
+
+    A message that cannot be decoded is left out, as the node drops it (``malformed``).
+    """
+    raws: list[bytes] = []
+    logs: list[np.ndarray] = []
+    for topic, pos, piece_raws, piece_logs in pieces:
+        air = topic == AIR
+        raws += [piece_raws[AIR][k] for k in pos[air].tolist()]
+        logs.append(piece_logs[air])
+    if not raws:
+        return None, 0
+    log_ns = np.concatenate(logs)
+    try:
+        stamp, frame, values = decode_stamped_floats(raws, _AIR_FLOATS)
+        return TemperatureSeries(stamp, values[:, 0], values[:, 1], frame, log_ns), 0
+    except CdrFormatError:
+        pass
+    good = []
+    rows: list[tuple[int, str, float, float]] = []
+    for k, raw in enumerate(raws):
+        try:
+            s, f, v = decode_stamped_floats([raw], _AIR_FLOATS)
+        except CdrFormatError:
+            continue
+        good.append(k)
+        rows.append((int(s[0]), str(f[0]), float(v[0, 0]), float(v[0, 1])))
+    if not rows:
+        return None, len(raws)
+    stamp, frames, temp, var = zip(*rows, strict=True)
+    out = TemperatureSeries(
+        np.array(stamp, np.int64), np.array(temp), np.array(var), np.array(frames, dtype=object), log_ns[good]
+    )
+    return out, len(raws) - len(rows)

@@ -1,0 +1,242 @@
+"""A live replay's checkpoint chain holds the air past a bag's last force, as the offline chain does.
+
+``replay --live --checkpoint`` of a bag holding the day's air (``import-csv`` of a record with the
+day's temperature file) played that air to the node, whose data clock then ran hours past the
+record, and the next bag's forces were all ``late`` (the real records: 144,000 forces of a record
+230 min on, exit 1, the chain ending at the earlier state). ``ros.live_chain`` gives the player the
+offline chain's rule (``replay.air_tail``): the checkpoint's held air published merged with the
+bag, the air past the bag's last force held, the checkpoint written before it. Here the pieces,
+the checkpoint's copy and write, and a chain crossing between the offline and the live replay;
+the real records' case is in ``test_later_records_cli.py``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message
+from test_air_tail import _pieces, _record
+
+from bridge_shadow.bagio import encode_stamped_floats, write_monitoring
+from bridge_shadow.bagio.cdr import decode_stamped_floats
+from bridge_shadow.bagio.merged import MergedStream
+from bridge_shadow.bagio.reader import read_monitoring
+from bridge_shadow.bagio.stream import MonitoringStream
+from bridge_shadow.cli import main
+from bridge_shadow.contract import CHANNELS
+from bridge_shadow.estimate import Shadow, load_config
+from bridge_shadow.estimate.state.checkpoint import load_state
+from bridge_shadow.model.surrogate_file import load_surrogate
+from bridge_shadow.replay.air_tail import AirTail, air_piece
+from bridge_shadow.ros.live_chain import AIR, RawAirTail, decode_air, merge_held, prepare
+from bridge_shadow.ros.live_replay import _merged_pieces, merge_log_order
+from bridge_shadow.series import MonitoringData
+
+_FLOATS = (6, 6, 2)  # WrenchStamped, WrenchStamped, Temperature after the header
+
+
+def _raw_pieces(pieces: list[MonitoringData]) -> list[tuple]:
+    """The player's raw pieces of decoded ``pieces``: each topic's messages serialized, in log order."""
+    out = []
+    for p in pieces:
+        raws, logs = [], []
+        for ch in CHANNELS:
+            f = p.forces[ch]
+            values = np.zeros((len(f), 6))
+            values[:, 2] = f.force_n
+            raws.append(encode_stamped_floats(f.stamp_ns, np.asarray(f.frame_id, dtype=object), values))
+            logs.append(f.log_ns)
+        t = p.temperature
+        values = np.column_stack([t.temp_c, t.variance])
+        raws.append(encode_stamped_floats(t.stamp_ns, np.asarray(t.frame_id, dtype=object), values))
+        logs.append(t.log_ns)
+        topic, pos, merged = merge_log_order(logs)
+        out.append((topic, pos, raws, merged))
+    return out
+
+
+def _published(pieces: list[tuple]) -> list[tuple[int, int, int, float]]:
+    """Every message of raw ``pieces`` as (log_ns, topic, stamp_ns, value) in publishing order.
+
+    Compared exactly: stamps are integers, the values copies through serialization.
+    """
+    out = []
+    for topic, pos, raws, logs in pieces:
+        for i, j, lg in zip(topic.tolist(), pos.tolist(), logs.tolist(), strict=True):
+            stamp, _, values = decode_stamped_floats([raws[i][j]], _FLOATS[i])
+            out.append((int(lg), i, int(stamp[0]), float(values[0, 2 if i < AIR else 0])))
+    return out
+
+
+def _per_topic(messages: list[tuple[int, int, int, float]]) -> list[list[tuple[int, int, float]]]:
+    return [[(lg, s, v) for lg, t, s, v in messages if t == k] for k in range(3)]
+
+
+def _decoded(pieces: list[MonitoringData]) -> list[tuple[int, int, int, float]]:
+    """The messages of decoded ``pieces`` as ``_published`` gives them (order within a topic kept)."""
+    out = []
+    for p in pieces:
+        for k, ch in enumerate(CHANNELS):
+            f = p.forces[ch]
+            rows = zip(f.log_ns, f.stamp_ns, f.force_n, strict=True)
+            out += [(int(a), k, int(b), float(c)) for a, b, c in rows]
+        t = p.temperature
+        rows = zip(t.log_ns, t.stamp_ns, t.temp_c, strict=True)
+        out += [(int(a), AIR, int(b), float(c)) for a, b, c in rows]
+    return out
+
+
+@pytest.mark.parametrize("limit", [None, 30])
+def test_the_player_holds_the_air_the_offline_chain_holds(limit: int | None) -> None:
+    """``RawAirTail`` on raw pieces passes and holds what ``AirTail`` does on the decoded ones."""
+    pieces = _pieces(np.random.default_rng(5))
+    kw = {} if limit is None else {"limit": limit}
+    offline, live = AirTail(pieces, **kw), RawAirTail(_raw_pieces(pieces), **kw)
+    passed_offline, passed_live = list(offline), list(live)
+    assert live.released == offline.released and (limit is None) == (live.released == 0)
+    assert _per_topic(_published(passed_live)) == _per_topic(_decoded(passed_offline))
+    tail, bad = decode_air(live.tail)
+    assert bad == 0 and tail is not None and offline.tail is not None and live.n_tail == len(tail)
+    for key in ("log_ns", "stamp_ns", "temp_c", "variance"):
+        np.testing.assert_array_equal(getattr(tail, key), getattr(offline.tail, key))  # copies
+    # what went on is in log order, the tail after it
+    logs = [m[0] for m in _published(passed_live)]
+    assert logs == sorted(logs) and logs[-1] <= int(tail.log_ns[0])
+
+
+def test_the_held_air_is_published_as_the_merged_stream_reads_it(tmp_path: Path) -> None:
+    """``merge_held``: the checkpoint's air with the next bag, as ``MergedStream(held=...)`` reads them."""
+    one = write_monitoring(tmp_path / "one", _record(0, 30, np.array([2e-4, -1e-4]), 6.0, 1))
+    two = write_monitoring(tmp_path / "two", _record(7200, 30, np.array([-8e-3, -8e-3]), 6.0, 2))
+    held = read_monitoring(one).temperature
+    held = held.take(np.asarray(held.log_ns) >= held.log_ns[40])  # the air past a record: from 40 min on
+    with MonitoringStream(two, batch=97) as stream:
+        live = _published(list(merge_held(_merged_pieces(stream), held)))
+    with MergedStream([two], held=air_piece(held, CHANNELS), batch=97) as merged:
+        offline = _decoded(list(merged))
+    assert _per_topic(live) == _per_topic(offline)
+    assert [m[0] for m in live] == sorted(m[0] for m in live)
+    # at equal log time the held copy goes first (the bag's own copy of the day's air is then the duplicate)
+    first_air = [m for m in live if m[1] == AIR]
+    assert len(first_air) == len(held) + 360
+    for a, b in itertools.pairwise(first_air):
+        assert a[0] < b[0] or (a[0] == b[0] and a[2] == b[2])  # equal log: the same reading twice
+
+
+def test_the_nodes_copy_drops_the_held_air_and_the_end_writes_the_tail(tmp_path: Path) -> None:
+    """``prepare`` copies the checkpoint without its held air; ``finish`` writes a state with a new tail."""
+    one = write_monitoring(tmp_path / "one", _record(0, 30, np.array([2e-4, -1e-4]), 6.0, 1))
+    ck = tmp_path / "ck.npz"
+    assert main(["replay", str(one), "--checkpoint", str(ck)]) == 0
+    config, surrogate = load_config(None), load_surrogate()
+    chain = prepare(config, surrogate, ck, tmp_path / "node.npz")
+    held = Shadow.resume(ck).held_air
+    assert chain.held is not None and held is not None and len(chain.held) == len(held) > 200
+    np.testing.assert_array_equal(chain.held.stamp_ns, held.stamp_ns)
+    assert "held_air" not in load_state(tmp_path / "node.npz") and chain.notes == []
+    state = load_state(tmp_path / "node.npz")
+    tail = held.take(np.arange(len(held)) < 7)
+    chain.finish(state, tail)
+    np.testing.assert_array_equal(Shadow.resume(ck).held_air.temp_c, tail.temp_c)
+    chain.finish(state, None)
+    assert Shadow.resume(ck).held_air is None
+    # an unusable checkpoint is set aside (checkpoint_unusable: fresh) and said, the node starts fresh
+    ck.write_bytes(b"not a checkpoint")
+    fresh = prepare(config.replace(checkpoint_unusable="fresh"), surrogate, ck, tmp_path / "node2.npz")
+    assert not ck.exists() and not (tmp_path / "node2.npz").exists() and fresh.held is None
+    assert len(fresh.notes) == 1 and "set aside" in fresh.notes[0]
+
+
+def test_the_checkpoint_service_needs_a_checkpoint_path() -> None:
+    """A node without ``checkpoint_path`` answers the checkpoint service with a failure and the reason."""
+    from types import SimpleNamespace
+
+    from test_ros_node import _in_process_node
+
+    with _in_process_node() as node:
+        answer = node._on_checkpoint(None, SimpleNamespace(success=True, message=""))
+        assert not answer.success and "checkpoint_path is empty" in answer.message
+
+
+def test_a_live_replay_in_a_checkpoint_chain_is_one_merged_replay(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """Offline, live, offline through one checkpoint: the merged replay's answer, nothing late.
+
+    Three records two hours apart, each bag with the day's air (6 h). The live replay of the second
+    took the first bag's held air first and its own air to 6 h: every one of its forces ``late``,
+    exit 1. Now it holds what the offline chain holds, and the third bag's offline replay from its
+    checkpoint ends where one replay of the three bags does.
+    """
+    steps = ([2e-4, -1e-4], [-8e-3, -8e-3], [-1.6e-2, -1.6e-2])
+    bags = [
+        write_monitoring(tmp_path / f"b{k}", _record(7200 * k, 30, np.array(s), 6.0, k + 1))
+        for k, s in enumerate(steps)
+    ]
+
+    def replay(*args: object, rc: int = 0) -> dict:
+        assert main(["replay", *map(str, args), "--json"]) == rc
+        return json.loads(capfd.readouterr().out)  # fd-level: the player's executor needs a real stderr
+
+    ck, offline_ck = tmp_path / "ck.npz", tmp_path / "offline.npz"
+    replay(bags[0], "--checkpoint", ck)
+    replay(bags[0], "--checkpoint", offline_ck)
+    live = replay(bags[1], "--live", "--checkpoint", ck)
+    offline = replay(bags[1], "--checkpoint", offline_ck)
+    merged = replay(bags[0], bags[1])
+    assert live["rejected"]["late"] == 0 and live["messages"]["used_by_topic"]["frc_01"] == 180
+    for key in ("mean_m", "covariance_m2"):
+        np.testing.assert_allclose(live["posterior"][key], merged["posterior"][key], rtol=1e-9)
+    assert live["windows"]["at_end"] == offline["windows"]["at_end"]
+    assert live["windows"]["at_end"]["held_air"] > 200
+    assert [e["window"] for e in live["events"]] == [e["window"] for e in merged["events"]] != []
+    # the live run's checkpoint is the offline chain's: the same held air, the same state after it
+    held, held_offline = Shadow.resume(ck).held_air, Shadow.resume(offline_ck).held_air
+    np.testing.assert_array_equal(held.stamp_ns, held_offline.stamp_ns)
+    third = replay(bags[2], "--checkpoint", ck)
+    whole = replay(*bags)
+    assert third["rejected"]["late"] == 0
+    for key in ("mean_m", "covariance_m2"):
+        np.testing.assert_allclose(third["posterior"][key], whole["posterior"][key], rtol=1e-9)
+    assert [e["kind"] for e in third["events"]] == ["gap", "gap"]  # both lowerings, each at its record
+
+
+def test_the_player_gets_the_posteriors_the_node_published_before_it_matched() -> None:
+    """The player gets the posteriors published before its readers matched (TRANSIENT_LOCAL).
+
+    A node resumed holding a record after a gap says its widened interval at start, maybe before the
+    player's readers match. With VOLATILE readers the player never got it and the replay waited for
+    it until its timeout ("timed out after 60 s waiting for 29 posterior messages": the real records'
+    later bag played after the public records' checkpoint). The player's posterior readers ask for
+    the node's TRANSIENT_LOCAL history (``posterior_reader_qos``).
+    """
+    import rclpy
+    from std_msgs.msg import Float64MultiArray
+
+    from bridge_shadow.contract import COVARIANCE_TOPIC, MEAN_TOPIC
+    from bridge_shadow.ros.launcher import wait_until
+    from bridge_shadow.ros.live_replay import Player
+    from bridge_shadow.ros.node import posterior_qos
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = rclpy.create_node("early_publisher", context=context)
+        topics = (MEAN_TOPIC, COVARIANCE_TOPIC)
+        pubs = [node.create_publisher(Float64MultiArray, t, posterior_qos(100)) for t in topics]
+        for k in range(3):
+            for pub in pubs:
+                pub.publish(Float64MultiArray(data=[float(k), -float(k)]))
+        with Player(latched_depth=100) as player:  # created after the three were published
+            got = lambda: player.received(MEAN_TOPIC) == player.received(COVARIANCE_TOPIC) == 3  # noqa: E731
+            wait_until(got, 20.0, "3 + 3")
+            raws = [raw for _, raw in player.records[MEAN_TOPIC]]
+            firsts = [deserialize_message(raw, Float64MultiArray).data[0] for raw in raws]
+            assert firsts == [0.0, 1.0, 2.0]  # exact: small integers through CDR
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
