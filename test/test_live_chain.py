@@ -240,3 +240,27 @@ def test_the_player_gets_the_posteriors_the_node_published_before_it_matched() -
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_held_air_past_the_bag_follows_it_and_an_undecodable_tail_message_is_left_out() -> None:
+    """Held air past the bag follows it; ``decode_air`` skips a message it cannot read, and counts it.
+
+    The held air after the bag's last message goes on as a piece of its own; a tail message that
+    cannot be decoded is left out of the checkpoint's held air, as the node drops it (malformed).
+    """
+    pieces = _pieces(np.random.default_rng(6))
+    raw = _raw_pieces(pieces)
+    last = int(max(p[3][-1] for p in raw))
+    air = pieces[-1].temperature
+    later = air.take(np.arange(len(air)) < 5)
+    later.log_ns = later.stamp_ns = last + (1 + np.arange(5, dtype=np.int64)) * 10**9
+    out = list(merge_held(raw, later))
+    assert len(out) == len(raw) + 1 and np.all(out[-1][0] == AIR)
+    np.testing.assert_array_equal(out[-1][3], later.log_ns)
+    assert _per_topic(_published(out[:-1])) == _per_topic(_published(raw))  # the bag's own, untouched
+    topic, pos, raws, logs = out[-1]
+    broken = [raws[0], raws[1], [raws[AIR][0][:10], *raws[AIR][1:]]]  # the first one cut short
+    tail, bad = decode_air([(topic, pos, broken, logs)])
+    assert bad == 1 and tail is not None and len(tail) == 4
+    np.testing.assert_array_equal(tail.stamp_ns, later.stamp_ns[1:])
+    np.testing.assert_array_equal(tail.temp_c, later.temp_c[1:])
