@@ -264,3 +264,51 @@ def test_held_air_past_the_bag_follows_it_and_an_undecodable_tail_message_is_lef
     assert bad == 1 and tail is not None and len(tail) == 4
     np.testing.assert_array_equal(tail.stamp_ns, later.stamp_ns[1:])
     np.testing.assert_array_equal(tail.temp_c, later.temp_c[1:])
+
+
+def test_a_replay_with_volatile_posterior_readers_does_not_wait_for_what_they_missed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``qos_depth: 0`` (KEEP_ALL): the node's posteriors are VOLATILE, kept for no late reader.
+
+    A node resumed holding a record after a gap publishes its widened posterior at start, before
+    the player's readers may have matched; the player then waited for that posterior to its
+    timeout (exit 2, one run in two of a chain's third bag here, of the public records' checkpoint
+    and a later record). Here the readers' matching late is made certain: what they got before the
+    node's first diagnostics is dropped. Now the player waits for what the node published after
+    asking it at discovery, and ends where the latched readers of the default ``qos_depth`` end.
+    """
+    from bridge_shadow.contract import COVARIANCE_TOPIC, DIAGNOSTICS_TOPIC, MEAN_TOPIC
+    from bridge_shadow.ros import live_replay
+    from bridge_shadow.ros.launcher import wait_until
+
+    steps = ([2e-4, -1e-4], [-8e-3, -8e-3], [-1.6e-2, -1.6e-2])
+    bags = [
+        write_monitoring(tmp_path / f"b{k}", _record(7200 * k, 10, np.array(s), 6.0, k + 1))
+        for k, s in enumerate(steps)
+    ]
+    ck = tmp_path / "ck.npz"
+    for bag in bags[:2]:
+        assert main(["replay", str(bag), "--checkpoint", str(ck)]) == 0
+    assert Shadow.resume(ck).pending_gap_ns() is not None  # the node says its widened interval at start
+    before = ck.read_bytes()
+    params = tmp_path / "keep_all.yaml"
+    params.write_text("bridge_shadow:\n  ros__parameters:\n    qos_depth: 0\n")
+    discover = live_replay._discover
+
+    def matched_late(player: live_replay.Player, node: object, timeout_s: float) -> float:
+        took = discover(player, node, timeout_s)
+        # the node's first diagnostics come a second after it spins, its start posterior before them
+        wait_until(lambda: player.received(DIAGNOSTICS_TOPIC) > 0, timeout_s, "the node's diagnostics")
+        player.records[MEAN_TOPIC].clear()
+        player.records[COVARIANCE_TOPIC].clear()
+        return took
+
+    monkeypatch.setattr(live_replay, "_discover", matched_late)
+    volatile = live_replay.run_live(bags[2], params, checkpoint=ck, timeout_s=20.0)
+    monkeypatch.undo()
+    ck.write_bytes(before)
+    latched = live_replay.run_live(bags[2], checkpoint=ck, timeout_s=20.0)
+    for key in ("mean_m", "covariance_m2"):
+        np.testing.assert_allclose(volatile["posterior"][key], latched["posterior"][key], rtol=1e-12)
+    assert volatile["rejected"]["late"] == 0 and volatile["windows"]["at_end"] == latched["windows"]["at_end"]

@@ -14,8 +14,9 @@ defaults are the contract's)::
     service /bridge_shadow/flush (std_srvs/Trigger): end of a replay, close every window holding
         data, publish it and answer with the diagnostics as JSON (what the offline replay's
         ``flush`` does; ``bridge-shadow replay --live`` calls it after the last message).
-    service /bridge_shadow/status (std_srvs/Trigger): raw messages taken per input topic, as JSON
-        (the live replay's flow control).
+    service /bridge_shadow/status (std_srvs/Trigger): raw messages taken per input topic and the
+        posteriors published so far, as JSON (the live replay's flow control, and what its VOLATILE
+        readers missed).
     service /bridge_shadow/history (std_srvs/Trigger): the last ``HISTORY_WINDOWS`` window outputs
         as JSON (SI units): what a late-joining viewer, or ``replay --live --plots``, draws.
     service /bridge_shadow/checkpoint (std_srvs/Trigger): ingest what was taken, close the windows
@@ -535,10 +536,14 @@ class ShadowNode(Node):
         self._pub_diag.publish(diagnostic_array(items, self.get_clock().now().nanoseconds))
 
     def _on_status(self, request: Any, response: Any) -> Any:
-        """Answer ``{"taken": [n_frc_01, n_frc_02, n_air_temperature]}``: raw messages taken so far."""
+        """Answer ``{"taken": [n_frc_01, n_frc_02, n_air_temperature], "posteriors": n}``.
+
+        ``taken``: raw messages taken so far; ``posteriors``: posteriors published so far (a
+        VOLATILE reader that matched after some never gets those, ``live_replay.run_live``).
+        """
         taken = [n + len(buf) for n, buf in zip(self.received, self._raw, strict=True)]
         response.success = True
-        response.message = json.dumps({"taken": taken})
+        response.message = json.dumps({"taken": taken, "posteriors": self.posteriors_published})
         return response
 
     def _on_history(self, request: Any, response: Any) -> Any:
