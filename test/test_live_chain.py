@@ -312,3 +312,29 @@ def test_a_replay_with_volatile_posterior_readers_does_not_wait_for_what_they_mi
     for key in ("mean_m", "covariance_m2"):
         np.testing.assert_allclose(volatile["posterior"][key], latched["posterior"][key], rtol=1e-12)
     assert volatile["rejected"]["late"] == 0 and volatile["windows"]["at_end"] == latched["windows"]["at_end"]
+
+
+def test_a_checkpoint_set_aside_is_said_whatever_its_name(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An unusable checkpoint named ``resumed.npz``, set aside (``fresh``), is said as any other.
+
+    ``prepare`` left out the notes of opening that a user need not hear of by their first word
+    ("resumed from ...", "checkpoint ...: none yet"); the note of a file set aside opens with the
+    file's name, and ``replay --live --checkpoint resumed.npz`` set it aside without a word (the
+    offline replay says it).
+    """
+    monkeypatch.chdir(tmp_path)  # named as a user names it, relative
+    config, surrogate = load_config(None).replace(checkpoint_unusable="fresh"), load_surrogate()
+    for name in ("resumed.npz", "checkpoint one.npz", "resumed/day.npz"):
+        ck = Path(name)
+        ck.parent.mkdir(exist_ok=True)
+        ck.write_bytes(b"not a checkpoint")
+        chain = prepare(config, surrogate, ck, tmp_path / "node.npz")
+        assert len(chain.notes) == 1 and "set aside" in chain.notes[0] and not ck.exists()
+    # what is not news stays out: none yet, a checkpoint resumed
+    one = write_monitoring(tmp_path / "one", _record(0, 30, np.array([2e-4, -1e-4]), 6.0, 1))
+    ck = Path("resumed.npz")
+    assert prepare(config, surrogate, ck, tmp_path / "node.npz").notes == []
+    assert main(["replay", str(one), "--checkpoint", str(ck)]) == 0
+    assert prepare(config, surrogate, ck, tmp_path / "node.npz").notes == []

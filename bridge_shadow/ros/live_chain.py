@@ -90,8 +90,10 @@ def prepare(config: Any, surrogate: Any, checkpoint: str | Path, private: Path) 
 
     file = Path(checkpoint)
     _, notes = open_shadow(config.replace(checkpoint_path=str(file)), surrogate)
-    # what a user must hear of (a file set aside, a killed writer's left), not "resumed" or "none yet"
-    chain = LiveChain(file, private, notes=[n for n in notes if not n.startswith(("resumed", "checkpoint "))])
+    # what a user must hear of (a file set aside, a killed writer's left), not "resumed" or "none yet";
+    # told by the whole opening (a note of a file set aside opens with its name, "resumed.npz: ...")
+    usual = (f"resumed from {file}: ", f"checkpoint {file}: none yet")
+    chain = LiveChain(file, private, notes=[n for n in notes if not n.startswith(usual)])
     if file.is_file():  # resumable (an unusable one is set aside by now)
         state = load_state(file)
         held = state.pop("held_air", None)
