@@ -359,3 +359,33 @@ def test_bags_that_each_hold_the_days_air_read_merged_are_said_to_repeat_it(
     (line,) = [w for w in merged.warnings if w.startswith("topic air_temperature:")]
     assert "repeat the stamp of the message taken just before them" in line
     assert "clock set back" not in line and "when given together" not in line
+
+
+def test_a_chains_output_bag_ends_at_the_replays_answer(
+    day: tuple[Path, Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``replay BAG --checkpoint CK --out OUT``: OUT's last posterior is the JSON's, as without a checkpoint.
+
+    The end-of-data refit (lambda reselected) comes with no window output when the air past the
+    last force has decided every window; the bag gets it on its own (``write_final_posterior``).
+    A chain's replay wrote it before feeding the held tail, that is never (the tail's flush came
+    after): each bag ended at the posterior before (the second here: -12.874 mm south against
+    -12.876 mm), where ``replay --live --checkpoint --out`` records the node's final posterior.
+    """
+    import json
+
+    from bridge_shadow.bagio import get_typestore, read_raw_topics
+    from bridge_shadow.cli import main
+    from bridge_shadow.contract import COVARIANCE_TOPIC, FLOAT_ARRAY_TYPE, MEAN_TOPIC
+
+    ck = tmp_path / "ck.npz"
+    topics = (MEAN_TOPIC, COVARIANCE_TOPIC)
+    for k, bag in enumerate(day[:2]):
+        out = tmp_path / f"out{k}"
+        assert main(["replay", str(bag), "--checkpoint", str(ck), "--out", str(out), "--json"]) == 0
+        js = json.loads(capsys.readouterr().out)
+        raw = read_raw_topics(out, dict.fromkeys(topics, FLOAT_ARRAY_TYPE))
+        last = [get_typestore().deserialize_cdr(raw[t][1][-1], FLOAT_ARRAY_TYPE).data for t in topics]
+        post = js["posterior"]
+        np.testing.assert_allclose(last[0], post["mean_m"], rtol=1e-12, atol=0)
+        np.testing.assert_allclose(last[1].reshape(2, 2), post["covariance_m2"], rtol=1e-12, atol=0)

@@ -154,8 +154,6 @@ def replay_bag(
                 flush=tail is None,
                 before_flush=before_close,
             )
-            if sink is not None and tail is None:  # the flush's refit, when no output carried it
-                sink.write_final_posterior(*shadow.posterior)
             if tail is not None:
                 before_close()
                 stats.held_air = len(tail.tail) if tail.tail is not None else 0
@@ -168,6 +166,10 @@ def replay_bag(
                     _add(stats, feed_shadow(shadow, rest, take, report))
                 finally:
                     shadow.checkpoints_paused = False
+            # the flush's refit, when no output carried it (the tail's flush too: written before the
+            # tail alone, a chain's bag ended at the posterior before it, the node's topics did not)
+            if sink is not None:
+                sink.write_final_posterior(*shadow.posterior)
             if at_close:
                 stats.closed_at_end = shadow.n_windows - at_close[0]
                 stats.updates_at_end = shadow.n_updates - at_close[1]
