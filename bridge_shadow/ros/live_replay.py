@@ -586,10 +586,11 @@ def run_live(
                 f"{n_post} posterior messages",
                 node.check_alive,
             )
-            if n_post > 0:
+            if n_post > 0 and not missed:
                 mean, _ = array_from_msg(player.last(MEAN_TOPIC))
                 cov, _ = array_from_msg(player.last(COVARIANCE_TOPIC))
-            else:
+            else:  # none, or some missed: the count may be one off (one in flight when it was taken)
+                # and the last received one not the last published; the flush's report holds that
                 mean, cov = np.asarray(report["mean_m"]), np.asarray(report["covariance_m2"])
             history = player.history(node, timeout_s)  # the node keeps a week of windows
             plot_paths = (
