@@ -145,6 +145,14 @@ def test_live_replay_equals_direct_replay(bag: Path, direct, tmp_path: Path) -> 
         "raw_vs_compensated.png",
     ]
     assert all(Path(p).stat().st_size > 10_000 for p in live["plots"])
+    # the same pictures as the direct replay's (drawn from the same numbers: the node's state after
+    # its flush, the compensation curve too, which was drawn from the state before the flush's refit)
+    from bridge_shadow.estimate.plots import write_plots
+
+    shadow = Shadow(load_config(None, OVERRIDES))
+    drawn = write_plots(tmp_path / "direct_plots", shadow.run(read_monitoring(bag)), shadow)
+    for mine, theirs in zip(sorted(drawn), sorted(map(Path, live["plots"])), strict=True):
+        assert mine.read_bytes() == theirs.read_bytes(), mine.name
     # the progress callback saw the publishing advance to the end
     assert shown and shown[-1] == 1.0 and shown == sorted(shown)  # exact: the last is n / n (or clipped at 1)
 

@@ -727,6 +727,10 @@ def _plot_live(
     if not ckpt.is_file():
         raise NodeError(f"the node wrote no checkpoint at flush ({ckpt}): cannot draw its compensation curve")
     shadow = Shadow.resume(ckpt, config, surrogate)
+    # the checkpoint holds the state before the flush's provisional close (a next bag goes on from
+    # it); the close the node made is made again here, its refit the curve the direct replay draws
+    # (drawn from the state before, the live compensation curve was not the direct one's)
+    shadow.flush()
     result = ReplayResult(
         mean_m=np.asarray(report["mean_m"], float),
         covariance_m2=np.asarray(report["covariance_m2"], float),
