@@ -338,3 +338,30 @@ def test_a_checkpoint_set_aside_is_said_whatever_its_name(
     assert prepare(config, surrogate, ck, tmp_path / "node.npz").notes == []
     assert main(["replay", str(one), "--checkpoint", str(ck)]) == 0
     assert prepare(config, surrogate, ck, tmp_path / "node.npz").notes == []
+
+
+def test_a_live_chain_run_that_fails_leaves_the_checkpoint_as_it_was(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A node that fails mid-run (here its checkpoint service) leaves the named checkpoint whole, and says so.
+
+    The node's own last lines say "checkpoint written to" its private copy, which goes with the
+    run's temporary directory: the error names the checkpoint the user gave, left as it was.
+    """
+    from bridge_shadow.ros import live_replay
+    from bridge_shadow.ros.launcher import NodeError
+
+    bags = [
+        write_monitoring(tmp_path / f"b{k}", _record(7200 * k, 10, np.zeros(2), 6.0, k + 1)) for k in (0, 1)
+    ]
+    ck = tmp_path / "ck.npz"
+    assert main(["replay", str(bags[0]), "--checkpoint", str(ck)]) == 0
+    before = ck.read_bytes()
+
+    def broken(*_args: object, **_kw: object) -> dict:
+        raise NodeError("bridge_shadow_node exited with code 1: checkpoint written to /tmp/x/checkpoint.npz")
+
+    monkeypatch.setattr(live_replay.Player, "checkpoint", broken)
+    with pytest.raises(NodeError, match=r"ck\.npz is left as it was: the node wrote only a copy"):
+        live_replay.run_live(bags[1], checkpoint=ck, timeout_s=20.0)
+    assert ck.read_bytes() == before  # the bytes of the file as it was: nothing written

@@ -612,6 +612,12 @@ def run_live(
             if chain is not None and hold is not None:
                 tail, malformed_tail = decode_air(hold.tail)
                 chain.finish(captured, tail)
+        except NodeError as err:
+            if chain is None:
+                raise
+            # the node's own last lines may say "checkpoint written to" its private copy, removed now
+            left = f"{chain.checkpoint} is left as it was: the node wrote only a copy"
+            raise NodeError(f"{err} ({left})") from None
         finally:
             if player is not None:
                 player.close()
