@@ -142,6 +142,42 @@ def test_replay_checkpoint_interrupted(small_bag: str, tmp_path: Path, monkeypat
     assert main(argv) == 0 and load_state(state)
 
 
+def test_a_chains_replay_stopped_after_its_feed_leaves_the_checkpoint_as_it_was(
+    tmp_path: Path, monkeypatch, capsys
+) -> None:
+    """A bag whose air runs past its forces, replayed with --checkpoint and --out, stopped at --out's end.
+
+    The checkpoint (the state after the last force, the air past it held) was written before that
+    air was fed for the bag's own result and before --out was finished: a run stopped there exited
+    130 with the bag taken whole, and its rerun rejected every message (exit 1, "no window updated
+    the estimate"). Now it is written once the run is complete: the stopped run leaves its last
+    periodic one (every ``checkpoint_period_s`` of data, mid-bag), and the rerun goes on from it
+    to where an uninterrupted run ends, checkpoint and all.
+    """
+    import json
+
+    import numpy as np
+    from test_air_tail import _record
+
+    from bridge_shadow.bagio import write_monitoring
+    from bridge_shadow.estimate import Shadow
+
+    bag = write_monitoring(tmp_path / "one", _record(0, 30, np.array([2e-4, -1e-4]), 6.0, 1))
+    ck, out = tmp_path / "ck.npz", tmp_path / "out"
+    argv = ["replay", str(bag), "--checkpoint", str(ck), "--out", str(out), "--json"]
+    _interrupted(monkeypatch, argv, _on_publish(monkeypatch, out, signal.SIGTERM), EXIT_TERMINATED)
+    assert not out.exists() and _leftovers(tmp_path) == []
+    capsys.readouterr()
+    assert main(argv) == 0
+    rerun = json.loads(capsys.readouterr().out)
+    whole = tmp_path / "whole.npz"
+    assert main(["replay", str(bag), "--checkpoint", str(whole), "--json"]) == 0
+    once = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose(rerun["posterior"]["mean_m"], once["posterior"]["mean_m"], rtol=1e-12)
+    held, held_once = Shadow.resume(ck).held_air, Shadow.resume(whole).held_air
+    assert held is not None and held_once is not None and len(held) == len(held_once) > 200
+
+
 def test_a_figure_interrupted(tmp_path: Path, monkeypatch) -> None:
     """A figure of calibrate --report (and of replay --plots, gap --report: the same atomic write)."""
     import matplotlib

@@ -1449,6 +1449,18 @@ class Shadow:
         """Rebuild a shadow from ``state_dict`` (config and surrogate default to the saved ones)."""
         return restore_shadow(cls, state, config, surrogate)
 
+    def checkpoint_state(self, held_air: TemperatureSeries | None = None) -> dict[str, Any]:
+        """Return ``state_dict()`` with ``held_air`` as the air it holds unfed (None or empty: none).
+
+        What a chain's checkpoint holds after a bag's last force (``replay.air_tail``), taken before
+        the held air is fed for the bag's own result and written once the run is complete.
+        """
+        before, self.held_air = self.held_air, held_air if held_air is not None and len(held_air) else None
+        try:
+            return self.state_dict()
+        finally:
+            self.held_air = before
+
     def save_checkpoint(
         self,
         path: str | Path | None = None,
@@ -1465,11 +1477,7 @@ class Shadow:
         if not target:
             return None
         if held_air is not None and state is None:
-            before, self.held_air = self.held_air, held_air if len(held_air) else None
-            try:
-                return self.save_checkpoint(path)
-            finally:
-                self.held_air = before
+            state = self.checkpoint_state(held_air)
         self._ckpt_ns = self.clock_ns
         written = save_state(self.state_dict() if state is None else state, target)
         self.checkpoint_failure = None

@@ -124,6 +124,7 @@ def replay_bag(
                 every.extend(outs)
 
         open_s = time.perf_counter() - t0
+        final: dict[str, Any] | None = None  # the chain's checkpoint, written once the run is complete
         with ExitStack() as stack:
             # a checkpoint chain holds the air past the bag's last force (``air_tail``)
             tail = AirTail(stream) if config.checkpoint_path else None
@@ -158,8 +159,11 @@ def replay_bag(
                 before_close()
                 stats.held_air = len(tail.tail) if tail.tail is not None else 0
                 shadow.held_air = None  # the checkpoint's held air is all fed now
-                shadow.save_checkpoint(held_air=tail.tail)
-                # this bag's result goes on to the air's end; no periodic write replaces that checkpoint
+                # the checkpoint's state, written once the run is complete (written here, a run
+                # stopped after it, in the tail's feed or --out's finish, exited 130 with the bag taken
+                # whole, and its rerun rejected every message: exit 1)
+                final = shadow.checkpoint_state(tail.tail)
+                # this bag's result goes on to the air's end; no periodic write replaces the checkpoint
                 shadow.checkpoints_paused = True
                 try:
                     rest = arrival_chunks([air_piece(tail.tail, CHANNELS)], chunk) if tail.tail else []
@@ -177,6 +181,8 @@ def replay_bag(
                 t1 = time.perf_counter()
                 sink.finish()
                 stats.write_s += time.perf_counter() - t1
+        if final is not None:  # after --out is in place (its context's exit renames it there)
+            shadow.save_checkpoint(state=final)
         stats.reader_s = reader.busy_s if reader is not None else stats.read_s
         stats.read_s += open_s
         stats.reader_s += open_s
