@@ -197,6 +197,10 @@ def test_a_live_replay_in_a_checkpoint_chain_is_one_merged_replay(
     # the live run's checkpoint is the offline chain's: the same held air, the same state after it
     held, held_offline = Shadow.resume(ck).held_air, Shadow.resume(offline_ck).held_air
     np.testing.assert_array_equal(held.stamp_ns, held_offline.stamp_ns)
+    # and its parameters: the node's named its private copy (gone after the run) and a period of a year
+    live_params = json.loads(str(load_state(ck)["config"]))
+    offline_params = json.loads(str(load_state(offline_ck)["config"]))
+    assert live_params == {**offline_params, "checkpoint_path": str(ck)}
     third = replay(bags[2], "--checkpoint", ck)
     whole = replay(*bags)
     assert third["rejected"]["late"] == 0

@@ -28,6 +28,7 @@ No ROS import: the player (``live_replay``) publishes what these yield.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -61,6 +62,8 @@ class LiveChain:
             temporary directory).
         held: the air the named checkpoint held unfed (None: none), published merged with the bag.
         notes: what opening the named checkpoint did (set aside as unusable, stale writers' files).
+        config: the parameters the offline chain's checkpoint records (this one's path, its
+            period), written in place of the node's (its private path, written rarely).
 
     """
 
@@ -68,10 +71,17 @@ class LiveChain:
     private: Path
     held: TemperatureSeries | None = None
     notes: list[str] = field(default_factory=list)
+    config: Any = None
 
     def finish(self, state: dict[str, Any], tail: TemperatureSeries | None) -> Path:
-        """Write ``state`` (the node's, after the bag's last force) with ``tail`` held, to ``checkpoint``."""
+        """Write ``state`` (the node's, after the bag's last force) with ``tail`` held, to ``checkpoint``.
+
+        The parameters recorded are the offline chain's: the node's named its private copy, gone
+        after the run, as the path a shadow resumed from this file without parameters writes to.
+        """
         state = dict(state)
+        if self.config is not None:
+            state["config"] = json.dumps(self.config.to_params())
         state.pop("held_air", None)
         if tail is not None and len(tail):
             state["held_air"] = held_air_arrays(tail)
@@ -89,11 +99,12 @@ def prepare(config: Any, surrogate: Any, checkpoint: str | Path, private: Path) 
     from bridge_shadow.estimate.startup import open_shadow
 
     file = Path(checkpoint)
-    _, notes = open_shadow(config.replace(checkpoint_path=str(file)), surrogate)
+    config = config.replace(checkpoint_path=str(file))
+    _, notes = open_shadow(config, surrogate)
     # what a user must hear of (a file set aside, a killed writer's left), not "resumed" or "none yet";
     # told by the whole opening (a note of a file set aside opens with its name, "resumed.npz: ...")
     usual = (f"resumed from {file}: ", f"checkpoint {file}: none yet")
-    chain = LiveChain(file, private, notes=[n for n in notes if not n.startswith(usual)])
+    chain = LiveChain(file, private, config=config, notes=[n for n in notes if not n.startswith(usual)])
     if file.is_file():  # resumable (an unusable one is set aside by now)
         state = load_state(file)
         held = state.pop("held_air", None)
