@@ -62,7 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="BAG",
         nargs="+",
         help="rosbag2 directory (sqlite3 or MCAP); several BAGs (e.g. a record's forces and its air "
-        "temperature, overlapping in time) are read as one stream merged by log time (not with --live)",
+        "temperature, overlapping in time) are read as one stream merged by log time (with --live too)",
     )
     parser.add_argument("--params", metavar="YAML", help="shadow parameter file (default config/shadow.yaml)")
     parser.add_argument(
@@ -344,8 +344,6 @@ def run(args: argparse.Namespace) -> int:
     if args.watch and not args.live:
         raise InputError("--watch needs --live (it shows the node's topics)")
     bags = [args.bag] if isinstance(args.bag, str | Path) else list(args.bag)
-    if len(bags) > 1 and args.live:
-        raise InputError("--live plays one BAG (merge several into one bag, or replay them without --live)")
     bag = bags[0] if len(bags) == 1 else bags  # one bag: read as ever; several: merged
     # the outputs are checked before the replay runs, so a bad path costs no time
     if args.out:

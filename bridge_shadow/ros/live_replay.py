@@ -46,6 +46,7 @@ from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
+from bridge_shadow.bagio.cdr import encode_stamped_floats
 from bridge_shadow.contract import (
     CHANNELS,
     COMPENSATED_TOPICS,
@@ -458,7 +459,7 @@ def _node_config(config: ShadowConfig, tmp: Path) -> ShadowConfig:
 
 
 def run_live(
-    bag: str | Path,
+    bag: str | Path | Sequence[str | Path],
     params_path: str | Path | None = None,
     *,
     out: str | Path | None = None,
@@ -475,7 +476,9 @@ def run_live(
     """Replay ``bag`` through ``bridge_shadow_node`` over loopback DDS; return the replay JSON.
 
     Args:
-        bag: rosbag2 directory with the contract input topics.
+        bag: rosbag2 directory with the contract input topics, or several read as one stream merged
+            by log time (``bagio.merged.MergedStream``: bags that overlap in time, as the direct
+            replay reads them; published serialized again from what was decoded).
         params_path: shadow parameter file (default ``config/shadow.yaml``).
         out: record the node's output topics into this bag (log time = receive time).
         overwrite: replace an existing bag at ``out`` (``--force``), once the new one is complete.
@@ -505,11 +508,12 @@ def run_live(
         ``seconds``, ``windows``, ``spline``, ``noise``) plus ``live`` (graph timings, node counters).
 
     """
-    from bridge_shadow.bagio.stream import MonitoringStream
+    from bridge_shadow.bagio.merged import open_monitoring
     from bridge_shadow.estimate import load_config
     from bridge_shadow.model.surrogate_file import load_surrogate
     from bridge_shadow.ros.netenv import check_domain_id, confine_to_loopback
 
+    bags = [Path(bag)] if isinstance(bag, str | Path) else [Path(b) for b in bag]
     check_domain_id()  # a domain DDS cannot use ends the node's process with no line of ours
     if "ROS_AUTOMATIC_DISCOVERY_RANGE" not in os.environ:  # before rclpy starts (Player, node)
         confine_to_loopback()
@@ -519,7 +523,7 @@ def run_live(
     # streamed: what is held is one piece of the bag, whatever its length (as in the direct mode,
     # the air temperature may be absent: the node then runs uncompensated and says so)
     with (
-        MonitoringStream(bag, topics=inputs, required=list(INPUT_TOPICS)[:2]) as stream,
+        open_monitoring(bags, topics=inputs, required=list(INPUT_TOPICS)[:2]) as stream,
         tempfile.TemporaryDirectory(prefix="bridge_shadow_live_") as tmp,
     ):
         node_config = _node_config(config, Path(tmp))
@@ -555,7 +559,7 @@ def run_live(
 
                 watcher = TopicWatch(player.records)
                 fraction = lambda _sent, log: watcher(min(max(log - (first or 0), 0) / span, 1.0))  # noqa: E731
-            pieces: Iterable[Any] = _merged_pieces(stream)
+            pieces: Iterable[Any] = _merged_pieces(stream) if len(bags) == 1 else _encoded_pieces(stream)
             hold = None
             if chain is not None:  # the air past the bag's last force is held (``live_chain``)
                 pieces = hold = RawAirTail(merge_held(pieces, chain.held))
@@ -658,7 +662,8 @@ def run_live(
         "prior": report["prior"],
         "spline": report["spline"],
         "noise": report["noise"],
-        "bag": str(bag),
+        "bag": str(bags[0]),
+        **({"bags": [str(b) for b in bags]} if len(bags) > 1 else {}),  # read merged by log time
         "surrogate": surrogate.summary(),
         "live": {
             "domain_id": int(node.env["ROS_DOMAIN_ID"]),
@@ -706,6 +711,31 @@ def _discover(player: Player, node: NodeProcess, timeout_s: float) -> float:
             "domain of its own, or make sure that range and domain reach this machine's loopback"
         )
         raise NodeError(f"{err}: DDS discovery found no node ({where}); {hint}") from None
+
+
+def _encoded_pieces(stream: Any) -> Iterator[tuple[np.ndarray, np.ndarray, list[list[bytes]], np.ndarray]]:
+    """Yield the pieces of several bags read as one stream (``MergedStream``) serialized again.
+
+    Bags that overlap in time are read merged by log time, as the direct replay reads them; the
+    messages go out as ``publish_pieces`` takes them, serialized from what was decoded: the same
+    stamps, frame ids, forces (a wrench's ``force.z``; the shadow reads no other component, which
+    go out as zero) and air temperatures with their variance.
+    """
+    for piece in stream:
+        raws: list[list[bytes]] = []
+        logs: list[np.ndarray] = []
+        for ch in CHANNELS:
+            f = piece.forces[ch]
+            values = np.zeros((len(f), 6))
+            values[:, 2] = f.force_n
+            raws.append(encode_stamped_floats(f.stamp_ns, np.asarray(f.frame_id, dtype=object), values))
+            logs.append(np.asarray(f.log_ns, np.int64))
+        t = piece.temperature
+        air = np.column_stack([t.temp_c, np.asarray(t.variance, float)])
+        raws.append(encode_stamped_floats(t.stamp_ns, np.asarray(t.frame_id, dtype=object), air))
+        logs.append(np.asarray(t.log_ns, np.int64))
+        topic, pos, merged = merge_log_order(logs)
+        yield topic, pos, raws, merged
 
 
 def _merged_pieces(
