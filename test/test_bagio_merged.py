@@ -187,6 +187,27 @@ def test_required_topics_hold_over_the_union_of_the_bags(record: dict[str, Any],
         assert isinstance(stream, MonitoringStream)
 
 
+def test_a_sqlite3_bag_of_none_of_the_topics_adds_nothing(record: dict[str, Any], tmp_path: Path) -> None:
+    """A bag of other topics among several (``--params`` with ``topic_*`` renamed): nothing of it is read.
+
+    An MCAP bag gave nothing; a sqlite3 one failed on its first slice ("corrupt or truncated bag while
+    reading messages: 'NoneType' object is not subscriptable": the slice query held no aggregate and
+    found no row), the direct replay and the live one alike.
+    """
+    from bridge_shadow.contract import TEMPERATURE_TOPIC
+
+    data = record["data"]
+    forces = _one_kind(tmp_path / "forces", data, forces=True)  # sqlite3, the contract's force topics
+    air = _one_kind(tmp_path / "air", data, forces=False)
+    names = ["/site/south_bearing/force", "/site/north_bearing/force", TEMPERATURE_TOPIC]
+    with MonitoringStream(forces, topics=names, required=False) as none:
+        assert none.backend == "sqlite3" and not none.present and list(none) == []
+    with MergedStream([forces, air], topics=names, required=False) as merged:
+        got = _topics(list(merged))
+    assert got[0]["log_ns"].size == got[1]["log_ns"].size == 0
+    np.testing.assert_array_equal(got[2]["log_ns"], data.temperature.log_ns)
+
+
 def test_equal_log_times_keep_the_bags_order(tmp_path: Path) -> None:
     """Two bags with messages of one topic at the same log times: ties in the order the bags are given."""
     n = 50

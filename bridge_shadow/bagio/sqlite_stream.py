@@ -107,6 +107,8 @@ class _File:
 
     def read(self, lo: int, hi: int) -> list[RawBlock | None]:
         """Messages of each topic with ``lo <= log < hi``, in (log time, rowid) order."""
+        if all(tid is None for tid in self.ids):  # none of the topics (one of several bags): no
+            return [None] * len(self.ids)  # aggregate in the query, so no row to read
         row = self.db.execute(self.query, {"lo": lo, "hi": hi}).fetchone()
         out: list[RawBlock | None] = []
         for k, tid in enumerate(self.ids):
