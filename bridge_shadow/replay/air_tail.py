@@ -10,8 +10,9 @@ bags, read merged by log time, keeps.
 ``AirTail`` passes a stream's pieces on in arrival order but holds the air messages after the last
 force seen so far; they go on, as a piece of their own, just before the next piece with forces.
 What is held when the stream ends (``tail``) is the run past the bag's last force. ``replay_bag``
-writes the checkpoint before feeding it (the state after the last force, the tail beside it),
-then feeds it and closes the windows for this bag's own result. The next bag's replay merges the
+takes the checkpoint's state before feeding it (the state after the last force, the tail beside
+it), then feeds it and closes the windows for this bag's own result, and writes that state once
+the run is complete (``--out`` in place). The next bag's replay merges the
 checkpoint's tail with its own messages by log time (``bagio.merged.MergedStream``'s ``held``),
 so the chain reads what one merged replay of both bags reads, in the same order.
 

@@ -17,7 +17,7 @@ The player holds what the offline chain holds, on the raw pieces it publishes:
 - ``RawAirTail``: the air after the last force seen is held until forces follow (``AirTail``'s
   rule on raw pieces); what is held at the bag's end is the tail;
 - after the last force the player asks the node's checkpoint service for the state then (the
-  offline chain's checkpoint, written before the tail is fed), plays the tail for this bag's own
+  offline chain's checkpoint, taken before the tail is fed), plays the tail for this bag's own
   result, and flushes;
 - ``finish``: once the run is complete, the named checkpoint becomes that state with the tail as
   its held air (written atomically). An interrupted run leaves it as it was: its rerun replays the
