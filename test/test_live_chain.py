@@ -34,7 +34,7 @@ from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.replay.air_tail import AirTail, air_piece
 from bridge_shadow.ros.live_chain import AIR, RawAirTail, decode_air, merge_held, prepare
 from bridge_shadow.ros.live_replay import _merged_pieces, merge_log_order
-from bridge_shadow.series import MonitoringData
+from bridge_shadow.series import MonitoringData, TemperatureSeries
 
 _FLOATS = (6, 6, 2)  # WrenchStamped, WrenchStamped, Temperature after the header
 
@@ -268,6 +268,42 @@ def test_held_air_past_the_bag_follows_it_and_an_undecodable_tail_message_is_lef
     assert bad == 1 and tail is not None and len(tail) == 4
     np.testing.assert_array_equal(tail.stamp_ns, later.stamp_ns[1:])
     np.testing.assert_array_equal(tail.temp_c, later.temp_c[1:])
+
+
+def test_a_stamp_decoded_past_the_int32_seconds_is_published_as_it_decoded(tmp_path: Path) -> None:
+    """Several bags played live are serialized again: a stamp whose ``nanosec`` is 1e9 or more, too.
+
+    A header of ``sec`` 2**31 - 1 and ``nanosec`` 3e9 decodes to a stamp past the int32 seconds;
+    serialized again from that, it stopped ``replay BAG BAG --live`` with a traceback (ValueError:
+    stamp out of the int32 seconds range) where the direct replay takes it, and one BAG --live
+    publishes its bytes. Now it goes out as what it decoded to, from the bags and as held air.
+    """
+    from bridge_shadow.bagio import BagOutputWriter
+    from bridge_shadow.contract import FORCE_TOPICS, FORCE_TYPE, TEMPERATURE_TOPIC, TEMPERATURE_TYPE
+    from bridge_shadow.ros.live_replay import _encoded_pieces
+
+    day = write_monitoring(tmp_path / "day", _record(0, 30, np.array([0.0, 0.0]), 1.0, 4))
+    far = [(2**31 - 1) * 10**9, 10**9 - 1]  # stamps (ns): the first one gets nanosec 3e9 below
+
+    def odd(raw: bytes) -> bytes:  # sec 2**31 - 1, nanosec 3e9
+        return raw[:4] + (2**31 - 1).to_bytes(4, "little") + (3 * 10**9).to_bytes(4, "little") + raw[12:]
+
+    log = [1_700_000_100 * 10**9, 1_700_000_200 * 10**9]
+    with BagOutputWriter(tmp_path / "odd") as bag:
+        raws = encode_stamped_floats(np.array(far), "frc", np.zeros((2, 6)))
+        bag.write_many_raw(FORCE_TOPICS["frc_01"], FORCE_TYPE, log, [odd(raws[0]), raws[1]])
+        raws = encode_stamped_floats(np.array(far), "air", np.ones((2, 2)))
+        bag.write_many_raw(TEMPERATURE_TOPIC, TEMPERATURE_TYPE, log, [odd(raws[0]), raws[1]])
+    with MergedStream([day, tmp_path / "odd"], required=False) as stream:
+        pieces = list(stream)
+    stamps = [int(s) for p in pieces for s in p.forces["frc_01"].stamp_ns]
+    assert (2**31 - 1) * 10**9 + 3 * 10**9 in stamps  # past the int32 seconds, as decoded
+    assert _per_topic(_published(list(_encoded_pieces(pieces)))) == _per_topic(_decoded(pieces))
+    held = TemperatureSeries.concat([p.temperature for p in pieces])  # as a checkpoint's held air
+    held = held.take(held.stamp_ns > 2**31 * 10**9)
+    assert len(held) == 1
+    out = list(merge_held([], held))
+    assert [m[2] for m in _published(out)] == [int(held.stamp_ns[0])]
 
 
 def test_a_replay_with_volatile_posterior_readers_does_not_wait_for_what_they_missed(

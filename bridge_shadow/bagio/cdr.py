@@ -424,7 +424,11 @@ def _frame_groups(frame_id: np.ndarray | Sequence[str] | str, n: int) -> list[tu
 
 
 def encode_stamped_floats(
-    stamp_ns: np.ndarray, frame_id: np.ndarray | Sequence[str] | str, values: np.ndarray
+    stamp_ns: np.ndarray,
+    frame_id: np.ndarray | Sequence[str] | str,
+    values: np.ndarray,
+    *,
+    carry: bool = False,
 ) -> list[bytes]:
     """Serialize messages of the fixed layout to little-endian CDR, one numpy block per frame_id.
 
@@ -432,6 +436,9 @@ def encode_stamped_floats(
         stamp_ns: (n,) int64 header stamps, ns since epoch.
         frame_id: a str for all messages or (n,) str per message.
         values: (n, k) float64 fields after the header.
+        carry: a stamp past the int32 seconds goes out with the int32 maximum and the rest as
+            nanoseconds (below 2**32), as a message whose ``nanosec`` is 1e9 or more decodes: what
+            was decoded is serialized again to the stamp it decoded to (``replay BAG BAG --live``).
 
     Returns:
         n raw CDR messages, byte-identical to rosbags' ``serialize_cdr``.
@@ -443,9 +450,13 @@ def encode_stamped_floats(
     if len(stamp_ns) != n:
         raise ValueError("stamp_ns and values must have the same number of rows")
     sec = stamp_ns // _NS
-    if n and (sec.min() < np.iinfo(np.int32).min or sec.max() > np.iinfo(np.int32).max):
-        raise ValueError("stamp out of the int32 seconds range of builtin_interfaces/Time")
+    if carry:
+        sec = np.minimum(sec, np.iinfo(np.int32).max)
     nsec = stamp_ns - sec * _NS
+    if n and (
+        sec.min() < np.iinfo(np.int32).min or sec.max() > np.iinfo(np.int32).max or nsec.max() >= 2**32
+    ):
+        raise ValueError("stamp out of the int32 seconds range of builtin_interfaces/Time")
     out: list[bytes] = [b""] * n
     for frame, rows in _frame_groups(frame_id, n):
         text = frame.encode("utf-8") + b"\0"

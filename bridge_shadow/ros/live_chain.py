@@ -115,7 +115,7 @@ def prepare(config: Any, surrogate: Any, checkpoint: str | Path, private: Path) 
 
 def _air_raws(held: TemperatureSeries) -> list[bytes]:
     values = np.column_stack([held.temp_c, np.asarray(held.variance, float)])
-    return encode_stamped_floats(held.stamp_ns, np.asarray(held.frame_id, dtype=object), values)
+    return encode_stamped_floats(held.stamp_ns, np.asarray(held.frame_id, dtype=object), values, carry=True)
 
 
 def merge_held(pieces: Iterable[RawPiece], held: TemperatureSeries | None) -> Iterator[RawPiece]:

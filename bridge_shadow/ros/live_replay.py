@@ -719,7 +719,8 @@ def _encoded_pieces(stream: Any) -> Iterator[tuple[np.ndarray, np.ndarray, list[
     Bags that overlap in time are read merged by log time, as the direct replay reads them; the
     messages go out as ``publish_pieces`` takes them, serialized from what was decoded: the same
     stamps, frame ids, forces (a wrench's ``force.z``; the shadow reads no other component, which
-    go out as zero) and air temperatures with their variance.
+    go out as zero) and air temperatures with their variance. A stamp whose ``nanosec`` was 1e9 or
+    more goes out as the one it decoded to (``carry``: past the int32 seconds it stopped the run).
     """
     for piece in stream:
         raws: list[list[bytes]] = []
@@ -728,11 +729,13 @@ def _encoded_pieces(stream: Any) -> Iterator[tuple[np.ndarray, np.ndarray, list[
             f = piece.forces[ch]
             values = np.zeros((len(f), 6))
             values[:, 2] = f.force_n
-            raws.append(encode_stamped_floats(f.stamp_ns, np.asarray(f.frame_id, dtype=object), values))
+            raws.append(
+                encode_stamped_floats(f.stamp_ns, np.asarray(f.frame_id, dtype=object), values, carry=True)
+            )
             logs.append(np.asarray(f.log_ns, np.int64))
         t = piece.temperature
         air = np.column_stack([t.temp_c, np.asarray(t.variance, float)])
-        raws.append(encode_stamped_floats(t.stamp_ns, np.asarray(t.frame_id, dtype=object), air))
+        raws.append(encode_stamped_floats(t.stamp_ns, np.asarray(t.frame_id, dtype=object), air, carry=True))
         logs.append(np.asarray(t.log_ns, np.int64))
         topic, pos, merged = merge_log_order(logs)
         yield topic, pos, raws, merged
