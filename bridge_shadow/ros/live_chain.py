@@ -99,7 +99,7 @@ def prepare(config: Any, surrogate: Any, checkpoint: str | Path, private: Path) 
     from bridge_shadow.estimate.startup import open_shadow
 
     file = Path(checkpoint)
-    config = config.replace(checkpoint_path=str(file))
+    config = config.replace(checkpoint_path=str(checkpoint))  # as given, as the offline chain records it
     _, notes = open_shadow(config, surrogate)
     # what a user must hear of (a file set aside, a killed writer's left), not "resumed" or "none yet";
     # told by the whole opening (a note of a file set aside opens with its name, "resumed.npz: ...")
