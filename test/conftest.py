@@ -32,7 +32,6 @@ HEAVIEST_FIRST = (
     "test_loadtest_days.py",
     "test_ros_node.py",
     "test_archive.py",
-    "test_later_records_cli.py",  # 25-38 s since its live chain (2026-12-02), after the real imports
     "test_estimate_coverage.py",
     "test_engine.py",
     "test_estimate_pipeline.py",
