@@ -893,3 +893,56 @@ def test_live_replay_of_the_real_lowering_ends_at_the_direct_posterior(
 
     last, _ = array_from_msg(deserialize_message(raw[-1], Float64MultiArray))
     np.testing.assert_allclose(last, direct.mean_m, rtol=1e-12, atol=0)
+
+
+def test_one_wild_stamp_does_not_hold_its_topic_back_until_the_others_closed_its_windows() -> None:
+    """A force message stamped a day ahead (a logger's clock glitch) among 100 Hz messages, in-process.
+
+    The node holds a message whose stamp is ahead of what the other topics delivered (they may
+    still be in flight), and the messages after it in its topic, for ``REORDER_HOLD_S`` of wall time.
+    A stamp a day ahead is no transport skew: the topic stalled while the others closed its windows,
+    and its messages came ``late`` (about 8,000 of a fast live replay's; the direct replay: one
+    ``clock_jump``, none late). A stamp more than ``clock_jump_s`` ahead of the others now goes on
+    at once, to the gate that rejects it, and the node ends where the direct replay does.
+    """
+    import rclpy
+
+    from bridge_shadow.bagio import decode_stamped_floats, encode_stamped_floats
+    from bridge_shadow.contract import FORCE_FRAMES
+    from bridge_shadow.ros.node import ShadowNode
+    from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
+
+    n, wild = 600, 300
+    raws, overrides = _steady_100hz(n, 6)
+    stamp, _, values = decode_stamped_floats(raws[0], 6)
+    stamp = stamp.copy()
+    stamp[wild] += 86_400 * 10**9
+    raws[0] = encode_stamped_floats(stamp, FORCE_FRAMES["frc_01"], values)
+    f2, air = decode_stamped_floats(raws[1], 6), decode_stamped_floats(raws[2], 2)
+    log = f2[0]  # the arrival order: every topic's message j at tick j
+    forces = {
+        "frc_01": ForceSeries(stamp, values[:, 2], FORCE_FRAMES["frc_01"], log),
+        "frc_02": ForceSeries(f2[0], f2[2][:, 2], FORCE_FRAMES["frc_02"], log),
+    }
+    data = MonitoringData(forces, TemperatureSeries(air[0], air[2][:, 0], log_ns=log))
+    config = {p.name: p.value for p in overrides}
+    direct = Shadow(load_config(None, config)).run(data)
+    assert direct.rejected["clock_jump"] == 1 and direct.rejected["late"] == 0
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = ShadowNode(context=context, parameter_overrides=overrides)
+        try:
+            callbacks = [node._callback(i) for i in range(3)]
+            for j in range(n):
+                if j % 5 == 0:
+                    node._on_drain_timer()
+                for i in (2, 0, 1):
+                    callbacks[i](raws[i][j])
+            node.close_open_windows()
+            assert node.shadow.rejected["late"] == 0 and node.shadow.rejected["clock_jump"] == 1
+            np.testing.assert_allclose(node.shadow.posterior[0], direct.mean_m, rtol=1e-9, atol=1e-12)
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)

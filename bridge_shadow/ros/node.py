@@ -355,7 +355,8 @@ class ShadowNode(Node):
         A message waits while its stamp is ahead of the newest stamp some other topic has
         delivered (that topic may still be in flight: DDS keeps order within a topic, not across
         topics), or while some topic has delivered nothing yet, unless that topic is quiet (or
-        absent) for ``REORDER_HOLD_S`` or the message has waited that long.
+        absent) for ``REORDER_HOLD_S`` or the message has waited that long. A stamp more than
+        ``clock_jump_s`` ahead does not wait (a clock glitch, for the gate).
         """
         stamp, _, _, t_dec = self._pending[i]
         horizon = None
@@ -371,7 +372,14 @@ class ShadowNode(Node):
         # every message in step (the usual drain): all of them, whatever has waited how long
         if horizon is None or int(stamp.max()) <= horizon:
             return len(stamp)
-        ahead = np.flatnonzero(stamp > horizon)
+        # a stamp more than clock_jump_s ahead of the others is no transport skew but a clock
+        # glitch (or a new time base): it goes on to the gate, which rejects it (or confirms the
+        # new base) as the direct replay's does; held, it held its topic back for REORDER_HOLD_S
+        # while the others closed its windows, and the messages after it came late
+        wild = stamp > horizon + round(self.config.clock_jump_s * _NS)
+        ahead = np.flatnonzero((stamp > horizon) & ~wild)
+        if not len(ahead):
+            return len(stamp)
         n_aged = int(np.searchsorted(t_dec, now - REORDER_HOLD_S, side="right"))
         return max(int(ahead[0]), n_aged)
 
