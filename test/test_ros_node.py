@@ -946,3 +946,25 @@ def test_one_wild_stamp_does_not_hold_its_topic_back_until_the_others_closed_its
             node.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_a_malformed_message_played_live_is_dropped_and_said(bag: Path, tmp_path: Path) -> None:
+    """One truncated force message in an hour of the bundled day, played live: dropped, counted and said.
+
+    The node drops what it cannot decode, as it must with live data; the replay's JSON counted it
+    (``live.malformed``) with no warning, where the direct replay refuses the bag.
+    """
+    from bridge_shadow.bagio import BagOutputWriter
+
+    out = tmp_path / "one_malformed"
+    with BagOutputWriter(out) as writer:
+        for topic, (log_ns, raws) in read_raw_topics(bag, INPUT_TOPICS).items():
+            keep = log_ns < log_ns[0] + 3600 * 10**9
+            kept = [r for r, k in zip(raws, keep, strict=True) if k]
+            if topic == "/bridge/frc_01/force":
+                kept[len(kept) // 2] = kept[len(kept) // 2][:20]  # cut short inside its header
+            writer.write_many_raw(topic, INPUT_TOPICS[topic], log_ns[keep], kept)
+    live = run_live(out, overrides=OVERRIDES, timeout_s=TIMEOUT_S)
+    assert live["live"]["malformed"] == 1
+    (line,) = [w for w in live["warnings"] if "malformed" in w]
+    assert line.startswith("1 message(s) of the bag could not be decoded")

@@ -658,7 +658,7 @@ def run_live(
         "gaps": report["gaps"],
         "traffic": report["traffic"],
         "rejected_windows": report["rejected_windows"],  # the node's whole list (ShadowNode.report)
-        "warnings": report["warnings"],
+        "warnings": [*report["warnings"], *_malformed_line(int(counters["malformed"]))],
         "prior": report["prior"],
         "spline": report["spline"],
         "noise": report["noise"],
@@ -693,6 +693,16 @@ def run_live(
     if plots is not None:
         js["plots"] = [str(p) for p in plot_paths]
     return js
+
+
+def _malformed_line(n: int) -> list[str]:
+    """Say that the node dropped messages it could not decode (the direct replay refuses such a bag)."""
+    if not n:
+        return []
+    return [
+        f"{n} message(s) of the bag could not be decoded (malformed): the node dropped them, as it "
+        "drops such live data (the direct replay refuses the bag: 'replay BAG' names the first one)"
+    ]
 
 
 def _discover(player: Player, node: NodeProcess, timeout_s: float) -> float:
