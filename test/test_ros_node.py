@@ -409,6 +409,16 @@ def _steady_100hz(n: int, seed: int) -> tuple[list[list[bytes]], list[Any]]:
     return raws, overrides
 
 
+def _feed_ticks(node: Any, raws: list[list[bytes]], n: int) -> None:
+    """Call the node's callbacks tick by tick (air, frc_01, frc_02), its drain timer every fifth tick."""
+    callbacks = [node._callback(i) for i in range(3)]
+    for j in range(n):
+        if j % 5 == 0:
+            node._on_drain_timer()
+        for i in (2, 0, 1):
+            callbacks[i](raws[i][j])
+
+
 def test_the_message_that_closes_a_window_publishes_it_even_right_after_a_timers_drain() -> None:
     """The closing message drains at once, also when the drain timer ran a moment before.
 
@@ -473,12 +483,7 @@ def test_a_subscriber_that_joins_late_is_sent_the_last_posterior() -> None:
         viewer = rclpy.create_node("late_viewer", context=context)
         executor = SingleThreadedExecutor(context=context)
         try:
-            callbacks = [node._callback(i) for i in range(3)]
-            for j in range(n):
-                if j % 5 == 0:
-                    node._on_drain_timer()
-                for i in (2, 0, 1):
-                    callbacks[i](raws[i][j])
+            _feed_ticks(node, raws, n)
             assert node.posteriors_published > 3
             # the last messages are ingested now, and the drain timer is stopped: on a busy CI machine
             # it fired before the viewer's first message, ingested them and published once more, so
@@ -933,12 +938,7 @@ def test_one_wild_stamp_does_not_hold_its_topic_back_until_the_others_closed_its
     try:
         node = ShadowNode(context=context, parameter_overrides=overrides)
         try:
-            callbacks = [node._callback(i) for i in range(3)]
-            for j in range(n):
-                if j % 5 == 0:
-                    node._on_drain_timer()
-                for i in (2, 0, 1):
-                    callbacks[i](raws[i][j])
+            _feed_ticks(node, raws, n)
             node.close_open_windows()
             assert node.shadow.rejected["late"] == 0 and node.shadow.rejected["clock_jump"] == 1
             np.testing.assert_allclose(node.shadow.posterior[0], direct.mean_m, rtol=1e-9, atol=1e-12)
