@@ -145,14 +145,21 @@ def test_live_replay_equals_direct_replay(bag: Path, direct, tmp_path: Path) -> 
         "raw_vs_compensated.png",
     ]
     assert all(Path(p).stat().st_size > 10_000 for p in live["plots"])
-    # the same pictures as the direct replay's (drawn from the same numbers: the node's state after
-    # its flush, the compensation curve too, which was drawn from the state before the flush's refit)
+    # the same pictures as the direct replay's (drawn from the node's state after its flush: the
+    # compensation curve was drawn from the state before the flush's refit)
     from bridge_shadow.estimate.plots import write_plots
 
     shadow = Shadow(load_config(None, OVERRIDES))
     drawn = write_plots(tmp_path / "direct_plots", shadow.run(read_monitoring(bag)), shadow)
+    import matplotlib.image as mpimg
+
     for mine, theirs in zip(sorted(drawn), sorted(map(Path, live["plots"])), strict=True):
-        assert mine.read_bytes() == theirs.read_bytes(), mine.name
+        a, b = mpimg.imread(mine), mpimg.imread(theirs)
+        assert a.shape == b.shape, mine.name
+        # drawn from floats two runs compute: an ulp may move an edge pixel, not a curve (the curve
+        # from the state before the refit differed in 5,221 pixels of the 559,020, 2026-12-02)
+        differ = int(np.count_nonzero(np.any(np.abs(a - b) > 2 / 255, axis=-1)))
+        assert differ <= 50, (mine.name, differ)
     # the progress callback saw the publishing advance to the end
     assert shown and shown[-1] == 1.0 and shown == sorted(shown)  # exact: the last is n / n (or clipped at 1)
 
