@@ -32,8 +32,8 @@ from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.estimate.state.checkpoint import load_state
 from bridge_shadow.model.surrogate_file import load_surrogate
 from bridge_shadow.replay.air_tail import AirTail, air_piece
-from bridge_shadow.ros.live_chain import AIR, RawAirTail, decode_air, merge_held, prepare
-from bridge_shadow.ros.live_replay import _merged_pieces, merge_log_order
+from bridge_shadow.ros.live_chain import AIR, RawAirTail, decode_air, merge_held, prepare, raw_piece
+from bridge_shadow.ros.live_replay import _merged_pieces
 from bridge_shadow.series import MonitoringData, TemperatureSeries
 
 _FLOATS = (6, 6, 2)  # WrenchStamped, WrenchStamped, Temperature after the header
@@ -41,22 +41,7 @@ _FLOATS = (6, 6, 2)  # WrenchStamped, WrenchStamped, Temperature after the heade
 
 def _raw_pieces(pieces: list[MonitoringData]) -> list[tuple]:
     """The player's raw pieces of decoded ``pieces``: each topic's messages serialized, in log order."""
-    out = []
-    for p in pieces:
-        raws, logs = [], []
-        for ch in CHANNELS:
-            f = p.forces[ch]
-            values = np.zeros((len(f), 6))
-            values[:, 2] = f.force_n
-            raws.append(encode_stamped_floats(f.stamp_ns, np.asarray(f.frame_id, dtype=object), values))
-            logs.append(f.log_ns)
-        t = p.temperature
-        values = np.column_stack([t.temp_c, t.variance])
-        raws.append(encode_stamped_floats(t.stamp_ns, np.asarray(t.frame_id, dtype=object), values))
-        logs.append(t.log_ns)
-        topic, pos, merged = merge_log_order(logs)
-        out.append((topic, pos, raws, merged))
-    return out
+    return [raw_piece(p) for p in pieces]
 
 
 def _published(pieces: list[tuple]) -> list[tuple[int, int, int, float]]:

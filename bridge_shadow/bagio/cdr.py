@@ -31,6 +31,7 @@ __all__ = [
     "concat_frames",
     "decode_buffer",
     "decode_stamped_floats",
+    "decode_stamped_floats_kept",
     "encode_stamped_floats",
     "frame_value",
     "uniform_frames",
@@ -199,6 +200,29 @@ def decode_stamped_floats(raws: Sequence[bytes], n_floats: int) -> tuple[np.ndar
     starts = np.cumsum(lengths) - lengths
     buf = np.frombuffer(b"".join(raws), dtype=np.uint8)
     return decode_buffer(buf, starts, lengths, n_floats)
+
+
+def decode_stamped_floats_kept(
+    raws: Sequence[bytes], n_floats: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``decode_stamped_floats`` of the messages that can be decoded, and their indices in ``raws``.
+
+    A block with a malformed message is decoded one message at a time and the bad ones are left
+    out (what a node does with live data it cannot read; ``len(raws) - len(kept)`` were dropped).
+    """
+    try:
+        stamp, frame, values = decode_stamped_floats(raws, n_floats)
+        return stamp, frame, values, np.arange(len(raws), dtype=np.int64)
+    except CdrFormatError:
+        kept = []
+        for k, raw in enumerate(raws):
+            try:
+                decode_stamped_floats([raw], n_floats)
+            except CdrFormatError:
+                continue
+            kept.append(k)
+        stamp, frame, values = decode_stamped_floats([raws[k] for k in kept], n_floats)
+        return stamp, frame, values, np.asarray(kept, dtype=np.int64)
 
 
 def _layout(raw: bytes, n_floats: int) -> tuple[str, int]:

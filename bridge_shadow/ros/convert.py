@@ -26,7 +26,7 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from bridge_shadow.bagio.cdr import CdrFormatError, decode_stamped_floats
+from bridge_shadow.bagio.cdr import decode_stamped_floats_kept
 from bridge_shadow.contract import COVARIANCE_LAYOUT_LABELS, MEAN_LAYOUT_LABEL
 
 __all__ = [
@@ -50,19 +50,8 @@ Decoded = tuple[np.ndarray, np.ndarray, np.ndarray, int]
 
 def _decode(raws: Sequence[bytes], n_floats: int, column: int) -> Decoded:
     """Decode a block; on a malformed message decode one by one and drop (count) the bad ones."""
-    try:
-        stamp, frame, values = decode_stamped_floats(raws, n_floats)
-        return stamp, values[:, column], frame, 0
-    except CdrFormatError:
-        good = []
-        for raw in raws:
-            try:
-                decode_stamped_floats([raw], n_floats)
-            except CdrFormatError:
-                continue
-            good.append(raw)
-        stamp, frame, values = decode_stamped_floats(good, n_floats)
-        return stamp, values[:, column], frame, len(raws) - len(good)
+    stamp, frame, values, kept = decode_stamped_floats_kept(raws, n_floats)
+    return stamp, values[:, column], frame, len(raws) - len(kept)
 
 
 def decode_forces(raws: Sequence[bytes]) -> Decoded:

@@ -36,13 +36,26 @@ from typing import Any
 
 import numpy as np
 
-from bridge_shadow.bagio.cdr import CdrFormatError, decode_stamped_floats, encode_stamped_floats
+from bridge_shadow.bagio.cdr import decode_stamped_floats_kept, encode_stamped_floats
+from bridge_shadow.contract import CHANNELS
 from bridge_shadow.estimate.state.checkpoint import load_state, save_state
 from bridge_shadow.estimate.state.persistence import held_air_arrays, held_air_series
 from bridge_shadow.replay.air_tail import HELD_AIR_LIMIT
-from bridge_shadow.series import TemperatureSeries
+from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
-__all__ = ["AIR", "LiveChain", "RawAirTail", "RawPiece", "decode_air", "merge_held", "prepare"]
+__all__ = [
+    "AIR",
+    "LiveChain",
+    "RawAirTail",
+    "RawPiece",
+    "decode_air",
+    "encode_air",
+    "encode_forces",
+    "merge_held",
+    "merge_log_order",
+    "prepare",
+    "raw_piece",
+]
 
 #: A player's piece: (topic index per message, position in that topic's raws, raws per topic, log times).
 RawPiece = tuple[np.ndarray, np.ndarray, Sequence[Sequence[bytes]], np.ndarray]
@@ -113,9 +126,41 @@ def prepare(config: Any, surrogate: Any, checkpoint: str | Path, private: Path) 
     return chain
 
 
-def _air_raws(held: TemperatureSeries) -> list[bytes]:
-    values = np.column_stack([held.temp_c, np.asarray(held.variance, float)])
-    return encode_stamped_floats(held.stamp_ns, np.asarray(held.frame_id, dtype=object), values, carry=True)
+def merge_log_order(log_ns: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Merge per-topic log times into one arrival order (stable: ties keep topic order).
+
+    Returns:
+        ``topic`` (n,) int index into ``log_ns``, ``pos`` (n,) index within that topic, and the
+        merged ``log_ns`` (n,) int64.
+
+    """
+    sizes = [len(x) for x in log_ns]
+    topic = np.concatenate([np.full(n, i, dtype=np.int64) for i, n in enumerate(sizes)])
+    pos = np.concatenate([np.arange(n, dtype=np.int64) for n in sizes])
+    merged = np.concatenate([np.asarray(x, np.int64) for x in log_ns])
+    order = np.argsort(merged, kind="stable")
+    return topic[order], pos[order], merged[order]
+
+
+def encode_air(t: TemperatureSeries) -> list[bytes]:
+    """Serialize decoded air messages again: stamp (as decoded: ``carry``), frame, temperature, variance."""
+    values = np.column_stack([t.temp_c, np.asarray(t.variance, float)])
+    return encode_stamped_floats(t.stamp_ns, np.asarray(t.frame_id, dtype=object), values, carry=True)
+
+
+def encode_forces(f: ForceSeries) -> list[bytes]:
+    """Serialize decoded force messages again: a wrench's ``force.z`` (the shadow reads no other)."""
+    values = np.zeros((len(f), 6))
+    values[:, 2] = f.force_n
+    return encode_stamped_floats(f.stamp_ns, np.asarray(f.frame_id, dtype=object), values, carry=True)
+
+
+def raw_piece(piece: MonitoringData) -> RawPiece:
+    """Return a decoded piece serialized again, as a player publishes it: in log order, ties by topic."""
+    raws = [*(encode_forces(piece.forces[ch]) for ch in CHANNELS), encode_air(piece.temperature)]
+    logs = [*(piece.forces[ch].log_ns for ch in CHANNELS), piece.temperature.log_ns]
+    topic, pos, merged = merge_log_order(logs)
+    return topic, pos, raws, merged
 
 
 def merge_held(pieces: Iterable[RawPiece], held: TemperatureSeries | None) -> Iterator[RawPiece]:
@@ -128,7 +173,7 @@ def merge_held(pieces: Iterable[RawPiece], held: TemperatureSeries | None) -> It
         yield from pieces
         return
     logs = np.asarray(held.log_ns, np.int64)
-    raws = _air_raws(held)
+    raws = encode_air(held)
     i, n = 0, len(logs)
     for topic, pos, piece_raws, piece_logs in pieces:
         if not len(topic):
@@ -216,25 +261,8 @@ def decode_air(pieces: Sequence[RawPiece]) -> tuple[TemperatureSeries | None, in
         logs.append(piece_logs[air])
     if not raws:
         return None, 0
-    log_ns = np.concatenate(logs)
-    try:
-        stamp, frame, values = decode_stamped_floats(raws, _AIR_FLOATS)
-        return TemperatureSeries(stamp, values[:, 0], values[:, 1], frame, log_ns), 0
-    except CdrFormatError:
-        pass
-    good = []
-    rows: list[tuple[int, str, float, float]] = []
-    for k, raw in enumerate(raws):
-        try:
-            s, f, v = decode_stamped_floats([raw], _AIR_FLOATS)
-        except CdrFormatError:
-            continue
-        good.append(k)
-        rows.append((int(s[0]), str(f[0]), float(v[0, 0]), float(v[0, 1])))
-    if not rows:
-        return None, len(raws)
-    stamp, frames, temp, var = zip(*rows, strict=True)
-    out = TemperatureSeries(
-        np.array(stamp, np.int64), np.array(temp), np.array(var), np.array(frames, dtype=object), log_ns[good]
-    )
-    return out, len(raws) - len(rows)
+    stamp, frame, values, kept = decode_stamped_floats_kept(raws, _AIR_FLOATS)
+    dropped = len(raws) - len(kept)
+    if not len(kept):
+        return None, dropped
+    return TemperatureSeries(stamp, values[:, 0], values[:, 1], frame, np.concatenate(logs)[kept]), dropped

@@ -46,7 +46,6 @@ from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from bridge_shadow.bagio.cdr import encode_stamped_floats
 from bridge_shadow.contract import (
     CHANNELS,
     COMPENSATED_TOPICS,
@@ -66,7 +65,14 @@ from bridge_shadow.estimate.result import split_rejected
 from bridge_shadow.estimate.state.checkpoint import load_state
 from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
-from bridge_shadow.ros.live_chain import RawAirTail, decode_air, merge_held, prepare
+from bridge_shadow.ros.live_chain import (
+    RawAirTail,
+    decode_air,
+    merge_held,
+    merge_log_order,
+    prepare,
+    raw_piece,
+)
 from bridge_shadow.ros.node import (
     CHECKPOINT_SERVICE,
     FLUSH_SERVICE,
@@ -112,22 +118,6 @@ def posterior_reader_qos(latched_depth: int) -> QoSProfile:
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
     )
-
-
-def merge_log_order(log_ns: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Merge per-topic log times into one arrival order (stable: ties keep topic order).
-
-    Returns:
-        ``topic`` (n,) int index into ``log_ns``, ``pos`` (n,) index within that topic, and the
-        merged ``log_ns`` (n,) int64.
-
-    """
-    sizes = [len(x) for x in log_ns]
-    topic = np.concatenate([np.full(n, i, dtype=np.int64) for i, n in enumerate(sizes)])
-    pos = np.concatenate([np.arange(n, dtype=np.int64) for n in sizes])
-    merged = np.concatenate([np.asarray(x, np.int64) for x in log_ns])
-    order = np.argsort(merged, kind="stable")
-    return topic[order], pos[order], merged[order]
 
 
 class Player:
@@ -727,28 +717,12 @@ def _encoded_pieces(stream: Any) -> Iterator[tuple[np.ndarray, np.ndarray, list[
     """Yield the pieces of several bags read as one stream (``MergedStream``) serialized again.
 
     Bags that overlap in time are read merged by log time, as the direct replay reads them; the
-    messages go out as ``publish_pieces`` takes them, serialized from what was decoded: the same
-    stamps, frame ids, forces (a wrench's ``force.z``; the shadow reads no other component, which
-    go out as zero) and air temperatures with their variance. A stamp whose ``nanosec`` was 1e9 or
-    more goes out as the one it decoded to (``carry``: past the int32 seconds it stopped the run).
+    messages go out as ``publish_pieces`` takes them, serialized from what was decoded
+    (``live_chain.raw_piece``): the same stamps, frame ids, forces and air temperatures with their
+    variance (a wrench's other components, which the shadow does not read, go out as zero).
     """
     for piece in stream:
-        raws: list[list[bytes]] = []
-        logs: list[np.ndarray] = []
-        for ch in CHANNELS:
-            f = piece.forces[ch]
-            values = np.zeros((len(f), 6))
-            values[:, 2] = f.force_n
-            raws.append(
-                encode_stamped_floats(f.stamp_ns, np.asarray(f.frame_id, dtype=object), values, carry=True)
-            )
-            logs.append(np.asarray(f.log_ns, np.int64))
-        t = piece.temperature
-        air = np.column_stack([t.temp_c, np.asarray(t.variance, float)])
-        raws.append(encode_stamped_floats(t.stamp_ns, np.asarray(t.frame_id, dtype=object), air, carry=True))
-        logs.append(np.asarray(t.log_ns, np.int64))
-        topic, pos, merged = merge_log_order(logs)
-        yield topic, pos, raws, merged
+        yield raw_piece(piece)
 
 
 def _merged_pieces(

@@ -93,7 +93,7 @@ from bridge_shadow.estimate import Shadow, ShadowConfig, WindowOutput
 from bridge_shadow.estimate.parameters.specs import SPECS
 from bridge_shadow.estimate.report import rejected_list
 from bridge_shadow.estimate.startup import open_shadow
-from bridge_shadow.estimate.state.checkpoint import CheckpointError, save_state
+from bridge_shadow.estimate.state.checkpoint import CheckpointError
 from bridge_shadow.jsonvalues import jsonable
 from bridge_shadow.model.surrogate_file import describe_surrogate, load_surrogate
 from bridge_shadow.paths import config_file
@@ -573,9 +573,8 @@ class ShadowNode(Node):
         """
         self.close_open_windows(provisional=True)
         if self.config.checkpoint_path:
-            before = self._before_quiet[0] if self._before_quiet is not None else None
             try:
-                self.shadow.save_checkpoint(state=before)
+                self._write_checkpoint()
             except CheckpointError as err:  # the report's warnings say so; the node goes on
                 self.shadow.checkpoint_failure = (int(self.shadow.clock_ns or 0), str(err))
         response.success = True
@@ -597,9 +596,8 @@ class ShadowNode(Node):
             response.message = "checkpoint_path is empty: the node writes no checkpoint"
             return response
         self.drain(everything=True)
-        before = self._before_quiet[0] if self._before_quiet is not None else None
         try:
-            path = self.shadow.save_checkpoint(state=before)
+            path = self._write_checkpoint()
         except CheckpointError as err:
             response.success = False
             response.message = str(err)
@@ -617,11 +615,15 @@ class ShadowNode(Node):
         within ``gap_s``).
         """
         self.ingest_pending(everything=True)
-        if not self.config.checkpoint_path:
-            return None
-        if self._before_quiet is not None:
-            return save_state(self._before_quiet[0], self.config.checkpoint_path)
-        return self.shadow.save_checkpoint()
+        return self._write_checkpoint()
+
+    def _write_checkpoint(self) -> Path | None:
+        """Write the checkpoint and return its path (None without ``checkpoint_path``).
+
+        The state now, or from before a quiet-input close (or a flush's) no data has decided yet.
+        """
+        before = self._before_quiet[0] if self._before_quiet is not None else None
+        return self.shadow.save_checkpoint(state=before)
 
 
 #: an ISO time, then a count or measure: what changes in a warning that is still the same one
