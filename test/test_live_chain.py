@@ -125,8 +125,13 @@ def test_the_nodes_copy_drops_the_held_air_and_the_end_writes_the_tail(tmp_path:
     assert "held_air" not in load_state(tmp_path / "node.npz") and chain.notes == []
     state = load_state(tmp_path / "node.npz")
     tail = held.take(np.arange(len(held)) < 7)
-    chain.finish(state, tail)
+    # load-cell messages played and none used (older than the checkpoint's data): the file as it was
+    before = ck.read_bytes()
+    assert chain.finish(state, tail, [{"signature": "s", "bag": "x"}], forces_fed=5) is None
+    assert ck.read_bytes() == before  # left untouched: compared byte for byte
+    chain.finish(state, tail, [{"signature": "s", "bag": "x"}])
     np.testing.assert_array_equal(Shadow.resume(ck).held_air.temp_c, tail.temp_c)
+    assert [e["bag"] for e in Shadow.resume(ck).taken_bags] == [str(one), "x"]  # the first run's, this one
     chain.finish(state, None)
     assert Shadow.resume(ck).held_air is None
     # an unusable checkpoint is set aside (checkpoint_unusable: fresh) and said, the node starts fresh
@@ -171,6 +176,12 @@ def test_a_live_replay_in_a_checkpoint_chain_is_one_merged_replay(
     replay(bags[0], "--checkpoint", ck)
     replay(bags[0], "--checkpoint", offline_ck)
     live = replay(bags[1], "--live", "--checkpoint", ck)
+    before = ck.read_bytes()
+    again = replay(bags[1], "--live", "--checkpoint", ck)  # taken by the live run: no node, nothing written
+    assert again["messages"]["total"] == 0 and [e["bag"] for e in again["already_taken"]] == [str(bags[1])]
+    assert ck.read_bytes() == before  # left untouched: compared byte for byte
+    for key in ("mean_m", "covariance_m2"):
+        np.testing.assert_allclose(again["posterior"][key], live["posterior"][key], rtol=1e-9)
     offline = replay(bags[1], "--checkpoint", offline_ck)
     merged = replay(bags[0], bags[1])
     assert live["rejected"]["late"] == 0 and live["messages"]["used_by_topic"]["frc_01"] == 180

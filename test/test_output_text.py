@@ -186,6 +186,7 @@ def test_watch_line_shows_the_latest_outputs() -> None:
 def test_a_resumed_replay_counts_this_run(root, tmp_path) -> None:
     """Resume, then replay: the counts add up (used + rejected = messages read), the rest is ``resumed``."""
     import json
+    import shutil
 
     from bridge_shadow.cli import main
 
@@ -196,8 +197,11 @@ def test_a_resumed_replay_counts_this_run(root, tmp_path) -> None:
     fresh = json.loads(first.read_text())
     assert "resumed" not in fresh
     out = io.StringIO()
-    with contextlib.redirect_stdout(out):  # the same bag again: every message is old news now
-        assert main(["replay", bag, "--checkpoint", ckpt, "--json"]) in (0, 1)
+    # the same recording again: every message is old news now (a copy: the bag itself is known as
+    # taken and not read at all, ``test_taken_bags.py``)
+    copy = shutil.copytree(bag, tmp_path / "copy")
+    with contextlib.redirect_stdout(out):
+        assert main(["replay", str(copy), "--checkpoint", ckpt, "--json"]) in (0, 1)
     again = json.loads(out.getvalue())
     msgs = again["messages"]
     assert msgs["used"] + msgs["rejected"] == msgs["total"] == fresh["messages"]["total"]

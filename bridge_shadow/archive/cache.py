@@ -23,6 +23,7 @@ import pickle
 from pathlib import Path
 from typing import Any
 
+from bridge_shadow.bagio.identity import bag_files, stat_signature
 from bridge_shadow.fileio import atomic_write
 
 __all__ = ["ESTIMATOR_ONLY", "REDUCTION_VERSION", "ReductionCache", "bag_digest", "front_key"]
@@ -91,36 +92,10 @@ def front_key(config: Any, continuing: bool = False) -> str:
     return hashlib.blake2b(text.encode(), digest_size=16).hexdigest()
 
 
-def _bag_files(bag: Path) -> list[Path]:
-    """Return the files whose bytes are the bag: ``metadata.yaml`` and storage files (no other YAML)."""
-    if bag.is_file():
-        return [bag]
-    return sorted(
-        p
-        for p in bag.iterdir()
-        if p.is_file() and (p.name == "metadata.yaml" or p.suffix not in (".yaml", ".yml"))
-    )
-
-
-def _stat_signature(files: list[Path]) -> list[list[Any]]:
-    """Name, size, modification and change time, inode of each file: what tells a file rewritten.
-
-    Size and mtime alone missed a bag replaced by one of the same size with its mtime kept (``cp
-    -p``, ``tar -x``, a restore): its stale reduction was served, joined to the new file's rest. The
-    change time moves with every write and every ``touch``, and no user tool sets it back; a new
-    inode is a file replaced.
-    """
-    out = []
-    for p in files:
-        st = p.stat()
-        out.append([p.name, st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino])
-    return out
-
-
 def bag_digest(bag: Path) -> str:
     """Return the BLAKE2b hex digest of a bag's content (file names and bytes, sorted by name)."""
     h = hashlib.blake2b(digest_size=20)
-    for p in _bag_files(bag):
+    for p in bag_files(bag):
         h.update(p.name.encode() + b"\0")
         with p.open("rb") as f:
             while block := f.read(_CHUNK):
@@ -137,8 +112,8 @@ class ReductionCache:
 
     def digest(self, bag: Path) -> str:
         """Return the bag's content digest, hashing it only when its files changed since the last time."""
-        files = _bag_files(bag)
-        sig = _stat_signature(files)
+        files = bag_files(bag)
+        sig = stat_signature(files)
         record = (
             self.root
             / "stat"

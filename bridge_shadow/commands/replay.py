@@ -118,6 +118,14 @@ def _summary(js: dict[str, Any]) -> str:
     lines = [
         *(
             [
+                "the bag(s) were taken whole into the checkpoint already: nothing replayed, "
+                "the result is the checkpoint's"
+            ]
+            if js.get("already_taken")
+            else []
+        ),
+        *(
+            [
                 f"resumed from a checkpoint of {resumed['windows']} windows ({resumed['updates']} updates, "
                 f"{resumed['messages_used']} messages used"
                 + (f", {h} air readings held" if (h := resumed.get("held_air")) else "")
@@ -291,11 +299,15 @@ def _loud(js: dict[str, Any]) -> int:
 
     for line in js.get("warnings", []):
         print(f"bridge-shadow replay: WARN: {line}", file=sys.stderr)
+    if js.get("already_taken"):
+        return 0  # the checkpoint's own result: nothing of the bags was to be used (said)
     used = js["messages"]["used_by_topic"]
     if js.get("resumed") and js["windows"]["updates"] and not any(used.get(ch, 0) for ch in CHANNELS):
         print(
             "bridge-shadow replay: error: none of this run's load-cell messages was used (the updates are "
-            "of the data the checkpoint held); see the WARN lines and the rejected counts",
+            "of the data the checkpoint held"
+            + ("; the checkpoint is left as it was" if js.get("checkpoint_kept") else "")
+            + "); see the WARN lines and the rejected counts",
             file=sys.stderr,
         )
         return 1
@@ -360,6 +372,11 @@ def run(args: argparse.Namespace) -> int:
         mode = " (live)" if args.live else ""
         used = describe_surrogate(surrogate, config.surrogate_path or None)
         print(f"replay {' + '.join(map(str, bags))}{mode}: surrogate {used}", flush=True)
+    # a bag the checkpoint took whole before (the same command again): said, nothing changed
+    taken = _signatures(bags) if args.checkpoint else []
+    if taken and (again := _already_taken(args, config, surrogate, bags, taken)) is not None:
+        _end_to_end_rate(again, started)
+        return _report(again, args.json)
     if args.live:
         from bridge_shadow.ros.live_replay import run_live
 
@@ -376,6 +393,7 @@ def run(args: argparse.Namespace) -> int:
             progress=None if args.watch else show,
             checkpoint=args.checkpoint,
             watch=args.watch,
+            taken=taken,
         )
         if before is not None:
             _this_run(js, before)
@@ -402,11 +420,14 @@ def run(args: argparse.Namespace) -> int:
         history=history,
         progress=show,
         required=list(INPUT_TOPICS)[:2],
+        taken=taken,
     )
     js = result.to_json()
     if before is not None:
         _this_run(js, before)
-    if config.checkpoint_path:
+    if stats.checkpoint_kept:
+        js["checkpoint_kept"] = True  # none of the bag's load-cell messages used: not written
+    elif config.checkpoint_path:
         # the checkpoint holds the state before the end-of-data close: the next bag's run closes
         # these windows again and counts them too (a chain's windows add up less these)
         js["windows"]["at_end"] = {
@@ -426,6 +447,91 @@ def run(args: argparse.Namespace) -> int:
 
         js["plots"] = [str(p) for p in write_plots(args.plots, result, shadow)]
     return _report(js, args.json)
+
+
+def _signatures(bags: list[Any]) -> list[dict[str, Any]]:
+    """Return each bag's signature (``replay.taken``); none if a bag cannot be read (the replay says why)."""
+    from bridge_shadow.bagio.errors import BagError
+    from bridge_shadow.replay.taken import bag_signature
+
+    try:
+        return [bag_signature(b) for b in bags]
+    except BagError:
+        return []
+
+
+def _already_taken(
+    args: argparse.Namespace, config: Any, surrogate: Any, bags: list[Any], signatures: list[dict[str, Any]]
+) -> dict[str, Any] | None:
+    """Return the replay JSON of bags the checkpoint took whole already (``replay.taken``), else None.
+
+    Their messages all lie at or before the checkpoint's data: replayed, every one was rejected,
+    the run exited 1 and the checkpoint was written again. Instead nothing is read or written: the
+    result is the checkpoint's, its end-of-data close made again (with the air it holds), as the
+    run that took the bags printed it (with ``--live`` too: no node is started). None: no usable
+    checkpoint (the replay says what it does about it), or a bag it did not take.
+
+    Raises:
+        InputError: ``--out`` or ``--plots`` asked for (there is nothing of the bags to write).
+
+    """
+    import sys
+    from collections import Counter
+
+    import numpy as np
+
+    from bridge_shadow.contract import CHANNELS
+    from bridge_shadow.errors import InputError
+    from bridge_shadow.estimate import Shadow
+    from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
+    from bridge_shadow.estimate.state.checkpoint import CheckpointError
+    from bridge_shadow.replay.air_tail import air_piece
+    from bridge_shadow.replay.taken import find_taken
+    from bridge_shadow.series import TemperatureSeries
+
+    file = Path(args.checkpoint)
+    if not file.is_file():
+        return None
+    try:  # the checkpoint's own state; nothing written (no checkpoint path)
+        shadow = Shadow.resume(file, config.replace(checkpoint_path=""), surrogate)
+    except CheckpointError:
+        return None
+    found = find_taken(shadow.taken_bags, signatures)
+    if found is None:
+        return None
+    what = "; ".join(
+        f"{bag} ({e['messages']} messages, {e['start']} to {e['end']}; taken by the run of {e['taken_at']})"
+        for bag, e in zip(bags, found, strict=True)
+    )
+    said = f"taken whole into {file} already: {what}"
+    if args.out or args.plots:
+        raise InputError(
+            f"{said}: the checkpoint's data reach past them, so a replay from it has nothing of them for "
+            "--out or --plots; replay them without --checkpoint for their outputs and plots"
+        )
+    print(
+        f"bridge-shadow replay: {said} (the same files, unchanged since): nothing replayed, "
+        "the checkpoint is left as it was; the result printed is the checkpoint's",
+        file=sys.stderr,
+    )
+    before = _counts(shadow)
+    no_air = TemperatureSeries(np.empty(0, np.int64), np.empty(0))
+    shadow.run(air_piece(no_air, CHANNELS))  # the air it holds fed, then the end-of-data close
+    # that air is the checkpoint's own, fed by the run that took the bags: no message of this run
+    # (nor a warning judging one: "no load cell message" of the air alone)
+    for ledger in shadow.ledgers:
+        ledger.used_before, ledger.rejected_before = ledger.used, Counter(ledger.rejected)
+    js = shadow.result([], 0, 0.0).to_json()
+    rejected = {
+        r: (n if r in MESSAGE_REASONS else before["rejected"].get(r, 0)) for r, n in shadow.rejected.items()
+    }
+    _this_run(js, {**before, "used": dict(shadow.used), "rejected": rejected})
+    js["already_taken"] = [{**e, "bag": str(bag)} for bag, e in zip(bags, found, strict=True)]
+    js["bag"] = str(bags[0])
+    if len(bags) > 1:
+        js["bags"] = [str(b) for b in bags]
+    js["surrogate"] = surrogate.summary()
+    return js
 
 
 def _at_end_line(at_end: dict[str, int] | None) -> list[str]:

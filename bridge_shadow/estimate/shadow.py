@@ -274,6 +274,9 @@ class Shadow:
         #: air messages not yet fed, kept in the checkpoint: the air past the last force of the bag
         #: whose replay wrote it (``replay.air_tail``); the next bag's replay merges them in
         self.held_air: TemperatureSeries | None = None
+        #: the bags replays with a checkpoint took whole, by signature (``replay.taken``): known
+        #: again when one is replayed after the checkpoint its own run wrote
+        self.taken_bags: list[dict[str, Any]] = []
         #: the last periodic checkpoint write that failed (data clock ns, why); None after a success
         self.checkpoint_failure: tuple[int, str] | None = None
         self._first_ns: int | None = None

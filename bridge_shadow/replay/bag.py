@@ -14,6 +14,7 @@ from bridge_shadow.replay.chunks import DEFAULT_CHUNK, FeedChunk, arrival_chunks
 from bridge_shadow.replay.feed import StreamReplay, feed_shadow
 from bridge_shadow.replay.outputs import OutputBag, WindowHistory
 from bridge_shadow.replay.prefetch import Prefetch
+from bridge_shadow.replay.taken import recorded
 
 __all__ = ["replay_bag"]
 
@@ -44,6 +45,28 @@ def _held_unfed(chunks: Iterable[FeedChunk], shadow: Any, held: Any) -> Iterator
         yield c
 
 
+class _ForceCount:
+    """Chunks passed on, counting the load-cell messages in them and those the shadow used since."""
+
+    def __init__(self, chunks: Iterable[FeedChunk], shadow: Any) -> None:
+        self._chunks, self._shadow = chunks, shadow
+        self._used_before = self._used_now()
+        self.fed = 0
+
+    def _used_now(self) -> int:
+        return sum(int(self._shadow.used.get(ch, 0)) for ch in CHANNELS)
+
+    @property
+    def used(self) -> int:
+        """Load-cell messages the shadow used since this began."""
+        return self._used_now() - self._used_before
+
+    def __iter__(self) -> Iterator[FeedChunk]:
+        for c in self._chunks:
+            self.fed += sum(len(f[0]) for f in c.forces)
+            yield c
+
+
 def replay_bag(
     bag: str | Path | Sequence[str | Path],
     shadow: Any,
@@ -58,6 +81,7 @@ def replay_bag(
     progress: Callable[[float], None] | None = None,
     prefetch: bool = True,
     required: bool | Collection[str] = True,
+    taken: Sequence[dict[str, Any]] = (),
 ) -> tuple[Any, StreamReplay]:
     """Replay a bag through ``shadow`` in bounded memory; return its ``ReplayResult`` and timings.
 
@@ -82,6 +106,8 @@ def replay_bag(
         required: input topics that must be in the bag (``bagio.stream.MonitoringStream``): True
             for all three, or the contract names of those required (the air temperature may be
             left out: the shadow then runs uncompensated and says so).
+        taken: the signatures of the bags (``replay.taken.bag_signature``), recorded in the
+            checkpoint as taken (``Shadow.taken_bags``) once the bag's last force is fed.
 
     Returns:
         ``(result, stats)``: ``result.outputs`` holds the kept window outputs and
@@ -147,6 +173,8 @@ def replay_bag(
             fed: Iterable[FeedChunk] = reader if reader is not None else chunks
             if held_piece is not None:
                 fed = _held_unfed(fed, shadow, held)
+            forces = _ForceCount(fed, shadow)
+            fed = forces
             stats = feed_shadow(
                 shadow,
                 fed,
@@ -159,10 +187,17 @@ def replay_bag(
                 before_close()
                 stats.held_air = len(tail.tail) if tail.tail is not None else 0
                 shadow.held_air = None  # the checkpoint's held air is all fed now
+                if forces.fed and not forces.used:
+                    # none of the bag's load cell messages used (all older than the checkpoint's
+                    # data): a checkpoint resumed from is left as it was (written, it counted the
+                    # rejects and held this bag's air, older than its own), the bag is not taken
+                    stats.checkpoint_kept = Path(config.checkpoint_path).is_file()
+                else:
+                    shadow.taken_bags = recorded(shadow.taken_bags, taken)  # known if replayed again
                 # the checkpoint's state, written once the run is complete (written here, a run
                 # stopped after it, in the tail's feed or --out's finish, exited 130 with the bag taken
                 # whole, and its rerun rejected every message: exit 1)
-                final = shadow.checkpoint_state(tail.tail)
+                final = None if stats.checkpoint_kept else shadow.checkpoint_state(tail.tail)
                 # this bag's result goes on to the air's end; no periodic write replaces the checkpoint
                 shadow.checkpoints_paused = True
                 try:

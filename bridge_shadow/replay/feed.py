@@ -32,6 +32,8 @@ class StreamReplay:
             (``replay_bag``): a replay resumed from a checkpoint written before it makes them again.
         held_air: air messages past the last force that the checkpoint holds unfed (``air_tail``);
             fed for this result too, and again, merged, by the next bag's replay.
+        checkpoint_kept: the checkpoint resumed from was left as it was: the bag had load-cell
+            messages and none was used (data older than the checkpoint's: ``replay_bag``).
 
     """
 
@@ -45,6 +47,7 @@ class StreamReplay:
     closed_at_end: int = 0
     updates_at_end: int = 0
     held_air: int = 0
+    checkpoint_kept: bool = False
 
 
 def _frames_arg(frames: np.ndarray) -> np.ndarray | str:

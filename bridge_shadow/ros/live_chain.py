@@ -41,6 +41,7 @@ from bridge_shadow.contract import CHANNELS
 from bridge_shadow.estimate.state.checkpoint import load_state, save_state
 from bridge_shadow.estimate.state.persistence import held_air_arrays, held_air_series
 from bridge_shadow.replay.air_tail import HELD_AIR_LIMIT
+from bridge_shadow.replay.taken import recorded
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
 __all__ = [
@@ -85,20 +86,41 @@ class LiveChain:
     held: TemperatureSeries | None = None
     notes: list[str] = field(default_factory=list)
     config: Any = None
+    used_before: int = 0
 
-    def finish(self, state: dict[str, Any], tail: TemperatureSeries | None) -> Path:
+    def finish(
+        self,
+        state: dict[str, Any],
+        tail: TemperatureSeries | None,
+        taken: Sequence[dict[str, Any]] = (),
+        forces_fed: int = 0,
+    ) -> Path | None:
         """Write ``state`` (the node's, after the bag's last force) with ``tail`` held, to ``checkpoint``.
 
         The parameters recorded are the offline chain's: the node's named its private copy, gone
         after the run, as the path a shadow resumed from this file without parameters writes to.
+        ``taken``: the signatures of the bags played (``replay.taken``), recorded as taken.
+        ``forces_fed``: the load-cell messages played; when there were some and the node used none
+        (data older than the checkpoint's), a checkpoint resumed from is left as it was (None), as
+        the offline chain leaves it (``replay_bag``).
         """
+        if forces_fed and _forces_used(state) == self.used_before and self.checkpoint.is_file():
+            return None
         state = dict(state)
+        before = json.loads(str(state["taken_bags"])) if "taken_bags" in state else []
+        state["taken_bags"] = json.dumps(recorded(before, taken))
         if self.config is not None:
             state["config"] = json.dumps(self.config.to_params())
         state.pop("held_air", None)
         if tail is not None and len(tail):
             state["held_air"] = held_air_arrays(tail)
         return save_state(state, self.checkpoint)
+
+
+def _forces_used(state: dict[str, Any]) -> int:
+    """Load-cell messages a checkpoint's state has used (its ``used`` counts)."""
+    used = json.loads(str(state["used"])) if "used" in state else {}
+    return sum(int(used.get(ch, 0)) for ch in CHANNELS)
 
 
 def prepare(config: Any, surrogate: Any, checkpoint: str | Path, private: Path) -> LiveChain:
@@ -120,6 +142,7 @@ def prepare(config: Any, surrogate: Any, checkpoint: str | Path, private: Path) 
     chain = LiveChain(file, private, config=config, notes=[n for n in notes if not n.startswith(usual)])
     if file.is_file():  # resumable (an unusable one is set aside by now)
         state = load_state(file)
+        chain.used_before = _forces_used(state)
         held = state.pop("held_air", None)
         chain.held = held_air_series(held) if held is not None else None
         save_state(state, private)

@@ -462,6 +462,7 @@ def run_live(
     progress: Callable[[float], None] | None = None,
     checkpoint: str | Path | None = None,
     watch: bool = False,
+    taken: Sequence[dict[str, Any]] = (),
 ) -> dict[str, Any]:
     """Replay ``bag`` through ``bridge_shadow_node`` over loopback DDS; return the replay JSON.
 
@@ -486,6 +487,8 @@ def run_live(
             a temporary one, so the replay never touches a running node's state; the
             ``checkpoint_path`` of the parameter file is not used).
         watch: print the node's latest outputs once a second on stderr (``watch.TopicWatch``).
+        taken: the signatures of the bags (``replay.taken.bag_signature``), recorded as taken in
+            ``checkpoint`` when it is written.
 
     Network: unless the environment sets ``ROS_AUTOMATIC_DISCOVERY_RANGE`` (an explicit choice is
     respected), this process and the node are confined to loopback discovery in one domain id of
@@ -523,6 +526,7 @@ def run_live(
         params_file = write_params_file(node_config.to_params(), Path(tmp))
         node = NodeProcess(["--ros-args", "--params-file", str(params_file)])
         player = None
+        kept = False  # the named checkpoint left as it was (``LiveChain.finish``)
         try:
             first, last = stream.first_ns, stream.last_ns
             span = max((last or 0) - (first or 0), 1)
@@ -605,7 +609,8 @@ def run_live(
             records = player.records
             if chain is not None and hold is not None:
                 tail, malformed_tail = decode_air(hold.tail)
-                chain.finish(captured, tail)
+                forces_fed = sum(int(counters["received"].get(ch, 0)) for ch in CHANNELS)
+                kept = chain.finish(captured, tail, taken, forces_fed) is None
         except NodeError as err:
             if chain is None:
                 raise
@@ -665,7 +670,9 @@ def run_live(
             "received": counters["received"],
         },
     }
-    if chain is not None:
+    if chain is not None and kept:
+        js["checkpoint_kept"] = True  # none of the bag's load-cell messages used: not written
+    elif chain is not None:
         # as the offline chain's: the windows the next bag's run closes again, the air it holds
         js["windows"]["at_end"] = {
             "closed": js["windows"]["closed"] - int(captured["scalars"]["n_windows"]),

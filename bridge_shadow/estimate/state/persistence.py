@@ -186,6 +186,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         "silence": json.dumps(shadow.silence.state_dict()),
         "relax": json.dumps(shadow._relax),
         "air": json.dumps(shadow.air),
+        "taken_bags": json.dumps(shadow.taken_bags),
         **({"held_air": held_air_arrays(shadow.held_air)} if shadow.held_air is not None else {}),
         "scalars": {
             "last_usable_k": _opt(shadow._last_usable_k),
@@ -370,6 +371,8 @@ def restore_shadow(
         shadow._relax = None if rl is None else (int(rl[0]), float(rl[1]), float(rl[2]))
     if "air" in state:  # checkpoints written before the air's jumps were followed have none
         shadow.air = json.loads(str(state["air"]))
+    if "taken_bags" in state:  # checkpoints written before the bags taken were recorded have none
+        shadow.taken_bags = list(json.loads(str(state["taken_bags"])))
     if "held_air" in state:
         shadow.held_air = held_air_series(state["held_air"])
     sc = state["scalars"]
