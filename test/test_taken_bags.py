@@ -143,3 +143,24 @@ def test_recorded_names_the_latest_run_and_keeps_the_latest_bags(monkeypatch) ->
     monkeypatch.setattr(taken_mod, "TAKEN_LIMIT", 3)
     taken = recorded(taken, [entry("p"), entry("q")])
     assert [e["signature"] for e in taken] == ["x", "p", "q"]
+
+
+def test_a_checkpoints_list_is_read_alone_and_anything_else_is_none(bags, tmp_path: Path, capsys) -> None:
+    """``load_entry``: the one entry the rerun looks at before it resumes the whole state."""
+    from bridge_shadow.estimate.state.checkpoint import load_entry
+
+    ck = tmp_path / "ck.npz"
+    assert (
+        _replay(
+            capsys, str(bags["a"]), "--params", str(_params(tmp_path / "p.yaml")), "--checkpoint", str(ck)
+        )[0]
+        == 0
+    )
+    listed = json.loads(str(load_entry(ck, "taken_bags")))
+    assert listed == Shadow.resume(ck).taken_bags and [e["bag"] for e in listed] == [str(bags["a"])]
+    assert load_entry(ck, "no_such_entry") is None
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"not a checkpoint")
+    assert (
+        load_entry(junk, "taken_bags") is None and load_entry(tmp_path / "absent.npz", "taken_bags") is None
+    )

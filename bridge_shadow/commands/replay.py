@@ -475,6 +475,7 @@ def _already_taken(
         InputError: ``--out`` or ``--plots`` asked for (there is nothing of the bags to write).
 
     """
+    import json
     import sys
     from collections import Counter
 
@@ -484,13 +485,14 @@ def _already_taken(
     from bridge_shadow.errors import InputError
     from bridge_shadow.estimate import Shadow
     from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
-    from bridge_shadow.estimate.state.checkpoint import CheckpointError
+    from bridge_shadow.estimate.state.checkpoint import CheckpointError, load_entry
     from bridge_shadow.replay.air_tail import air_piece
     from bridge_shadow.replay.taken import find_taken
     from bridge_shadow.series import TemperatureSeries
 
     file = Path(args.checkpoint)
-    if not file.is_file():
+    listed = load_entry(file, "taken_bags") if file.is_file() else None  # a look first: one entry
+    if listed is None or find_taken(json.loads(str(listed)), signatures) is None:
         return None
     try:  # the checkpoint's own state; nothing written (no checkpoint path)
         shadow = Shadow.resume(file, config.replace(checkpoint_path=""), surrogate)

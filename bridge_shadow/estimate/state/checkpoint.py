@@ -34,6 +34,7 @@ __all__ = [
     "CheckpointError",
     "check_compatible",
     "check_target",
+    "load_entry",
     "load_state",
     "remove_orphans",
     "restore",
@@ -150,6 +151,19 @@ def load_state(path: str | Path) -> dict[str, Any]:
     if "version" not in flat or "config" not in flat:
         raise CheckpointError(f"{file}: not a checkpoint of the shadow (no 'version' and 'config' entries)")
     return _unflatten(flat)
+
+
+def load_entry(path: str | Path, key: str) -> Any:
+    """Return one top-level entry of a checkpoint (``None``: absent, or not a readable checkpoint).
+
+    Reads that entry alone (the archive's members are read on demand): a look before the whole
+    state is worth reading, never a check that the file is whole (``load_state`` is).
+    """
+    try:
+        with np.load(Path(path), allow_pickle=False) as data:
+            return data[key][()] if key in data.files else None
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error):
+        return None
 
 
 def shaping_parameters() -> tuple[str, ...]:
