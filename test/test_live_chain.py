@@ -403,3 +403,34 @@ def test_a_live_chain_run_that_fails_leaves_the_checkpoint_as_it_was(
     with pytest.raises(NodeError, match=r"ck\.npz is left as it was: the node wrote only a copy"):
         live_replay.run_live(bags[1], checkpoint=ck, timeout_s=20.0)
     assert ck.read_bytes() == before  # the bytes of the file as it was: nothing written
+
+
+def test_a_newer_bag_whose_load_cells_all_failed_is_written_by_the_live_chain(tmp_path: Path) -> None:
+    """The node used none of the bag's forces (all NaN) but its air, newer than the checkpoint's data.
+
+    ``finish`` took it for a bag of older data and left the checkpoint as it was: the live chain
+    lost the bag's air and counts, which the offline chain (``replay_bag``) writes.
+    """
+    from test_checkpoint_safety import _between, _data, _params
+
+    data = _data(55)
+    first = write_monitoring(tmp_path / "a", _between(data, 0, 30))
+    part = _between(data, 30, 55)
+    stamps = part.forces[CHANNELS[0]].stamp_ns
+    dead = MonitoringData.from_arrays(
+        stamps, np.full((len(stamps), 2), np.nan), part.temperature.stamp_ns, part.temperature.temp_c
+    )
+    params = _params(tmp_path / "p.yaml")
+    ck = tmp_path / "ck.npz"
+    assert main(["replay", str(first), "--params", str(params), "--checkpoint", str(ck)]) == 0
+    config, surrogate = load_config(str(params)), load_surrogate()
+    chain = prepare(config, surrogate, ck, tmp_path / "node.npz")
+    # the node's state after the bag: its copy of the checkpoint, the bag fed (no end-of-data close)
+    node = Shadow.resume(tmp_path / "node.npz", config, surrogate)
+    node.run(dead, flush=False)
+    assert sum(node.used[ch] for ch in CHANNELS) == chain.used_before and node.used["air_temperature"]
+    fed = 2 * len(stamps)
+    assert chain.finish(node.state_dict(), None, [{"signature": "s", "bag": "fault"}], fed) is not None
+    resumed = Shadow.resume(ck)
+    assert resumed.clock_ns == node.clock_ns == int(part.temperature.stamp_ns[-1])
+    assert [e["bag"] for e in resumed.taken_bags] == [str(first), "fault"]

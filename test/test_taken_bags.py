@@ -164,3 +164,40 @@ def test_a_checkpoints_list_is_read_alone_and_anything_else_is_none(bags, tmp_pa
     assert (
         load_entry(junk, "taken_bags") is None and load_entry(tmp_path / "absent.npz", "taken_bags") is None
     )
+
+
+def test_a_newer_bag_whose_load_cells_all_failed_is_taken_and_written(tmp_path: Path, capsys) -> None:
+    """Minutes 30-55 with every force NaN (a logger fault), the air as it was: newer data, none older.
+
+    Its forces all rejected (``nonfinite``), it was taken for a bag of older data: "the checkpoint
+    is left as it was", while the periodic write (every ``checkpoint_period_s`` of data, the air
+    moving the clock) had rewritten the file with the bag's messages counted, and the bag was not
+    recorded: replayed again, it ran again.
+    """
+    from bridge_shadow.bagio.reader import bag_summary
+    from bridge_shadow.estimate.inputs.gate import MESSAGE_REASONS
+    from bridge_shadow.series import MonitoringData
+
+    data = _data(55)
+    a = write_monitoring(tmp_path / "a", _between(data, 0, 30))
+    part = _between(data, 30, 55)
+    stamps = part.forces[next(iter(part.forces))].stamp_ns
+    dead = MonitoringData.from_arrays(
+        stamps, np.full((len(stamps), 2), np.nan), part.temperature.stamp_ns, part.temperature.temp_c
+    )
+    fault = write_monitoring(tmp_path / "fault", dead)
+    params = str(_params(tmp_path / "p.yaml"))
+    ck = tmp_path / "ck.npz"
+    assert _replay(capsys, str(a), "--params", params, "--checkpoint", str(ck))[0] == 0
+    before = _digest(ck)
+    code, js, err = _replay(capsys, str(fault), "--params", params, "--checkpoint", str(ck))
+    assert code == 1 and js["messages"]["used_by_topic"]["air_temperature"] == len(part.temperature)
+    kept = bool(js.get("checkpoint_kept")) or "the checkpoint is left as it was" in err
+    assert not kept or _digest(ck) == before, "said left as it was, and the file was rewritten"
+    # the checkpoint is the state at the bag's end, as a chain wrote it: both bags' messages counted
+    state = Shadow.resume(ck)
+    counted = sum(state.used.values()) + sum(n for r, n in state.rejected.items() if r in MESSAGE_REASONS)
+    assert counted == bag_summary(a)["message_count"] + bag_summary(fault)["message_count"]
+    assert [e["bag"] for e in state.taken_bags] == [str(a), str(fault)]
+    code, again, err = _replay(capsys, str(fault), "--params", params, "--checkpoint", str(ck))
+    assert code == 0 and "taken whole into" in err and again["messages"]["total"] == 0

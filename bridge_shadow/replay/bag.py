@@ -46,11 +46,18 @@ def _held_unfed(chunks: Iterable[FeedChunk], shadow: Any, held: Any) -> Iterator
 
 
 class _ForceCount:
-    """Chunks passed on, counting the load-cell messages in them and those the shadow used since."""
+    """Chunks passed on, counting the load-cell messages in them and those the shadow used since.
+
+    ``older``: there were load-cell messages, none was used and the data clock did not move (no
+    message of any topic newer than the data before): a bag of older data. A newer bag whose
+    load cells all failed (NaN, out of range) moves the clock with its air: its state is new, and
+    the periodic checkpoint writes (``checkpoint_period_s`` of data clock) may have written it.
+    """
 
     def __init__(self, chunks: Iterable[FeedChunk], shadow: Any) -> None:
         self._chunks, self._shadow = chunks, shadow
         self._used_before = self._used_now()
+        self._clock_before = shadow.clock_ns
         self.fed = 0
 
     def _used_now(self) -> int:
@@ -60,6 +67,11 @@ class _ForceCount:
     def used(self) -> int:
         """Load-cell messages the shadow used since this began."""
         return self._used_now() - self._used_before
+
+    @property
+    def older(self) -> bool:
+        """Load-cell messages fed, none used, and the data clock where it was (see the class)."""
+        return bool(self.fed) and not self.used and self._shadow.clock_ns == self._clock_before
 
     def __iter__(self) -> Iterator[FeedChunk]:
         for c in self._chunks:
@@ -187,9 +199,9 @@ def replay_bag(
                 before_close()
                 stats.held_air = len(tail.tail) if tail.tail is not None else 0
                 shadow.held_air = None  # the checkpoint's held air is all fed now
-                if forces.fed and not forces.used:
-                    # none of the bag's load cell messages used (all older than the checkpoint's
-                    # data): a checkpoint resumed from is left as it was (written, it counted the
+                if forces.older:
+                    # none of the bag's load cell messages used, nothing newer than the checkpoint's
+                    # data: a checkpoint resumed from is left as it was (written, it counted the
                     # rejects and held this bag's air, older than its own), the bag is not taken
                     stats.checkpoint_kept = Path(config.checkpoint_path).is_file()
                 else:

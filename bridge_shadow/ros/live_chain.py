@@ -87,6 +87,7 @@ class LiveChain:
     notes: list[str] = field(default_factory=list)
     config: Any = None
     used_before: int = 0
+    clock_before: int | None = None
 
     def finish(
         self,
@@ -100,11 +101,13 @@ class LiveChain:
         The parameters recorded are the offline chain's: the node's named its private copy, gone
         after the run, as the path a shadow resumed from this file without parameters writes to.
         ``taken``: the signatures of the bags played (``replay.taken``), recorded as taken.
-        ``forces_fed``: the load-cell messages played; when there were some and the node used none
-        (data older than the checkpoint's), a checkpoint resumed from is left as it was (None), as
-        the offline chain leaves it (``replay_bag``).
+        ``forces_fed``: the load-cell messages played; when there were some, the node used none and
+        its data clock did not move (data older than the checkpoint's), a checkpoint resumed from is
+        left as it was (None), as the offline chain leaves it (``replay_bag``). A newer bag whose
+        load cells all failed moved the clock with its air: written, as offline.
         """
-        if forces_fed and _forces_used(state) == self.used_before and self.checkpoint.is_file():
+        older = _forces_used(state) == self.used_before and _clock(state) == self.clock_before
+        if forces_fed and older and self.checkpoint.is_file():
             return None
         state = dict(state)
         before = json.loads(str(state["taken_bags"])) if "taken_bags" in state else []
@@ -121,6 +124,12 @@ def _forces_used(state: dict[str, Any]) -> int:
     """Load-cell messages a checkpoint's state has used (its ``used`` counts)."""
     used = json.loads(str(state["used"])) if "used" in state else {}
     return sum(int(used.get(ch, 0)) for ch in CHANNELS)
+
+
+def _clock(state: dict[str, Any]) -> int | None:
+    """Return a checkpoint state's data clock: its latest accepted stamp (``Shadow.clock_ns``)."""
+    stamps = [int(g["last_ns"]) for g in state.get("gates", []) if bool(g["has_last"])]
+    return max(stamps) if stamps else None
 
 
 def prepare(config: Any, surrogate: Any, checkpoint: str | Path, private: Path) -> LiveChain:
@@ -142,7 +151,7 @@ def prepare(config: Any, surrogate: Any, checkpoint: str | Path, private: Path) 
     chain = LiveChain(file, private, config=config, notes=[n for n in notes if not n.startswith(usual)])
     if file.is_file():  # resumable (an unusable one is set aside by now)
         state = load_state(file)
-        chain.used_before = _forces_used(state)
+        chain.used_before, chain.clock_before = _forces_used(state), _clock(state)
         held = state.pop("held_air", None)
         chain.held = held_air_series(held) if held is not None else None
         save_state(state, private)
