@@ -201,3 +201,16 @@ def test_a_newer_bag_whose_load_cells_all_failed_is_taken_and_written(tmp_path: 
     assert [e["bag"] for e in state.taken_bags] == [str(a), str(fault)]
     code, again, err = _replay(capsys, str(fault), "--params", params, "--checkpoint", str(ck))
     assert code == 0 and "taken whole into" in err and again["messages"]["total"] == 0
+
+
+def test_a_bag_named_twice_in_one_run_is_recorded_once(bags, tmp_path: Path, capsys) -> None:
+    """``replay a a b`` (a glob and a name, a script's list): the checkpoint lists each bag once."""
+    params = str(_params(tmp_path / "p.yaml"))
+    ck = tmp_path / "ck.npz"
+    named = [bags["a"], bags["a"], bags["b"]]
+    code, _, err = _replay(capsys, *map(str, named), "--params", params, "--checkpoint", str(ck))
+    assert code == 0, err
+    listed = [e["signature"] for e in Shadow.resume(ck).taken_bags]
+    assert sorted(listed) == sorted({bag_signature(b)["signature"] for b in named})
+    code, again, err = _replay(capsys, str(bags["a"]), "--params", params, "--checkpoint", str(ck))
+    assert code == 0 and "taken whole into" in err and again["messages"]["total"] == 0

@@ -61,10 +61,11 @@ def bag_signature(path: str | Path) -> dict[str, Any]:
 def recorded(taken: Sequence[dict[str, Any]], new: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """Return ``taken`` with the ``new`` entries (``taken_at`` now, UTC) last, at most ``TAKEN_LIMIT``.
 
-    An entry of the same signature taken before is replaced (the latest run that took it is named).
+    An entry of the same signature taken before is replaced (the latest run that took it is named);
+    a bag named twice in ``new`` (``replay a a``) is one entry.
     """
     now = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-    fresh = [{**e, "taken_at": now} for e in new]
+    fresh = list({e["signature"]: {**e, "taken_at": now} for e in new}.values())
     again = {e["signature"] for e in fresh}
     kept = [e for e in taken if e.get("signature") not in again]
     return [*kept, *fresh][-TAKEN_LIMIT:]
