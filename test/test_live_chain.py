@@ -434,3 +434,27 @@ def test_a_newer_bag_whose_load_cells_all_failed_is_written_by_the_live_chain(tm
     resumed = Shadow.resume(ck)
     assert resumed.clock_ns == node.clock_ns == int(part.temperature.stamp_ns[-1])
     assert [e["bag"] for e in resumed.taken_bags] == [str(first), "fault"]
+
+
+def test_a_bag_played_again_after_an_interrupted_run_holds_its_air_tail(tmp_path: Path) -> None:
+    """None of the bag's forces used, the clock where it was, but air past its last force the file lacks.
+
+    (A rerun after a run stopped past a periodic write that took all the bag's forces.) Taken for a
+    bag of older data, the checkpoint was left without that air, which the next bag's replay merges in.
+    """
+    from test_checkpoint_safety import _between, _data, _params
+
+    data = _data(50)
+    first = write_monitoring(tmp_path / "a", _between(data, 0, 30))
+    params = _params(tmp_path / "p.yaml")
+    ck = tmp_path / "ck.npz"
+    assert main(["replay", str(first), "--params", str(params), "--checkpoint", str(ck)]) == 0
+    config, surrogate = load_config(str(params)), load_surrogate()
+    chain = prepare(config, surrogate, ck, tmp_path / "node.npz")
+    state = load_state(tmp_path / "node.npz")  # the node used nothing of the bag
+    tail = _between(data, 30, 50).temperature  # newer than the checkpoint's data
+    assert chain.held is None and int(tail.stamp_ns[0]) > Shadow.resume(ck).clock_ns
+    assert chain.finish(state, tail, [{"signature": "s", "bag": "c"}], forces_fed=5) is not None
+    resumed = Shadow.resume(ck)
+    np.testing.assert_array_equal(resumed.held_air.stamp_ns, tail.stamp_ns)
+    assert [e["bag"] for e in resumed.taken_bags] == [str(first), "c"]

@@ -214,3 +214,48 @@ def test_a_bag_named_twice_in_one_run_is_recorded_once(bags, tmp_path: Path, cap
     assert sorted(listed) == sorted({bag_signature(b)["signature"] for b in named})
     code, again, err = _replay(capsys, str(bags["a"]), "--params", params, "--checkpoint", str(ck))
     assert code == 0 and "taken whole into" in err and again["messages"]["total"] == 0
+
+
+def test_a_bag_run_again_after_an_interrupted_run_holds_its_air_for_the_next(
+    tmp_path: Path, capsys, monkeypatch
+) -> None:
+    """A run stopped in its air tail's feed, after a periodic write that took all its forces, then run again.
+
+    The rerun used none of the bag's forces (the periodic write had them) and was taken for a bag
+    of older data: the checkpoint left as the interrupted run wrote it, without the air past the
+    bag's last force that the next bag's replay merges in, and the bag never recorded.
+    """
+    from bridge_shadow.replay import bag as bag_mod
+    from bridge_shadow.series import MonitoringData
+
+    data, air = _data(50), _data(80).temperature
+    a = write_monitoring(tmp_path / "a", _between(data, 0, 30))
+    part = _between(data, 30, 50)
+    stamps = part.forces[next(iter(part.forces))].stamp_ns
+    late_air = air.stamp_ns >= stamps[0]
+    forces = np.column_stack([f.force_n for f in part.forces.values()])
+    c = write_monitoring(
+        tmp_path / "c",
+        MonitoringData.from_arrays(stamps, forces, air.stamp_ns[late_air], air.temp_c[late_air]),
+    )
+    params = str(_params(tmp_path / "p.yaml", checkpoint_period_s=60.0))
+    ck = tmp_path / "ck.npz"
+    assert _replay(capsys, str(a), "--params", params, "--checkpoint", str(ck))[0] == 0
+    feed, calls = bag_mod.feed_shadow, []
+
+    def stopped_in_the_tail(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:  # the bag's forces fed, its air tail next
+            raise KeyboardInterrupt
+        return feed(*args, **kwargs)
+
+    monkeypatch.setattr(bag_mod, "feed_shadow", stopped_in_the_tail)
+    assert _replay(capsys, str(c), "--params", params, "--checkpoint", str(ck))[0] == 130
+    monkeypatch.setattr(bag_mod, "feed_shadow", feed)
+    assert [e["bag"] for e in Shadow.resume(ck).taken_bags] == [str(a)]  # not taken: interrupted
+    _replay(capsys, str(c), "--params", params, "--checkpoint", str(ck))
+    state = Shadow.resume(ck)
+    tail = air.stamp_ns[air.stamp_ns > stamps[-1]]  # the air past the bag's last force
+    assert len(tail) and state.held_air is not None
+    np.testing.assert_array_equal(state.held_air.stamp_ns, tail)
+    assert [e["bag"] for e in state.taken_bags] == [str(a), str(c)]

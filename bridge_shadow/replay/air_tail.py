@@ -29,7 +29,7 @@ import numpy as np
 
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
-__all__ = ["HELD_AIR_LIMIT", "AirTail", "air_piece", "split_air"]
+__all__ = ["HELD_AIR_LIMIT", "AirTail", "air_piece", "new_air", "split_air"]
 
 #: Most air messages held at once (23 days at 1 Hz). Past it the held air goes on to the shadow,
 #: and a checkpoint can hold only what came after: a longer air-only run is no bag of a record.
@@ -40,6 +40,22 @@ def split_air(t: TemperatureSeries, from_log_ns: int) -> tuple[TemperatureSeries
     """Return (messages of ``t`` with log time < ``from_log_ns``, the others), each in its order."""
     keep = np.asarray(t.log_ns) < from_log_ns
     return t.take(keep), t.take(~keep)
+
+
+def new_air(tail: TemperatureSeries | None, held: TemperatureSeries | None, clock_ns: int | None) -> bool:
+    """Whether ``tail`` (a bag's air past its last force) holds air a checkpoint does not have.
+
+    Its own: a reading stamped after the checkpoint's data clock ``clock_ns`` that is not in the
+    air it holds (``held``). A bag of older data has none (a copy of the bag that wrote it: the
+    same air it holds); the bag run again after a run stopped past a periodic write that took all
+    its forces has its tail, which the next bag's replay merges in.
+    """
+    if tail is None or not len(tail):
+        return False
+    stamps = np.asarray(tail.stamp_ns)
+    if held is not None and len(held):
+        stamps = stamps[~np.isin(stamps, np.asarray(held.stamp_ns))]
+    return bool(len(stamps)) and (clock_ns is None or bool((stamps > clock_ns).any()))
 
 
 def air_piece(t: TemperatureSeries, channels: Iterable[str]) -> MonitoringData:

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from bridge_shadow.contract import CHANNELS
-from bridge_shadow.replay.air_tail import AirTail, air_piece, split_air
+from bridge_shadow.replay.air_tail import AirTail, air_piece, new_air, split_air
 from bridge_shadow.replay.chunks import DEFAULT_CHUNK, FeedChunk, arrival_chunks
 from bridge_shadow.replay.feed import StreamReplay, feed_shadow
 from bridge_shadow.replay.outputs import OutputBag, WindowHistory
@@ -57,7 +57,7 @@ class _ForceCount:
     def __init__(self, chunks: Iterable[FeedChunk], shadow: Any) -> None:
         self._chunks, self._shadow = chunks, shadow
         self._used_before = self._used_now()
-        self._clock_before = shadow.clock_ns
+        self.clock_before = shadow.clock_ns
         self.fed = 0
 
     def _used_now(self) -> int:
@@ -71,7 +71,7 @@ class _ForceCount:
     @property
     def older(self) -> bool:
         """Load-cell messages fed, none used, and the data clock where it was (see the class)."""
-        return bool(self.fed) and not self.used and self._shadow.clock_ns == self._clock_before
+        return bool(self.fed) and not self.used and self._shadow.clock_ns == self.clock_before
 
     def __iter__(self) -> Iterator[FeedChunk]:
         for c in self._chunks:
@@ -199,10 +199,12 @@ def replay_bag(
                 before_close()
                 stats.held_air = len(tail.tail) if tail.tail is not None else 0
                 shadow.held_air = None  # the checkpoint's held air is all fed now
-                if forces.older:
+                if forces.older and not new_air(tail.tail, held, forces.clock_before):
                     # none of the bag's load cell messages used, nothing newer than the checkpoint's
-                    # data: a checkpoint resumed from is left as it was (written, it counted the
-                    # rejects and held this bag's air, older than its own), the bag is not taken
+                    # data, no air past its last force that the checkpoint lacks (a rerun after a
+                    # run stopped past a periodic write has its tail): a checkpoint resumed from is
+                    # left as it was (written, it counted the rejects and held this bag's air, older
+                    # than its own), the bag is not taken
                     stats.checkpoint_kept = Path(config.checkpoint_path).is_file()
                 else:
                     shadow.taken_bags = recorded(shadow.taken_bags, taken)  # known if replayed again

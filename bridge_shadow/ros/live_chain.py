@@ -40,7 +40,7 @@ from bridge_shadow.bagio.cdr import decode_stamped_floats_kept, encode_stamped_f
 from bridge_shadow.contract import CHANNELS
 from bridge_shadow.estimate.state.checkpoint import load_state, save_state
 from bridge_shadow.estimate.state.persistence import held_air_arrays, held_air_series
-from bridge_shadow.replay.air_tail import HELD_AIR_LIMIT
+from bridge_shadow.replay.air_tail import HELD_AIR_LIMIT, new_air
 from bridge_shadow.replay.taken import recorded
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
@@ -107,6 +107,7 @@ class LiveChain:
         load cells all failed moved the clock with its air: written, as offline.
         """
         older = _forces_used(state) == self.used_before and _clock(state) == self.clock_before
+        older = older and not new_air(tail, self.held, self.clock_before)  # a tail: written
         if forces_fed and older and self.checkpoint.is_file():
             return None
         state = dict(state)
