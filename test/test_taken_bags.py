@@ -130,6 +130,15 @@ def test_the_records_of_a_day_each_with_the_days_air_are_told_apart(tmp_path: Pa
     assert [e["kind"] for e in js["events"]] == ["gap"]  # the lowering, at its record
     code, js, err = _replay(capsys, str(day[1]), "--checkpoint", str(ck))
     assert code == 0 and "taken whole into" in err and js["messages"]["total"] == 0
+    # the text says so: the air the checkpoint holds goes into its own close, not this run's counts
+    # (it read "the counts below are this run's, the held air's among them" over counts of zero)
+    from bridge_shadow.commands.replay import _summary
+
+    text = _summary(js)
+    assert js["resumed"]["held_air"] > 200 and "the held air's among them" not in text
+    assert (
+        "nothing below is of this run but the end-of-data close made again, which feeds the air held" in text
+    )
 
 
 def test_recorded_names_the_latest_run_and_keeps_the_latest_bags(monkeypatch) -> None:

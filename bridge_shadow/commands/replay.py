@@ -129,8 +129,13 @@ def _summary(js: dict[str, Any]) -> str:
                 f"resumed from a checkpoint of {resumed['windows']} windows ({resumed['updates']} updates, "
                 f"{resumed['messages_used']} messages used"
                 + (f", {h} air readings held" if (h := resumed.get("held_air")) else "")
-                + "): the counts below are this run's"
-                + (", the held air's among them" if h else "")
+                + (
+                    # a bag taken already: no message read; the held air is the checkpoint's own
+                    "): nothing below is of this run but the end-of-data close made again"
+                    + (", which feeds the air held" if h else "")
+                    if js.get("already_taken")
+                    else "): the counts below are this run's" + (", the held air's among them" if h else "")
+                )
             ]
             if resumed
             else []
