@@ -344,6 +344,39 @@ def test_a_chain_that_starts_with_a_bag_of_the_air_alone_is_one_merged_replay(
     np.testing.assert_allclose(last.covariance_m2, merged.covariance_m2, rtol=1e-9, atol=1e-16)
 
 
+def test_a_chains_bag_of_the_air_alone_is_no_failure(
+    day: tuple[Path, Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``replay AIR --checkpoint CK``: the air held whole for the next bag, said, exit 0.
+
+    It exited 1 ("no window updated the estimate") with a WARN "no load cell message": a chain's
+    script (``replay B --checkpoint CK || exit``) stopped at the day's air, the way the README
+    gives it. Without a checkpoint the air is kept nowhere: exit 1 as before.
+    """
+    import json
+
+    from bridge_shadow.bagio.reader import read_monitoring
+    from bridge_shadow.cli import main
+    from bridge_shadow.replay.air_tail import mark_air_held_whole
+
+    air = write_monitoring(tmp_path / "air", air_piece(read_monitoring(day[0]).temperature, CHANNELS))
+    ck = tmp_path / "ck.npz"
+    assert main(["replay", str(air), "--checkpoint", str(ck), "--json"]) == 0
+    out = capsys.readouterr()
+    js = json.loads(out.out)
+    held = Shadow.resume(ck).held_air
+    assert held is not None and js["air_held_whole"] == len(held) == 360
+    assert not [w for w in js["warnings"] if w.startswith("no load cell message")]
+    assert "its 360 air readings are held in the checkpoint" in out.err and "error" not in out.err
+    assert main(["replay", str(air), "--json"]) == 1  # no chain: nothing kept, nothing estimated
+    assert "no load cell message" in capsys.readouterr().err
+    # the rule: no load-cell message and air held (the live chain marks its JSON the same way)
+    for forces, kept, marked in ((0, 360, True), (5, 360, False), (0, 0, False)):
+        js = {"warnings": ["no load cell message: x", "other"]}
+        mark_air_held_whole(js, forces, kept)
+        assert ("air_held_whole" in js) == marked and len(js["warnings"]) == (1 if marked else 2)
+
+
 def test_bags_that_each_hold_the_days_air_read_merged_are_said_to_repeat_it(
     day: tuple[Path, Path, Path],
 ) -> None:

@@ -306,6 +306,13 @@ def _loud(js: dict[str, Any]) -> int:
         print(f"bridge-shadow replay: WARN: {line}", file=sys.stderr)
     if js.get("already_taken"):
         return 0  # the checkpoint's own result: nothing of the bags was to be used (said)
+    if held := js.get("air_held_whole"):
+        print(
+            f"bridge-shadow replay: the bag holds no load-cell message: its {held} air readings are held "
+            "in the checkpoint, for the next bag's replay to merge with its forces",
+            file=sys.stderr,
+        )
+        return 0
     used = js["messages"]["used_by_topic"]
     if js.get("resumed") and js["windows"]["updates"] and not any(used.get(ch, 0) for ch in CHANNELS):
         print(
@@ -408,6 +415,7 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.contract import INPUT_TOPICS
     from bridge_shadow.estimate.startup import open_shadow
     from bridge_shadow.replay import HISTORY_CAPACITY, replay_bag
+    from bridge_shadow.replay.air_tail import mark_air_held_whole
 
     shadow, notes = open_shadow(config, surrogate)  # an unusable checkpoint stops us before the bag
     for line in notes:
@@ -440,6 +448,7 @@ def run(args: argparse.Namespace) -> int:
             "updates": stats.updates_at_end,
             "held_air": stats.held_air,
         }
+        mark_air_held_whole(js, stats.forces, stats.held_air)
     js["bag"] = str(bags[0])
     if len(bags) > 1:
         js["bags"] = [str(b) for b in bags]  # read merged by log time

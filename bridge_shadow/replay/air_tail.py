@@ -24,12 +24,13 @@ the tail begins.
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
+from typing import Any
 
 import numpy as np
 
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
-__all__ = ["HELD_AIR_LIMIT", "AirTail", "air_piece", "new_air", "split_air"]
+__all__ = ["HELD_AIR_LIMIT", "AirTail", "air_piece", "mark_air_held_whole", "new_air", "split_air"]
 
 #: Most air messages held at once (23 days at 1 Hz). Past it the held air goes on to the shadow,
 #: and a checkpoint can hold only what came after: a longer air-only run is no bag of a record.
@@ -56,6 +57,22 @@ def new_air(tail: TemperatureSeries | None, held: TemperatureSeries | None, cloc
     if held is not None and len(held):
         stamps = stamps[~np.isin(stamps, np.asarray(held.stamp_ns))]
     return bool(len(stamps)) and (clock_ns is None or bool((stamps > clock_ns).any()))
+
+
+def mark_air_held_whole(js: dict[str, Any], forces: int, held_air: int) -> None:
+    """Mark the replay JSON ``js`` of a chain's bag of the air alone, held whole for the next bag.
+
+    The day's air as a bag of its own, replayed first with ``--checkpoint``: ``forces`` (load-cell
+    messages played) is 0 and ``held_air`` (air readings the checkpoint holds unfed) is all of it,
+    merged with the next bag's forces. Nothing of it is lost and no window could close, so the
+    run is no failure: it exited 1 ("no window updated the estimate") and warned "no load cell
+    message", and a chain's script stopped at its first bag. ``air_held_whole`` (the count) is set
+    and that warning dropped; the replay says what is held instead.
+    """
+    if forces or not held_air:
+        return
+    js["air_held_whole"] = int(held_air)
+    js["warnings"] = [w for w in js["warnings"] if not w.startswith("no load cell message:")]
 
 
 def air_piece(t: TemperatureSeries, channels: Iterable[str]) -> MonitoringData:

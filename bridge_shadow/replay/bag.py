@@ -195,6 +195,7 @@ def replay_bag(
                 flush=tail is None,
                 before_flush=before_close,
             )
+            stats.forces = forces.fed
             if tail is not None:
                 before_close()
                 stats.held_air = len(tail.tail) if tail.tail is not None else 0

@@ -34,6 +34,7 @@ class StreamReplay:
             fed for this result too, and again, merged, by the next bag's replay.
         checkpoint_kept: the checkpoint resumed from was left as it was: the bag had load-cell
             messages and none was used (data older than the checkpoint's: ``replay_bag``).
+        forces: load-cell messages fed (``replay_bag``; the rest is air).
 
     """
 
@@ -48,6 +49,7 @@ class StreamReplay:
     updates_at_end: int = 0
     held_air: int = 0
     checkpoint_kept: bool = False
+    forces: int = 0
 
 
 def _frames_arg(frames: np.ndarray) -> np.ndarray | str:

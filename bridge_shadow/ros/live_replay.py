@@ -63,6 +63,7 @@ from bridge_shadow.estimate.parameters.config import ShadowConfig
 from bridge_shadow.estimate.parameters.specs import YEAR_S
 from bridge_shadow.estimate.result import split_rejected
 from bridge_shadow.estimate.state.checkpoint import load_state
+from bridge_shadow.replay.air_tail import mark_air_held_whole
 from bridge_shadow.ros.convert import array_from_msg
 from bridge_shadow.ros.launcher import NodeError, NodeProcess, wait_until
 from bridge_shadow.ros.live_chain import (
@@ -673,6 +674,9 @@ def run_live(
     if chain is not None and kept:
         js["checkpoint_kept"] = True  # none of the bag's load-cell messages used: not written
     elif chain is not None:
+        # a bag of the air alone, held whole for the next bag: no failure
+        forces_played = sum(int(counters["received"].get(ch, 0)) for ch in CHANNELS)
+        mark_air_held_whole(js, forces_played, len(tail) if tail is not None else 0)
         # as the offline chain's: the windows the next bag's run closes again, the air it holds
         js["windows"]["at_end"] = {
             "closed": js["windows"]["closed"] - int(captured["scalars"]["n_windows"]),
