@@ -90,9 +90,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=(
             "resume from this checkpoint if it exists and write the state there (periodically and at "
             "the end; with --live once, at the end: an interrupted live run leaves it as it was), the "
-            "air temperature past the bag's last force held in it for the next bag's replay; without "
-            "it the replay neither reads nor writes a checkpoint, whatever checkpoint_path the --params "
-            "file names (that is the live node's)"
+            "air temperature past the bag's last force held in it for the next bag's replay; a bag it "
+            "took already is said and not replayed (its result printed, exit 0), a bag of older data "
+            "leaves it as it was (exit 1); without it the replay neither reads nor writes a "
+            "checkpoint, whatever checkpoint_path the --params file names (that is the live node's)"
         ),
     )
     parser.add_argument(
