@@ -268,3 +268,20 @@ def test_a_bag_run_again_after_an_interrupted_run_holds_its_air_for_the_next(
     assert len(tail) and state.held_air is not None
     np.testing.assert_array_equal(state.held_air.stamp_ns, tail)
     assert [e["bag"] for e in state.taken_bags] == [str(a), str(c)]
+
+
+def test_a_bag_named_by_its_directory_or_its_storage_file_is_one_bag(bags, tmp_path: Path, capsys) -> None:
+    """Taken as a directory, given again as its bare ``.db3`` (or the other way): known.
+
+    The directory's signature held its ``metadata.yaml`` too, so the bare file was another bag:
+    every message rejected, exit 1.
+    """
+    params = str(_params(tmp_path / "p.yaml"))
+    storage = next(bags["a"].glob("*.db3"))
+    for first, again in ((bags["a"], storage), (storage, bags["a"])):
+        ck = tmp_path / f"ck_{first.name}.npz"
+        assert _replay(capsys, str(first), "--params", params, "--checkpoint", str(ck))[0] == 0
+        code, js, err = _replay(capsys, str(again), "--params", params, "--checkpoint", str(ck))
+        assert code == 0 and "taken whole into" in err and js["messages"]["total"] == 0, err
+    assert bag_signature(bags["a"])["signature"] == bag_signature(storage)["signature"]
+    assert bag_signature(bags["b"])["signature"] != bag_signature(storage)["signature"]

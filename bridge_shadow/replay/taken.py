@@ -9,8 +9,9 @@ was written again with the rejects counted. Known by its signature, the rerun sa
 nothing and prints the checkpoint's answer.
 
 The signature is the bag's metadata (every topic with its type and message count, the log
-times of its first and last message) and its files as they are on disk (name, size, modification
-and change time, inode: ``bagio.identity.stat_signature``). Reading it reads no message. The
+times of its first and last message) and its storage files as they are on disk (name, size,
+modification and change time, inode: ``bagio.identity.stat_signature``; a bag named by its
+directory or by its one bare ``.db3`` / ``.mcap`` file is the same bag). Reading it reads no message. The
 metadata alone is not enough: the bags of a load-test day's records, each imported with the day's
 air temperature, have the same topics, counts and span (the air's). A copy of a bag, or one
 written again, is not known: replayed after the checkpoint, it is refused as data older than the
@@ -45,7 +46,9 @@ def bag_signature(path: str | Path) -> dict[str, Any]:
 
     s = bag_summary(path)
     topics = {name: [t["type"], t["count"]] for name, t in sorted(s["topics"].items())}
-    files = stat_signature(bag_files(Path(path)))
+    # the storage files alone: a bag named as its directory or as its one bare .db3 / .mcap file is
+    # one bag (its metadata.yaml is of the directory only; what it says is in the summary above)
+    files = stat_signature([p for p in bag_files(Path(path)) if p.name != "metadata.yaml"])
     text = json.dumps(
         {"topics": topics, "start_ns": s["start_ns"], "end_ns": s["end_ns"], "files": files}, sort_keys=True
     )
