@@ -456,5 +456,5 @@ def test_a_bag_played_again_after_an_interrupted_run_holds_its_air_tail(tmp_path
     assert chain.held is None and int(tail.stamp_ns[0]) > Shadow.resume(ck).clock_ns
     assert chain.finish(state, tail, [{"signature": "s", "bag": "c"}], forces_fed=5) is not None
     resumed = Shadow.resume(ck)
-    np.testing.assert_array_equal(resumed.held_air.stamp_ns, tail.stamp_ns)
+    np.testing.assert_array_equal(resumed.held_air.stamp_ns, tail.stamp_ns)  # integer ns
     assert [e["bag"] for e in resumed.taken_bags] == [str(first), "c"]

@@ -266,7 +266,7 @@ def test_a_bag_run_again_after_an_interrupted_run_holds_its_air_for_the_next(
     state = Shadow.resume(ck)
     tail = air.stamp_ns[air.stamp_ns > stamps[-1]]  # the air past the bag's last force
     assert len(tail) and state.held_air is not None
-    np.testing.assert_array_equal(state.held_air.stamp_ns, tail)
+    np.testing.assert_array_equal(state.held_air.stamp_ns, tail)  # integer ns
     assert [e["bag"] for e in state.taken_bags] == [str(a), str(c)]
 
 

@@ -506,15 +506,13 @@ def _already_taken(
     from bridge_shadow.series import TemperatureSeries
 
     file = Path(args.checkpoint)
-    listed = load_entry(file, "taken_bags") if file.is_file() else None  # a look first: one entry
-    if listed is None or find_taken(json.loads(str(listed)), signatures) is None:
+    listed = load_entry(file, "taken_bags")  # a look first: one entry (None: no checkpoint there)
+    found = None if listed is None else find_taken(json.loads(str(listed)), signatures)
+    if found is None:
         return None
     try:  # the checkpoint's own state; nothing written (no checkpoint path)
         shadow = Shadow.resume(file, config.replace(checkpoint_path=""), surrogate)
     except CheckpointError:
-        return None
-    found = find_taken(shadow.taken_bags, signatures)
-    if found is None:
         return None
     what = "; ".join(
         f"{bag} ({e['messages']} messages, {e['start']} to {e['end']}; taken by the run of {e['taken_at']})"

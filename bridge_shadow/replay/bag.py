@@ -9,12 +9,12 @@ from pathlib import Path
 from typing import Any
 
 from bridge_shadow.contract import CHANNELS
-from bridge_shadow.replay.air_tail import AirTail, air_piece, new_air, split_air
+from bridge_shadow.replay.air_tail import AirTail, air_piece, split_air
 from bridge_shadow.replay.chunks import DEFAULT_CHUNK, FeedChunk, arrival_chunks
 from bridge_shadow.replay.feed import StreamReplay, feed_shadow
 from bridge_shadow.replay.outputs import OutputBag, WindowHistory
 from bridge_shadow.replay.prefetch import Prefetch
-from bridge_shadow.replay.taken import recorded
+from bridge_shadow.replay.taken import forces_used, older_data, recorded
 
 __all__ = ["replay_bag"]
 
@@ -46,32 +46,13 @@ def _held_unfed(chunks: Iterable[FeedChunk], shadow: Any, held: Any) -> Iterator
 
 
 class _ForceCount:
-    """Chunks passed on, counting the load-cell messages in them and those the shadow used since.
-
-    ``older``: there were load-cell messages, none was used and the data clock did not move (no
-    message of any topic newer than the data before): a bag of older data. A newer bag whose
-    load cells all failed (NaN, out of range) moves the clock with its air: its state is new, and
-    the periodic checkpoint writes (``checkpoint_period_s`` of data clock) may have written it.
-    """
+    """Chunks passed on, counting the load-cell messages in them; the state they began from."""
 
     def __init__(self, chunks: Iterable[FeedChunk], shadow: Any) -> None:
-        self._chunks, self._shadow = chunks, shadow
-        self._used_before = self._used_now()
+        self._chunks = chunks
+        self.used_before = forces_used(shadow.used)
         self.clock_before = shadow.clock_ns
         self.fed = 0
-
-    def _used_now(self) -> int:
-        return sum(int(self._shadow.used.get(ch, 0)) for ch in CHANNELS)
-
-    @property
-    def used(self) -> int:
-        """Load-cell messages the shadow used since this began."""
-        return self._used_now() - self._used_before
-
-    @property
-    def older(self) -> bool:
-        """Load-cell messages fed, none used, and the data clock where it was (see the class)."""
-        return bool(self.fed) and not self.used and self._shadow.clock_ns == self.clock_before
 
     def __iter__(self) -> Iterator[FeedChunk]:
         for c in self._chunks:
@@ -200,12 +181,10 @@ def replay_bag(
                 before_close()
                 stats.held_air = len(tail.tail) if tail.tail is not None else 0
                 shadow.held_air = None  # the checkpoint's held air is all fed now
-                if forces.older and not new_air(tail.tail, held, forces.clock_before):
-                    # none of the bag's load cell messages used, nothing newer than the checkpoint's
-                    # data, no air past its last force that the checkpoint lacks (a rerun after a
-                    # run stopped past a periodic write has its tail): a checkpoint resumed from is
-                    # left as it was (written, it counted the rejects and held this bag's air, older
-                    # than its own), the bag is not taken
+                used = (forces.used_before, forces_used(shadow.used))
+                if older_data(forces.fed, used, (forces.clock_before, shadow.clock_ns), tail.tail, held):
+                    # a checkpoint resumed from is left as it was (written, it counted the rejects
+                    # and held this bag's air, older than its own), the bag is not taken
                     stats.checkpoint_kept = Path(config.checkpoint_path).is_file()
                 else:
                     shadow.taken_bags = recorded(shadow.taken_bags, taken)  # known if replayed again

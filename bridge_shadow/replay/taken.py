@@ -22,12 +22,15 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-__all__ = ["TAKEN_LIMIT", "bag_signature", "find_taken", "recorded"]
+from bridge_shadow.contract import CHANNELS
+from bridge_shadow.replay.air_tail import new_air
+
+__all__ = ["TAKEN_LIMIT", "bag_signature", "find_taken", "forces_used", "older_data", "recorded"]
 
 #: Most bags a checkpoint remembers (the latest kept): over a year of hourly bags. An older bag
 #: replayed again is refused as older data is, with every message rejected and exit 1.
@@ -83,3 +86,34 @@ def find_taken(
     if not bags or any(e is None for e in found):
         return None
     return [e for e in found if e is not None]
+
+
+def forces_used(used: Mapping[str, int]) -> int:
+    """Load-cell messages among a shadow's ``used`` counts (per topic: frc_01, frc_02, the air)."""
+    return sum(int(used.get(ch, 0)) for ch in CHANNELS)
+
+
+def older_data(
+    forces_fed: int,
+    used: tuple[int, int],
+    clock_ns: tuple[int | None, int | None],
+    tail: Any,
+    held: Any,
+) -> bool:
+    """Whether a chain's run took nothing of its bag: data older than the checkpoint's.
+
+    Its checkpoint is then left as it was and the bag is not taken (``replay_bag``, and the live
+    chain's ``LiveChain.finish``). ``forces_fed``: the bag's load-cell messages; ``used``: the
+    load-cell messages used before and after the run (``forces_used``); ``clock_ns``: the data
+    clock before and after; ``tail``: the bag's air past its last force; ``held``: the air the
+    checkpoint held. Older means load-cell messages fed and none used, the clock where it was (a
+    newer bag whose load cells all failed moves it with its air), and no air in the tail that the
+    checkpoint lacks (a bag run again after a run stopped past a periodic write that took all its
+    forces has its tail: ``air_tail.new_air``).
+    """
+    return (
+        bool(forces_fed)
+        and used[0] == used[1]
+        and clock_ns[0] == clock_ns[1]
+        and not new_air(tail, held, clock_ns[0])
+    )

@@ -40,8 +40,8 @@ from bridge_shadow.bagio.cdr import decode_stamped_floats_kept, encode_stamped_f
 from bridge_shadow.contract import CHANNELS
 from bridge_shadow.estimate.state.checkpoint import load_state, save_state
 from bridge_shadow.estimate.state.persistence import held_air_arrays, held_air_series
-from bridge_shadow.replay.air_tail import HELD_AIR_LIMIT, new_air
-from bridge_shadow.replay.taken import recorded
+from bridge_shadow.replay.air_tail import HELD_AIR_LIMIT
+from bridge_shadow.replay.taken import forces_used, older_data, recorded
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 
 __all__ = [
@@ -106,9 +106,8 @@ class LiveChain:
         left as it was (None), as the offline chain leaves it (``replay_bag``). A newer bag whose
         load cells all failed moved the clock with its air: written, as offline.
         """
-        older = _forces_used(state) == self.used_before and _clock(state) == self.clock_before
-        older = older and not new_air(tail, self.held, self.clock_before)  # a tail: written
-        if forces_fed and older and self.checkpoint.is_file():
+        used, clock = (self.used_before, _forces_used(state)), (self.clock_before, _clock(state))
+        if older_data(forces_fed, used, clock, tail, self.held) and self.checkpoint.is_file():
             return None
         state = dict(state)
         before = json.loads(str(state["taken_bags"])) if "taken_bags" in state else []
@@ -123,8 +122,7 @@ class LiveChain:
 
 def _forces_used(state: dict[str, Any]) -> int:
     """Load-cell messages a checkpoint's state has used (its ``used`` counts)."""
-    used = json.loads(str(state["used"])) if "used" in state else {}
-    return sum(int(used.get(ch, 0)) for ch in CHANNELS)
+    return forces_used(json.loads(str(state["used"])) if "used" in state else {})
 
 
 def _clock(state: dict[str, Any]) -> int | None:

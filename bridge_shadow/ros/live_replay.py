@@ -528,6 +528,7 @@ def run_live(
         node = NodeProcess(["--ros-args", "--params-file", str(params_file)])
         player = None
         kept = False  # the named checkpoint left as it was (``LiveChain.finish``)
+        forces_played = 0  # the bag's load-cell messages the node received
         try:
             first, last = stream.first_ns, stream.last_ns
             span = max((last or 0) - (first or 0), 1)
@@ -610,8 +611,8 @@ def run_live(
             records = player.records
             if chain is not None and hold is not None:
                 tail, malformed_tail = decode_air(hold.tail)
-                forces_fed = sum(int(counters["received"].get(ch, 0)) for ch in CHANNELS)
-                kept = chain.finish(captured, tail, taken, forces_fed) is None
+                forces_played = sum(int(counters["received"].get(ch, 0)) for ch in CHANNELS)
+                kept = chain.finish(captured, tail, taken, forces_played) is None
         except NodeError as err:
             if chain is None:
                 raise
@@ -675,7 +676,6 @@ def run_live(
         js["checkpoint_kept"] = True  # none of the bag's load-cell messages used: not written
     elif chain is not None:
         # a bag of the air alone, held whole for the next bag: no failure
-        forces_played = sum(int(counters["received"].get(ch, 0)) for ch in CHANNELS)
         mark_air_held_whole(js, forces_played, len(tail) if tail is not None else 0)
         # as the offline chain's: the windows the next bag's run closes again, the air it holds
         js["windows"]["at_end"] = {
