@@ -160,9 +160,10 @@ class ChangeRecord:
         size_m: (2,) m, the change if there was one (the segment's data minus the state before).
         covariance_m2: (2, 2) m^2, its covariance.
         gap_s: length of the gap before it, s (0 for a held run).
-        significant: for a ``run_in_data``: its GLR passed the event threshold, and its jump
-            is one against the rate its own windows show (not a drift's progress over a hole:
-            ``ChangeDetector._drift_jump``); False for a ``step`` (None otherwise).
+        significant: for a ``run_in_data``: its jump is one against the rate its own windows
+            show (not a drift's progress over a hole: ``ChangeDetector._drift_jump``), and its GLR
+            passed the event threshold or it moved the reactions' sum by more than any vehicle
+            with its size's 95 % region excluding zero; False for a ``step`` (None otherwise).
         until_ns: for a ``run_in_data``, an ``excursion``, a ``between_steps``, a ``before_gap``,
             an ``after_gap`` or an ``at_end``: the end of its last window, ns (None otherwise).
         next_ns: for a provisional segment the data left for another state (an event or a further
@@ -197,8 +198,11 @@ class ChangeRecord:
         if self.change_probability > 0.5:
             return True
         undecided = self.change_probability > 1e-3  # a merge takes it below (change_confirm_probability)
-        size_chi2 = _chi2(np.asarray(self.size_m), np.asarray(self.covariance_m2))
-        return bool(undecided and size_chi2 > CHI2_2DOF_95)
+        return bool(undecided and self.size_chi2() > CHI2_2DOF_95)
+
+    def size_chi2(self) -> float:
+        """Squared Mahalanobis distance of the size from no change (chi-square, 2 dof, if none)."""
+        return _chi2(np.asarray(self.size_m), np.asarray(self.covariance_m2))
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready record (SI units)."""
@@ -214,7 +218,7 @@ class ChangeRecord:
             **({} if (u := self.until_ns) is None else {"until_ns": int(u), "until": iso_utc(u)}),
             **({} if (t := self.next_ns) is None else {"next_state_ns": int(t), "next_state": iso_utc(t)}),
             **_size_json(self.size_m, self.covariance_m2),
-            "size_chi2": _chi2(self.size_m, self.covariance_m2),
+            "size_chi2": self.size_chi2(),
         }
 
 
