@@ -652,8 +652,7 @@ class ChangeDetector:
         """Whether candidate ``c``'s step moved the sum beyond any vehicle, clear of no change at 95 %."""
         if not self._beyond_any_vehicle(c.step):
             return False
-        cov = self._step_cov(c)
-        return bool(c.step @ np.linalg.solve(cov, c.step) > CHI2_2DOF_95)
+        return _quad(self._step_cov(c), c.step) > CHI2_2DOF_95
 
     def _drift_jump(self, j: int) -> float:
         """Return ``_jump`` from the window before ``j`` against the rate the held windows show.
