@@ -8,7 +8,7 @@ and ``level_statement`` say the answer in one paragraph.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -19,6 +19,9 @@ from bridge_shadow.gap.fitter import BY_NAME, Fitter
 from bridge_shadow.gap.posterior import ModelChange
 from bridge_shadow.gap.rank import Named, Ranking, own_beta
 from bridge_shadow.model.surrogate_file import Surrogate
+
+if TYPE_CHECKING:  # pragma: no cover - the level analysis is imported when a day of records needs it
+    from bridge_shadow.gap.levels import ImposedAnalysis
 
 __all__ = ["level_statement", "model_change", "settlement_if_softer", "stand_in_changes", "statement"]
 
@@ -156,6 +159,24 @@ def misfit_text(bad: dict[str, Any]) -> str:
     )
 
 
+def _prior_sets_text(an: ImposedAnalysis) -> str:
+    """Say how the model after weighs the prior sets (sets that keep the sources' prior merged)."""
+    fits = an.by_prior.get(an.best) or {}
+    if len(fits) < 2:
+        return ""
+    w = an.prior_weights()
+    parts: list[str] = []
+    done: set[str] = set()
+    for k, f in fits.items():
+        if k in done:
+            continue
+        same = [j for j, g in fits.items() if g is f]
+        done.update(same)
+        label = k if len(same) == 1 else f"{k} (and {', '.join(same[1:])}, the same prior here)"
+        parts.append(f"{label} {sum(w[j] for j in same):.2f}")
+    return f" The model after averages it over the prior sets by their evidence ({', '.join(parts)})."
+
+
 def level_statement(lv: DayLevels, inside: str) -> str:
     """One paragraph for a day of records: the levels, then what happens inside the records."""
     mm = 1e3
@@ -176,6 +197,7 @@ def level_statement(lv: DayLevels, inside: str) -> str:
             )
             if an.group[1:]:
                 text += f" It cannot be told apart from {', '.join(an.group[1:])}."
+            text += _prior_sets_text(an)
         elif bad is None and an.best == "settlement_step":
             text += (
                 " The model explains the response to the imposed step(s) within the jacks' accuracy "

@@ -20,7 +20,12 @@ across every gap between records:
   its sweeps and closed forms (:class:`~bridge_shadow.calibrate.surrogate_forward.SurrogateForward`,
   no FE solve). The explanations are ``IMPOSED_EXPLANATIONS``; ``settlement_step`` is the model as
   given, the settlements differing from the imposed ones by the jacks' error only (``imposed_sd``).
-  With two or more imposed pairs each explanation also gets a leave-one-pair-out score.
+  With two or more imposed pairs each explanation also gets a leave-one-pair-out score. Each is
+  also fitted under the other prior sets not chosen after the data (``model.parameters.PRIOR_SETS``:
+  the springs' first-written centre, every prior widened); the model after averages the named
+  one over them by their evidence (``ImposedAnalysis.surrogate_after``), so it does not hinge on
+  where one prior is centred (issue 20): a fit the steps cannot pin (three 10 mm steps at the
+  jacks' 0.5 mm leave a support between 2e8 N/m and rigid open) is otherwise the prior's.
 - ``free_steps``: at the other gaps the settlement step ``x = A^-1 dR`` the shadow will estimate
   (with the model after the imposed analysis), and whether it is significant.
 
@@ -46,13 +51,14 @@ from bridge_shadow.calibrate.change import (
 from bridge_shadow.calibrate.errors import CalibrationError
 from bridge_shadow.calibrate.explain import Explanation, data_misfit, fit_explanation
 from bridge_shadow.calibrate.problem import PairData
-from bridge_shadow.calibrate.run import evidence_weights
+from bridge_shadow.calibrate.run import evidence_weights, model_average
 from bridge_shadow.calibrate.surrogate_forward import SurrogateForward
 from bridge_shadow.contract import CHANNELS
 from bridge_shadow.gap.records import IMPOSED_SD_M, OneChannel, Record
 from bridge_shadow.model.build import SUPPORT_SPRINGS
+from bridge_shadow.model.parameters import PARAMETERS, PRIOR_SETS, prior_table
 from bridge_shadow.model.sensitivities import StiffnessSensitivity
-from bridge_shadow.model.surrogate_file import Discrepancy, Surrogate
+from bridge_shadow.model.surrogate_file import THERMAL_CASES, Discrepancy, Surrogate
 from bridge_shadow.model.sweeps import Sweep
 from bridge_shadow.series import ForceSeries, MonitoringData, TemperatureSeries
 from bridge_shadow.sun_change import solar_day
@@ -276,6 +282,10 @@ class ImposedAnalysis:
         named: the model as given (``settlement_step``: jacks' error only) is beaten by a Bayes
             factor over ``NAMED_LOG_BF``, i.e. the imposed steps say the model is wrong.
         forward: how the surrogate was varied (sweeps, first-order, closed forms).
+        by_prior: effect -> prior set -> the explanation fitted under that set
+            (``defensible_prior_sets``; the one in use is ``explanations``' own), for the model after.
+        prior_left_out: effect -> prior set -> why its fit is not averaged (outside the table's
+            plausible range).
 
     """
 
@@ -286,6 +296,8 @@ class ImposedAnalysis:
     group: list[str]
     named: bool
     forward: dict[str, Any]
+    by_prior: dict[str, dict[str, Explanation]] = field(default_factory=dict)
+    prior_left_out: dict[str, dict[str, str]] = field(default_factory=dict)
 
     def misfit(
         self, name: str | None = None, rows: Mapping[str, dict[str, Any]] | None = None
@@ -322,37 +334,76 @@ class ImposedAnalysis:
         # hours of baseline drift, so the fit keeps its jack and leaves the mismatch in the data
         return data_misfit(effect, float(row["chi2_data"]), self.explanations[effect].problem.n_data)
 
-    def surrogate_after(self, base: Surrogate, name: str | None = None) -> Surrogate:
-        """Return the model in use with explanation ``name`` (default ``best``) at its MAP.
+    def prior_weights(self, name: str | None = None) -> dict[str, float]:
+        """Posterior probability of each defensible prior set for explanation ``name`` (default ``best``)."""
+        effect = name or self.best
+        return evidence_weights(self.by_prior.get(effect) or {"sources": self.explanations[effect]})
 
-        ``A`` and ``thermal`` from the explanation's MAP; ``u0`` stays the base's (the supports
-        were set under the dead load, which the precast deck put on the steel girders before any
-        stiffness the steps reveal; as in ``calibrate.run``), the FE's ``u0`` at the MAP entering as an
+    def prior_sets_json(self) -> dict[str, Any]:
+        """Per explanation with parameters: its fit and evidence under each defensible prior set (SI)."""
+        out: dict[str, Any] = {
+            "rule": (
+                "the model after (and --out-surrogate) averages the named explanation over the prior "
+                "sets not chosen after the data (model.parameters.PRIOR_SETS), each equally likely "
+                "beforehand, by their evidence; its spread joins the model uncertainty; a set whose "
+                "fit leaves the plausible range (the sources' table, which calibrate and gap share) "
+                "is left out"
+            )
+        }
+        for effect, fits in self.by_prior.items():
+            w = evidence_weights(fits)
+            out[effect] = {
+                k: {"weight": w[k], "log_evidence": f.post.log_evidence, "parameters": f.values()}
+                for k, f in fits.items()
+            }
+            for k, why in self.prior_left_out.get(effect, {}).items():
+                out[effect][k] = {"weight": 0.0, "left_out": why}
+        return out
+
+    def surrogate_after(self, base: Surrogate, name: str | None = None) -> Surrogate:
+        """Return the model in use with explanation ``name`` (default ``best``) added.
+
+        ``A`` and ``thermal`` from the explanation's MAP, averaged over the defensible prior sets
+        by their evidence (``by_prior``; one set: its MAP), so the model after does not hinge on
+        where one prior is centred; ``u0`` stays the base's (the supports were set under the dead
+        load, which the precast deck put on the steel girders before any stiffness the steps
+        reveal; as in ``calibrate.run``), the FE's ``u0`` at the average entering as an
         uncertainty; ``model_uncertainty``: the base's (12 x 12, or 6 x 6 padded) plus the
-        explanation's parameter posterior propagated (``Explanation.model_cov``); a
-        ``discrepancy`` anchored at the imposed settlements the steps passed through (beyond them,
-        larger steps are extrapolation).
+        explanation's parameter posterior propagated under each set (``Explanation.model_cov``)
+        and the spread between the sets (``calibrate.run.model_average``); a ``discrepancy``
+        anchored at the imposed settlements the steps passed through (beyond them, larger steps
+        are extrapolation).
         """
-        e = self.explanations[name or self.best]
-        ev = e.evaluation
+        effect = name or self.best
+        e = self.explanations[effect]
+        fits = self.by_prior.get(effect) or {"sources": e}
+        mean, spread = model_average(fits)
+        a = mean[:4].reshape(2, 2)
+        thermal = dict(e.evaluation.thermal)
+        thermal.update({c: mean[6 + 2 * i : 8 + 2 * i].copy() for i, c in enumerate(THERMAL_CASES)})
         cov = np.zeros((12, 12))
         if base.model_cov is not None:
             n = base.model_cov.shape[0]
             cov[:n, :n] = base.model_cov
-        shift = ev.u0 - base.u0
-        cov = cov + e.model_cov()
+        shift = mean[4:6] - base.u0
+        cov = cov + spread
         cov[4:6, 4:6] += np.outer(shift, shift)
         states = [p.settlement_before_m for p in self.pairs]
         states += [p.settlement_before_m + p.imposed_m for p in self.pairs if p.imposed_m is not None]
         prov = dict(base.provenance)
+        weights = evidence_weights(fits)
         prov["gap_model_change"] = {
             "effect": e.name,
             "parameters": e.values(),
             "fitted_to": [p.name for p in self.pairs],
             "log_evidence": e.post.log_evidence,
+            "prior_sets": {
+                k: {"weight": weights[k], "parameters": f.values(), "log_evidence": f.post.log_evidence}
+                for k, f in fits.items()
+            },
         }
         return Surrogate(
-            ev.A, base.u0.copy(), dict(ev.thermal), prov, cov, Discrepancy.from_steps(np.array(states))
+            0.5 * (a + a.T), base.u0.copy(), thermal, prov, cov, Discrepancy.from_steps(np.array(states))
         )
 
     def table(self) -> list[dict[str, Any]]:
@@ -395,6 +446,7 @@ class ImposedAnalysis:
                 f"{math.exp(INDISTINGUISHABLE_LOG_BF):.0f} of the best are not told apart"
             ),
             "forward": self.forward,
+            "prior_sets": self.prior_sets_json(),
             "validation": "leave one imposed pair out"
             if len(self.pairs) > 1
             else "one imposed pair: evidence only (nothing to hold out)",
@@ -429,6 +481,11 @@ def explain_imposed(
             heldout=len(data) > 1,
             make_forward=make_forward,
         )
+    by_prior: dict[str, dict[str, Explanation]] = {}
+    left_out: dict[str, dict[str, str]] = {}
+    for effect, e in explanations.items():
+        if e.problem.p:
+            by_prior[effect], left_out[effect] = _under_prior_sets(e, data, make_forward)
     weights = evidence_weights(explanations)
     best = max(explanations, key=lambda k: explanations[k].post.log_evidence)
     top = explanations[best].post.log_evidence
@@ -441,7 +498,42 @@ def explain_imposed(
     named = best != "settlement_step" and top - as_given > NAMED_LOG_BF
     fe = tuple(n for e in explanations for n in IMPOSED_EXPLANATIONS[e] if n not in _SPRINGS)
     forward = make_forward(fe).document()
-    return ImposedAnalysis(list(imposed), explanations, weights, best, group, named, forward)
+    return ImposedAnalysis(
+        list(imposed), explanations, weights, best, group, named, forward, by_prior, left_out
+    )
+
+
+def defensible_prior_sets() -> list[str]:
+    """Return the prior sets the model after averages over: ``PRIOR_SETS`` less those chosen after data."""
+    return [k for k, s in PRIOR_SETS.items() if not s.after_data]
+
+
+def _under_prior_sets(
+    e: Explanation, data: Sequence[PairData], make_forward: Any
+) -> tuple[dict[str, Explanation], dict[str, str]]:
+    """Explanation ``e`` (fitted under the sources) under every defensible prior set.
+
+    A set that leaves its parameters' priors as they are keeps its fit (as ``calibrate``'s prior
+    sensitivity does). A set whose MAP leaves the plausible range of the sources' table (the one
+    both ``calibrate`` and ``gap`` read) is left out, with the reason: the model after never holds
+    a value the gap would reject as implausible. Returns the fits and the sets left out.
+    """
+    out, left_out = {}, {}
+    for k in defensible_prior_sets():
+        s = PRIOR_SETS[k]
+        touched = s.widen != 1.0 or any(n in s.changes for n in e.names)
+        if k == "sources" or not touched:
+            out[k] = e
+            continue
+        f = fit_explanation(
+            e.name, e.names, None, "", data, heldout=False, priors=prior_table(k), make_forward=make_forward
+        )
+        outside = [f"{n} {v:.3g}" for n, v in f.values().items() if not PARAMETERS[n].plausible(v)]
+        if outside:
+            left_out[k] = f"its fit ({', '.join(outside)}) lies outside the plausible range"
+        else:
+            out[k] = f
+    return out, left_out
 
 
 def free_steps(pairs: Sequence[LevelPair], surrogate: Surrogate) -> list[dict[str, Any]]:

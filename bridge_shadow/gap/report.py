@@ -225,6 +225,12 @@ def _levels_markdown(levels: dict[str, Any] | None) -> list[str]:
                 f"| {r['effect']} | {r['probability']:.2f} | {r['delta_log_evidence']:.2f} | {params} |"
             )
         lines += ["", imp["rule"] + "."]
+        sets = imp.get("prior_sets") or {}
+        best = sets.get(imp["best"]) if imp.get("named") else None
+        if best:
+            weights = ", ".join(f"{k} {v['weight']:.2f}" for k, v in best.items())
+            head = f"The model after averages {imp['best']} over the prior sets ({weights})"
+            lines += ["", f"{head}: {sets['rule']}."]
     steps = levels.get("steps_between_records") or []
     if steps:
         lines += ["", "Steps between records (the model after the imposed analysis), mm, 95 %:", ""]
