@@ -286,6 +286,7 @@ CLI_CASES = {
     "gap --imposed before the record": ["gap", "{w}/bag", "--imposed", "2020-01-01T00:00=-0.01,-0.01"],
     "gap --imposed after the record": ["gap", "{w}/bag", "--imposed", "+30=-0.01,-0.01"],
     "gap --imposed nan": ["gap", "{w}/bag", "--imposed", "+0.5=nan,-0.01"],
+    "gap --imposed in mm": ["gap", "{w}/bag", "--imposed", "+0.5=-0.01,-10"],
 }
 
 #: What the one line must say, where it matters which parameter or problem it names.
@@ -312,7 +313,7 @@ EXPECT = {
     "replay --live --rate 1e12": "--rate must be",
     "replay --live --rate 1e-9": "--rate must be a finite number in [0.001, 10000000], not 1e-09",
     "synth --days 1e6": "--days must be",
-    "synth --step in mm": "SOUTH must be a finite number in (-1, 1)",
+    "synth --step in mm": "(-1, 1), not -10.0 (metres, positive upward: -10 mm is -0.01)",
     "surrogate --out existing surrogate": "pass --force to replace it",
     "calibrate --out existing surrogate": "pass --force to replace it",
     "import-csv --out existing bag": "pass --force to replace it",
@@ -323,6 +324,7 @@ EXPECT = {
     "gap --imposed before the record": "outside the record",
     "gap --imposed after the record": "outside the record",
     "gap --imposed nan": "SOUTH must be a finite number in (-1, 1), not nan",  # 'a metre or more' before
+    "gap --imposed in mm": "NORTH must be a finite number in (-1, 1), not -10.0 (metres, positive",
 }
 
 

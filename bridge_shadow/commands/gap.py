@@ -117,7 +117,7 @@ def parse_imposed(
     from zoneinfo import ZoneInfo
 
     from bridge_shadow.errors import InputError
-    from bridge_shadow.estimate.parameters.specs import VALUE_SPECS, check_value
+    from bridge_shadow.estimate.parameters.specs import check_settlement_m
 
     out = []
     for item in items:
@@ -141,7 +141,7 @@ def parse_imposed(
                 f"--imposed {item!r}: expected WHEN=SOUTH,NORTH (ISO time or +DAYS; metres, positive upward)"
             ) from None
         for side, value in (("SOUTH", south), ("NORTH", north)):  # as synth --step: finite, under a metre
-            check_value(f"--imposed {item!r}: {side}", value, "float", VALUE_SPECS["settlement_m"])
+            check_settlement_m(f"--imposed {item!r}: {side}", value)
         if last_ns is not None and not first_ns < t_ns < last_ns:  # at an edge: nothing after or before
             from bridge_shadow.timefmt import iso_utc
 

@@ -140,7 +140,7 @@ def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
     import math
 
     from bridge_shadow.errors import InputError
-    from bridge_shadow.estimate.parameters.specs import VALUE_SPECS, check_value
+    from bridge_shadow.estimate.parameters.specs import check_settlement_m
 
     steps = []
     for item in items:
@@ -151,7 +151,7 @@ def _parse_steps(items: list[str]) -> list[tuple[float, float, float]]:
         if not math.isfinite(day) or day < 0:
             raise InputError(f"--step {item!r}: DAY must be a finite number >= 0")
         for side, value in (("SOUTH", south), ("NORTH", north)):
-            check_value(f"--step {item!r}: {side}", value, "float", VALUE_SPECS["settlement_m"])
+            check_settlement_m(f"--step {item!r}: {side}", value)
         steps.append((day, south, north))
     return steps
 

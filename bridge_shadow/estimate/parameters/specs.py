@@ -38,6 +38,7 @@ __all__ = [
     "SPECS",
     "VALUE_SPECS",
     "ParamSpec",
+    "check_settlement_m",
     "check_value",
     "constraint_text",
     "describe",
@@ -295,6 +296,20 @@ def _in_range(x: float, spec: ParamSpec) -> bool:
     if spec.low is not None and (x < spec.low or (spec.low_open and x == spec.low)):
         return False
     return not (spec.high is not None and (x > spec.high or (spec.high_open and x == spec.high)))
+
+
+def check_settlement_m(name: str, value: float) -> float:
+    """Check a settlement given in metres (``VALUE_SPECS["settlement_m"]``); ConfigError if not.
+
+    A value of a metre or more is most likely millimetres: the message says the unit and what the
+    number would be in metres.
+    """
+    try:
+        return check_value(name, value, "float", VALUE_SPECS["settlement_m"])
+    except ConfigError as err:
+        if not 1.0 <= abs(value) < math.inf:
+            raise
+        raise ConfigError(f"{err} (metres, positive upward: {value:g} mm is {value / 1000:g})") from None
 
 
 def check_value(name: str, value: Any, kind: str, spec: ParamSpec | None = None) -> Any:
