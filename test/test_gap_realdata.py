@@ -157,6 +157,8 @@ def test_known_lowering_names_a_stiffness_not_an_extra_settlement(lowering):
     assert rows["settlement_step"]["delta_log_evidence"] < -20.0
     assert imp["named"] and s["best"] in MODEL_FORM_EFFECTS, s["statement"]
     assert imp["misfit"] is None and "no explanation fits" not in s["statement"]  # it fits the 10 mm
+    assert s["best_effect"]["fits_imposed_steps"] is True
+    assert "does not fit" not in s["posterior"]["after"]["what"]
     assert set(s["indistinguishable_from"]) <= set(MODEL_FORM_EFFECTS)
     # the named model reads the imposed 10 mm as 10 mm within the jacks' accuracy (in-sample)
     x = np.array(rows[s["best"]]["in_sample"][0]["x_m"])
@@ -183,6 +185,12 @@ def test_a_step_given_with_the_wrong_sign_is_said_to_fit_nothing(lowering_bag: P
     assert bad is not None and bad["in_sd"] > 4.0 and bad["effect"] == gap["levels"]["imposed"]["best"]
     assert "But no explanation fits the imposed step(s)" in gap["statement"]
     assert "WARN: no explanation fits the imposed step(s)" in capsys.readouterr().err
+    # where the answer is read, not only in the warnings: the named effect and the posterior after
+    assert gap["best_effect"]["effect"] == bad["effect"] and gap["best_effect"]["fits_imposed_steps"] is False
+    assert f"{bad['effect']} does not fit the imposed steps" in gap["posterior"]["after"]["what"]
+    from bridge_shadow.commands.gap import _human
+
+    assert "does not fit the imposed steps" in _human(gap).splitlines()[0]
 
 
 def test_after_agrees_with_replay_under_the_calibrated_surrogate(lowering_bag: Path, lowering):

@@ -240,6 +240,8 @@ def _human(summary: dict) -> str:
     lines = [f"best: {summary['best']}"]
     if summary["indistinguishable_from"]:
         lines[0] += f"  (cannot be told apart from: {', '.join(summary['indistinguishable_from'])})"
+    if (summary.get("best_effect") or {}).get("fits_imposed_steps") is False:
+        lines[0] += "  (but it does not fit the imposed steps: check their sign, size and time)"
     lines.append(summary["statement"])
     named = ([summary["best_effect"]] if summary.get("best_effect") else []) + summary["also_present"]
     if named:

@@ -162,7 +162,8 @@ def misfit_text(bad: dict[str, Any]) -> str:
 def _prior_sets_text(an: ImposedAnalysis) -> str:
     """Say how the model after weighs the prior sets (sets that keep the sources' prior merged)."""
     fits = an.by_prior.get(an.best) or {}
-    if len(fits) < 2:
+    left_out = an.prior_left_out.get(an.best) or {}
+    if len(fits) < 2 and not left_out:
         return ""
     w = an.prior_weights()
     parts: list[str] = []
@@ -174,7 +175,8 @@ def _prior_sets_text(an: ImposedAnalysis) -> str:
         done.update(same)
         label = k if len(same) == 1 else f"{k} (and {', '.join(same[1:])}, the same prior here)"
         parts.append(f"{label} {sum(w[j] for j in same):.2f}")
-    return f" The model after averages it over the prior sets by their evidence ({', '.join(parts)})."
+    parts += [f"{k} left out: {why}" for k, why in left_out.items()]
+    return f" The model after averages it over the prior sets by their evidence ({'; '.join(parts)})."
 
 
 def level_statement(lv: DayLevels, inside: str) -> str:

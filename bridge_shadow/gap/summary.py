@@ -105,6 +105,28 @@ def named_json(
     return out
 
 
+#: Said of the posterior after a named explanation that does not fit the imposed steps.
+NOT_FITTING = "{effect} does not fit the imposed steps (see warnings): not a corrected model"
+
+
+def _flag_misfit(lv: DayLevels, best_json: dict[str, Any] | None, post: dict[str, Any]) -> None:
+    """Mark the named explanation and the posterior after it when the imposed steps' fit fails.
+
+    The probabilities rank the explanations against each other; the best of those that all need
+    the jacks far off (a step given with the wrong sign) is no answer, so the JSON's ``best_effect``
+    (``fits_imposed_steps``) and the posterior after say so where they are read, not only in the
+    warnings.
+    """
+    an = lv.imposed
+    if an is None or not an.named or best_json is None or best_json.get("effect") != an.best:
+        return
+    fits = an.misfit() is None
+    best_json["fits_imposed_steps"] = fits
+    after = post.get("after") if post.get("computed") else None
+    if not fits and after is not None and an.best in after.get("effects_added", []):
+        after["what"] = f"{after['what']}; {NOT_FITTING.format(effect=an.best)}"
+
+
 def gap_warnings(lv: DayLevels | None, post: dict[str, Any]) -> list[str]:
     """Return what must not pass silently, said on stderr (WARN) and in the JSON's ``warnings``.
 
@@ -216,6 +238,7 @@ def gap_summary(
             best_json, also_json = named_by_levels[0], named_by_levels[1:] + inside
             best, indistinguishable = best_json["effect"], best_json["indistinguishable_from"]
         text = level_statement(lv, text)
+        _flag_misfit(lv, best_json, post)
     where_json["model_part"] = {
         "heldout_gain_by_part": parts,
         "part": EFFECTS[best].part if best != "none" else "none",
