@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -139,12 +139,20 @@ class SolutionStore:
         solves: FE solves done. seconds: time in them and in the adjoint derivatives.
         cache: key -> (solution, {name: ParameterDerivative}); the key holds the FE parameters that
             differ from the bridge model's values (log, rounded to 1e-12).
+        on_solve: called after each FE solve and each set of adjoint derivatives (the command's
+            progress: one explanation's fit is minutes of them), or None.
 
     """
 
     solves: int = 0
     seconds: float = 0.0
     cache: dict[tuple, tuple[BridgeSolution, dict]] = field(default_factory=dict, repr=False)
+    on_solve: Callable[[], None] | None = field(default=None, repr=False, compare=False)
+
+    def solved(self) -> None:
+        """Say that an FE solve or a set of derivatives is done (``on_solve``)."""
+        if self.on_solve is not None:
+            self.on_solve()
 
 
 @dataclass
@@ -194,12 +202,14 @@ class ForwardModel:
             store.seconds += time.perf_counter() - t0
             log.debug("FE solve %d (%.2f s): %s", store.solves, time.perf_counter() - t0, fe)
             store.cache[key] = (sol, {})
+            store.solved()
         sol, derivs = store.cache[key]
         missing = [n for n in self.fe_names if n not in derivs]
         if derivatives and missing:
             t0 = time.perf_counter()
             derivs.update(parameter_derivatives(cfg, sol, missing, self.level))
             store.seconds += time.perf_counter() - t0
+            store.solved()
         return sol, derivs
 
     def evaluate(self, values: Mapping[str, float], derivatives: bool = True) -> Evaluation:

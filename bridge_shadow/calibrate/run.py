@@ -360,11 +360,14 @@ def calibrate(
         names.append(spec.choose)
     table = prior_table(spec.priors)
 
+    last = [0.0, ""]  # the stage reported last: each FE solve inside it says it again
+
     def tick(frac: float, label: str) -> None:
+        last[:] = [frac, label]
         if report is not None:
             report(frac, label)
 
-    store = SolutionStore()
+    store = SolutionStore(on_solve=lambda: tick(last[0], last[1]))
     sun = None
     if spec.baseline_change == "sun":
         # the sun's change between the records read through the model as built (the FE solve is
@@ -401,7 +404,9 @@ def calibrate(
     tick(0.92, f"surrogate at the MAP of {chosen_name}")
     cfg_map = cfg.with_overrides(chosen.values())
     sens_names = tuple(dict.fromkeys([*chosen.names, *SENSITIVITY_PARAMETERS]))
-    run = compute_surrogate(cfg_map, spec.mesh, names=sens_names, sweeps=sweeps)
+    run = compute_surrogate(
+        cfg_map, spec.mesh, names=sens_names, sweeps=sweeps, report=lambda f, s: tick(0.92 + 0.07 * f, s)
+    )
     mean, cov = model_average(explanations)
     extra["model_average"] = _average_summary(explanations, pairs, mean, cov)
     sur = run.surrogate

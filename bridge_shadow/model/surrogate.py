@@ -202,7 +202,13 @@ def compute_surrogate(
         tick("sensitivities")
     swept: dict[str, Any] = {}
     if sweeps:
-        swept = compute_sweeps(cfg, level, base=base)
+        at = done
+
+        def sweep_tick(frac: float, label: str) -> None:
+            if report is not None:
+                report((at + 4 * frac) / steps, label)
+
+        swept = compute_sweeps(cfg, level, base=base, report=sweep_tick)
         tick("sweeps", 4)
     counts = base.mesh.element_counts()
     dead_total = float(base.u0.sum() + sum(base.end_reactions.values()))
