@@ -489,3 +489,31 @@ def test_a_uniform_table_is_read_as_the_row_by_row_loop_reads_it(munich_data: Pa
             both(edited)
     # the blank line, the unreadable value and the 31st month of each source at least
     assert 3 * len(sources) <= taken < len(edits) * len(sources)
+
+
+def test_a_relative_path_not_here_is_read_from_the_shared_data_folder(
+    tmp_path: Path, monkeypatch, capsys
+) -> None:
+    """As ``calibrate`` reads its records: ``import-csv Settlements`` anywhere, BRIDGE_SHADOW_DATA set."""
+    data_dir = tmp_path / "data" / "Records"
+    data_dir.mkdir(parents=True)
+    (data_dir / "a_2022-03-07.csv").write_text(
+        "Time (-),FRC-01 (kN),FRC-02 (kN)\n"
+        "2022-03-07 16:35:00.000,233.90,221.10\n2022-03-07 16:35:00.010,233.80,221.00\n"
+    )
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    monkeypatch.setenv("BRIDGE_SHADOW_DATA", str(tmp_path / "data"))
+    data, _ = import_csv(["Records"])
+    assert len(data.forces["frc_01"]) == 2 and data.forces["frc_01"].force_n[0] == pytest.approx(233.9e3)
+    # a path here wins over the shared one, and a name found in neither says where it looked
+    here = elsewhere / "Records"
+    here.mkdir()
+    (here / "b_2022-03-07.csv").write_text(
+        "Time (-),FRC-01 (kN),FRC-02 (kN)\n2022-03-07 17:35:00.000,203.90,191.10\n"
+    )
+    assert len(import_csv(["Records"])[0].forces["frc_01"]) == 1
+    assert main(["import-csv", "Nowhere", "--out", str(tmp_path / "bag")]) == 2
+    err = capsys.readouterr().err
+    assert "Nowhere: no such file" in err and str(tmp_path / "data") in err

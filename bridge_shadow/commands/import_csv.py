@@ -12,15 +12,17 @@ DESCRIPTION = """\
 Convert the munich-bridge-data CSV format into a rosbag2 bag with the contract input topics
 (/bridge/frc_01/force, /bridge/frc_02/force: WrenchStamped in N; /bridge/air_temperature:
 Temperature in C). Each FILE is a force or temperature CSV, or a zip holding some, recognized by
-its header, or a folder: its CSV and zip files (not its subfolders). Local time (Europe/Berlin)
-becomes UTC; kN becomes N; several temperature files are merged; sample-and-hold repeats are kept
-and counted; a swapped month/day in force stamps (2022-04-11 written as 2022-11-04) is detected
-from the file name, the temperature files' dates, the file date or a future date, or fixed with
---date.
+its header, or a folder: its CSV and zip files (not its subfolders); a relative FILE not found
+here is read from the shared data folder (../shared/data/munich-bridge-data beside the checkout,
+or $BRIDGE_SHADOW_DATA). Local time (Europe/Berlin) becomes UTC; kN becomes N; several
+temperature files are merged; sample-and-hold repeats are kept and counted; a swapped month/day
+in force stamps (2022-04-11 written as 2022-11-04) is detected from the file name, the
+temperature files' dates, the file date or a future date, or fixed with --date.
 
 examples:
   bridge-shadow import-csv ../shared/data/munich-bridge-data/Settlements/*.zip --out /tmp/apr11
   bridge-shadow import-csv ../shared/data/munich-bridge-data/Settlements --out /tmp/apr11
+  bridge-shadow import-csv Settlements --out /tmp/apr11    # the same, from the shared data folder
 """
 
 

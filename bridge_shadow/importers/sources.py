@@ -10,6 +10,7 @@ from pathlib import Path
 
 from bridge_shadow.contract import RECORD_FILE_SUFFIXES
 from bridge_shadow.errors import InputError
+from bridge_shadow.paths import shared_data_dir
 
 __all__ = ["CsvSource", "classify_header", "find_sources", "folder_files"]
 
@@ -123,8 +124,19 @@ def folder_files(folder: Path) -> list[Path]:
     return found
 
 
+def _located(path: Path) -> Path:
+    """Return ``path``, or a relative one missing here under the shared data folder (as ``calibrate``)."""
+    if path.exists() or path.is_absolute():
+        return path
+    shared = shared_data_dir() / path
+    return shared if shared.exists() else path
+
+
 def find_sources(files: list[str | Path]) -> list[CsvSource]:
     """Read every given CSV or zip (a folder: its CSV and zip files) and return its tables, by header.
+
+    A relative path that is not here is looked for under the shared data folder
+    (``paths.shared_data_dir``: ``../shared/data/munich-bridge-data`` or ``$BRIDGE_SHADOW_DATA``).
 
     Raises:
         InputError: a file is missing, unreadable, a broken zip, or holds a CSV of another format;
@@ -134,11 +146,13 @@ def find_sources(files: list[str | Path]) -> list[CsvSource]:
     out: list[CsvSource] = []
     paths: list[Path] = []
     for f in files:
-        path = Path(f)
+        path = _located(Path(f))
         paths.extend(folder_files(path) if path.is_dir() else [path])
     for path in paths:
         if not path.is_file():
-            raise InputError(f"{path}: no such file")
+            raise InputError(
+                f"{path}: no such file (nor in the shared data folder {shared_data_dir()})"
+            )
         try:
             data = path.read_bytes()
         except OSError as err:
