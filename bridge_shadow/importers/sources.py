@@ -150,9 +150,7 @@ def find_sources(files: list[str | Path]) -> list[CsvSource]:
         paths.extend(folder_files(path) if path.is_dir() else [path])
     for path in paths:
         if not path.is_file():
-            raise InputError(
-                f"{path}: no such file (nor in the shared data folder {shared_data_dir()})"
-            )
+            raise InputError(f"{path}: no such file (nor in the shared data folder {shared_data_dir()})")
         try:
             data = path.read_bytes()
         except OSError as err:
