@@ -302,6 +302,11 @@ def _human(summary: dict) -> str:
         for label, p in rows:
             half = f"+-{1.96e3 * p['sigma_m'][0]:.3f} / {1.96e3 * p['sigma_m'][1]:.3f}"
             lines.append(f"  {label:<7} {_mm(p['mean_m'])}  ({half})  {p['what']}")
+        if post.get("alternatives") == {}:
+            lines.append(
+                "  (--alternatives: none to run; the data tell the named effects from every other "
+                "model-form effect)"
+            )
         lines += _event_lines(b, a)
     return "\n".join(lines)
 

@@ -125,7 +125,7 @@ def diagnose(
     post: dict[str, Any] = {"computed": False, "why": "run with shadow=True (the CLI always does)"}
     if shadow:
         cfg = shadow_config if shadow_config is not None else default_config()
-        alts = _stand_ins(r, sel, change, s) if alternatives else None
+        alts = (_stand_ins(r, sel, change, s) or {}) if alternatives else None
         post = shadow_posteriors(data, s, cfg, change, r.windows.t_ns, r.sens, alts)
         post["computed"] = True
     summary = gap_summary(r, sel, post, s, imposed, imposed_sd_m, z, width_s, t0)

@@ -157,7 +157,8 @@ def shadow_posteriors(
     """Run the shadow before and after ``change``; return the ``posterior`` JSON of the diagnosis.
 
     ``alternatives``: model-form effects the data cannot tell from a named one -> the model change
-    with that effect standing in; each is run too (``posterior.alternatives``).
+    with that effect standing in; each is run too (``posterior.alternatives``, empty when asked
+    for and there is none; absent when not asked for).
     """
     from bridge_shadow.estimate import Shadow
 
@@ -181,7 +182,7 @@ def shadow_posteriors(
         "change_m": (np.array(after["mean_m"]) - np.array(before["mean_m"])).tolist(),
         "method": "online Shadow (bridge_shadow.estimate), run as `bridge-shadow replay` runs it",
     }
-    if alternatives:
+    if alternatives is not None:  # asked for: an empty block says there was none to run
         alt = {}
         for name, ch in alternatives.items():
             alt[name] = _after(data, surrogate, config, ch, t_ns, sensitivities)
