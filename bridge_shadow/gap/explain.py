@@ -174,7 +174,8 @@ def _prior_sets_text(an: ImposedAnalysis) -> str:
         same = [j for j, g in fits.items() if g is f]
         done.update(same)
         label = k if len(same) == 1 else f"{k} (and {', '.join(same[1:])}, the same prior here)"
-        parts.append(f"{label} {sum(w[j] for j in same):.2f}")
+        values = ", ".join(f"{n} {v:.3g}" for n, v in f.values().items())
+        parts.append(f"{label} {sum(w[j] for j in same):.2f}, {values}")
     parts += [f"{k} left out: {why}" for k, why in left_out.items()]
     return f" The model after averages it over the prior sets by their evidence ({'; '.join(parts)})."
 

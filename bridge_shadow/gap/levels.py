@@ -344,10 +344,10 @@ class ImposedAnalysis:
         out: dict[str, Any] = {
             "rule": (
                 "the model after (and --out-surrogate) averages the named explanation over the prior "
-                "sets not chosen after the data (model.parameters.PRIOR_SETS), each equally likely "
-                "beforehand, by their evidence; its spread joins the model uncertainty; a set whose "
-                "fit leaves the plausible range (the sources' table, which calibrate and gap share) "
-                "is left out"
+                "sets not chosen after the data (model.parameters.PRIOR_SETS), each set equally "
+                "likely beforehand (a prior two sets share counts twice), by their evidence; its "
+                "spread joins the model uncertainty; a set whose fit leaves the plausible range (the "
+                "sources' table, which calibrate and gap share) is left out"
             )
         }
         for effect, fits in self.by_prior.items():

@@ -228,7 +228,9 @@ def _levels_markdown(levels: dict[str, Any] | None) -> list[str]:
         sets = imp.get("prior_sets") or {}
         best = sets.get(imp["best"]) if imp.get("named") else None
         if best:
-            weights = ", ".join(f"{k} {v['weight']:.2f}" for k, v in best.items())
+            weights = ", ".join(
+                f"{k} left out" if "left_out" in v else f"{k} {v['weight']:.2f}" for k, v in best.items()
+            )
             head = f"The model after averages {imp['best']} over the prior sets ({weights})"
             lines += ["", f"{head}: {sets['rule']}."]
     steps = levels.get("steps_between_records") or []
