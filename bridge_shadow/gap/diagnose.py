@@ -25,7 +25,7 @@ from bridge_shadow.gap.drivers import Drivers
 from bridge_shadow.gap.explain import model_change, stand_in_changes
 from bridge_shadow.gap.fit import CvResult
 from bridge_shadow.gap.fitter import Fitter
-from bridge_shadow.gap.posterior import ModelChange, shadow_posteriors
+from bridge_shadow.gap.posterior import IMPOSED_AVERAGE, ModelChange, shadow_posteriors
 from bridge_shadow.gap.posterior import shadow_config as default_config
 from bridge_shadow.gap.rank import Selection, select_effects
 from bridge_shadow.gap.records import IMPOSED_SD_M
@@ -120,7 +120,8 @@ def diagnose(
     lv = r.levels
     if lv is not None and lv.model is not s:
         change.replaced = lv.model
-        change.effects.insert(0, lv.imposed.best if lv.imposed is not None else "model")
+        an = lv.imposed
+        change.effects.insert(0, "model" if an is None else an.best if an.named else IMPOSED_AVERAGE)
     after_model = change.surrogate(s, r.sens)
     post: dict[str, Any] = {"computed": False, "why": "run with shadow=True (the CLI always does)"}
     if shadow:

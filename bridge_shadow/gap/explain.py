@@ -16,7 +16,7 @@ from bridge_shadow.effects import EFFECTS, MODEL_FORM_EFFECTS, SETTLEMENT_EFFECT
 from bridge_shadow.gap.day_levels import DayLevels
 from bridge_shadow.gap.fit import CvResult
 from bridge_shadow.gap.fitter import BY_NAME, Fitter
-from bridge_shadow.gap.posterior import ModelChange
+from bridge_shadow.gap.posterior import IMPOSED_AVERAGE, ModelChange
 from bridge_shadow.gap.rank import Named, Ranking, own_beta
 from bridge_shadow.model.surrogate_file import Surrogate
 
@@ -212,6 +212,16 @@ def level_statement(lv: DayLevels, inside: str) -> str:
                 f"{an.best} is likelier (probability {an.weights[an.best]:.2f}) than the model as given "
                 f"(settlement_step, {an.weights['settlement_step']:.2f}), not by the Bayes factor that "
                 "names an effect; the records are too far apart or too few to show it."
+            )
+        after = getattr(lv, "model", None)  # the model the levels hand on (a DayLevels always has one)
+        averaged = (
+            after is not None
+            and after.provenance.get("gap_model_change", {}).get("effect") == IMPOSED_AVERAGE
+        )
+        if not an.named and averaged:
+            text += (
+                " The model after averages the explanations by their probability, the model as given "
+                "among them, their spread in its uncertainty."
             )
         if bad is not None:
             text += " But " + misfit_text(bad)

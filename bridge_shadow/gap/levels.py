@@ -54,6 +54,7 @@ from bridge_shadow.calibrate.problem import PairData
 from bridge_shadow.calibrate.run import evidence_weights, model_average
 from bridge_shadow.calibrate.surrogate_forward import SurrogateForward
 from bridge_shadow.contract import CHANNELS
+from bridge_shadow.gap.posterior import IMPOSED_AVERAGE
 from bridge_shadow.gap.records import IMPOSED_SD_M, OneChannel, Record
 from bridge_shadow.model.build import SUPPORT_SPRINGS
 from bridge_shadow.model.parameters import PARAMETERS, PRIOR_SETS, prior_table
@@ -315,8 +316,12 @@ class ImposedAnalysis:
         effect = name or self.best
         row = rows[effect] if rows is not None else self.explanations[effect].summary()
         worst = (0.0, "", 0.0)
+        accuracy = {p.name: p.imposed_sd_m for p in self.pairs}
         for pair, err in row["imposed_error_m"].items():
-            for value, sd in zip(err["map"], err["sd"], strict=True):
+            # against the jacks' accuracy (their prior sd), not the fit's posterior sd of the error:
+            # precise levels pin a jack's error to a few hundredths of a mm, and an ordinary error
+            # of one accuracy read as 18 "sds" said no explanation fits (a twin day of 1e8 N/m springs)
+            for value, sd in zip(err["map"], accuracy[pair], strict=True):
                 ratio = abs(value) / sd if sd > 0 else math.inf
                 if ratio > worst[0]:
                     worst = (ratio, pair, value)
@@ -378,6 +383,55 @@ class ImposedAnalysis:
         e = self.explanations[effect]
         fits = self.by_prior.get(effect) or {"sources": e}
         mean, spread = model_average(fits)
+        weights = evidence_weights(fits)
+        change = {
+            "effect": e.name,
+            "parameters": e.values(),
+            "fitted_to": [p.name for p in self.pairs],
+            "log_evidence": e.post.log_evidence,
+            "prior_sets": {
+                k: {"weight": weights[k], "parameters": f.values(), "log_evidence": f.post.log_evidence}
+                for k, f in fits.items()
+            },
+        }
+        return self._model(base, mean, spread, e, change)
+
+    def surrogate_average(self, base: Surrogate) -> Surrogate:
+        """Return the model average over every explanation, the model as given among them.
+
+        For imposed steps that name no effect (``named`` false: no explanation beats the model as
+        given by the naming factor) the model as given is one explanation of several, not the
+        answer: each explanation weighs by its probability (``weights``), within it each prior set
+        by its evidence (``by_prior``), and the spread between them joins the model uncertainty
+        (``calibrate.run.model_average``'s moments), the rest as ``surrogate_after``.
+        """
+        fits: dict[str, Explanation] = {}
+        w: dict[str, float] = {}
+        for effect, e in self.explanations.items():
+            sets = self.by_prior.get(effect) or {"sources": e}
+            within = evidence_weights(sets)
+            for k, f in sets.items():
+                fits[f"{effect} ({k})"] = f
+                w[f"{effect} ({k})"] = self.weights[effect] * within[k]
+        vecs = {k: f.model_vector() for k, f in fits.items()}
+        mean = sum(w[k] * vecs[k] for k in fits)
+        spread = sum(
+            w[k] * (f.model_cov() + np.outer(vecs[k] - mean, vecs[k] - mean)) for k, f in fits.items()
+        )
+        change = {
+            "effect": IMPOSED_AVERAGE,
+            "fitted_to": [p.name for p in self.pairs],
+            "weights": dict(self.weights),
+            "parameters": {k: f.values() for k, f in fits.items() if f.names},
+        }
+        return self._model(
+            base, np.asarray(mean, float), 0.5 * (spread + spread.T), self.explanations[self.best], change
+        )
+
+    def _model(
+        self, base: Surrogate, mean: np.ndarray, spread: np.ndarray, e: Explanation, change: dict[str, Any]
+    ) -> Surrogate:
+        """Return the model after from a mixture's moments (``surrogate_after``, ``surrogate_average``)."""
         a = mean[:4].reshape(2, 2)
         thermal = dict(e.evaluation.thermal)
         thermal.update({c: mean[6 + 2 * i : 8 + 2 * i].copy() for i, c in enumerate(THERMAL_CASES)})
@@ -391,17 +445,7 @@ class ImposedAnalysis:
         states = [p.settlement_before_m for p in self.pairs]
         states += [p.settlement_before_m + p.imposed_m for p in self.pairs if p.imposed_m is not None]
         prov = dict(base.provenance)
-        weights = evidence_weights(fits)
-        prov["gap_model_change"] = {
-            "effect": e.name,
-            "parameters": e.values(),
-            "fitted_to": [p.name for p in self.pairs],
-            "log_evidence": e.post.log_evidence,
-            "prior_sets": {
-                k: {"weight": weights[k], "parameters": f.values(), "log_evidence": f.post.log_evidence}
-                for k, f in fits.items()
-            },
-        }
+        prov["gap_model_change"] = change
         return Surrogate(
             0.5 * (a + a.T), base.u0.copy(), thermal, prov, cov, Discrepancy.from_steps(np.array(states))
         )

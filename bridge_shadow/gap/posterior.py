@@ -27,7 +27,11 @@ from bridge_shadow.model.sensitivities import StiffnessSensitivity, change_surro
 from bridge_shadow.model.surrogate_file import Surrogate
 from bridge_shadow.series import ForceSeries, MonitoringData
 
-__all__ = ["ModelChange", "shadow_config", "shadow_posteriors", "subtract_contribution"]
+__all__ = ["IMPOSED_AVERAGE", "ModelChange", "shadow_config", "shadow_posteriors", "subtract_contribution"]
+
+#: The model after when imposed steps name no effect: the average over their explanations, the
+#: model as given among them (``gap.levels.ImposedAnalysis.surrogate_average``).
+IMPOSED_AVERAGE = "imposed_steps_average"
 
 
 @dataclass
@@ -126,14 +130,22 @@ def _after(
     if change.replaced is not None:
         model_change = changed.provenance.get("gap_model_change", {})
         after["model_change_from_levels"] = model_change
+    named = [e for e in change.effects if e != IMPOSED_AVERAGE]
     after["what"] = (
-        f"the shadow with {', '.join(change.effects)} added to the model (settlements stay the "
-        "shadow's to estimate)"
+        f"the shadow with {', '.join(named)} added to the model (settlements stay the shadow's to estimate)"
+        if named
+        else "the shadow"
     )
+    if IMPOSED_AVERAGE in change.effects:
+        after["what"] += (
+            ", its model averaged over the imposed steps' explanations by their probability (the model "
+            "as given among them: the steps named none)"
+        )
     after["effects_added"] = list(change.effects)
     # what a surrogate file can carry (``gap --out-surrogate``) and what only this run takes off
-    after["effects_in_surrogate"] = [e for e in change.effects if e in MODEL_FORM_EFFECTS]
-    after["effects_off_the_record"] = [e for e in change.effects if e not in MODEL_FORM_EFFECTS]
+    model_form = (*MODEL_FORM_EFFECTS, IMPOSED_AVERAGE)
+    after["effects_in_surrogate"] = [e for e in change.effects if e in model_form]
+    after["effects_off_the_record"] = [e for e in change.effects if e not in model_form]
     model: dict[str, Any] = {k: float(v) for k, v in change.ratios.items()}
     if np.any(np.isfinite(change.springs_n_per_m)):
         model["support_spring_n_per_m"] = [None if np.isinf(k) else float(k) for k in change.springs_n_per_m]
