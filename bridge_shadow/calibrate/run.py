@@ -226,15 +226,18 @@ def evidence_weights(explanations: dict[str, Explanation]) -> dict[str, float]:
 
 
 def model_average(
-    explanations: dict[str, Explanation], about: np.ndarray | None = None
+    explanations: dict[str, Explanation],
+    about: np.ndarray | None = None,
+    weights: Mapping[str, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bayesian model average of the explanations' surrogates: mean (12,) and covariance (12, 12).
 
     ``m = sum_k w_k m_k`` and ``C = sum_k w_k (C_k + (m_k - c)(m_k - c)')`` with ``c = m`` (the
     total covariance of the mixture) or ``about`` (its second moment about another point). Model
-    vectors in ``MODEL_UNCERTAINTY_ORDER_FULL`` order.
+    vectors in ``MODEL_UNCERTAINTY_ORDER_FULL`` order. ``weights``: ``w_k`` (summing to one), by
+    default the evidence weights (equal prior odds).
     """
-    w = evidence_weights(explanations)
+    w = dict(weights) if weights is not None else evidence_weights(explanations)
     vecs = {k: e.model_vector() for k, e in explanations.items()}
     mean = sum(w[k] * vecs[k] for k in explanations)
     centre = mean if about is None else np.asarray(about, float)

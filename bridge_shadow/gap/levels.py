@@ -413,20 +413,14 @@ class ImposedAnalysis:
             for k, f in sets.items():
                 fits[f"{effect} ({k})"] = f
                 w[f"{effect} ({k})"] = self.weights[effect] * within[k]
-        vecs = {k: f.model_vector() for k, f in fits.items()}
-        mean = sum(w[k] * vecs[k] for k in fits)
-        spread = sum(
-            w[k] * (f.model_cov() + np.outer(vecs[k] - mean, vecs[k] - mean)) for k, f in fits.items()
-        )
+        mean, spread = model_average(fits, weights=w)
         change = {
             "effect": IMPOSED_AVERAGE,
             "fitted_to": [p.name for p in self.pairs],
             "weights": dict(self.weights),
             "parameters": {k: f.values() for k, f in fits.items() if f.names},
         }
-        return self._model(
-            base, np.asarray(mean, float), 0.5 * (spread + spread.T), self.explanations[self.best], change
-        )
+        return self._model(base, mean, spread, self.explanations[self.best], change)
 
     def _model(
         self, base: Surrogate, mean: np.ndarray, spread: np.ndarray, e: Explanation, change: dict[str, Any]
