@@ -362,7 +362,7 @@ def run(args: argparse.Namespace) -> int:
     from bridge_shadow.errors import InputError
     from bridge_shadow.estimate.parameters.specs import SPECS, check_value
     from bridge_shadow.fileio import check_output_dir
-    from bridge_shadow.gap.posterior import shadow_config
+    from bridge_shadow.gap.posterior import IMPOSED_AVERAGE, shadow_config
     from bridge_shadow.gap.records import IMPOSED_SD_M
     from bridge_shadow.model.surrogate_file import load_surrogate, save_surrogate, surrogate_target
 
@@ -399,13 +399,14 @@ def run(args: argparse.Namespace) -> int:
     if args.out_surrogate:
         after = dg.surrogate_after if dg.surrogate_after is not None else surrogate
         named = summary.get("posterior", {}).get("after", {})
-        carried = list(named.get("effects_in_surrogate", []))
+        average = "the imposed steps' explanations averaged by probability (none named)"
+        carried = [average if e == IMPOSED_AVERAGE else e for e in named.get("effects_in_surrogate", [])]
         if named.get("model_change_from_levels"):  # a day of records: the model its levels were read with
             carried.append("the model the records' levels were read with (provenance gap_model_change)")
         off_record = named.get("effects_off_the_record", [])
         header = (
             f"Written by `bridge-shadow gap {args.bag} --out-surrogate`: the model in use\n"
-            f"({summary['surrogate_file']}) with the named effects that change the model: "
+            f"({summary['surrogate_file']}) with what changes the model: "
             f"{', '.join(carried) or 'none'}.\n"
             + (
                 f"Not in it: {', '.join(off_record)}, loads `after` took off the record (a surrogate\n"

@@ -135,6 +135,6 @@ def read_levels(
         analysis = explain_imposed(pairs, s, sweeps_of(s, surrogate_path), sens)
         if analysis.named:
             model = analysis.surrogate_after(s)
-        elif analysis.misfit("settlement_step") is None:  # none named: all of them, by probability
+        else:  # none named: all of them, by probability (a misfit is said, as for a named one)
             model = analysis.surrogate_average(s)
     return DayLevels(records, pairs, notes, analysis, free_steps(pairs, model), model, list(blind))

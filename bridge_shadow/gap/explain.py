@@ -154,7 +154,8 @@ def misfit_text(bad: dict[str, Any]) -> str:
     return (
         f"no explanation fits the imposed step(s): even {bad['effect']} needs the jacks of "
         f"{bad['pair']} {1e3 * bad['jack_error_m']:+.2f} mm off what was imposed, {bad['in_sd']:.0f} "
-        "times their accuracy. Check the step's sign, size and time (and that the bag is the one "
+        f"times the fit's uncertainty of that error ({bad.get('in_accuracy', 0.0):.1f} times the "
+        "jacks' accuracy). Check the step's sign, size and time (and that the bag is the one "
         "the step was made in) before using a model written from it."
     )
 
@@ -190,7 +191,7 @@ def level_statement(lv: DayLevels, inside: str) -> str:
     an = lv.imposed
     if an is not None:
         rows = {r["effect"]: r for r in an.table()}
-        bad = an.misfit(None if an.named else "settlement_step", rows)
+        bad = an.misfit(None, rows)  # the best, as the JSON and the WARN line say
         if an.named:
             p = ", ".join(f"{k} {v:.3g}" for k, v in rows[an.best]["parameters"].items())
             text += (
