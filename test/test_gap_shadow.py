@@ -116,7 +116,7 @@ def test_the_surrogate_written_says_which_named_effects_it_cannot_carry(demo):
     assert set(after["effects_off_the_record"]) == {"vertical_gradient", "transverse_gradient", "traffic"}
     written = Path(gap["surrogate_written"])
     header = written.read_text().split("\nA:", 1)[0]
-    assert "the named effects that change the model: none" in header and "Not in it:" in header
+    assert "with what changes the model: none" in header and "Not in it:" in header
     np.testing.assert_allclose(load_surrogate(written).A, load_surrogate().A, rtol=1e-15)
     again = json.loads(_cli(["replay", gap["bag"], "--json", "--surrogate", str(written)]))
     np.testing.assert_allclose(again["posterior"]["mean_m"], gap["posterior"]["before"]["mean_m"], rtol=1e-12)
