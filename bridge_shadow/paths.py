@@ -6,7 +6,7 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["config_dir", "config_file", "repo_root", "shared_data_dir"]
+__all__ = ["config_dir", "config_file", "data_candidates", "repo_root", "shared_data_dir"]
 
 _PACKAGE = "bridge_shadow"
 
@@ -38,6 +38,17 @@ def config_dir() -> Path:
 def config_file(name: str) -> Path:
     """Return the path of a shipped configuration file (it may not exist yet)."""
     return config_dir() / name
+
+
+def data_candidates(path: Path, base: Path | None = None) -> list[Path]:
+    """Return where a data path a user gave may be, in the order to try.
+
+    As is if absolute; else under ``base`` (if given), the working directory and the shared data
+    folder (``shared_data_dir``).
+    """
+    if path.is_absolute():
+        return [path]
+    return ([base / path] if base is not None else []) + [Path.cwd() / path, shared_data_dir() / path]
 
 
 def shared_data_dir() -> Path:

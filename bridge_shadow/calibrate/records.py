@@ -13,7 +13,7 @@ from pathlib import Path
 
 from bridge_shadow.calibrate.errors import CalibrationError
 from bridge_shadow.contract import FORCE_TOPICS
-from bridge_shadow.paths import shared_data_dir
+from bridge_shadow.paths import data_candidates
 from bridge_shadow.series import MonitoringData
 
 __all__ = ["load_record", "resolve_path"]
@@ -21,11 +21,7 @@ __all__ = ["load_record", "resolve_path"]
 
 def resolve_path(path: str | Path, base: Path | None = None) -> Path:
     """Absolute path of ``path``: as is, else under ``base``, else under the shared data directory."""
-    p = Path(path).expanduser()
-    if p.is_absolute():
-        candidates = [p]
-    else:
-        candidates = ([base / p] if base is not None else []) + [Path.cwd() / p, shared_data_dir() / p]
+    candidates = data_candidates(Path(path).expanduser(), base)
     for c in candidates:
         if c.exists():
             return c.resolve()

@@ -344,7 +344,20 @@ class ImposedAnalysis:
     def prior_weights(self, name: str | None = None) -> dict[str, float]:
         """Posterior probability of each defensible prior set for explanation ``name`` (default ``best``)."""
         effect = name or self.best
-        return evidence_weights(self.by_prior.get(effect) or {"sources": self.explanations[effect]})
+        return evidence_weights(self._fits(effect))
+
+    def _fits(self, effect: str) -> dict[str, Explanation]:
+        """Explanation ``effect``'s fit under each defensible prior set (one set: the sources')."""
+        return self.by_prior.get(effect) or {"sources": self.explanations[effect]}
+
+    def _sets_json(self, effect: str) -> dict[str, Any]:
+        """Explanation ``effect``'s weight, log evidence and MAP (SI) under each prior set."""
+        fits = self._fits(effect)
+        w = evidence_weights(fits)
+        return {
+            k: {"weight": w[k], "log_evidence": f.post.log_evidence, "parameters": f.values()}
+            for k, f in fits.items()
+        }
 
     def prior_sets_json(self) -> dict[str, Any]:
         """Per explanation with parameters: its fit and evidence under each defensible prior set (SI)."""
@@ -357,12 +370,8 @@ class ImposedAnalysis:
                 "sources' table, which calibrate and gap share) is left out"
             )
         }
-        for effect, fits in self.by_prior.items():
-            w = evidence_weights(fits)
-            out[effect] = {
-                k: {"weight": w[k], "log_evidence": f.post.log_evidence, "parameters": f.values()}
-                for k, f in fits.items()
-            }
+        for effect in self.by_prior:
+            out[effect] = self._sets_json(effect)
             for k, why in self.prior_left_out.get(effect, {}).items():
                 out[effect][k] = {"weight": 0.0, "left_out": why}
         return out
@@ -383,18 +392,13 @@ class ImposedAnalysis:
         """
         effect = name or self.best
         e = self.explanations[effect]
-        fits = self.by_prior.get(effect) or {"sources": e}
-        mean, spread = model_average(fits)
-        weights = evidence_weights(fits)
+        mean, spread = model_average(self._fits(effect))
         change = {
             "effect": e.name,
             "parameters": e.values(),
             "fitted_to": [p.name for p in self.pairs],
             "log_evidence": e.post.log_evidence,
-            "prior_sets": {
-                k: {"weight": weights[k], "parameters": f.values(), "log_evidence": f.post.log_evidence}
-                for k, f in fits.items()
-            },
+            "prior_sets": self._sets_json(effect),
         }
         return self._model(base, mean, spread, e, change)
 
@@ -409,8 +413,8 @@ class ImposedAnalysis:
         """
         fits: dict[str, Explanation] = {}
         w: dict[str, float] = {}
-        for effect, e in self.explanations.items():
-            sets = self.by_prior.get(effect) or {"sources": e}
+        for effect in self.explanations:
+            sets = self._fits(effect)
             within = evidence_weights(sets)
             for k, f in sets.items():
                 fits[f"{effect} ({k})"] = f

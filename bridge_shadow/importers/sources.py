@@ -10,7 +10,7 @@ from pathlib import Path
 
 from bridge_shadow.contract import RECORD_FILE_SUFFIXES
 from bridge_shadow.errors import InputError
-from bridge_shadow.paths import shared_data_dir
+from bridge_shadow.paths import data_candidates, shared_data_dir
 
 __all__ = ["CsvSource", "classify_header", "find_sources", "folder_files"]
 
@@ -126,10 +126,9 @@ def folder_files(folder: Path) -> list[Path]:
 
 def _located(path: Path) -> Path:
     """Return ``path``, or a relative one missing here under the shared data folder (as ``calibrate``)."""
-    if path.exists() or path.is_absolute():
-        return path
-    shared = shared_data_dir() / path
-    return shared if shared.exists() else path
+    if path.exists():
+        return path  # as given, so the tables keep the name the user wrote
+    return next((c for c in data_candidates(path) if c.exists()), path)
 
 
 def find_sources(files: list[str | Path]) -> list[CsvSource]:
