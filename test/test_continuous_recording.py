@@ -39,7 +39,7 @@ def test_a_lowering_inside_one_long_recording_with_the_test_car_is_no_silent_dat
     A run held ``event_max_pending`` windows that moved the reactions' sum by more than any vehicle,
     clear of no change at 95 %, is a provisional change (weighed "changed" against "not changed"),
     not data of the old state: the stream ends within 10 % of -20 mm with an interval holding it,
-    the first step reported as a likely change, no window lost.
+    the first step reported (a likely change; since stop 79 both steps are events), no window lost.
     """
     step = (-0.01, -0.01)
     pieces = [Piece("ref", 0.0), Piece("ref", 0.2, step), Piece("ref", 0.4, (-0.02, -0.02))]
@@ -51,7 +51,11 @@ def test_a_lowering_inside_one_long_recording_with_the_test_car_is_no_silent_dat
     first = sc.starts_ns[1] // W
     reported = [e.window for e in res.events] + [c.window for c in res.changes if c.likely]
     assert any(abs(k - first) <= 1 for k in reported), (reported, first)  # before: nothing said
-    assert res.warnings  # the change not confirmed is said
+    # each step is an event (the young noise model's check, ``Shadow._young_step``), or, as the
+    # first was before that check (-18.3 mm, probability 0.82), a change not confirmed, warned
+    events = [e.window for e in res.events]
+    for start in sc.starts_ns[1:]:
+        assert any(abs(k - start // W) <= 1 for k in events) or res.warnings, (events, start // W)
 
 
 def test_a_run_used_as_data_that_moved_beyond_any_vehicle_is_a_warning(surrogate) -> None:

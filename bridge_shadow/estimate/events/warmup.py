@@ -64,9 +64,12 @@ __all__ = [
     "false_ramp_probability",
     "false_step_probability",
     "false_two_step_probability",
+    "jump_goes_on",
     "moved_not_still",
     "moved_then_still",
     "moving_on_known_noise",
+    "new_state_at_last",
+    "over_median_ratio",
     "ramp_in_progress",
     "ramp_ratio",
     "ramp_windows",
@@ -316,6 +319,65 @@ def _steps(
         if ratio > f and ratio > best:
             best, found = ratio, [(p[3], p[4]), (q[3], q[4])]
     return found
+
+
+def new_state_at_last(y: np.ndarray, k: np.ndarray, probability: float, vehicle_max_n: float) -> bool:
+    """Whether the last of window means ``y`` (n, 2) N begins a state no vehicle and no noise makes.
+
+    Its jump (the last difference, or the last two when they share a sign: a step inside the
+    window before) moves the reactions' sum beyond any vehicle (``vehicle_max_n``, either way),
+    and its ``J`` (``_differences``) exceeds ``c`` times the median ``J`` of the differences before
+    it, ``c = over_median_ratio(m, probability / 2)`` for each of the two jumps: without a step
+    the ``J`` are exchangeable, each the robust scale's error times a chi-square(2), which cancels
+    in the ratio. Unlike the step rules it does not ask the jump to dwarf every other difference:
+    a load that stood over several of the windows, coming and going in stages, makes differences
+    of a vehicle's size that hide a settlement from those rules; no vehicle makes this jump.
+    """
+    diffs = _differences(y, k, MIN_DIFFERENCES)
+    if diffs is None:
+        return False
+    raw, lag, _, prec, single = diffs
+    half = 0.5 * probability
+    jumps = [(raw[-1], float(single[-1]), single[:-1])]
+    if len(raw) > MIN_DIFFERENCES and float(raw[-1] @ prec @ raw[-2]) > 0.0:
+        d = (raw[-1] + raw[-2]) / np.sqrt(lag[-1] + lag[-2])
+        jumps.append((raw[-1] + raw[-2], float(d @ prec @ d), single[:-2]))
+    return any(
+        beyond_any_vehicle(step, vehicle_max_n)
+        and j > over_median_ratio(len(rest), half) * float(np.median(rest))
+        for step, j, rest in jumps
+    )
+
+
+@lru_cache(maxsize=256)
+def over_median_ratio(m: int, probability: float) -> float:
+    """Return ``c`` with ``P(X > c M) = probability``, ``M`` the median of ``m`` others (i.i.d. exponential).
+
+    Rényi's representation of the ``r``-th smallest of ``m`` exponentials,
+    ``sum_{i <= r} E_i / (m - i + 1)``, gives ``P(X > c M) = E[exp(-c M)] =
+    prod_{i <= r} (m - i + 1) / (m - i + 1 + c)`` (``r = ceil(m / 2)``, the lower median).
+    """
+    r = (m + 1) // 2
+
+    def excess(c: float) -> float:
+        return float(np.prod([(m - i + 1) / (m - i + 1 + c) for i in range(1, r + 1)])) - probability
+
+    return float(optimize.brentq(excess, 0.0, 1e12))
+
+
+def jump_goes_on(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
+    """Whether the last difference of window means ``y`` (n, 2) N goes on the jump before it.
+
+    The two share a sign (``d_a' P d_b > 0``, ``P`` the differences' robust precision) and the
+    last one's ``J`` is above the chi-square(2) quantile of ``probability`` (as in
+    ``new_state_at_last``): the window between them is where the jump happened, holding both
+    states.
+    """
+    diffs = _differences(y, k, MIN_DIFFERENCES)
+    if diffs is None:
+        return False
+    _, _, d, prec, single = diffs
+    return float(d[-2] @ prec @ d[-1]) > 0.0 and float(single[-1]) > -2.0 * math.log(probability)
 
 
 def false_ramp_probability(f: float, n: int, length: int, blocks: int | None = None) -> float:

@@ -98,6 +98,48 @@ def _window_state(w: Any) -> dict[str, Any]:
     }
 
 
+def _windows_state(windows: list[Window], width: int) -> dict[str, Any]:
+    """Return windows (the queue's, the young ones) as arrays, one row each."""
+    return {
+        "k": np.array([w.k for w in windows], np.int64),
+        "samples": np.array([w.samples for w in windows], np.int64).reshape(-1, 2),
+        "force": np.array([w.force for w in windows], float).reshape(-1, 2),
+        "temp": np.array([w.temp for w in windows], float).reshape(-1, 2),
+        "reason": json.dumps([w.reason for w in windows]),
+        "action": json.dumps([w.action for w in windows]),
+        "i0": np.array([w.i0 for w in windows], np.int64).reshape(-1, 2),
+        "bv": np.array([w.bv for w in windows], float).reshape(-1, 2, width),
+        "svar": np.array([w.svar for w in windows], float),
+        "tvar": np.array([w.tvar for w in windows], float),
+        "event_end": np.array([w.event_end for w in windows], bool),
+        "seg": np.array([w.seg for w in windows], np.int64),
+    }
+
+
+def _windows_restored(q: dict[str, Any], width: int) -> list[Window]:
+    """Return the windows ``_windows_state`` wrote."""
+    reasons = json.loads(str(q["reason"]))
+    actions = json.loads(str(q["action"]))
+    out = []
+    for i, k in enumerate(np.asarray(q["k"]).ravel()):
+        w = Window(
+            int(k),
+            np.asarray(q["samples"]).reshape(-1, 2)[i],
+            np.asarray(q["force"], float).reshape(-1, 2)[i],
+            np.asarray(q["temp"], float).reshape(-1, 2)[i],
+            reasons[i],
+            np.asarray(q["i0"]).reshape(-1, 2)[i],
+            np.asarray(q["bv"], float).reshape(-1, 2, width)[i],
+            float(np.asarray(q["svar"], float).ravel()[i]),
+            float(np.asarray(q["tvar"], float).ravel()[i]) if "tvar" in q else 0.0,
+        )
+        w.action = actions[i]
+        w.event_end = bool(np.asarray(q["event_end"]).ravel()[i])
+        w.seg = int(np.asarray(q["seg"]).ravel()[i])
+        out.append(w)
+    return out
+
+
 def shadow_state(shadow: Shadow) -> dict[str, Any]:
     """Return the state of ``shadow`` as nested plain data."""
     queue = list(shadow._queue)
@@ -143,20 +185,14 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
         },
         "last_ok": _window_state(shadow._last_ok),
         "queue": {
-            "k": np.array([w.k for w in queue], np.int64),
-            "samples": np.array([w.samples for w in queue], np.int64).reshape(-1, 2),
-            "force": np.array([w.force for w in queue], float).reshape(-1, 2),
-            "temp": np.array([w.temp for w in queue], float).reshape(-1, 2),
-            "reason": json.dumps([w.reason for w in queue]),
-            "action": json.dumps([w.action for w in queue]),
-            "i0": np.array([w.i0 for w in queue], np.int64).reshape(-1, 2),
-            "bv": np.array([w.bv for w in queue], float).reshape(-1, 2, width),
-            "svar": np.array([w.svar for w in queue], float),
-            "tvar": np.array([w.tvar for w in queue], float),
-            "event_end": np.array([w.event_end for w in queue], bool),
-            "seg": np.array([w.seg for w in queue], np.int64),
+            **_windows_state(queue, width),
             "warm": np.array([index[id(w)] for w in shadow._warm], np.int64),
             "fresh": np.array([index[id(w)] for w in shadow._fresh], np.int64),
+        },
+        "young": {
+            **_windows_state(shadow._young, width),
+            "in_queue": np.array([index.get(id(w), -1) for w in shadow._young], np.int64),
+            "done": shadow._young_done,
         },
         "rows": {
             "k": np.array([r[0] for r in rows], np.int64),
@@ -269,28 +305,18 @@ def restore_shadow(
     if shadow.fit is not None:
         shadow.filter.use_noise(shadow.noise)
     q = state["queue"]
-    reasons = json.loads(str(q["reason"]))
-    actions = json.loads(str(q["action"]))
-    queue = []
-    for i, k in enumerate(np.asarray(q["k"]).ravel()):
-        w = Window(
-            int(k),
-            np.asarray(q["samples"]).reshape(-1, 2)[i],
-            np.asarray(q["force"], float).reshape(-1, 2)[i],
-            np.asarray(q["temp"], float).reshape(-1, 2)[i],
-            reasons[i],
-            np.asarray(q["i0"]).reshape(-1, 2)[i],
-            np.asarray(q["bv"], float).reshape(-1, 2, width)[i],
-            float(np.asarray(q["svar"], float).ravel()[i]),
-            float(np.asarray(q["tvar"], float).ravel()[i]) if "tvar" in q else 0.0,
-        )
-        w.action = actions[i]
-        w.event_end = bool(np.asarray(q["event_end"]).ravel()[i])
-        w.seg = int(np.asarray(q["seg"]).ravel()[i])
-        queue.append(w)
+    queue = _windows_restored(q, width)
     shadow._queue.extend(queue)
     shadow._warm = [queue[int(i)] for i in np.asarray(q["warm"]).ravel()]
     shadow._fresh = [queue[int(i)] for i in np.asarray(q["fresh"]).ravel()] if "fresh" in q else []
+    if "young" in state:  # (a checkpoint from before the young noise model's check: done)
+        y = state["young"]
+        own = _windows_restored(y, width)
+        at = np.asarray(y["in_queue"], np.int64).ravel()
+        shadow._young = [queue[int(i)] if i >= 0 else w for i, w in zip(at, own, strict=True)]
+        shadow._young_done = bool(y["done"])
+    else:
+        shadow._young, shadow._young_done = [], True
     d = state["detector"]
     det = shadow.detector
     det.n_events = int(d["n_events"])
