@@ -170,6 +170,11 @@ class ChangeRecord:
             possible change after it): that state's start, ns (None when the data end in it).
             ``windows`` are those before it: a change followed minutes later by a small event has
             few windows of its own and yet the data after it stayed changed.
+        state_if_changed_m: for the current state's provisional segment not decided (change
+            probability between 1e-3 and one half) whose data estimate, the state a change would
+            mean, lies outside the posterior's 95 % interval of a support: that state (2,) m; the
+            posterior, one Gaussian over both outcomes, does not hold it (a warning). None
+            otherwise.
 
     """
 
@@ -184,6 +189,7 @@ class ChangeRecord:
     significant: bool | None = None
     until_ns: int | None = None
     next_ns: int | None = None
+    state_if_changed_m: np.ndarray | None = None
 
     @property
     def likely(self) -> bool:
@@ -191,11 +197,12 @@ class ChangeRecord:
 
         A significant run; at a gap or a held run, a change more likely than not, or one the data
         have not yet decided whose size's 95 % region excludes zero (two windows of a large new
-        state: too few to confirm, too large to keep quiet).
+        state: too few to confirm, too large to keep quiet), or whose state lies outside the
+        posterior's interval (``state_if_changed_m``).
         """
         if self.significant is not None:
             return self.significant
-        if self.change_probability > 0.5:
+        if self.change_probability > 0.5 or self.state_if_changed_m is not None:
             return True
         undecided = self.change_probability > 1e-3  # a merge takes it below (change_confirm_probability)
         return bool(undecided and self.size_chi2() > CHI2_2DOF_95)
@@ -219,6 +226,7 @@ class ChangeRecord:
             **({} if (t := self.next_ns) is None else {"next_state_ns": int(t), "next_state": iso_utc(t)}),
             **_size_json(self.size_m, self.covariance_m2),
             "size_chi2": self.size_chi2(),
+            **({} if (x := self.state_if_changed_m) is None else {"state_if_changed_m": list(map(float, x))}),
         }
 
 

@@ -666,27 +666,33 @@ class Shadow:
         self._fresh_open = True
         return outputs
 
-    def _young_mixed(self, fresh: list[Window], y: np.ndarray, ks: np.ndarray) -> bool:
-        """Whether the first held window of a young jump (``_open_young``) holds both states.
+    def _young_first(self, fresh: list[Window], y: np.ndarray, ks: np.ndarray) -> str | None:
+        """Return what the first held window of a young jump is (``_open_young``): mixed, odd or None.
 
-        The jump that opened the segment may have happened inside its first window; the next
-        difference then goes on the same way, beyond the trigger on the windows' own scale
-        (``events.warmup.jump_goes_on``, with the old state's last windows before them). Kept as
-        the new state's first window, a third of the old level stayed in it, the segment's level
-        moved, the detector held the next window as a change of its own, and neither was
-        confirmed (the 10 mm record three times, 4 h after the first, 10 mm lower at each seam).
+        ``mixed``: the jump happened inside it, and the next difference goes on the same way beyond
+        the trigger on the windows' own scale (``events.warmup.jump_goes_on``, with the old state's
+        last windows before them). Kept as the new state's first window, a third of the old level
+        stayed in it, the segment's level moved, the detector held the next window as a change of
+        its own, and neither was confirmed (the 10 mm record three times, 4 h after the first, 10
+        mm lower at each seam). ``odd``: the window after it is no new state beyond any vehicle
+        from the old one (``new_state_at_last`` on the old windows and it): a spike that came
+        back, an outlier, as the detector rejects one (both forces +40 kN for one minute).
         """
         f = self.filter
         if not fresh or f.kinds[-1] != "warmup" or f.starts[-1] != fresh[0].k or len(fresh) < 2:
-            return False
+            return None
         old = [x for x in self._young if x.k < fresh[0].k and x.action in ("accept", "warm")]
         old = [x for x in old if x.k >= (f.starts[-2] if len(f.starts) > 1 else 0)]
         if not old:
-            return False
+            return None
         y_old, k_old = self._compensated(old)
-        return jump_goes_on(
-            np.vstack([y_old, y[:2]]), np.concatenate([k_old, ks[:2]]), self.detector.false_trigger
-        )
+        probability = self.detector.false_trigger
+        if jump_goes_on(np.vstack([y_old, y[:2]]), np.concatenate([k_old, ks[:2]]), probability):
+            return "mixed"
+        vehicle = self.config.traffic_vehicle_max_n
+        if not new_state_at_last(np.vstack([y_old, y[1:2]]), np.append(k_old, ks[1]), probability, vehicle):
+            return "odd"
+        return None
 
     def _note_young(self, w: Window) -> None:
         """Keep ``w`` among the young windows until the noise model rests on enough windows."""
@@ -897,8 +903,11 @@ class Shadow:
                 both.add(0)
                 cov = self.noise.window_cov(fresh[0].samples) + self.noise.window_cov(fresh[1].samples)
                 self._note_excursion([fresh[0]], y[0] - y[1], cov, "after_gap")
-            if 0 not in steps and self._young_mixed(fresh, y, ks):
-                both.add(0)  # the young jump's window, the step inside it (``_young_mixed``)
+            young = None if 0 in steps else self._young_first(fresh, y, ks)
+            if young is not None:  # the difference after the young jump's window is its own
+                steps.discard(1)  # rest (mixed) or return (odd), no step of its own
+            if young == "mixed":
+                both.add(0)  # the young jump's window, the step inside it (``_young_first``)
             held_on = len(fresh) > self.config.warmup_windows  # held past the warm-up: they moved
             ramp = None if steps else self._gradual_change(fresh, y, ks, held_on)
             if ramp is None and not steps and held_on:
@@ -914,10 +923,19 @@ class Shadow:
             if ramp is not None:  # a gradual change: its moving windows hold neither state
                 both.update(range(*ramp))
                 steps.add(ramp[1])
+        else:
+            young = None
         outputs: list[WindowOutput] = []
         first = 0
         for j, w in enumerate(fresh):
             self.settle()
+            if j == 0 and young == "odd":  # the young jump came back: an outlier, as the detector's
+                w.action = "reject"
+                outputs.extend(self._drain())
+                if self.filter.current_windows == 0:  # (odd: a window after it, no step there)
+                    self.filter.move_start(fresh[1].k)
+                first += 1
+                continue
             if j in both:  # it holds both states: the level of neither (see the docstring)
                 self._leave_out(w)
                 outputs.extend(self._drain())
