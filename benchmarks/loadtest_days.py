@@ -61,12 +61,16 @@ ninth: the real pair, then the 10 mm record at 14:36 lowered 20 mm more over 4 t
 its minute 0, 3 or 6 (``twin.real_records.lowered_over``: the record copied in a row as long as
 the lowering needs), the test car as recorded and cut (``without_recorded_car``). ``--only
 stages`` is a tenth: the same record lowered 20 mm in 2 to 10 equal steps one to three minutes
-apart, from its minute 1, 3 or 6 (``lowered_over``'s ``stages``), scored as the ramps.
+apart, from its minute 1, 3 or 6 (``lowered_over``'s ``stages``), scored as the ramps. ``--only
+long`` is an eleventh: one recording longer than the traffic hold, so unscreened, either record
+three or four times back to back from the data's start or 1.25, 4 or 24 h after the same record,
+10 mm lower at its first seam, its second or each (``long_streams``, 48), as they are and with a
+20 kN vehicle parked in the recording's minutes 1-7 (``twin.real_records.with_vehicle``).
 
 Usage::
 
     .venv/bin/python benchmarks/loadtest_days.py [--seeds 200]
-        [--only real|twin|continuous|minutes|creep|pauses|sweep|inside|ramps|stages]
+        [--only real|twin|continuous|minutes|creep|pauses|sweep|inside|ramps|stages|long]
         [--workers N] [--car recorded|cut] [--hold S] [--u0 model|as_built] [--sun-term|--sun-off]
         [--sun-prior MEAN SD] [--sun-fit average|deck|per_bearing] [--monitor-days N] [--creep FACTOR]
 
@@ -101,6 +105,7 @@ from bridge_shadow.twin.real_records import (
     random_streams,
     with_creep,
     with_silence,
+    with_vehicle,
     without_recorded_car,
 )
 
@@ -201,7 +206,8 @@ def real_stream(item: tuple[Any, ...]) -> tuple[str, list[bool], str, list[float
     ``item``: name, pieces, car, parameter overrides, u0, and optionally a dict of defects:
     ``creep`` (factor, first piece): ``with_creep`` on every record from that piece on whose state
     changed; ``silent`` (channel, from, to minutes): that load cell silent over those minutes of
-    the last record.
+    the last record; ``vehicle`` (N, from, to minutes, piece): ``with_vehicle`` over those minutes
+    of that piece.
     """
     name, pieces, car, over, u0, *rest = item
     defects = rest[0] if rest else {}
@@ -213,6 +219,9 @@ def real_stream(item: tuple[Any, ...]) -> tuple[str, list[bool], str, list[float
         sc.data = with_creep(sc.data, sc.starts_ns, changed, factor)
     if "silent" in defects:
         sc.data = with_silence(sc.data, sc.starts_ns[-1], *defects["silent"])
+    if "vehicle" in defects:
+        load, a, b, first = defects["vehicle"]
+        sc.data = with_vehicle(sc.data, sc.starts_ns[first], load, a, b)
     if car == "cut":
         sc.data = without_car(sc.data, sc.starts_ns)
     if u0 == "as_built":
@@ -419,6 +428,40 @@ def pause_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
     print_streams(mapper(real_stream, items), f"one load cell silent in the later record, {over}", t0, False)
 
 
+def long_streams() -> Iterator[tuple[str, list[Piece], int]]:
+    """Yield (name, pieces, first piece of the recording) of one recording longer than the hold.
+
+    Either record three or four times back to back (one 36-48 minute recording, unscreened), from
+    the data's start or after the same record 1.25, 4 or 24 h before (the air of 6 h and 7 h for
+    the last two), 10 mm lower through ``A`` at the first seam, the second, or each.
+    """
+    temps = {None: None, 1.25: None, 4.0: 6.0, 24.0: 7.0}
+    for rec in ("ref", "lowered"):
+        for n in (3, 4):
+            for start, temp in temps.items():
+                for steps in ("first", "second", "each"):
+                    pieces = [] if start is None else [Piece(rec, 0.0)]
+                    at0 = 0.0 if start is None else start
+                    for i in range(n):
+                        dx = -0.01 * {"first": min(i, 1), "second": int(i >= 2), "each": i}[steps]
+                        t = None if temp is None else temp + 0.2 * i
+                        pieces.append(Piece(rec, at0 + 0.2 * i, (dx, dx), temp_at_h=t))
+                    where = "from the start" if start is None else f"after {start:g} h"
+                    yield f"{rec} x{n} {where}, -10 mm at {steps}", pieces, len(pieces) - n
+
+
+def long_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
+    """Score ``long_streams``, as they are and with a 20 kN vehicle in the recording's minutes 1-7."""
+    for load in (0.0, 20e3):
+        t0 = time.perf_counter()
+        items = [
+            (name, pieces, "recorded", over, "model", {"vehicle": (load, 1.0, 7.0, first)} if load else {})
+            for name, pieces, first in long_streams()
+        ]
+        title = f"one recording longer than the hold, vehicle {load / 1e3:g} kN in minutes 1-7, {over}"
+        print_streams(mapper(real_stream, items), title, t0, False)
+
+
 def creep_study(mapper: Callable[..., list[Any]], over: dict[str, Any]) -> None:
     """Score the creep streams with the new states' creep 1 to 4 times the 10 mm record's own."""
     t0 = time.perf_counter()
@@ -615,6 +658,7 @@ def main() -> None:
             "inside",
             "ramps",
             "stages",
+            "long",
         ),
         help="one study (continuous: three sunny days of monitoring, sun term off and on; minutes: the "
         "two records minutes apart or cut short, in 30 s, 1 min and 2 min windows; creep: the new "
@@ -623,7 +667,9 @@ def main() -> None:
         "own recordings, with its lowering and three-hour ambient records; sweep: --seeds random streams "
         "of the two records, any order, spacing and step; inside: --seeds random streams with one or two "
         "settlements inside the later record; ramps: a 20 mm lowering over 4 to 30 minutes of a record "
-        "hours after the last; stages: the same in 2 to 10 equal steps; none of these by default)",
+        "hours after the last; stages: the same in 2 to 10 equal steps; long: one recording longer than "
+        "the traffic hold, steps at its seams, with and without a vehicle over the warm-up; none of "
+        "these by default)",
     )
     ap.add_argument("--workers", type=int, default=None, help="Dask workers (default: one per core)")
     ap.add_argument(
@@ -725,6 +771,8 @@ def main() -> None:
             creep_study(mapper, over)
         if args.only == "pauses":
             pause_study(mapper, over)
+        if args.only == "long":
+            long_study(mapper, over)
         if args.only in ("ramps", "stages"):
             lowering_study(mapper, over, stages=args.only == "stages")
         if args.only == "inside":

@@ -18,13 +18,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bridge_shadow.contract import CHANNELS
 from bridge_shadow.estimate import Shadow, load_config
 from bridge_shadow.estimate.events.warmup import jump_goes_on, new_state_at_last, over_median_ratio
 from bridge_shadow.model.surrogate_file import load_surrogate
-from bridge_shadow.series import ForceSeries, MonitoringData
 from bridge_shadow.twin.loadtest_score import score_stream
-from bridge_shadow.twin.real_records import Piece, Scenario, build
+from bridge_shadow.twin.real_records import Piece, Scenario, build, with_vehicle
 
 W = 60 * 10**9
 VEHICLE = 30e3  # N, the traffic screen's heaviest vehicle (``traffic_vehicle_max_n``)
@@ -88,18 +86,6 @@ def test_a_jump_beyond_any_vehicle_after_a_parked_load_is_a_new_state() -> None:
     assert not jump_goes_on(back, np.arange(len(back)), 1e-3)  # the next window stays
 
 
-def _with_vehicle(sc: Scenario, kn: float, minutes: tuple[float, float]) -> Scenario:
-    """Add a vehicle of ``kn`` (split on both bearings) parked over ``minutes`` of the stream."""
-    t0 = sc.starts_ns[0]
-    forces = {}
-    for ch in CHANNELS:
-        s = sc.data.forces[ch]
-        on = (s.stamp_ns - t0 >= minutes[0] * W) & (s.stamp_ns - t0 < minutes[1] * W)
-        forces[ch] = ForceSeries(s.stamp_ns, s.force_n + on * 0.5e3 * kn, s.frame_id)
-    sc.data = MonitoringData(forces, sc.data.temperature)
-    return sc
-
-
 @pytest.fixture(scope="module")
 def surrogate():
     return load_surrogate()
@@ -108,7 +94,9 @@ def surrogate():
 def _stream(folder: Path, surrogate, kn: float) -> Scenario:
     step = (-0.01, -0.01)
     pieces = [Piece("lowered", 0.0), Piece("lowered", 0.2, step), Piece("lowered", 0.4, step)]
-    return _with_vehicle(build(folder / "Settlements", surrogate.A, pieces), kn, (1.0, 7.0))
+    sc = build(folder / "Settlements", surrogate.A, pieces)
+    sc.data = with_vehicle(sc.data, sc.starts_ns[0], 1e3 * kn, 1.0, 7.0)
+    return sc
 
 
 @pytest.mark.realdata

@@ -44,6 +44,7 @@ __all__ = [
     "random_streams",
     "with_creep",
     "with_silence",
+    "with_vehicle",
     "without_recorded_car",
 ]
 
@@ -231,6 +232,18 @@ def with_silence(
         t = s.stamp_ns
         gone = (c == channel) & (t >= start_ns + a_min * 60 * NS) & (t < start_ns + b_min * 60 * NS)
         forces[ch] = _kept(s, ~gone)
+    return MonitoringData(forces, data.temperature)
+
+
+def with_vehicle(
+    data: MonitoringData, start_ns: int, load_n: float, a_min: float, b_min: float
+) -> MonitoringData:
+    """Add a vehicle of ``load_n`` N (half per bearing) over minutes ``[a_min, b_min)`` after ``start_ns``."""
+    forces = {}
+    for ch, s in data.forces.items():
+        t = s.stamp_ns
+        on = (t >= start_ns + a_min * 60 * NS) & (t < start_ns + b_min * 60 * NS)
+        forces[ch] = ForceSeries(t, s.force_n + on * (0.5 * load_n), s.frame_id, s.log_ns)
     return MonitoringData(forces, data.temperature)
 
 
