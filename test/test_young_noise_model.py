@@ -138,3 +138,20 @@ def test_a_checkpoint_while_the_new_state_is_held_changes_nothing(munich_data: P
     assert [e.window for e in rest.events] == [e.window for e in whole.events]
     assert np.allclose(rest.mean_m, whole.mean_m, rtol=1e-9, atol=1e-12)
     assert np.allclose(rest.covariance_m2, whole.covariance_m2, rtol=1e-9, atol=1e-15)
+
+
+@pytest.mark.realdata
+def test_replay_live_reads_the_young_jump_as_direct(munich_data: Path, surrogate, tmp_path) -> None:
+    """The node (``replay --live``) and the direct replay of the helper's stream: one answer.
+
+    At 10 Hz (every 10th sample: the node's path is the same at any rate); the young jump's windows
+    are held and read as after a gap in both, the event at the second copy.
+    """
+    pytest.importorskip("rclpy")
+    from test_loadtest_days import _live_and_direct
+
+    sc = _stream(munich_data, surrogate, 20.0)
+    data = sc.data.select(lambda stamps: np.arange(len(stamps)) % 10 == 0)
+    live, direct = _live_and_direct(data, tmp_path)
+    assert [e["window"] for e in live["events"]] == [e["window"] for e in direct["events"]]
+    assert [e["window"] for e in direct["events"]] == [sc.starts_ns[1] // W]
