@@ -12,7 +12,13 @@ from bridge_shadow.calibrate.change import MeasuredChange
 from bridge_shadow.calibrate.explain import fit_explanation
 from bridge_shadow.calibrate.forward import SolutionStore
 from bridge_shadow.calibrate.problem import PairData
-from bridge_shadow.calibrate.run import evidence_weights, model_average, prior_sensitivity
+from bridge_shadow.calibrate.run import (
+    evidence_weights,
+    model_average,
+    prior_sensitivity,
+    prior_set_fits,
+    prior_set_members,
+)
 from bridge_shadow.calibrate.spec import spec_from_dict
 from bridge_shadow.model.config import load_bridge_config
 from bridge_shadow.model.parameters import PRIOR_SETS, prior_table
@@ -150,3 +156,50 @@ def test_prior_sensitivity_refits_what_a_prior_set_changes(spring_pair) -> None:
     # under the first-written prior (centre 2e8) the same springs sit further below the centre
     first = prior_table("first_written")["support_spring_south"]
     assert first.to_whitened(2e7) < prior_table("sources")["support_spring_south"].to_whitened(2e7)
+
+
+def test_the_prior_sets_average_runs_over_the_sets_not_chosen_after_the_data(spring_pair) -> None:
+    """``prior_set_members``: each explanation under each defensible set, weighed by its evidence.
+
+    The set chosen after seeing the real pair (``after_fit``) is never a member; a fit two sets
+    share is a member under each; a fit outside the plausible range under another set than the
+    one in use is left out, with why; the average's mean is the members' evidence-weighted mean.
+    """
+    pairs, ctx = spring_pair
+    pair = {"before": "x", "after": "y", "imposed_m": [-0.01, -0.01], "imposed_sd_m": [1e-4, 1e-4]}
+    springs = ["support_spring_south", "support_spring_north"]
+    spec = spec_from_dict(
+        {"mesh": "coarse", "pairs": [pair], "explanations": {"as_built": [], "support_springs": springs}}
+    )
+    fits = prior_set_fits(spec, ctx["cfg"], pairs, ctx["fitted"], ctx["store"])
+    members, left_out = prior_set_members(fits, "sources")
+    sets = [k for k, s in PRIOR_SETS.items() if not s.after_data]
+    assert "after_fit" not in sets and len(sets) >= 3
+    names = ("as_built", "support_springs")
+    assert set(members) | set(left_out) == {f"{e} ({s})" for s in sets for e in names}
+    assert members["as_built (first_written)"] is members["as_built (sources)"]  # untouched: shared
+    log_z = np.array([m.post.log_evidence for m in members.values()])
+    w = np.exp(log_z - log_z.max()) / np.exp(log_z - log_z.max()).sum()
+    mean, _ = model_average(members)
+    by_hand = sum(wi * m.model_vector() for wi, m in zip(w, members.values(), strict=True))
+    np.testing.assert_allclose(mean, by_hand, rtol=1e-10)
+    # a fit outside the plausible range under another set is left out, never the one in use's
+    far = dict(fits)
+    far["wide"] = {**fits["wide"], "support_springs": _Outside(fits["wide"]["support_springs"])}
+    members, left_out = prior_set_members(far, "sources")
+    assert "support_springs (wide)" in left_out and "plausible range" in left_out["support_springs (wide)"]
+    members, left_out = prior_set_members(far, "wide")
+    assert "support_springs (wide)" in members
+
+
+class _Outside:
+    """An explanation whose MAP lies outside the plausible range (the rest as ``e``'s)."""
+
+    def __init__(self, e) -> None:
+        self._e = e
+
+    def values(self) -> dict[str, float]:
+        return {"support_spring_south": 1e3, "support_spring_north": 1e3}
+
+    def __getattr__(self, name: str):
+        return getattr(self._e, name)

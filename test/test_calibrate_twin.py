@@ -198,3 +198,32 @@ def test_the_calibrated_shadow_follows_a_withheld_20mm_lowering(pair, calibrated
     mean, cov = result.mean_m, result.covariance_m2
     np.testing.assert_allclose(mean, [-0.020, -0.020], rtol=0.05)  # the twin's supports start at 0
     assert np.all(np.abs(mean + 0.020) < 1.96 * np.sqrt(np.diag(cov)))  # its interval holds the truth
+
+
+def test_with_prior_sensitivity_the_surrogate_averages_the_prior_sets(pair, calibrated, tmp_path) -> None:
+    """``--prior-sensitivity`` with ``choose: average``: the surrogate averages over the prior sets too.
+
+    Its ``A`` is the evidence-weighted mean over every explanation under every set not chosen after
+    the data, not the sources' set alone (issue 20: where one prior is centred must not decide the
+    default surrogate), and its model uncertainty holds the spread between the sets.
+    """
+    import contextlib
+    import io
+
+    out = tmp_path / "by_sets.yaml"
+    buf = io.StringIO()
+    args = ["calibrate", str(pair["spec"]), "--out", str(out), "--json", "--no-sweeps", "--prior-sensitivity"]
+    with contextlib.redirect_stdout(buf):
+        assert main(args) == 0
+    doc = json.loads(buf.getvalue())
+    avg = doc["model_average"]
+    assert avg["prior_sets"]["sets"] == ["sources", "first_written", "wide"]
+    assert set(avg["weights"]) >= {"support_springs (sources)", "support_springs (wide)"}
+    assert abs(sum(avg["weights"].values()) - 1.0) < 1e-9
+    sources = next(r for r in doc["prior_sensitivity"] if r["prior_set"] == "sources")
+    written = load_surrogate(out)
+    np.testing.assert_allclose(written.A, avg["A"], rtol=1e-9)
+    # the sets' springs differ (first_written's centre 2e8, wide's doubled sd): so does the average
+    assert not np.allclose(avg["A"], sources["model_average"]["A"], rtol=1e-6)
+    alone = load_surrogate(pair["out"])  # the sources' average (the module's fixture)
+    assert np.all(np.diag(written.model_cov)[:4] >= 0.5 * np.diag(alone.model_cov)[:4])

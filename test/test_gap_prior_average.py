@@ -13,8 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from bridge_shadow.calibrate.explain import model_vector
-from bridge_shadow.gap.levels import defensible_prior_sets
-from bridge_shadow.model.parameters import PRIOR_SETS
+from bridge_shadow.model.parameters import PRIOR_SETS, defensible_prior_sets
 
 
 def test_a_prior_chosen_after_the_data_is_never_averaged_over() -> None:

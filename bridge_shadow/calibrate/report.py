@@ -180,14 +180,20 @@ def _average_lines(result: CalibrationResult) -> list[str]:
     top = sorted(avg["weights"].items(), key=lambda kv: -kv[1])
     kc, kd = avg["common_stiffness_n_per_m"], avg["differential_stiffness_n_per_m"]
     sd = avg["sd"]
+    sets = avg.get("prior_sets")
+    over = "the explanations"
+    if sets:
+        over += f" under the prior sets {', '.join(sets['sets'])}"
     out = [
         "",
-        f"model average over the explanations by their evidence ({written}):",
+        f"model average over {over} by their evidence ({written}):",
         "  weights: " + ", ".join(f"{k} {w:.2f}" for k, w in top if w >= 0.005),
         f"  common-mode stiffness {kc[0] / 1e6:.2f} / {kc[1] / 1e6:.2f} kN/mm, differential "
         f"{kd / 1e6:.2f} kN/mm; sd of A11 / A22 {sd['A11'] / 1e6:.2f} / {sd['A22'] / 1e6:.2f}, "
         f"of A12 {sd['A12'] / 1e6:.2f} kN/mm (each explanation's posterior and the spread between them)",
     ]
+    for member, why in (sets or {}).get("left_out", {}).items():
+        out.append(f"  left out: {member}: {why}")
     for s in avg["in_sample"]:
         out.append(
             f"  in-sample {s['pair']}: x = A^-1 dR = {s['x_m'][0] / MM:.2f} / {s['x_m'][1] / MM:.2f} mm, "

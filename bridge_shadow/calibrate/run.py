@@ -25,7 +25,10 @@ explanations' FE ``u0`` at the MAP enters as an uncertainty either way (the seco
 deck's temperature field between records hours apart. The surrogate also carries a
 model ``discrepancy`` beyond the calibrated settlements (``model.surrogate_file.Discrepancy``).
 ``prior_sensitivity`` refits the explanations under every prior set of
-``model.parameters.PRIOR_SETS`` and says which explanation wins under each.
+``model.parameters.PRIOR_SETS`` and says which explanation wins under each; with ``choose:
+average`` the surrogate is then the model average over the explanations under every prior set
+not chosen after the data (``prior_set_members``), so that where one prior is centred does not
+decide it, and the spread between the sets is in ``model_uncertainty``.
 """
 
 from __future__ import annotations
@@ -63,7 +66,13 @@ from bridge_shadow.calibrate.records import load_record
 from bridge_shadow.calibrate.spec import CalibrationSpec
 from bridge_shadow.engine import Mapper
 from bridge_shadow.model.config import BridgeConfig, load_bridge_config
-from bridge_shadow.model.parameters import PRIOR_SETS, Parameter, prior_table
+from bridge_shadow.model.parameters import (
+    PRIOR_SETS,
+    Parameter,
+    defensible_prior_sets,
+    outside_plausible,
+    prior_table,
+)
 from bridge_shadow.model.surrogate import SENSITIVITY_PARAMETERS, SurrogateRun, compute_surrogate
 from bridge_shadow.model.surrogate_file import MODEL_UNCERTAINTY_ORDER_FULL, THERMAL_CASES, Discrepancy
 
@@ -74,6 +83,8 @@ __all__ = [
     "measure_pairs",
     "model_average",
     "prior_sensitivity",
+    "prior_set_fits",
+    "prior_set_members",
 ]
 
 Progress = Callable[[float, str], None]
@@ -271,21 +282,20 @@ def _average_summary(
     }
 
 
-def prior_sensitivity(
+def prior_set_fits(
     spec: CalibrationSpec,
     cfg: BridgeConfig,
     pairs: list[PairData],
     fitted: dict[str, Explanation],
     store: SolutionStore,
     report: Progress | None = None,
-) -> list[dict[str, Any]]:
-    """Which explanation wins under each prior set of ``PRIOR_SETS`` (the one in use included).
+) -> dict[str, dict[str, Explanation]]:
+    """Every explanation under every prior set of ``PRIOR_SETS`` (set -> explanation -> fit).
 
-    Explanations whose parameters a set leaves unchanged keep their fit; the others are refitted
-    under the set's priors. Per set: the evidence table (log Z, probability), the winner, and what
-    the model average of that set says (common and differential stiffness, in-sample readings).
+    Explanations whose parameters a set leaves unchanged keep their fit (``fitted``, under the
+    set in use); the others are refitted under the set's priors.
     """
-    out = []
+    out: dict[str, dict[str, Explanation]] = {}
     sets = list(PRIOR_SETS)
     for j, name in enumerate(sets):
         if report is not None:
@@ -301,6 +311,30 @@ def prior_sensitivity(
                 exps[ename] = fit_explanation(
                     ename, e.names, cfg, spec.mesh, pairs, store, heldout=False, priors=table
                 )
+        out[name] = exps
+    return out
+
+
+def prior_sensitivity(
+    spec: CalibrationSpec,
+    cfg: BridgeConfig,
+    pairs: list[PairData],
+    fitted: dict[str, Explanation],
+    store: SolutionStore,
+    report: Progress | None = None,
+    fits: dict[str, dict[str, Explanation]] | None = None,
+) -> list[dict[str, Any]]:
+    """Which explanation wins under each prior set of ``PRIOR_SETS`` (the one in use included).
+
+    Per set (``prior_set_fits``, or ``fits`` when given): the evidence table (log Z, probability),
+    the winner, and what the model average of that set says (common and differential stiffness,
+    in-sample readings).
+    """
+    if fits is None:
+        fits = prior_set_fits(spec, cfg, pairs, fitted, store, report)
+    out = []
+    for name, exps in fits.items():
+        prior = PRIOR_SETS[name]
         w = evidence_weights(exps)
         best = max(exps, key=lambda k: exps[k].post.log_evidence)
         top = exps[best].post.log_evidence
@@ -324,6 +358,32 @@ def prior_sensitivity(
             }
         )
     return out
+
+
+def prior_set_members(
+    fits: dict[str, dict[str, Explanation]], in_use: str
+) -> tuple[dict[str, Explanation], dict[str, str]]:
+    """Return the members of the model average over explanations and prior sets, and those left out.
+
+    Every explanation under every prior set not chosen after the data
+    (``model.parameters.defensible_prior_sets``), keyed ``explanation (set)``: each set equally
+    likely beforehand, each explanation within it too, so ``model_average``'s evidence weights
+    over the members are the joint posterior (a fit two sets share counts once per set). A fit
+    under another set than ``in_use`` whose MAP leaves the plausible range of the sources' table
+    (the one ``calibrate`` and ``gap`` share) is left out, with why, as the gap tool's model after
+    leaves it out.
+    """
+    members: dict[str, Explanation] = {}
+    left_out: dict[str, str] = {}
+    for name in defensible_prior_sets():
+        for ename, e in fits[name].items():
+            key = f"{ename} ({name})"
+            outside = [] if name == in_use else outside_plausible(e.values())
+            if outside:
+                left_out[key] = f"its fit ({', '.join(outside)}) lies outside the plausible range"
+            else:
+                members[key] = e
+    return members, left_out
 
 
 def calibrate(
@@ -400,18 +460,23 @@ def calibrate(
     chosen_name = _choose(spec, explanations)
     chosen = explanations[chosen_name]
     extra: dict[str, Any] = {}
+    members: dict[str, Explanation] = explanations
     if sensitivity:
-        extra["prior_sensitivity"] = prior_sensitivity(
-            spec, cfg, pairs, explanations, store, lambda f, s: tick(0.65 + 0.25 * f, s)
-        )
+        fits = prior_set_fits(spec, cfg, pairs, explanations, store, lambda f, s: tick(0.65 + 0.25 * f, s))
+        extra["prior_sensitivity"] = prior_sensitivity(spec, cfg, pairs, explanations, store, fits=fits)
+        if spec.choose == "average":  # the spread between the prior sets is the model's too
+            members, left_out = prior_set_members(fits, spec.priors)
+            extra["prior_sets_averaged"] = {"sets": defensible_prior_sets(), "left_out": left_out}
     tick(0.92, f"surrogate at the MAP of {chosen_name}")
     cfg_map = cfg.with_overrides(chosen.values())
     sens_names = tuple(dict.fromkeys([*chosen.names, *SENSITIVITY_PARAMETERS]))
     run = compute_surrogate(
         cfg_map, spec.mesh, names=sens_names, sweeps=sweeps, report=lambda f, s: tick(0.92 + 0.07 * f, s)
     )
-    mean, cov = model_average(explanations)
-    extra["model_average"] = _average_summary(explanations, pairs, mean, cov)
+    mean, cov = model_average(members)
+    extra["model_average"] = _average_summary(members, pairs, mean, cov)
+    if "prior_sets_averaged" in extra:
+        extra["model_average"]["prior_sets"] = extra["prior_sets_averaged"]
     sur = run.surrogate
     u0_built = ForwardModel(cfg, spec.mesh, (), store).evaluate({}, derivatives=False).u0
     if spec.choose == "average":
@@ -481,7 +546,9 @@ def _provenance(result: CalibrationResult, cfg: BridgeConfig) -> None:
         "chosen_explanation": result.chosen,
         "choice_rule": {
             "average": "model average over the explanations by their evidence (A, u0, thermal and "
-            "model_uncertainty); the FE sensitivities at the MAP of the chosen (most probable) one",
+            "model_uncertainty), with --prior-sensitivity under every prior set not chosen after the "
+            "data (model_average.prior_sets); the FE sensitivities at the MAP of the chosen (most "
+            "probable) one",
             "best": "highest Laplace evidence",
         }.get(spec.choose, "named in the calibration file"),
         "priors": spec.priors,

@@ -57,7 +57,7 @@ from bridge_shadow.contract import CHANNELS
 from bridge_shadow.gap.posterior import IMPOSED_AVERAGE
 from bridge_shadow.gap.records import IMPOSED_SD_M, OneChannel, Record
 from bridge_shadow.model.build import SUPPORT_SPRINGS
-from bridge_shadow.model.parameters import PARAMETERS, PRIOR_SETS, prior_table
+from bridge_shadow.model.parameters import PRIOR_SETS, defensible_prior_sets, outside_plausible, prior_table
 from bridge_shadow.model.sensitivities import StiffnessSensitivity
 from bridge_shadow.model.surrogate_file import THERMAL_CASES, Discrepancy, Surrogate
 from bridge_shadow.model.sweeps import Sweep
@@ -548,11 +548,6 @@ def explain_imposed(
     )
 
 
-def defensible_prior_sets() -> list[str]:
-    """Return the prior sets the model after averages over: ``PRIOR_SETS`` less those chosen after data."""
-    return [k for k, s in PRIOR_SETS.items() if not s.after_data]
-
-
 def _under_prior_sets(
     e: Explanation, data: Sequence[PairData], make_forward: Any
 ) -> tuple[dict[str, Explanation], dict[str, str]]:
@@ -573,7 +568,7 @@ def _under_prior_sets(
         f = fit_explanation(
             e.name, e.names, None, "", data, heldout=False, priors=prior_table(k), make_forward=make_forward
         )
-        outside = [f"{n} {v:.3g}" for n, v in f.values().items() if not PARAMETERS[n].plausible(v)]
+        outside = outside_plausible(f.values())
         if outside:
             left_out[k] = f"its fit ({', '.join(outside)}) lies outside the plausible range"
         else:

@@ -59,10 +59,12 @@ __all__ = [
     "PriorSet",
     "bolt_bearing_stiffness",
     "bolt_shear_stiffness",
+    "defensible_prior_sets",
     "footing_stiffness",
     "jack_oil_column_stiffness",
     "laminated_bearing_stiffness",
     "log_bounds",
+    "outside_plausible",
     "parameter",
     "plausible_range",
     "prior_table",
@@ -559,6 +561,16 @@ def parameter(name: str, table: Mapping[str, Parameter] | None = None) -> Parame
         return table[name]
     except KeyError:
         raise ConfigError(f"unknown model parameter {name!r}; known: {', '.join(table)}") from None
+
+
+def defensible_prior_sets() -> list[str]:
+    """Return the prior sets a model average runs over: ``PRIOR_SETS`` less those chosen after data."""
+    return [k for k, s in PRIOR_SETS.items() if not s.after_data]
+
+
+def outside_plausible(values: Mapping[str, float]) -> list[str]:
+    """Return ``name value`` of each of ``values`` (SI) outside its plausible range (empty: none)."""
+    return [f"{n} {v:.3g}" for n, v in values.items() if not PARAMETERS[n].plausible(v)]
 
 
 def plausible_range(name: str) -> tuple[float, float]:
