@@ -53,7 +53,7 @@ def test_the_ratio_over_the_median_is_exact_for_exponentials() -> None:
 def test_noise_alone_opens_no_young_segment(phi: float) -> None:
     """AR(1) noise of 6 to 30 windows: the scale rule alone fires at most 1.5 %, with the vehicle never.
 
-    Measured over 20,000 runs each: 0.3-0.9 % at the default 0.1 % (the robust scale is read off
+    Measured over 20,000 runs each: 0.3-1.0 % at the default 0.1 % (the robust scale is read off
     the same few differences, as in the warm-up's rules); noise of 1 kN never moves the sum 30 kN.
     """
     rng = np.random.default_rng(11)

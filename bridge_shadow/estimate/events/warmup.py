@@ -326,8 +326,8 @@ def new_state_at_last(y: np.ndarray, k: np.ndarray, probability: float, vehicle_
 
     Its jump (the last difference, or the last two when they share a sign: a step inside the
     window before) moves the reactions' sum beyond any vehicle (``vehicle_max_n``, either way),
-    and its ``J`` (``_differences``) exceeds ``c`` times the median ``J`` of the differences before
-    it, ``c = over_median_ratio(m, probability / 2)`` for each of the two jumps: without a step
+    and its ``J`` (``_differences``) exceeds ``c`` times the (lower) median ``J`` of the differences
+    before it, ``c = over_median_ratio(m, probability / 2)`` for each of the two jumps: without a step
     the ``J`` are exchangeable, each the robust scale's error times a chi-square(2), which cancels
     in the ratio. Unlike the step rules it does not ask the jump to dwarf every other difference:
     a load that stood over several of the windows, coming and going in stages, makes differences
@@ -344,7 +344,7 @@ def new_state_at_last(y: np.ndarray, k: np.ndarray, probability: float, vehicle_
         jumps.append((raw[-1] + raw[-2], float(d @ prec @ d), single[:-2]))
     return any(
         beyond_any_vehicle(step, vehicle_max_n)
-        and j > over_median_ratio(len(rest), half) * float(np.median(rest))
+        and j > over_median_ratio(len(rest), half) * float(np.sort(rest)[(len(rest) - 1) // 2])
         for step, j, rest in jumps
     )
 
@@ -369,9 +369,10 @@ def jump_goes_on(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
     """Whether the last difference of window means ``y`` (n, 2) N goes on the jump before it.
 
     The two share a sign (``d_a' P d_b > 0``, ``P`` the differences' robust precision) and the
-    last one's ``J`` is above the chi-square(2) quantile of ``probability`` (as in
-    ``new_state_at_last``): the window between them is where the jump happened, holding both
-    states.
+    last one's ``J`` is above the chi-square(2) quantile of ``probability``, the robust scale taken
+    as right: asked only of a jump ``new_state_at_last`` found (``Shadow._young_first``), whether
+    the window after it moved on the same way, so the window between them is where the jump
+    happened, holding both states.
     """
     diffs = _differences(y, k, MIN_DIFFERENCES)
     if diffs is None:
