@@ -127,10 +127,12 @@ class CalibrationResult:
         """(12, 12) second moment of the model vector about the chosen one's over all explanations.
 
         Evidence-weighted: ``sum_k w_k (C_k + (m_k - m*)(m_k - m*)')``, so the spread between
-        explanations (which the data cannot tell apart) is in it, not only each one's posterior.
+        explanations (which the data cannot tell apart) is in it, not only each one's posterior;
+        over the members the written average ran over (``prior_set_members``, when it ran over
+        the prior sets too).
         """
         m_star = self.explanations[self.chosen].model_vector()
-        return model_average(self.explanations, about=m_star)[1]
+        return model_average(self.extra.get("members") or self.explanations, about=m_star)[1]
 
     def weights(self) -> dict[str, float]:
         """Posterior probability of each explanation (equal prior odds)."""
@@ -467,6 +469,7 @@ def calibrate(
         if spec.choose == "average":  # the spread between the prior sets is the model's too
             members, left_out = prior_set_members(fits, spec.priors)
             extra["prior_sets_averaged"] = {"sets": defensible_prior_sets(), "left_out": left_out}
+            extra["members"] = members  # (not written: the fits themselves)
     tick(0.92, f"surrogate at the MAP of {chosen_name}")
     cfg_map = cfg.with_overrides(chosen.values())
     sens_names = tuple(dict.fromkeys([*chosen.names, *SENSITIVITY_PARAMETERS]))
