@@ -134,13 +134,18 @@ def spring_pair() -> tuple[list[PairData], dict]:
     return pairs, {"cfg": cfg, "store": store, "fitted": fitted}
 
 
-def test_prior_sensitivity_refits_what_a_prior_set_changes(spring_pair) -> None:
-    pairs, ctx = spring_pair
+def _spring_spec():
+    """The calibration file of ``spring_pair``: the model as built and the two support springs."""
     pair = {"before": "x", "after": "y", "imposed_m": [-0.01, -0.01], "imposed_sd_m": [1e-4, 1e-4]}
     springs = ["support_spring_south", "support_spring_north"]
-    spec = spec_from_dict(
+    return spec_from_dict(
         {"mesh": "coarse", "pairs": [pair], "explanations": {"as_built": [], "support_springs": springs}}
     )
+
+
+def test_prior_sensitivity_refits_what_a_prior_set_changes(spring_pair) -> None:
+    pairs, ctx = spring_pair
+    spec = _spring_spec()
     rows = prior_sensitivity(spec, ctx["cfg"], pairs, ctx["fitted"], ctx["store"])
     assert [r["prior_set"] for r in rows] == list(PRIOR_SETS)
     by = {r["prior_set"]: {e["name"]: e for e in r["explanations"]} for r in rows}
@@ -166,11 +171,7 @@ def test_the_prior_sets_average_runs_over_the_sets_not_chosen_after_the_data(spr
     one in use is left out, with why; the average's mean is the members' evidence-weighted mean.
     """
     pairs, ctx = spring_pair
-    pair = {"before": "x", "after": "y", "imposed_m": [-0.01, -0.01], "imposed_sd_m": [1e-4, 1e-4]}
-    springs = ["support_spring_south", "support_spring_north"]
-    spec = spec_from_dict(
-        {"mesh": "coarse", "pairs": [pair], "explanations": {"as_built": [], "support_springs": springs}}
-    )
+    spec = _spring_spec()
     fits = prior_set_fits(spec, ctx["cfg"], pairs, ctx["fitted"], ctx["store"])
     members, left_out = prior_set_members(fits, "sources")
     sets = [k for k, s in PRIOR_SETS.items() if not s.after_data]
