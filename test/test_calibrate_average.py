@@ -146,7 +146,8 @@ def _spring_spec():
 def test_prior_sensitivity_refits_what_a_prior_set_changes(spring_pair) -> None:
     pairs, ctx = spring_pair
     spec = _spring_spec()
-    rows = prior_sensitivity(spec, ctx["cfg"], pairs, ctx["fitted"], ctx["store"])
+    fits = prior_set_fits(spec, ctx["cfg"], pairs, ctx["fitted"], ctx["store"])
+    rows = prior_sensitivity(spec, pairs, fits)
     assert [r["prior_set"] for r in rows] == list(PRIOR_SETS)
     by = {r["prior_set"]: {e["name"]: e for e in r["explanations"]} for r in rows}
     springs = ctx["fitted"]["support_springs"]

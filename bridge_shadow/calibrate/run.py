@@ -318,22 +318,14 @@ def prior_set_fits(
 
 
 def prior_sensitivity(
-    spec: CalibrationSpec,
-    cfg: BridgeConfig,
-    pairs: list[PairData],
-    fitted: dict[str, Explanation],
-    store: SolutionStore,
-    report: Progress | None = None,
-    fits: dict[str, dict[str, Explanation]] | None = None,
+    spec: CalibrationSpec, pairs: list[PairData], fits: dict[str, dict[str, Explanation]]
 ) -> list[dict[str, Any]]:
     """Which explanation wins under each prior set of ``PRIOR_SETS`` (the one in use included).
 
-    Per set (``prior_set_fits``, or ``fits`` when given): the evidence table (log Z, probability),
-    the winner, and what the model average of that set says (common and differential stiffness,
-    in-sample readings).
+    Per set of ``fits`` (``prior_set_fits``): the evidence table (log Z, probability), the winner,
+    and what the model average of that set says (common and differential stiffness, in-sample
+    readings).
     """
-    if fits is None:
-        fits = prior_set_fits(spec, cfg, pairs, fitted, store, report)
     out = []
     for name, exps in fits.items():
         prior = PRIOR_SETS[name]
@@ -465,7 +457,7 @@ def calibrate(
     members: dict[str, Explanation] = explanations
     if sensitivity:
         fits = prior_set_fits(spec, cfg, pairs, explanations, store, lambda f, s: tick(0.65 + 0.25 * f, s))
-        extra["prior_sensitivity"] = prior_sensitivity(spec, cfg, pairs, explanations, store, fits=fits)
+        extra["prior_sensitivity"] = prior_sensitivity(spec, pairs, fits)
         if spec.choose == "average":  # the spread between the prior sets is the model's too
             members, left_out = prior_set_members(fits, spec.priors)
             extra["prior_sets_averaged"] = {"sets": defensible_prior_sets(), "left_out": left_out}
