@@ -364,17 +364,12 @@ class ChangeDetector:
         """
         infl = self.inflation
         if not self.pending:
-            total = (r_window[0] * infl + apa[0], r_window[1] * infl + apa[1], r_window[2] * infl + apa[2])
-            if quad_inv(total, v) <= self.h_trigger:  # the common case, on floats
-                jump = self._neighbour_jump(k, v, r_window)
-                if jump <= self._jump_bound() or self._within_noise(v, r_window):
-                    self._note_jump(jump)
-                    self._remember(k, v)
-                    self.prev = Pending(k, v, r_window, apa, None)  # kept lazily as floats
-                    return Decision(accept=[payload])
-                # within the trigger only by the estimate's own uncertainty (shared by every
-                # window, it cancels in a jump), and it jumped as an event's change time must:
-                # held and judged with the run
+            jump = self._ordinary_jump(k, v, r_window, apa)
+            if jump is not None:  # the common case, on floats
+                self._note_jump(jump)
+                self._remember(k, v)
+                self.prev = Pending(k, v, r_window, apa, None)  # kept lazily as floats
+                return Decision(accept=[payload])
         item = Pending(k, np.array(v), _arr(r_window) * infl, _arr(apa), payload)
         if not self.pending:
             self.pending = [item]
@@ -703,6 +698,25 @@ class ChangeDetector:
         of ``j``'s reference and ``j`` summed, as there.
         """
         return _quad(self._lag_cov(r, 1) / n, rate)
+
+    def takes_as_data(self, k: int, v: Vec, r_window: Sym, apa: Sym) -> bool:
+        """Whether ``step`` would take window ``k`` as data at once (nothing is changed)."""
+        return not self.pending and self._ordinary_jump(k, v, r_window, apa) is not None
+
+    def _ordinary_jump(self, k: int, v: Vec, r_window: Sym, apa: Sym) -> float | None:
+        """Return the jump from the last ordinary window of a window taken as data at once, or None.
+
+        Within the trigger, and a jump no event's change time could be (``_jump_bound``) or within
+        the trigger on the window noise alone. Within the trigger only by the estimate's own
+        uncertainty (shared by every window, it cancels in a jump), and jumping as an event's
+        change time must, a window is held and judged with the run (None).
+        """
+        infl = self.inflation
+        total = (r_window[0] * infl + apa[0], r_window[1] * infl + apa[1], r_window[2] * infl + apa[2])
+        if quad_inv(total, v) > self.h_trigger:
+            return None
+        jump = self._neighbour_jump(k, v, r_window)
+        return jump if jump <= self._jump_bound() or self._within_noise(v, r_window) else None
 
     def _jump_bound(self) -> float:
         """Return the jump an event's change time must exceed (``_qualifies``)."""
