@@ -210,3 +210,22 @@ def test_takes_as_data_is_what_step_does() -> None:
             level = np.zeros(2)  # a new segment: innovations against it
             det.prev = None
     assert 300 < taken < 600  # both answers were given
+
+
+@pytest.mark.realdata
+def test_a_raise_over_two_windows_is_one_change(munich_data: Path, surrogate) -> None:
+    """The 10 mm record three times from the data's start, raised 10 mm from the second copy.
+
+    The raise goes on over two windows; both are left out (the jump went on over them) and the
+    step rule among the held windows finds the new state after them. Before, that opened a second
+    segment and left the young jump's own empty at probability one half: the change split in two
+    (0.5, 0.29), no event, nothing warned (a reviewing helper, stop 79). Now one event, covered.
+    """
+    up = (0.01, 0.01)
+    pieces = [Piece("lowered", 0.0), Piece("lowered", 0.2, up), Piece("lowered", 0.4, up)]
+    sc = build(munich_data / "Settlements", surrogate.A, pieces)
+    res = Shadow(load_config(), surrogate).run(sc.data)
+    s = score_stream(sc, res)
+    assert s.covered and len(res.events) == 1, (1e3 * res.mean_m, s, [c.to_json() for c in res.changes])
+    assert abs(res.events[0].window - sc.starts_ns[1] // W) <= 2
+    assert not [c for c in res.changes if c.windows == 0]

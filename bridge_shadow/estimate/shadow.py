@@ -945,7 +945,13 @@ class Shadow:
                     self.filter.move_start(fresh[j + 1].k)
                 first += j == first
                 continue
-            if j in steps:
+            if j in steps and young is not None and j == first and self.filter.current_windows == 0:
+                # the young jump's segment has no window yet (those before were left out: the
+                # jump went on over them): this step is the same change, its segment begins here
+                # (opened again, it was an empty segment at probability one half and the change
+                # split in two, neither warned: the 10 mm record raised 10 mm over two windows)
+                self.filter.move_start(w.k)
+            elif j in steps:
                 outputs.extend(self._close_run(self.detector.close_run()))
                 outputs.extend(self._drain())
                 prior = self.config.change_prior_probability
