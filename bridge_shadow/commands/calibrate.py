@@ -30,7 +30,9 @@ both central bearings by 10 mm, read from the shared data directory).
 
 Priors and plausible ranges come from bridge_shadow/model/parameters.py, each derived from its
 source (--priors NAME picks another of its prior sets); --prior-sensitivity refits the
-explanations under every prior set and says which wins under each (a few minutes more).
+explanations under every prior set and says which wins under each (a few minutes more), and
+with choose: average the written model averages over the explanations under every set not
+chosen after the data, so that where one prior is centred does not decide it.
 
 One pair of records gives two numbers: at most two parameter combinations are fixed by it (the
 identifiability report says which); every other direction stays at its prior.
@@ -85,7 +87,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--prior-sensitivity",
         action="store_true",
-        help="refit every explanation under each prior set and report which wins under each",
+        help="refit every explanation under each prior set and report which wins under each; "
+        "with choose: average, the written model averages over the sets not chosen after the data",
     )
     parser.add_argument(
         "--baseline-change",
