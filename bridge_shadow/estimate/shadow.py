@@ -638,7 +638,7 @@ class Shadow:
         if self._young_done or self.detector.pending or not self._young:
             return False
         start = self.filter.starts[-1] if self.filter.starts else 0
-        run = [x for x in self._young if x.k >= start and x.action in ("accept", "warm")] + [w]
+        run = [*self._young_data(start, w.k), w]
         if len(run) <= MIN_DIFFERENCES + 1:
             return False
         y, ks = self._compensated(run)
@@ -681,8 +681,7 @@ class Shadow:
         f = self.filter
         if not fresh or f.kinds[-1] != "warmup" or f.starts[-1] != fresh[0].k or len(fresh) < 2:
             return None
-        old = [x for x in self._young if x.k < fresh[0].k and x.action in ("accept", "warm")]
-        old = [x for x in old if x.k >= (f.starts[-2] if len(f.starts) > 1 else 0)]
+        old = self._young_data(f.starts[-2] if len(f.starts) > 1 else 0, fresh[0].k)
         if not old:
             return None
         y_old, k_old = self._compensated(old)
@@ -693,6 +692,10 @@ class Shadow:
         if not new_state_at_last(np.vstack([y_old, y[1:2]]), np.append(k_old, ks[1]), probability, vehicle):
             return "odd"
         return None
+
+    def _young_data(self, lo: int, hi: int) -> list[Window]:
+        """Return the young windows of indices ``[lo, hi)`` that are data (taken or warm-up)."""
+        return [x for x in self._young if lo <= x.k < hi and x.action in ("accept", "warm")]
 
     def _note_young(self, w: Window) -> None:
         """Keep ``w`` among the young windows until the noise model rests on enough windows."""
