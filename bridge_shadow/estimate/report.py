@@ -220,6 +220,73 @@ def _state_outside(shadow: Shadow, probability: float) -> np.ndarray | None:
     return x_d.copy() if bool(np.any(outside)) else None
 
 
+def latest_level(shadow: Shadow) -> dict[str, Any] | None:
+    """Return the state the last windows used read on their own, where the posterior does not hold it.
+
+    The last ``event_confirm_windows`` windows used as data (all of the current segment),
+    compensated by the current curve and read through ``A``, against the posterior: returned when
+    a support's 95 % interval misses their state and the reactions' sum between the two differs
+    by more than any vehicle (``traffic_vehicle_max_n``), else None. A noise model that learned a
+    settlement as noise (a vehicle over the first minutes of the data, then a lowering: the
+    reference record three times back to back, 10 mm lower from the second copy, a 30 kN vehicle
+    in minutes 2-4, ended at -0.97 mm ± 8.3 with its last 24 windows at -10 mm, nothing said),
+    or a prior the data have not yet outweighed, holds the estimate away from what the supports
+    show: the estimate stands, and the check says so (``latest_level_lines``). The comparison is
+    of the same ``u0`` on both sides, so its uncertainty, in the posterior's interval, only widens
+    what passes.
+
+    Keys: ``state_m`` (2,), ``since_ns`` and ``until_ns`` (the windows' span), ``windows``, and
+    ``sum_change_n`` (the reactions' sum of the state less the posterior's).
+    """
+    f = shadow.filter
+    need = shadow.config.event_confirm_windows
+    if not f.starts or len(shadow._latest) < need:
+        return None
+    ws = [w for w in shadow._latest if w.k >= f.starts[-1]]
+    if len(ws) < need:
+        return None
+    force = np.array([w.force for w in ws], float).reshape(-1, 2)
+    if shadow.fit is not None:
+        temp = np.array([w.temp for w in ws], float).reshape(-1, 2)
+        i0 = np.array([w.i0 for w in ws]).reshape(-1, 2)
+        bv = np.array([w.bv for w in ws], float).reshape(len(ws), 2, -1)
+        force = force - shadow.compensation.curve_rows(shadow.fit, temp, i0, bv)
+    state = f.a_inv @ (force.mean(axis=0) - shadow.u0)
+    mean, cov = shadow.posterior
+    if not (np.all(np.isfinite(state)) and np.all(np.isfinite(mean))):
+        return None
+    outside = np.abs(state - mean) > 1.96 * np.sqrt(np.maximum(np.diag(cov), 0.0))
+    step = shadow.A @ (state - mean)
+    if not (bool(np.any(outside)) and beyond_any_vehicle(step, shadow.config.traffic_vehicle_max_n)):
+        return None
+    return {
+        "state_m": state,
+        "since_ns": ws[0].k * shadow._w_ns,
+        "until_ns": (ws[-1].k + 1) * shadow._w_ns,
+        "windows": len(ws),
+        "sum_change_n": float(step[0] + step[1]),
+    }
+
+
+def latest_level_lines(shadow: Shadow) -> list[str]:
+    """One warning line when the last windows read a state the posterior does not hold (``latest_level``)."""
+    latest = latest_level(shadow)
+    if latest is None:
+        return []
+    mean, cov = shadow.posterior
+    hw = 1.96 * np.sqrt(np.maximum(np.diag(cov), 0.0))
+    state = " / ".join(f"{1e3 * x:+.2f}" for x in latest["state_m"])
+    post = " / ".join(f"{1e3 * m:+.2f} ± {1e3 * h:.2f}" for m, h in zip(mean, hw, strict=True))
+    return [
+        f"the last {latest['windows']} windows used ({iso_utc(latest['since_ns'])} to "
+        f"{iso_utc(latest['until_ns'])}) read {state} mm (south / north), outside the posterior's "
+        f"95 % interval ({post} mm): the reactions' sum {1e-3 * latest['sum_change_n']:+.1f} kN from the "
+        "estimate's, more than any vehicle (traffic_vehicle_max_n); a settlement the estimate has not "
+        "followed (its noise model took it for noise, or the prior holds it), or a load heavier than "
+        "any vehicle: the estimate is not the supports' state now"
+    ]
+
+
 def _run_in_data(shadow: Shadow, run: dict[str, Any]) -> ChangeRecord:
     """Return a run used as data, significant when its GLR passed the event threshold or it moved.
 
@@ -627,6 +694,7 @@ def warnings(shadow: Shadow) -> list[str]:
     out.extend(air_jump_lines(shadow))
     out.extend(fixed_noise_lines(shadow))
     out.extend(sun_ambiguity_lines(shadow))
+    out.extend(latest_level_lines(shadow))
     if shadow.n_windows and not shadow.n_updates:
         out.append("no window updated the estimate: the posterior is the prior")
     last = shadow._last_data_k

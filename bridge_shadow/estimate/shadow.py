@@ -268,6 +268,8 @@ class Shadow:
         self._fresh: list[Window] = []
         self._fresh_open = False
         self._rows: list[tuple[Any, ...]] = []
+        #: the last windows used as data (``report.latest_level``: the state they read on their own)
+        self._latest: deque[Window] = deque(maxlen=config.event_confirm_windows)
         self._n_accepted = 0
         self._refit_at = 0
         self._pending_refit: bool | None = None  # a scheduled refit not yet run: reselect lambda?
@@ -1297,6 +1299,7 @@ class Shadow:
             else:
                 self._confirm_previous(w.k)
         self._last_ok = w
+        self._latest.append(w)
         if add_rows:
             y = w.force - self.u0
             seg = self.filter.segment
@@ -1349,6 +1352,8 @@ class Shadow:
         for w in warm:
             if w.action is None:
                 w.action = "warm"
+            if w.action == "warm":
+                self._latest.append(w)
         if not self._young_done:
             self._young = list(warm)
 

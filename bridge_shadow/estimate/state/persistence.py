@@ -189,6 +189,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "warm": np.array([index[id(w)] for w in shadow._warm], np.int64),
             "fresh": np.array([index[id(w)] for w in shadow._fresh], np.int64),
         },
+        "latest": _windows_state(list(shadow._latest), width),
         "young": {
             **_windows_state(shadow._young, width),
             "in_queue": np.array([index.get(id(w), -1) for w in shadow._young], np.int64),
@@ -317,6 +318,9 @@ def restore_shadow(
         shadow._young_done = bool(y["done"])
     else:
         shadow._young, shadow._young_done = [], True
+    shadow._latest.clear()
+    if "latest" in state:  # (a checkpoint from before the latest level's check: filled by new windows)
+        shadow._latest.extend(_windows_restored(state["latest"], width))
     d = state["detector"]
     det = shadow.detector
     det.n_events = int(d["n_events"])
