@@ -137,3 +137,19 @@ def test_the_last_windows_travel_in_a_checkpoint(munich_data: Path, surrogate) -
     if a is not None and b is not None:
         assert np.allclose(a["state_m"], b["state_m"], rtol=1e-9, atol=1e-12)
         assert a["since_ns"] == b["since_ns"]
+
+
+@pytest.mark.realdata
+def test_replay_live_says_it_as_the_direct_replay(munich_data: Path, surrogate, tmp_path) -> None:
+    """The node (``replay --live``) reports the same latest-level warning as the direct replay.
+
+    At 10 Hz (every 10th sample: the node's path is the same at any rate).
+    """
+    pytest.importorskip("rclpy")
+    from test_loadtest_days import _live_and_direct
+
+    sc = _stream(munich_data, surrogate, "ref", 30.0, (2.0, 4.0))
+    data = sc.data.select(lambda stamps: np.arange(len(stamps)) % 10 == 0)
+    live, direct = _live_and_direct(data, tmp_path)
+    lines = _latest_lines(direct["warnings"])
+    assert len(lines) == 1 and _latest_lines(live["warnings"]) == lines
