@@ -73,6 +73,10 @@ def test_a_settlement_the_estimate_did_not_follow_is_said(munich_data: Path, sur
     assert abs(latest["sum_change_n"]) > config.traffic_vehicle_max_n
     diag = report.diagnostics(shadow)
     assert diag["level"] == "WARN" and lines[0] in diag["message"]
+    # the JSON says which state the posterior stands for, and what the last windows read
+    told = res.to_json()["posterior"]["state"]["latest_level"]
+    assert np.allclose(told["state_m"], latest["state_m"], rtol=1e-12, atol=0.0)
+    assert told["since_ns"] == latest["since_ns"] and "not the supports' state now" in diag["state"]["text"]
 
 
 @pytest.mark.realdata
@@ -116,6 +120,7 @@ def test_no_warning_where_the_estimate_holds_the_data(munich_data: Path, surroga
     res = shadow.run(sc.data)
     assert score_stream(sc, res).covered
     assert report.latest_level(shadow) is None and not _latest_lines(res.warnings)
+    assert "latest_level" not in res.to_json()["posterior"]["state"]
 
 
 @pytest.mark.realdata
@@ -153,3 +158,5 @@ def test_replay_live_says_it_as_the_direct_replay(munich_data: Path, surrogate, 
     live, direct = _live_and_direct(data, tmp_path)
     lines = _latest_lines(direct["warnings"])
     assert len(lines) == 1 and _latest_lines(live["warnings"]) == lines
+    told = live["posterior"]["state"]["latest_level"]
+    assert told["since_ns"] == direct["posterior"]["state"]["latest_level"]["since_ns"]

@@ -412,6 +412,22 @@ def posterior_state(shadow: Shadow) -> dict[str, Any]:
             f"; from {iso_utc(a * shadow._w_ns)} on {key} delivered nothing usable and the state there "
             "is not known"
         )
+    latest = latest_level(shadow)
+    if latest is not None:  # the last windows read a state the posterior does not hold
+        state["latest_level"] = {
+            "state_m": latest["state_m"].tolist(),
+            "since_ns": int(latest["since_ns"]),
+            "since": iso_utc(latest["since_ns"]),
+            "until_ns": int(latest["until_ns"]),
+            "until": iso_utc(latest["until_ns"]),
+            "windows": int(latest["windows"]),
+            "sum_change_n": float(latest["sum_change_n"]),
+        }
+        read = " / ".join(f"{1e3 * x:+.2f}" for x in latest["state_m"])
+        state["text"] += (
+            f"; its last {latest['windows']} windows read {read} mm (south / north) on their own, outside "
+            "its 95 % interval by more than any vehicle: not the supports' state now"
+        )
     return state
 
 
