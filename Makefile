@@ -61,7 +61,7 @@ lint: $(STAMP)
 # Regenerate the generated model files after config/bridge.yaml, config/calibration.yaml or the FE
 # code change: the uncalibrated FE surrogate, the calibrated default surrogate (with the README's
 # calibration figures and the prior-sensitivity table in its provenance) and the bundled bags
-# (made with the default surrogate). Commit the results. About 27 minutes on 2 cores (README).
+# (made with the default surrogate). Commit the results. About 4.5 minutes on 2 cores (README).
 # They replace the committed files on purpose, hence --force.
 models: $(STAMP)
 	$(VENV)/bin/bridge-shadow surrogate --out config/surrogate_fe.yaml --force

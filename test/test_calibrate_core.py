@@ -241,3 +241,15 @@ def test_truncated_moments_far_beyond_a_bound_are_the_exponential_limit() -> Non
             np.testing.assert_allclose(
                 [mean, median], [edge + sign * sd, edge + sign * sd * np.log(2.0)], rtol=1e-9
             )
+
+
+def test_the_calibration_file_is_named_as_the_checkout_holds_it(tmp_path) -> None:
+    """Provenance names a checkout's own file relative to it (it named a scratch clone's path)."""
+    from bridge_shadow.calibrate.run import _shown_path
+    from bridge_shadow.paths import repo_root
+
+    root = repo_root()
+    assert root is not None
+    assert _shown_path(root / "config" / "calibration.yaml") == "config/calibration.yaml"
+    outside = tmp_path / "calibration.yaml"
+    assert _shown_path(outside) == str(outside.resolve())

@@ -75,6 +75,7 @@ from bridge_shadow.model.parameters import (
 )
 from bridge_shadow.model.surrogate import SENSITIVITY_PARAMETERS, SurrogateRun, compute_surrogate
 from bridge_shadow.model.surrogate_file import MODEL_UNCERTAINTY_ORDER_FULL, THERMAL_CASES, Discrepancy
+from bridge_shadow.paths import repo_root
 
 __all__ = [
     "CalibrationResult",
@@ -496,6 +497,20 @@ def calibrate(
     return result
 
 
+def _shown_path(path: Path | str) -> str:
+    """Return ``path`` relative to the source checkout when inside it, else absolute.
+
+    The committed surrogate's provenance named the scratch directory the calibration ran from
+    (``/tmp/new79/config/calibration.yaml``): a checkout's own file is named as the repository
+    holds it, whichever clone ran it.
+    """
+    full = Path(path).resolve()
+    root = repo_root()
+    if root is not None and full.is_relative_to(root):
+        return full.relative_to(root).as_posix()
+    return str(full)
+
+
 def _zero_level(pairs: list[PairData]) -> np.ndarray:
     """(2,) N, ``u0`` for ``zero: before``: the car-free level of the first pair's before record."""
     before = pairs[0].change.before
@@ -518,7 +533,7 @@ def _provenance(result: CalibrationResult, cfg: BridgeConfig) -> None:
     prov["model"] = "config/bridge.yaml + calibration"
     prov["calibration"] = {
         "command": "bridge-shadow calibrate",
-        "file": str(spec.path) if spec.path else None,
+        "file": _shown_path(spec.path) if spec.path else None,
         "file_sha256": spec.sha256,
         "bridge_model_sha256": cfg.sha256,
         "mesh": spec.mesh,
