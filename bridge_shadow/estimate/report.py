@@ -280,10 +280,11 @@ def latest_level_lines(shadow: Shadow) -> list[str]:
     return [
         f"the last {latest['windows']} windows used ({iso_utc(latest['since_ns'])} to "
         f"{iso_utc(latest['until_ns'])}) read {state} mm (south / north), outside the posterior's "
-        f"95 % interval ({post} mm): the reactions' sum {1e-3 * latest['sum_change_n']:+.1f} kN from the "
-        "estimate's, more than any vehicle (traffic_vehicle_max_n); a settlement the estimate has not "
-        "followed (its noise model took it for noise, or the prior holds it), or a load heavier than "
-        "any vehicle: the estimate is not the supports' state now"
+        f"95 % interval ({post} mm): the reactions' sum {1e-3 * latest['sum_change_n']:+.1f} kN "
+        "from the estimate's, more than any vehicle (traffic_vehicle_max_n); a settlement the estimate "
+        "has not followed (its noise model took it for noise, or the prior holds it), a load heavier "
+        "than any vehicle, or sun on the deck the compensation has not taken off: the estimate may not "
+        "be the supports' state now"
     ]
 
 
@@ -426,7 +427,7 @@ def posterior_state(shadow: Shadow) -> dict[str, Any]:
         read = " / ".join(f"{1e3 * x:+.2f}" for x in latest["state_m"])
         state["text"] += (
             f"; its last {latest['windows']} windows read {read} mm (south / north) on their own, outside "
-            "its 95 % interval by more than any vehicle: not the supports' state now"
+            "its 95 % interval by more than any vehicle: it may not be the supports' state now"
         )
     return state
 
