@@ -216,8 +216,12 @@ def _state_outside(shadow: Shadow, probability: float) -> np.ndarray | None:
     mean, cov = shadow.posterior
     if not np.all(np.isfinite(x_d)):
         return None
-    outside = np.abs(x_d - mean) > 1.96 * np.sqrt(np.maximum(np.diag(cov), 0.0))
-    return x_d.copy() if bool(np.any(outside)) else None
+    return x_d.copy() if bool(np.any(np.abs(x_d - mean) > _half_width_95(cov))) else None
+
+
+def _half_width_95(cov: np.ndarray) -> np.ndarray:
+    """(2,) the 95 % half-width of each support's marginal of ``cov`` (2, 2)."""
+    return 1.96 * np.sqrt(np.maximum(np.diag(cov), 0.0))
 
 
 def latest_level(shadow: Shadow) -> dict[str, Any] | None:
@@ -235,8 +239,9 @@ def latest_level(shadow: Shadow) -> dict[str, Any] | None:
     of the same ``u0`` on both sides, so its uncertainty, in the posterior's interval, only widens
     what passes.
 
-    Keys: ``state_m`` (2,), ``since_ns`` and ``until_ns`` (the windows' span), ``windows``, and
-    ``sum_change_n`` (the reactions' sum of the state less the posterior's).
+    Keys: ``state_m`` (2,), ``since_ns`` and ``until_ns`` (the windows' span), ``windows``,
+    ``sum_change_n`` (the reactions' sum of the state less the posterior's), and the posterior it
+    was read against: ``mean_m`` and ``half_width_m`` (2,) each, 95 %.
     """
     f = shadow.filter
     need = shadow.config.event_confirm_windows
@@ -255,7 +260,8 @@ def latest_level(shadow: Shadow) -> dict[str, Any] | None:
     mean, cov = shadow.posterior
     if not (np.all(np.isfinite(state)) and np.all(np.isfinite(mean))):
         return None
-    outside = np.abs(state - mean) > 1.96 * np.sqrt(np.maximum(np.diag(cov), 0.0))
+    hw = _half_width_95(cov)
+    outside = np.abs(state - mean) > hw
     step = shadow.A @ (state - mean)
     if not (bool(np.any(outside)) and beyond_any_vehicle(step, shadow.config.traffic_vehicle_max_n)):
         return None
@@ -265,6 +271,8 @@ def latest_level(shadow: Shadow) -> dict[str, Any] | None:
         "until_ns": (ws[-1].k + 1) * shadow._w_ns,
         "windows": len(ws),
         "sum_change_n": float(step[0] + step[1]),
+        "mean_m": mean,
+        "half_width_m": hw,
     }
 
 
@@ -273,8 +281,7 @@ def latest_level_lines(shadow: Shadow) -> list[str]:
     latest = latest_level(shadow)
     if latest is None:
         return []
-    mean, cov = shadow.posterior
-    hw = 1.96 * np.sqrt(np.maximum(np.diag(cov), 0.0))
+    mean, hw = latest["mean_m"], latest["half_width_m"]
     state = " / ".join(f"{1e3 * x:+.2f}" for x in latest["state_m"])
     post = " / ".join(f"{1e3 * m:+.2f} ± {1e3 * h:.2f}" for m, h in zip(mean, hw, strict=True))
     return [
