@@ -1,15 +1,18 @@
 """The last windows read a state the estimate does not hold: said, never silent (issue 19).
 
-Found by a reviewing helper session (stop 79, its stream families kept as scratch) and left then:
-the reference record three times back to back from the data's start (one 36-minute recording,
-unscreened), 10 mm lower from the second copy, a vehicle of 30 kN in minutes 2-4. The noise model,
-young and fitted on windows that carried the vehicle and the recorded test car, read a lag-one
-correlation of 0.97; the detector held the step's windows and let them go as data (GLR 5.8 against
-27.6), and the stream ended at -0.97 / -1.02 mm ± 8.3 for -10, its last 24 windows at -10 mm, no
-event and no warning. The estimate stands (what a noise model learned is not undone by a report);
-``report.latest_level`` compares the last ``event_confirm_windows`` windows used, read on their own
-through ``A``, with the posterior, and a state outside its 95 % interval by more than any vehicle
-on the reactions' sum is a warning (the CLI, the JSON, ``/diagnostics`` WARN).
+Found by a reviewing helper session (stop 79, its stream families kept as scratch): the reference
+record three times back to back from the data's start (one 36-minute recording, unscreened), 10
+mm lower from the second copy, a vehicle of 30 kN in minutes 2-4. The noise model, young and
+fitted on windows that carried the vehicle and the recorded test car, read a lag-one correlation
+of 0.97; the detector held the step's windows and let them go as data (GLR 5.8 against 27.6), and
+the stream ended at -0.97 / -1.02 mm ± 8.3 for -10, its last 24 windows at -10 mm, no event and
+no warning. Since stop 81 the young noise model's windows are searched for a new level on their
+own (``Shadow._young_level``, ``test_young_level.py``) and those streams end at the new state with
+one event. Where the estimate still does not follow (a vehicle of 20 kN parked over minutes 10-25,
+across the step at minute 12: the new level's windows carry it), ``report.latest_level`` compares
+the last ``event_confirm_windows`` windows used, read on their own through ``A``, with the
+posterior, and a state outside its 95 % interval by more than any vehicle on the reactions' sum
+is a warning (the CLI, the JSON, ``/diagnostics`` WARN).
 """
 
 from __future__ import annotations
@@ -32,6 +35,8 @@ HIDDEN = {
     "120 s windows, 20 kN in minutes 1-7": ("ref", 120.0, 20.0, (1.0, 7.0)),
     "lowered first, 120 s windows, 25 kN in minutes 1-7": ("lowered", 120.0, 25.0, (1.0, 7.0)),
 }
+#: A stream the estimate does not follow: the vehicle parked across the step (the helper's family A).
+ACROSS = ("ref", 20.0, (10.0, 25.0))
 
 
 @pytest.fixture(scope="module")
@@ -53,20 +58,30 @@ def _latest_lines(lines: list[str]) -> list[str]:
 
 @pytest.mark.realdata
 @pytest.mark.parametrize("name", sorted(HIDDEN))
-def test_a_settlement_the_estimate_did_not_follow_is_said(munich_data: Path, surrogate, name: str) -> None:
-    """Covered, or warned with the state the last windows read (before: neither, on all three)."""
+def test_a_settlement_the_young_noise_model_took_for_noise_is_followed(
+    munich_data: Path, surrogate, name: str
+) -> None:
+    """Covered with one event, nothing left to say (stop 80: warned only; before: neither)."""
     record, window_s, kn, minutes = HIDDEN[name]
     sc = _stream(munich_data, surrogate, record, kn, minutes)
-    config = load_config().replace(window_s=window_s)
-    shadow = Shadow(config, surrogate)
+    shadow = Shadow(load_config().replace(window_s=window_s), surrogate)
     res = shadow.run(sc.data)
     s = score_stream(sc, res, window_s)
+    assert s.covered and len(res.events) == 1, (1e3 * res.mean_m, res.warnings)
+    assert np.all(np.abs(res.mean_m - sc.truth_m) < 2.5e-3), 1e3 * res.mean_m
+    assert report.latest_level(shadow) is None and not _latest_lines(res.warnings)
+
+
+@pytest.mark.realdata
+def test_a_settlement_the_estimate_did_not_follow_is_said(munich_data: Path, surrogate) -> None:
+    """Not covered, and warned with the state the last windows read, within 1.5 mm of the truth."""
+    config = load_config()
+    sc = _stream(munich_data, surrogate, *ACROSS)
+    shadow = Shadow(config, surrogate)
+    res = shadow.run(sc.data)
     latest = report.latest_level(shadow)
     lines = _latest_lines(res.warnings)
-    assert s.covered or lines, (1e3 * res.mean_m, res.warnings)
-    if latest is None:
-        return
-    assert len(lines) == 1
+    assert latest is not None and len(lines) == 1, (1e3 * res.mean_m, res.warnings)
     # what the last windows read is the supports' state now: the test car's scatter, within 1.5 mm
     assert np.all(np.abs(latest["state_m"] - sc.truth_m) < 1.5e-3), 1e3 * latest["state_m"]
     assert latest["windows"] == config.event_confirm_windows
@@ -89,7 +104,7 @@ def test_the_state_is_the_last_windows_read_through_a(munich_data: Path, surroga
     The outputs carry each window's forces less the curve of its time; the check uses the curve
     of the end (refits move it by far less than the tolerance here: 0.3 mm is 1 kN).
     """
-    sc = _stream(munich_data, surrogate, "ref", 30.0, (2.0, 4.0))
+    sc = _stream(munich_data, surrogate, *ACROSS)
     shadow = Shadow(load_config(), surrogate)
     res = shadow.run(sc.data)
     latest = report.latest_level(shadow)
@@ -130,7 +145,7 @@ def test_no_warning_where_the_estimate_holds_the_data(munich_data: Path, surroga
 def test_the_last_windows_travel_in_a_checkpoint(munich_data: Path, surrogate) -> None:
     """Stopped in the last copy and resumed: the same windows, the same warning."""
     config = load_config().replace(traffic_hold_s=0.0)
-    sc = _stream(munich_data, surrogate, "ref", 30.0, (2.0, 4.0))
+    sc = _stream(munich_data, surrogate, *ACROSS)
     whole = Shadow(config, surrogate)
     whole.run(sc.data)
     stop = sc.starts_ns[2] + 8 * W
@@ -156,7 +171,7 @@ def test_replay_live_says_it_as_the_direct_replay(munich_data: Path, surrogate, 
     pytest.importorskip("rclpy")
     from test_loadtest_days import _live_and_direct
 
-    sc = _stream(munich_data, surrogate, "ref", 30.0, (2.0, 4.0))
+    sc = _stream(munich_data, surrogate, *ACROSS)
     data = sc.data.select(lambda stamps: np.arange(len(stamps)) % 10 == 0)
     live, direct = _live_and_direct(data, tmp_path)
     lines = _latest_lines(direct["warnings"])

@@ -59,10 +59,12 @@ from bridge_shadow.estimate.events.warmup import (
     RAMP_HOLD_FACTOR,
     beyond_any_vehicle,
     jump_goes_on,
+    level_beyond_vehicle_at_last,
     moved_not_still,
     moved_then_still,
     moving_on_known_noise,
     new_state_at_last,
+    ramp_beyond_vehicle_at_last,
     ramp_in_progress,
     ramp_windows,
     step_windows,
@@ -606,8 +608,12 @@ class Shadow:
                     outputs.extend(self._drain())
                 continue
             self._note_young(w)
-            if not self._fresh_open and self._young_step(w):
+            moved = None if self._fresh_open else self._young_step(w)
+            if moved is not None:
+                self._leave_out_moved(moved)  # a ramp's windows taken as data hold neither state
                 outputs.extend(self._open_young(w))  # w is held as the first of the new state's
+            elif not self._fresh_open:
+                self._young_level(w)
             if self._fresh_open:
                 self._fresh.append(w)
                 if len(self._fresh) >= self.config.warmup_windows and not self._ramp_going_on():
@@ -621,8 +627,11 @@ class Shadow:
         outputs.extend(self._drain())
         return outputs
 
-    def _young_step(self, w: Window) -> bool:
-        """Whether ``w`` begins a new state that the young noise model cannot see (see ``_open_young``).
+    def _young_step(self, w: Window) -> list[Window] | None:
+        """Return the windows a new state from ``w`` leaves out, if the young noise model cannot see it.
+
+        None: no new state begins at ``w``; ``[]``: a jump into ``w``; else a ramp's moving windows
+        before ``w`` that were taken as data (``_leave_out_moved``). See ``_open_young``.
 
         While the noise model rests on fewer than ``RAMP_HOLD_FACTOR * warmup_windows`` accepted
         windows (30: three warm-ups), the current segment's windows among the last as many and
@@ -636,17 +645,30 @@ class Shadow:
         among the windows held after the jump took the new state's level with it (a reviewing
         helper's 180 such streams: covered 177 before the rule, 143 with it there, 168 as it is,
         9 of those 12 warned; -2.6 mm ± 5.9 for -10, silent, on the worst with it there).
+        A support lowered over minutes makes no such jump: a ramp going on at ``w`` on the same
+        scale that has moved the reactions' sum beyond any vehicle
+        (``events.warmup.ramp_beyond_vehicle_at_last``) begins a new state there too, and its
+        moving windows taken as data are left out (the reference record three times from the
+        data's start, lowered 10 mm over its minutes 8-13, no vehicle: every window was taken as
+        data, the noise model grew with them, and the stream ended at -1.4 mm ± 8.1 for -10, no
+        event).
         """
         if self._young_done or self.detector.pending or not self._young:
-            return False
+            return None
         start = self.filter.starts[-1] if self.filter.starts else 0
         run = [*self._young_data(start, w.k), w]
         if len(run) <= MIN_DIFFERENCES + 1:
-            return False
+            return None
         y, ks = self._compensated(run)
-        if not new_state_at_last(y, ks, self.detector.false_trigger, self.config.traffic_vehicle_max_n):
-            return False
-        return self.detector.takes_as_data(w.k, *self._judge_terms(w))
+        probability, vehicle = self.detector.false_trigger, self.config.traffic_vehicle_max_n
+        if new_state_at_last(y, ks, probability, vehicle):
+            moved: list[Window] = []
+        else:
+            first = ramp_beyond_vehicle_at_last(y, ks, probability, vehicle)
+            if first is None:
+                return None
+            moved = run[first:-1]
+        return moved if self.detector.takes_as_data(w.k, *self._judge_terms(w)) else None
 
     def _open_young(self, w: Window) -> list[WindowOutput]:
         """Open a provisional segment at ``w`` and hold the windows from it as after a gap.
@@ -698,6 +720,84 @@ class Shadow:
     def _young_data(self, lo: int, hi: int) -> list[Window]:
         """Return the young windows of indices ``[lo, hi)`` that are data (taken or warm-up)."""
         return [x for x in self._young if lo <= x.k < hi and x.action in ("accept", "warm")]
+
+    def _leave_out_moved(self, moved: list[Window]) -> None:
+        """Take a young ramp's windows out of the estimate: they hold neither state (``_young_step``).
+
+        They were taken as data of the current segment (its last ones) and each went out as an
+        update; their rows leave the sums (``FitSums.remove_last``), they are counted and listed as
+        ``step_window``, and the curve, the noise model and the chain are refitted without them.
+        """
+        if not moved:
+            return
+        self._flush_rows()
+        seg = self.filter.segment
+        gone = {w.k for w in moved}
+        kept = [x for x in self._young_data(self.filter.starts[-1], moved[0].k) if x.k not in gone]
+        before = self._window_rows(kept[-1:], seg) if kept else None
+        self.sums.remove_last(self._window_rows(moved, seg), before)
+        for w in moved:
+            self._leave_out(w)
+            self._note_rejected(w.k, w.reason)
+        latest = [x for x in self._latest if x.k not in gone]
+        self._latest.clear()
+        self._latest.extend(latest)
+        if kept:
+            self._last_ok = kept[-1]
+        self._refit()
+
+    def _young_level(self, w: Window) -> None:
+        """Move the windows of a new level the young noise model took as data into a segment of their own.
+
+        A support lowered over minutes at a pace the test car's moves break makes neither a jump
+        nor a ramp on the windows' own scale (``_young_step``), and a young noise model takes every
+        window as data and grows with them (the reference record three times from the data's
+        start, lowered 10 mm over its minutes 8-18: the stream ended at -1.2 mm ± 8.1 for -10, no
+        event). Where the last windows and ``w`` hold a level beyond any vehicle from the windows
+        before them (``events.warmup.level_beyond_vehicle_at_last``) and the detector takes ``w`` as
+        data, the windows of the new level leave the current segment's sums and open a
+        provisional one (``kind: warmup``, decided by the data as after a gap), and everything is
+        refitted; ``w`` is then judged against it. Their outputs went out as they were.
+        """
+        if self._young_done or self.detector.pending or not self._young or not self.filter.starts:
+            return
+        run = [*self._young_data(self.filter.starts[-1], w.k), w]
+        y, _ = self._compensated(run)
+        found = level_beyond_vehicle_at_last(y, self.config.traffic_vehicle_max_n)
+        if found is None or not self.detector.takes_as_data(w.k, *self._judge_terms(w)):
+            return
+        self._flush_rows()
+        a, i = found
+        old, moving, new = self.filter.segment, run[a:i], run[i:-1]
+        self.sums.remove_last(self._window_rows(run[a:-1], old), self._window_rows(run[a - 1 : a], old))
+        for x in moving:  # a ramp's windows hold neither state
+            self._leave_out(x)
+            self._note_rejected(x.k, x.reason)
+        gone = {x.k for x in moving}
+        latest = [x for x in self._latest if x.k not in gone]
+        self._latest.clear()
+        self._latest.extend(latest)
+        prior = self.config.change_prior_probability
+        self.filter.open_segment(new[0].k, self._drift_jump(new[0].k), kind="warmup", change_prior=prior)
+        seg = self.filter.segment
+        for x in new:
+            x.seg = seg
+        self.sums.add(self._window_rows(new, seg))
+        self.detector.prev = None  # innovations after it refer to a new estimate
+        self._refit()
+
+    def _window_rows(self, windows: list[Window], seg: int) -> WindowRows:
+        """Return the sums' rows of ``windows`` taken as data of segment ``seg`` (as ``_accept`` does)."""
+        return WindowRows(
+            np.array([w.k for w in windows], np.int64),
+            np.array([w.samples for w in windows], float).reshape(-1, 2),
+            np.array([w.force - self.u0 for w in windows], float).reshape(-1, 2),
+            np.array([w.temp for w in windows], float).reshape(-1, 2),
+            np.array([w.i0 for w in windows], np.int64).reshape(-1, 2),
+            np.array([w.bv for w in windows], float).reshape(len(windows), 2, -1),
+            np.full(len(windows), seg, np.int64),
+            np.array([_sun_var(w) ** 0.5 for w in windows], float),
+        )
 
     def _note_young(self, w: Window) -> None:
         """Keep ``w`` among the young windows until the noise model rests on enough windows."""

@@ -39,6 +39,7 @@ __all__ = [
     "build",
     "car_stretches_ns",
     "load_records",
+    "lowered_from_start",
     "lowered_over",
     "random_inside_streams",
     "random_streams",
@@ -261,13 +262,33 @@ def lowered_over(
     """
     copies = int(np.ceil((start_min + minutes + 3.0) / 12.0))
     pieces = [Piece("ref", 0.0), Piece("lowered", 0.733)]
+    return pieces + _lowering_slices("lowered", at_h, copies, start_min, minutes, size_m, stages)
+
+
+def lowered_from_start(
+    record: str, start_min: float, minutes: float, size_m: float, copies: int = 3
+) -> list[Piece]:
+    """Return ``record`` copied ``copies`` times in a row from the data's start, lowered over minutes.
+
+    As ``lowered_over`` without the real pair before it: the copies 0.2 h apart (12 minutes each,
+    one unbroken recording), the lowering of ``size_m`` from minute ``start_min`` over ``minutes``
+    in half-minute slices through ``A``, while the shadow's noise model is young.
+    """
+    return _lowering_slices(record, 0.0, copies, start_min, minutes, size_m, None)
+
+
+def _lowering_slices(
+    record: str, at_h: float, copies: int, start_min: float, minutes: float, size_m: float, stages: int | None
+) -> list[Piece]:
+    """Half-minute slices of ``record`` copied in a row from ``at_h``, each at the step its middle reached."""
+    pieces = []
     for u in np.arange(0.0, 12.0 * copies, 0.5):
         c = int(u // 12)
         f = float(np.clip((u + 0.25 - start_min) / minutes, 0.0, 1.0))
         if stages is not None:
             f = float(min(np.floor(f * stages) + 1.0, stages)) / stages if u + 0.25 >= start_min else 0.0
         cut = (float(u - 12 * c), float(u + 0.5 - 12 * c))
-        pieces.append(Piece("lowered", at_h + c * 0.2, (size_m * f, size_m * f), cut_min=cut))
+        pieces.append(Piece(record, at_h + c * 0.2, (size_m * f, size_m * f), cut_min=cut))
     return pieces
 
 

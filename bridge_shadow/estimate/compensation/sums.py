@@ -295,6 +295,26 @@ class FitSums:
             if ab.any():
                 self.LBB[c] += _scatter_outer(ca[ab], va[ab], cb[ab], vb[ab], p[ab], q)
 
+    def remove_last(self, rows: WindowRows, before: WindowRows | None) -> None:
+        """Take out ``rows``, the last windows added, and the lag-1 pair that joined them to ``before``.
+
+        ``before``: the window added just before them (one row; None if they were the first). The
+        sums are additive: those of ``rows`` alone (with ``before`` as their previous window) are
+        subtracted. The temperature range stays as it was (it only widens the curve's support).
+        """
+        if not len(rows):
+            return
+        part = FitSums(self.q, self.width)
+        part.ensure_segment(self.n_segments - 1)
+        part.prev = before
+        part.add(rows)
+        self.ensure_segment(part.n_segments - 1)
+        for name in (*self._GLOBAL, *self._SEG):
+            setattr(self, name, getattr(self, name) - getattr(part, name))
+        self.n -= part.n
+        self.n_pairs -= part.n_pairs
+        self.prev = None if before is None else WindowRows(*(getattr(before, f)[-1:].copy() for f in _FIELDS))
+
     def merge_into_previous(self, s: int) -> None:
         """Make segment ``s`` part of segment ``s - 1`` (later segments move down by one).
 

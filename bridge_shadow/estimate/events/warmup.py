@@ -65,11 +65,13 @@ __all__ = [
     "false_step_probability",
     "false_two_step_probability",
     "jump_goes_on",
+    "level_beyond_vehicle_at_last",
     "moved_not_still",
     "moved_then_still",
     "moving_on_known_noise",
     "new_state_at_last",
     "over_median_ratio",
+    "ramp_beyond_vehicle_at_last",
     "ramp_in_progress",
     "ramp_ratio",
     "ramp_windows",
@@ -498,6 +500,90 @@ def ramp_in_progress(y: np.ndarray, k: np.ndarray, probability: float) -> bool:
         _ramp_score(raw, lag, prec, single, (m - length, m), probability, open_end=True) > 0.0
         for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1)
     )
+
+
+def ramp_beyond_vehicle_at_last(
+    y: np.ndarray, k: np.ndarray, probability: float, vehicle_max_n: float
+) -> int | None:
+    """Return the first moving window of a ramp going on at the last of ``y`` (n, 2) N that no vehicle makes.
+
+    Among the blocks of ``ramp_in_progress`` (on the windows' own scale, ending at the last
+    difference) those whose last window moved the reactions' sum beyond any vehicle
+    (``vehicle_max_n``, either way) from the window before the block: a support lowered over
+    minutes, where no one difference is a jump for ``new_state_at_last``. The block with the
+    largest ratio is taken (as ``ramp_windows`` does); None without one. The ramp's bound
+    (``ramp_ratio``) holds its false probability; the vehicle bound adds that no load driving onto
+    the bridge moves the reactions so far.
+    """
+    diffs = _differences(y, k, RAMP_MIN_LENGTH + RAMP_MIN_REST)
+    if diffs is None:
+        return None
+    raw, lag, _, prec, single = diffs
+    m = len(raw)
+    y = np.asarray(y, float).reshape(-1, 2)
+    best, found = 0.0, None
+    for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1):
+        if not beyond_any_vehicle(y[-1] - y[m - length], vehicle_max_n):
+            continue
+        score = _ramp_score(raw, lag, prec, single, (m - length, m), probability, open_end=True)
+        if score > best:
+            best, found = score, m - length + 1
+    return found
+
+
+def level_beyond_vehicle_at_last(y: np.ndarray, vehicle_max_n: float) -> tuple[int, int] | None:
+    """Return ``(first window moving, first window of the new level)`` of a level the last windows hold.
+
+    The reactions' sum ``s`` of ``y`` (n, 2) N is fitted, by least squares, as a level ``L0`` up to
+    window ``a``, a straight line from ``L0`` to ``L1`` over windows ``a .. b - 1`` (none: a step),
+    and ``L1`` from ``b`` on (the old state, a support lowered over minutes, the new state), for
+    every ``a`` and ``b`` that leave at least ``RAMP_MIN_REST + 1`` windows to either level; the
+    best fit is a change when the mean of the windows from ``b`` on is beyond any vehicle
+    (``vehicle_max_n``) below every window before ``a`` (a lowering: no old window is the new
+    state with a vehicle on it) or above every one of them (a raise: the new level is no old
+    state with a vehicle on it). A vehicle only adds load: one parked over the first minutes of
+    the data and gone, with the test car's +9 kN on the other side, moved the old windows' mean
+    by more than the bound, but not their lowest; one parked on a share of the new level's
+    windows lifts their mean by that share of its load, so a lowering of the sum by more than
+    twice the bound is read whatever the vehicles on the new level.
+    A ramp whose pace the test car's moves break is no ramp for ``ramp_windows`` and no jump for
+    ``new_state_at_last``; a ramp still going on fits best with its line to the last window, or
+    leaves windows after ``b`` that go on its way at ``RAMP_MIN_SPEED`` of its speed or more (the
+    slope of their own line), so the new level is read only once it has ``RAMP_MIN_REST + 1``
+    windows that have stopped. No probability is asked of the noise: the bound is the loads',
+    and a level a heavier load held is a provisional change the data after it decide, as any
+    step rule's.
+    """
+    s = np.asarray(y, float).reshape(-1, 2).sum(axis=1)
+    n, least = len(s), RAMP_MIN_REST + 1
+    if n < 2 * least or not np.all(np.isfinite(s)):
+        return None
+    j = np.arange(n, dtype=float)
+    pairs = [(a, b) for a in range(least, n - least + 1) for b in range(a, n + 1)]
+    ab = np.array(pairs, float)
+    # share of the new level in each window: 0 before a, rising over a .. b - 1, 1 from b
+    f = np.clip((j[None, :] - ab[:, :1] + 1.0) / (ab[:, 1:] - ab[:, :1] + 1.0), 0.0, 1.0)
+    g = 1.0 - f
+    s00, s01, s11 = (g * g).sum(axis=1), (g * f).sum(axis=1), (f * f).sum(axis=1)
+    r0, r1 = g @ s, f @ s
+    det = s00 * s11 - s01 * s01
+    ok = det > 0.0
+    l0 = np.where(ok, (s11 * r0 - s01 * r1) / np.where(ok, det, 1.0), np.nan)
+    l1 = np.where(ok, (s00 * r1 - s01 * r0) / np.where(ok, det, 1.0), np.nan)
+    sse = ((s[None, :] - g * l0[:, None] - f * l1[:, None]) ** 2).sum(axis=1)
+    best = int(np.nanargmin(np.where(ok, sse, np.nan)))
+    first, start = pairs[best]
+    if n - start < least:
+        return None  # still moving, or the new level has too few windows yet
+    speed = float(l1[best] - l0[best]) / (start - first + 1)
+    if float(np.polyfit(j[start:], s[start:], 1)[0]) * math.copysign(1.0, speed) >= RAMP_MIN_SPEED * abs(
+        speed
+    ):
+        return None  # the new level's windows go on the way the ramp went: it has not ended
+    old, level = s[:first], float(np.mean(s[start:]))
+    if level < float(np.min(old)) - vehicle_max_n or level > float(np.max(old)) + vehicle_max_n:
+        return first, start
+    return None
 
 
 def _known_noise_moves(
