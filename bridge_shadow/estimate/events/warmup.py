@@ -515,12 +515,15 @@ def ramp_beyond_vehicle_at_last(
     (``ramp_ratio``) holds its false probability; the vehicle bound adds that no load driving onto
     the bridge moves the reactions so far.
     """
+    y = np.asarray(y, float).reshape(-1, 2)
+    s = y.sum(axis=1)
+    if not np.any(np.abs(s[-1] - s[:-RAMP_MIN_LENGTH]) > vehicle_max_n):
+        return None  # the last window is within any vehicle of every window a block could start at
     diffs = _differences(y, k, RAMP_MIN_LENGTH + RAMP_MIN_REST)
     if diffs is None:
         return None
     raw, lag, _, prec, single = diffs
     m = len(raw)
-    y = np.asarray(y, float).reshape(-1, 2)
     best, found = 0.0, None
     for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1):
         if not beyond_any_vehicle(y[-1] - y[m - length], vehicle_max_n):
@@ -557,6 +560,14 @@ def level_beyond_vehicle_at_last(y: np.ndarray, vehicle_max_n: float) -> tuple[i
     s = np.asarray(y, float).reshape(-1, 2).sum(axis=1)
     n, least = len(s), RAMP_MIN_REST + 1
     if n < 2 * least or not np.all(np.isfinite(s)):
+        return None
+    # the old level holds the first windows and the new level's mean lies among later ones: with no
+    # later window beyond any vehicle from them either way there is nothing to fit (most windows)
+    head, rest = s[:least], s[least:]
+    if (
+        float(np.min(rest)) >= float(np.min(head)) - vehicle_max_n
+        and float(np.max(rest)) <= float(np.max(head)) + vehicle_max_n
+    ):
         return None
     j = np.arange(n, dtype=float)
     pairs = [(a, b) for a in range(least, n - least + 1) for b in range(a, n + 1)]
