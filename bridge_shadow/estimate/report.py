@@ -231,12 +231,13 @@ def latest_level(shadow: Shadow) -> dict[str, Any] | None:
     compensated by the current curve and read through ``A``, against the posterior: returned when
     a support's 95 % interval misses their state and the reactions' sum between the two differs
     by more than any vehicle (``traffic_vehicle_max_n``), else None. A noise model that learned a
-    settlement as noise (the reference record three times back to back, 10 mm lower from the
-    second copy, a 20 kN vehicle parked over minutes 10-25, across the step: -1.8 mm ± 5.9 for
-    -10 with the last windows at -9.6; since stop 81 the young windows' own level rule,
-    ``Shadow._young_level``, follows the same stream with the vehicle in minutes 2-4), or a prior
-    the data have not yet outweighed, holds the estimate away from what the supports show: the
-    estimate stands, and the check says so (``latest_level_lines``). The comparison is
+    settlement as noise (a vehicle over the first minutes of the data, then a lowering: the
+    reference record three times back to back, 10 mm lower from the second copy, a 30 kN vehicle
+    in minutes 2-4, ended at -0.97 mm ± 8.3 with its last 24 windows at -10 mm, nothing said; the
+    young windows' own rules, ``Shadow._young_level``, follow its kin with 120 s windows and many
+    lowerings over minutes), or a prior the data have not yet outweighed, holds the estimate away
+    from what the supports show: the estimate stands, and the check says so
+    (``latest_level_lines``). The comparison is
     of the same ``u0`` on both sides, so its uncertainty, in the posterior's interval, only widens
     what passes.
 
