@@ -208,3 +208,23 @@ def test_replay_live_reads_the_young_level_as_the_direct_replay(
     assert direct["windows"]["rejected_by_reason"]["step_window"] > 0
     assert live["rejected_windows"] == direct["rejected_windows"]
     assert abs(direct["posterior"]["mean_m"][0] - sc.truth_m[0]) < 2.5e-3
+
+
+@pytest.mark.realdata
+def test_a_vehicle_over_the_first_minutes_is_no_level(munich_data: Path, surrogate) -> None:
+    """30 kN over minutes 0-5 beside the recorded test car, no settlement: no level read, covered.
+
+    The factor two of ``Shadow._young_level``: at once the bound, these windows read as a level
+    (a reviewing helper's stream); at twice, not.
+    """
+    sc = build(munich_data / "Settlements", surrogate.A, lowered_from_start("ref", 8.0, 10.0, 0.0))
+    sc.data = with_vehicle(sc.data, sc.starts_ns[0], VEHICLE, 0.0, 5.0)
+    shadow = Shadow(load_config(), surrogate)
+    res = shadow.run(sc.data)
+    assert score_stream(sc, res).covered
+    assert shadow.counts["step_window"] == 0 and "warmup" not in shadow.filter.kinds
+    # the rule reads the young windows as each one comes (the forces as compensated then)
+    young = np.array([o.force_n for o in res.outputs if o.updated][:30])
+    runs = [young[:n] for n in range(2, len(young) + 1)]
+    assert any(level_beyond_vehicle_at_last(y, VEHICLE) is not None for y in runs)
+    assert all(level_beyond_vehicle_at_last(y, 2.0 * VEHICLE) is None for y in runs)
