@@ -736,15 +736,20 @@ class Shadow:
         kept = [x for x in self._young_data(self.filter.starts[-1], moved[0].k) if x.k not in gone]
         before = self._window_rows(kept[-1:], seg) if kept else None
         self.sums.remove_last(self._window_rows(moved, seg), before)
-        for w in moved:
+        self._take_back(moved)
+        if kept:
+            self._last_ok = kept[-1]
+        self._refit()
+
+    def _take_back(self, windows: list[Window]) -> None:
+        """Leave out windows taken as data whose rows have left the sums: counted, listed, not latest."""
+        gone = {w.k for w in windows}
+        for w in windows:
             self._leave_out(w)
             self._note_rejected(w.k, w.reason)
         latest = [x for x in self._latest if x.k not in gone]
         self._latest.clear()
         self._latest.extend(latest)
-        if kept:
-            self._last_ok = kept[-1]
-        self._refit()
 
     def _young_level(self, w: Window) -> None:
         """Move the windows of a new level the young noise model took as data into a segment of their own.
@@ -776,13 +781,7 @@ class Shadow:
         a, i = found
         old, moving, new = self.filter.segment, run[a:i], run[i:-1]
         self.sums.remove_last(self._window_rows(run[a:-1], old), self._window_rows(run[a - 1 : a], old))
-        for x in moving:  # a ramp's windows hold neither state
-            self._leave_out(x)
-            self._note_rejected(x.k, x.reason)
-        gone = {x.k for x in moving}
-        latest = [x for x in self._latest if x.k not in gone]
-        self._latest.clear()
-        self._latest.extend(latest)
+        self._take_back(moving)  # a ramp's windows hold neither state
         prior = self.config.change_prior_probability
         self.filter.open_segment(new[0].k, self._drift_jump(new[0].k), kind="warmup", change_prior=prior)
         seg = self.filter.segment
