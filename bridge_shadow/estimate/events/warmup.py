@@ -524,14 +524,13 @@ def ramp_beyond_vehicle_at_last(
         return None
     raw, lag, _, prec, single = diffs
     m = len(raw)
-    best, found = 0.0, None
-    for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1):
-        if not beyond_any_vehicle(y[-1] - y[m - length], vehicle_max_n):
-            continue
-        score = _ramp_score(raw, lag, prec, single, (m - length, m), probability, open_end=True)
-        if score > best:
-            best, found = score, m - length + 1
-    return found
+    scores = {  # by the block's first moving window, shortest block first
+        m - length + 1: _ramp_score(raw, lag, prec, single, (m - length, m), probability, open_end=True)
+        for length in range(RAMP_MIN_LENGTH, m - RAMP_MIN_REST + 1)
+        if beyond_any_vehicle(y[-1] - y[m - length], vehicle_max_n)
+    }
+    first = max(scores, key=scores.__getitem__, default=None)
+    return first if first is not None and scores[first] > 0.0 else None
 
 
 def level_beyond_vehicle_at_last(y: np.ndarray, vehicle_max_n: float) -> tuple[int, int] | None:
