@@ -119,6 +119,21 @@ def _sun_var(w: Window) -> float:
     return w.svar if w.i0[0] >= 0 else 0.0
 
 
+def _rows_of(rows: list[tuple[Any, ...]]) -> WindowRows:
+    """Return the sums' rows (``Shadow._row`` each, at least one) as arrays."""
+    k, m, y, t, i0, bv, seg, sv = zip(*rows, strict=True)
+    return WindowRows(
+        np.asarray(k, np.int64),
+        np.asarray(m, float),
+        np.asarray(y, float),
+        np.asarray(t, float),
+        np.asarray(i0, np.int64),
+        np.asarray(bv, float),
+        np.asarray(seg, np.int64),
+        np.asarray(sv, float),
+    )
+
+
 class Shadow:
     """The online shadow of the two central-support settlements (no ROS import).
 
@@ -608,12 +623,13 @@ class Shadow:
                     outputs.extend(self._drain())
                 continue
             self._note_young(w)
-            moved = None if self._fresh_open else self._young_step(w)
+            young = None if self._fresh_open else self._young_run(w)
+            moved = None if young is None else self._young_step(w, *young)
             if moved is not None:
                 self._leave_out_moved(moved)  # a ramp's windows taken as data hold neither state
                 outputs.extend(self._open_young(w))  # w is held as the first of the new state's
-            elif not self._fresh_open:
-                self._young_level(w)
+            elif young is not None:
+                self._young_level(w, *young)
             if self._fresh_open:
                 self._fresh.append(w)
                 if len(self._fresh) >= self.config.warmup_windows and not self._ramp_going_on():
@@ -627,7 +643,19 @@ class Shadow:
         outputs.extend(self._drain())
         return outputs
 
-    def _young_step(self, w: Window) -> list[Window] | None:
+    def _young_run(self, w: Window) -> tuple[list[Window], np.ndarray, np.ndarray] | None:
+        """Return the current segment's young data windows and ``w``, compensated, or None.
+
+        None once the noise model is no longer young, while the detector holds a run, or before
+        any young window: the young rules (``_young_step``, ``_young_level``) then read nothing.
+        """
+        if self._young_done or self.detector.pending or not self._young or not self.filter.starts:
+            return None
+        run = [*self._young_data(self.filter.starts[-1], w.k), w]
+        y, ks = self._compensated(run)
+        return run, y, ks
+
+    def _young_step(self, w: Window, run: list[Window], y: np.ndarray, ks: np.ndarray) -> list[Window] | None:
         """Return the windows a new state from ``w`` leaves out, if the young noise model cannot see it.
 
         None: no new state begins at ``w``; ``[]``: a jump into ``w``; else a ramp's moving windows
@@ -653,13 +681,8 @@ class Shadow:
         data, the noise model grew with them, and the stream ended at -1.4 mm ± 8.1 for -10, no
         event).
         """
-        if self._young_done or self.detector.pending or not self._young:
-            return None
-        start = self.filter.starts[-1] if self.filter.starts else 0
-        run = [*self._young_data(start, w.k), w]
         if len(run) <= MIN_DIFFERENCES + 1:
             return None
-        y, ks = self._compensated(run)
         probability, vehicle = self.detector.false_trigger, self.config.traffic_vehicle_max_n
         if new_state_at_last(y, ks, probability, vehicle):
             moved: list[Window] = []
@@ -751,7 +774,7 @@ class Shadow:
         self._latest.clear()
         self._latest.extend(latest)
 
-    def _young_level(self, w: Window) -> None:
+    def _young_level(self, w: Window, run: list[Window], y: np.ndarray, ks: np.ndarray) -> None:
         """Move the windows of a new level the young noise model took as data into a segment of their own.
 
         A support lowered over minutes at a pace the test car's moves break makes neither a jump
@@ -770,10 +793,6 @@ class Shadow:
         of the truth without a word on 8 of its 160 streams near the bound, where the old noise
         model's width had held them; at twice the bound neither happened on its 511 streams.
         """
-        if self._young_done or self.detector.pending or not self._young or not self.filter.starts:
-            return
-        run = [*self._young_data(self.filter.starts[-1], w.k), w]
-        y, _ = self._compensated(run)
         found = level_beyond_vehicle_at_last(y, 2.0 * self.config.traffic_vehicle_max_n)
         if found is None or not self.detector.takes_as_data(w.k, *self._judge_terms(w)):
             return
@@ -791,18 +810,13 @@ class Shadow:
         self.detector.prev = None  # innovations after it refer to a new estimate
         self._refit()
 
+    def _row(self, w: Window, seg: int) -> tuple[Any, ...]:
+        """Return window ``w``'s row for the sums, taken as data of segment ``seg``."""
+        return (w.k, w.samples, w.force - self.u0, w.temp, w.i0, w.bv, seg, _sun_var(w) ** 0.5)
+
     def _window_rows(self, windows: list[Window], seg: int) -> WindowRows:
-        """Return the sums' rows of ``windows`` taken as data of segment ``seg`` (as ``_accept`` does)."""
-        return WindowRows(
-            np.array([w.k for w in windows], np.int64),
-            np.array([w.samples for w in windows], float).reshape(-1, 2),
-            np.array([w.force - self.u0 for w in windows], float).reshape(-1, 2),
-            np.array([w.temp for w in windows], float).reshape(-1, 2),
-            np.array([w.i0 for w in windows], np.int64).reshape(-1, 2),
-            np.array([w.bv for w in windows], float).reshape(len(windows), 2, -1),
-            np.full(len(windows), seg, np.int64),
-            np.array([_sun_var(w) ** 0.5 for w in windows], float),
-        )
+        """Return the sums' rows of ``windows`` (at least one) taken as data of segment ``seg``."""
+        return _rows_of([self._row(w, seg) for w in windows])
 
     def _note_young(self, w: Window) -> None:
         """Keep ``w`` among the young windows until the noise model rests on enough windows."""
@@ -1406,9 +1420,7 @@ class Shadow:
         self._last_ok = w
         self._latest.append(w)
         if add_rows:
-            y = w.force - self.u0
-            seg = self.filter.segment
-            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, seg, _sun_var(w) ** 0.5))
+            self._rows.append(self._row(w, self.filter.segment))
             self._n_accepted += 1
             t0, t1 = float(w.temp[0]), float(w.temp[1])
             lo, hi = self._range
@@ -1449,8 +1461,7 @@ class Shadow:
         for w in warm:
             if w.action == "invalid":  # a window a step happened in (``_split_warm_segment``)
                 continue
-            y = w.force - self.u0
-            self._rows.append((w.k, w.samples, y, w.temp, w.i0, w.bv, max(w.seg, 0), _sun_var(w) ** 0.5))
+            self._rows.append(self._row(w, max(w.seg, 0)))
             self._n_accepted += 1
         self._refit(reselect=True, online=False)
         self._refit(reselect=True, online=False)  # the slope prior, weighed with the noise just learned
@@ -1497,20 +1508,8 @@ class Shadow:
         """Move the accepted windows' rows into the sums."""
         if not self._rows:
             return
-        k, m, y, t, i0, bv, seg, sv = zip(*self._rows, strict=True)
-        self._rows = []
-        self.sums.add(
-            WindowRows(
-                np.asarray(k, np.int64),
-                np.asarray(m, float),
-                np.asarray(y, float),
-                np.asarray(t, float),
-                np.asarray(i0, np.int64),
-                np.asarray(bv, float),
-                np.asarray(seg, np.int64),
-                np.asarray(sv, float),
-            )
-        )
+        rows, self._rows = self._rows, []
+        self.sums.add(_rows_of(rows))
 
     def _refit(self, reselect: bool = False, online: bool = True) -> None:
         """Refit the curve (``lambda`` too if ``reselect``), the noise model and the settlement.
