@@ -7,7 +7,9 @@ At exit the rows (ms) go to the JSON file named by ``BRIDGE_SHADOW_PARTS_OUT``.
 
 ``closing_parts_in_process`` feeds the same messages through the same node's subscription
 callbacks in one process (no DDS traffic in, the drain timer called every 50 ms of the stream): the
-node's own code, warm, the baseline the DDS run is read against.
+node's own code, the baseline the DDS run is read against. Fed as fast as it goes, the close runs
+warm, back to back; paced (``tick_s``: each tick waits for its time, as the player's), it runs
+once every window's 0.1 s of wall clock, as in the node.
 """
 
 from __future__ import annotations
@@ -60,7 +62,11 @@ def time_closing_drains(node_class: type[ShadowNode] = ShadowNode) -> list[tuple
 
 
 def closing_parts_in_process(
-    args: Sequence[str], streams: Sequence[Sequence[bytes]], temp_every: int, drain_every: int
+    args: Sequence[str],
+    streams: Sequence[Sequence[bytes]],
+    temp_every: int,
+    drain_every: int,
+    tick_s: float = 0.0,
 ) -> list[tuple[float, float, float]]:
     """Feed ``streams`` (frc_01, frc_02, air) through one node's callbacks in-process; return the rows.
 
@@ -69,7 +75,8 @@ def closing_parts_in_process(
 
     Tick ``j`` delivers the air message ``j // temp_every`` when ``j % temp_every == 0``, then
     frc_01 and frc_02 of tick ``j``; the drain timer runs every ``drain_every`` ticks (half-way
-    between window ends).
+    between window ends). With ``tick_s`` > 0, tick ``j`` waits (sleeping) until ``j * tick_s``
+    after the first: the stream's pace in wall-clock time.
     """
     import rclpy
 
@@ -81,7 +88,11 @@ def closing_parts_in_process(
     try:
         node = Timed()
         f1, f2, air = (sub.callback for sub in node._subs)
+        t0 = time.perf_counter()
         for j in range(len(streams[0])):
+            lag = t0 + j * tick_s - time.perf_counter()
+            if lag > 0.0:
+                time.sleep(lag)
             if j % temp_every == 0:
                 air(streams[2][j])
             f1(streams[0][j])

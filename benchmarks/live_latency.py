@@ -12,8 +12,11 @@ publish -> echo arrival, i.e. the transport round trip the node cannot beat.
 ``--parts`` also times the node's window-closing drains by part (``_node_parts``: the drain, its
 decode-and-ingest, its start to the window's first posterior message) through DDS, against the same
 node code fed the same messages in one process (its subscription callbacks called directly, no
-DDS: the warm baseline). The ratio is what running among a node's message callbacks, next to the
-player and DDS on two cores, does to the same work.
+DDS), once as fast as it goes (the warm baseline: one window's close after the other) and once
+paced at the stream's 1 kHz in wall-clock time (each tick sleeps until its time, as the player's
+do; no DDS, no player). The first ratio is what the node's setting does to the same work; the
+paced run says how much of it is the pace alone (the close running once a window, 0.1 s apart,
+instead of back to back).
 
 Run: ``.venv/bin/python benchmarks/live_latency.py [SECONDS] [--parts]`` (default 20 s).
 """
@@ -133,18 +136,25 @@ def parts(args: list[str], seconds: float) -> None:
         env["PYTHONPATH"] = os.pathsep.join(x for x in (here, env.get("PYTHONPATH")) if x)
         lat = run("_node_parts", args, seconds, echo=False, env=env)
         dds = np.array(json.loads(out.read_text())["rows"])[2 * WARMUP :]
-    local = np.array(closing_parts_in_process(args, messages(n, seed=1), 10, 50))[2 * WARMUP :]
+    streams = messages(n, seed=1)
+    local = np.array(closing_parts_in_process(args, streams, 10, 50))[2 * WARMUP :]
+    paced = np.array(closing_parts_in_process(args, streams, 10, 50, tick_s=TICK_NS / 1e9))[2 * WARMUP :]
     print(
         f"window-closing drains, ms (latency of the timed run: p50 {np.percentile(lat, 50):.2f}, p99 "
         f"{np.percentile(lat, 99):.2f}):"
     )
     print(
-        f"  {'part':18s} {'in-process p50 / p99 (baseline)':>32s} {'node via DDS p50 / p99':>26s}  ratio p50"
+        f"  {'part':18s} {'in-process p50 / p99 (baseline)':>32s} {'in-process paced':>18s} "
+        f"{'node via DDS':>16s}  ratio p50 paced, DDS"
     )
     for k, name in enumerate(PARTS):
         a50, a99 = np.percentile(local[:, k], [50, 99])
+        c50, c99 = np.percentile(paced[:, k], [50, 99])
         b50, b99 = np.percentile(dds[:, k], [50, 99])
-        print(f"  {name:18s} {a50:21.3f} / {a99:6.3f}    {b50:16.3f} / {b99:6.3f}  x{b50 / a50:.2f}")
+        print(
+            f"  {name:18s} {a50:21.3f} / {a99:6.3f}   {c50:7.3f} / {c99:6.3f}  {b50:6.3f} / {b99:6.3f}"
+            f"  x{c50 / a50:.2f}, x{b50 / a50:.2f}"
+        )
 
 
 def main() -> None:
