@@ -23,6 +23,7 @@ from bridge_shadow.estimate.compensation.fit import Compensation
 from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows, residual_moments
 from bridge_shadow.estimate.events.warmup import (
     level_beyond_vehicle_at_last,
+    level_unsettled_at_last,
     ramp_beyond_vehicle_at_last,
 )
 from bridge_shadow.model.surrogate_file import load_surrogate
@@ -129,6 +130,21 @@ def test_a_ramp_going_on_is_read_only_beyond_any_vehicle() -> None:
     assert ramp_beyond_vehicle_at_last(y, k, 1e-3, 100e3) is None
 
 
+def test_a_level_is_unsettled_only_while_the_last_window_is_beyond_any_vehicle_from_the_first() -> None:
+    """The hold that keeps the young level rule reading: beyond the bound from every first window."""
+    for seed in range(20):
+        y = _sums([*([0.0] * 8), -10e3, -20e3, -30e3, -40e3], seed)
+        # the sum 40 kN below, the test car's scatter on the first windows: beyond 30 kN from them
+        assert level_unsettled_at_last(y, VEHICLE)
+        assert not level_unsettled_at_last(y, 50e3)
+        # a vehicle at the bound parked on the last window, or one that came and went: not beyond
+        assert not level_unsettled_at_last(_sums([*([0.0] * 8), VEHICLE], seed, car=0.0), VEHICLE)
+        assert not level_unsettled_at_last(_sums([VEHICLE, *([0.0] * 8)], seed), VEHICLE)
+        # raised as far: beyond too; too few windows to say: not
+        assert level_unsettled_at_last(_sums([*([0.0] * 8), 40e3], seed, car=0.0), VEHICLE)
+        assert not level_unsettled_at_last(_sums([0.0] * 4 + [-40e3], seed), VEHICLE)
+
+
 @pytest.fixture(scope="module")
 def surrogate():
     return load_surrogate()
@@ -140,6 +156,9 @@ RAMPS = {
     "ref, 10 mm over minutes 8-13": ("ref", -0.01, 8.0, 5.0, 0.0),
     "ref, 10 mm over minutes 8-18": ("ref", -0.01, 8.0, 10.0, 0.0),
     "ref, 10 mm over minutes 14-24": ("ref", -0.01, 14.0, 10.0, 0.0),
+    # ends as the young phase does (30 one-minute windows): read by the level rule held on
+    # (``Shadow._level_unsettled``); before, -0.5 mm +- 8.1 for -10, no event
+    "ref, 10 mm over minutes 20-30": ("ref", -0.01, 20.0, 10.0, 0.0),
     "lowered, 10 mm more over minutes 8-13, 20 kN in 1-7": ("lowered", -0.01, 8.0, 5.0, 20e3),
 }
 
@@ -167,16 +186,22 @@ def test_a_lowering_over_minutes_from_the_data_start_is_followed(
 
 
 @pytest.mark.realdata
-@pytest.mark.parametrize("stop_min", [14.5, 19.5, 21.5, 24.5])
-def test_stopped_and_resumed_around_the_level_the_same(munich_data: Path, surrogate, stop_min: float) -> None:
+@pytest.mark.parametrize(
+    ("start_min", "stop_min"),
+    [(8.0, 14.5), (8.0, 19.5), (8.0, 21.5), (8.0, 24.5), (20.0, 30.5), (20.0, 33.5)],
+)
+def test_stopped_and_resumed_around_the_level_the_same(
+    munich_data: Path, surrogate, start_min: float, stop_min: float
+) -> None:
     """A checkpoint before, at and after the new level is read resumes to the same posterior and events.
 
     The level is read from the young windows (in the checkpoint) and the sums: the windows moved
     out of the old segment are the same whatever the stop (10 mm over minutes 8-18 is read at
-    minute 21).
+    minute 21; over minutes 20-30, after the young phase's 30 windows, from the windows it holds on).
     """
     config = load_config().replace(traffic_hold_s=0.0)
-    sc = build(munich_data / "Settlements", surrogate.A, lowered_from_start("ref", 8.0, 10.0, -0.01))
+    pieces = lowered_from_start("ref", start_min, 10.0, -0.01)
+    sc = build(munich_data / "Settlements", surrogate.A, pieces)
     whole = Shadow(config, surrogate)
     a = whole.run(sc.data)
     stop = sc.starts_ns[0] + round(stop_min * 60e9)

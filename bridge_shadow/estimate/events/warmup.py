@@ -596,6 +596,23 @@ def level_beyond_vehicle_at_last(y: np.ndarray, vehicle_max_n: float) -> tuple[i
     return None
 
 
+def level_unsettled_at_last(y: np.ndarray, vehicle_max_n: float) -> bool:
+    """Whether the last of ``y`` (n, 2) N lies beyond any vehicle from every one of the first windows.
+
+    The reactions' sum of the last window below the lowest of the first ``RAMP_MIN_REST + 1``
+    windows by more than ``vehicle_max_n``, or above their highest by as much: a level
+    ``level_beyond_vehicle_at_last`` may read once it has ``RAMP_MIN_REST + 1`` windows at rest (its
+    new level's mean beyond twice the bound from every old window needs the last windows beyond
+    the bound from the first ones, give or take the noise: a necessary condition with that margin).
+    """
+    s = np.asarray(y, float).reshape(-1, 2).sum(axis=1)
+    least = RAMP_MIN_REST + 1
+    if len(s) < 2 * least or not np.all(np.isfinite(s)):
+        return False
+    head = s[:least]
+    return bool(s[-1] < head.min() - vehicle_max_n or s[-1] > head.max() + vehicle_max_n)
+
+
 def _known_noise_moves(
     y: np.ndarray, k: np.ndarray, window_cov: np.ndarray, phi: np.ndarray, probability: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
