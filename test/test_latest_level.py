@@ -35,6 +35,9 @@ STEP = (-0.01, -0.01)
 #: The helper's streams: (first record, window s, vehicle kN, its minutes after the data's start).
 HIDDEN = {
     "60 s windows, 30 kN in minutes 2-4": ("ref", 60.0, 30.0, (2.0, 4.0)),
+    # the new level's lowest windows beyond twice any vehicle (its mean is not: the test car's
+    # plateaus on it); until stop 82 -0.99 mm +- 8.3 for -10, warned only
+    "120 s windows, 30 kN in minutes 2-4": ("ref", 120.0, 30.0, (2.0, 4.0)),
     "120 s windows, 20 kN in minutes 1-7": ("ref", 120.0, 20.0, (1.0, 7.0)),
     "lowered first, 120 s windows, 25 kN in minutes 1-7": ("lowered", 120.0, 25.0, (1.0, 7.0)),
 }

@@ -120,6 +120,26 @@ def test_a_vehicle_that_came_and_went_is_no_level() -> None:
         assert level_beyond_vehicle_at_last(y, VEHICLE) is not None
 
 
+def test_a_lowering_whose_new_level_a_vehicle_loads_in_part_is_read_from_its_lowest_windows() -> None:
+    """72 kN down, a 25 kN vehicle on half the new level: read from its three lowest windows.
+
+    Its mean is not beyond twice the bound, its three lowest windows are: a vehicle only adds load.
+    A raise is read from the mean as before.
+    """
+    for seed in range(20):
+        new = [-72e3, -72e3 + 25e3] * 4
+        y = _sums([*([0.0] * 8), *new], seed)
+        s = y.sum(axis=1)
+        assert np.mean(s[8:]) > np.min(s[:8]) - 2.0 * VEHICLE  # the mean alone: not beyond
+        assert level_beyond_vehicle_at_last(y, 2.0 * VEHICLE) is not None
+        # two odd low windows are no level
+        odd = _sums([*([0.0] * 8), -72e3, 0.0, -72e3, 0.0, 0.0, 0.0], seed)
+        assert level_beyond_vehicle_at_last(odd, 2.0 * VEHICLE) is None
+        # a raise of 72 kN, 25 kN less on half of it: the mean is not beyond
+        up = _sums([*([0.0] * 8), *[72e3, 72e3 - 25e3] * 4], seed)
+        assert level_beyond_vehicle_at_last(up, 2.0 * VEHICLE) is None
+
+
 def test_a_ramp_going_on_is_read_only_beyond_any_vehicle() -> None:
     """A clean ramp of 15 kN a window: read once it has moved the sum beyond the bound, from its start."""
     rng = np.random.default_rng(0)
