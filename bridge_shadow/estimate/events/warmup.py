@@ -533,7 +533,9 @@ def ramp_beyond_vehicle_at_last(
     return first if first is not None and scores[first] > 0.0 else None
 
 
-def level_beyond_vehicle_at_last(y: np.ndarray, vehicle_max_n: float) -> tuple[int, int] | None:
+def level_beyond_vehicle_at_last(
+    y: np.ndarray, vehicle_max_n: float, raises: bool = True
+) -> tuple[int, int] | None:
     """Return ``(first window moving, first window of the new level)`` of a level the last windows hold.
 
     The reactions' sum ``s`` of ``y`` (n, 2) N is fitted, by least squares, as a level ``L0`` up to
@@ -551,7 +553,7 @@ def level_beyond_vehicle_at_last(y: np.ndarray, vehicle_max_n: float) -> tuple[i
     level held its mean within twice the bound below the old level's lowest window), but not its
     lowest windows, which
     a lowering is read from; a raise is read from the mean, which such a vehicle lifts, so that
-    the windows it loads count no more than their share.
+    the windows it loads count no more than their share (``raises=False``: lowerings only).
     A ramp whose pace the test car's moves break is no ramp for ``ramp_windows`` and no jump for
     ``new_state_at_last``; a ramp still going on fits best with its line to the last window, or
     leaves windows after ``b`` that go on its way at ``RAMP_MIN_SPEED`` of its speed or more (the
@@ -601,26 +603,26 @@ def level_beyond_vehicle_at_last(y: np.ndarray, vehicle_max_n: float) -> tuple[i
     old, new = s[:first], s[start:]
     if float(np.sort(new)[least - 1]) < float(np.min(old)) - vehicle_max_n:
         return first, start
-    if float(np.mean(new)) > float(np.max(old)) + vehicle_max_n:
+    if raises and float(np.mean(new)) > float(np.max(old)) + vehicle_max_n:
         return first, start
     return None
 
 
 def level_unsettled_at_last(y: np.ndarray, vehicle_max_n: float) -> bool:
-    """Whether the last of ``y`` (n, 2) N lies beyond any vehicle from every one of the first windows.
+    """Whether the last of ``y`` (n, 2) N lies beyond any vehicle below every one of the first windows.
 
     The reactions' sum of the last window below the lowest of the first ``RAMP_MIN_REST + 1``
-    windows by more than ``vehicle_max_n``, or above their highest by as much: a level
-    ``level_beyond_vehicle_at_last`` may read once it has ``RAMP_MIN_REST + 1`` windows at rest (its
-    new level's mean beyond twice the bound from every old window needs the last windows beyond
-    the bound from the first ones, give or take the noise: a necessary condition with that margin).
+    windows by more than ``vehicle_max_n``: a lowering ``level_beyond_vehicle_at_last`` may read
+    once it has ``RAMP_MIN_REST + 1`` windows at rest (those windows beyond twice the bound below
+    every old window need the last one beyond the bound below the first ones, give or take the
+    noise: a necessary condition with that margin). A raise is not asked for: a vehicle parked on
+    a smaller raise makes one (``Shadow._level_unsettled``).
     """
     s = np.asarray(y, float).reshape(-1, 2).sum(axis=1)
     least = RAMP_MIN_REST + 1
     if len(s) < 2 * least or not np.all(np.isfinite(s)):
         return False
-    head = s[:least]
-    return bool(s[-1] < head.min() - vehicle_max_n or s[-1] > head.max() + vehicle_max_n)
+    return bool(s[-1] < s[:least].min() - vehicle_max_n)
 
 
 def _known_noise_moves(
