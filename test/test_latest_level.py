@@ -10,7 +10,7 @@ no warning. Since stop 81 the young noise model's windows are searched for a new
 own (``Shadow._young_level``, ``test_young_level.py``): the helper's kin with 120 s windows end at
 the new state with one event; since stop 82 that stream itself too (its new level, the test car's
 plateaus on it, was not beyond twice any vehicle within the young phase's 30 windows; the level
-rule reads on while the last window lies beyond any vehicle from the first ones,
+rule reads on while the last window lies beyond any vehicle below the first ones,
 ``Shadow._level_unsettled``). Where the estimate still does not follow (a vehicle of 20 kN parked
 across the step), ``report.latest_level`` compares
 the last ``event_confirm_windows`` windows used, read on their own through ``A``, with the

@@ -850,7 +850,7 @@ class Shadow:
         self._young = [*self._young[1 - young :], w]
 
     def _level_unsettled(self, w: Window, young: int) -> bool:
-        """Whether ``w`` lies beyond any vehicle from the young run's first windows (up to ``2 * young``).
+        """Whether ``w`` lies beyond any vehicle below the young run's first windows (up to ``2 * young``).
 
         Only a lowering holds it on (``events.warmup.level_unsettled_at_last``), and only a lowering
         is read then: a vehicle parked on a smaller raise makes a raise. A support lowered over
@@ -858,7 +858,7 @@ class Shadow:
         windows at rest for ``_young_level`` when the phase ends, and the noise model, fitted on the
         ramp's windows taken as data, no longer sees it (the reference record three times from
         the data's start, 10 mm lower over its minutes 20-30, no vehicle: -0.5 mm ± 8.1 for -10, no
-        event). While the last window is that far from the first ones
+        event). While the last window is that far below the first ones
         (``events.warmup.level_unsettled_at_last``) the young level rule reads on, up to as many
         accepted windows again.
         """
