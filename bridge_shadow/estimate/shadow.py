@@ -625,7 +625,7 @@ class Shadow:
                 continue
             self._note_young(w)
             young = None if self._fresh_open else self._young_run(w)
-            late = self._n_accepted >= RAMP_HOLD_FACTOR * self.config.warmup_windows
+            late = self._n_accepted >= self._young_count
             # a level the young windows hold first: read on all of them, it places the change where
             # it began (a spike's fall into w is no new state's start when w goes on a level that
             # began windows before it)
@@ -655,7 +655,7 @@ class Shadow:
         """
         if self._young_done or self.detector.pending or not self._young or not self.filter.starts:
             return None
-        run = [*self._young_data(self.filter.starts[-1], w.k), w]
+        run = self._young_with(w)
         y, ks = self._compensated(run)
         return run, y, ks
 
@@ -743,6 +743,15 @@ class Shadow:
         if not new_state_at_last(np.vstack([y_old, y[1:2]]), np.append(k_old, ks[1]), probability, vehicle):
             return "odd"
         return None
+
+    @property
+    def _young_count(self) -> int:
+        """Accepted windows below which the noise model is young (``RAMP_HOLD_FACTOR * warmup_windows``)."""
+        return RAMP_HOLD_FACTOR * self.config.warmup_windows
+
+    def _young_with(self, w: Window) -> list[Window]:
+        """Return the current segment's young data windows before ``w``, and ``w``."""
+        return [*self._young_data(self.filter.starts[-1], w.k), w]
 
     def _young_data(self, lo: int, hi: int) -> list[Window]:
         """Return the young windows of indices ``[lo, hi)`` that are data (taken or warm-up)."""
@@ -843,14 +852,14 @@ class Shadow:
         """
         if self._young_done:
             return
-        young = RAMP_HOLD_FACTOR * self.config.warmup_windows
-        if self._n_accepted >= young and not self._level_unsettled(w, young):
+        young = self._young_count
+        if self._n_accepted >= young and not self._level_unsettled(w):
             self._young, self._young_done = [], True
             return
         self._young = [*self._young[1 - young :], w]
 
-    def _level_unsettled(self, w: Window, young: int) -> bool:
-        """Whether ``w`` lies beyond any vehicle below the young run's first windows (up to ``2 * young``).
+    def _level_unsettled(self, w: Window) -> bool:
+        """Whether ``w`` lies beyond any vehicle below the young run's first windows (to twice the count).
 
         Only a lowering holds it on (``events.warmup.level_unsettled_at_last``), and only a lowering
         is read then: a vehicle parked on a smaller raise makes a raise. A support lowered over
@@ -862,10 +871,9 @@ class Shadow:
         (``events.warmup.level_unsettled_at_last``) the young level rule reads on, up to as many
         accepted windows again.
         """
-        if self._n_accepted >= 2 * young or self.detector.pending or not self.filter.starts:
+        if self._n_accepted >= 2 * self._young_count or self.detector.pending or not self.filter.starts:
             return False
-        run = [*self._young_data(self.filter.starts[-1], w.k), w]
-        y, _ = self._compensated(run)
+        y, _ = self._compensated(self._young_with(w))
         return level_unsettled_at_last(y, self.config.traffic_vehicle_max_n)
 
     def _precompute_curve(
