@@ -24,6 +24,7 @@ from bridge_shadow.estimate.compensation.sums import FitSums, WindowRows, residu
 from bridge_shadow.estimate.events.warmup import (
     level_beyond_vehicle_at_last,
     level_unsettled_at_last,
+    lone_windows_beyond_vehicle,
     ramp_beyond_vehicle_at_last,
 )
 from bridge_shadow.model.surrogate_file import load_surrogate
@@ -353,3 +354,71 @@ def test_the_state_a_parked_vehicle_leaves_is_data_not_a_spike(munich_data: Path
     score = score_stream(sc, res)
     assert score.covered, 1e3 * res.mean_m
     assert score.lost_windows == 0, [o.end_ns for o in res.outputs if o.reason == "outlier"]
+
+
+def test_a_window_alone_beyond_any_vehicle_that_came_back_is_lone() -> None:
+    """One window 80 kN up (or down) and back is lone; two windows, a step, or a vehicle's load are not."""
+    for seed in range(20):
+        for load in (80e3, -80e3, 2.2 * VEHICLE):
+            y = _sums([0.0] * 4 + [load] + [0.0] * 4, seed, 0.0)
+            assert lone_windows_beyond_vehicle(y, VEHICLE) == [4]
+        # with the test car's scatter, beyond the bound and back by more than the scatter
+        assert lone_windows_beyond_vehicle(_sums([0.0] * 4 + [80e3] + [0.0] * 4, seed), VEHICLE) == [4]
+        for levels in (
+            [0.0] * 4 + [80e3] * 2 + [0.0] * 4,  # two windows: a state (SHORT_STATE_WINDOWS)
+            [0.0] * 4 + [80e3] * 5,  # a step that stayed
+            [0.0] * 4 + [0.9 * VEHICLE] + [0.0] * 4,  # a vehicle's load
+            [0.0] * 4 + [80e3] + [-80e3] * 4,  # it went on the other way: not back
+            [0.0] * 4 + [80e3],  # the last window: nothing after it yet
+        ):
+            assert lone_windows_beyond_vehicle(_sums(levels, seed, 0.0), VEHICLE) == [], levels
+
+
+def _one_window_load(sc, load_n: float, window: int, window_s: float = 60.0) -> int:
+    """Put ``load_n`` on whole window ``window`` of the data (from its first whole one); return its index."""
+    w = round(window_s * 1e9)
+    first = -(-sc.starts_ns[0] // w)
+    at = (first * w - sc.starts_ns[0]) / 60e9 + window * window_s / 60.0
+    sc.data = with_vehicle(sc.data, sc.starts_ns[0], load_n, at, at + window_s / 60.0)
+    return first + window
+
+
+@pytest.mark.realdata
+def test_a_one_window_load_the_detector_held_while_young_is_an_outlier(munich_data: Path, surrogate) -> None:
+    """80 kN over one whole minute, the data's 16th, of the reference record three times, no settlement.
+
+    The detector held it and the next window came back; the young estimate's wide uncertainty made
+    it no outlier on the noise model, and it was taken as data (the estimate moved by 0.7 mm and the
+    noise model grew). Beyond any vehicle from the window the run came back in, it is rejected
+    (``ChangeDetector._split_ordinary``).
+    """
+    sc = build(munich_data / "Settlements", surrogate.A, [Piece("ref", 0.2 * c) for c in range(3)])
+    k = _one_window_load(sc, 80e3, 15)
+    shadow = Shadow(load_config(), surrogate)
+    res = shadow.run(sc.data)
+    w = 60 * 10**9
+    assert [o.end_ns // w - 1 for o in res.outputs if o.reason == "outlier"] == [k]
+    assert not res.events and not res.changes and shadow.filter.kinds == ["start"]
+    assert score_stream(sc, res).covered, 1e3 * res.mean_m
+
+
+@pytest.mark.realdata
+def test_a_one_window_load_taken_as_young_data_is_taken_back(munich_data: Path, surrogate) -> None:
+    """The reference record three times raised 15 mm at minute 16.4, 60 kN over one 120 s window after it.
+
+    The detector, the new state young, took the load as data at once; the stream ended at 17.7 mm
+    for 15 (a reviewing helper's family L). The next window came back: the load is taken back as an
+    outlier (``Shadow._take_back_lone``: its rows leave the sums, its jump the detector's bound).
+    """
+    config = load_config().replace(window_s=120.0)
+    sc = build(munich_data / "Settlements", surrogate.A, _changes_from_start("ref", [(16.37, 0.01, 0.015)]))
+    k = _one_window_load(sc, 60e3, 10, 120.0)
+    shadow = Shadow(config, surrogate)
+    res = shadow.run(sc.data)
+    # its output went out as an update; the rejected windows list it since
+    assert {"window": k, "reason": "outlier"}.items() <= next(
+        r for r in res.to_json()["rejected_windows"] if r["window"] == k
+    ).items()
+    assert shadow.counts["outlier"] == 1 and len(res.events) == 1
+    s = score_stream(sc, res, 120.0)
+    assert s.covered and s.within, 1e3 * res.mean_m

@@ -66,6 +66,7 @@ __all__ = [
     "false_two_step_probability",
     "jump_goes_on",
     "level_beyond_vehicle_at_last",
+    "lone_windows_beyond_vehicle",
     "moved_not_still",
     "moved_then_still",
     "moving_on_known_noise",
@@ -235,6 +236,25 @@ def beyond_any_vehicle(step: np.ndarray | tuple[float, float], vehicle_max_n: fl
     or more than one leaving takes off an estimate made while it stood.
     """
     return abs(float(step[0] + step[1])) > vehicle_max_n
+
+
+def lone_windows_beyond_vehicle(y: np.ndarray, vehicle_max_n: float) -> list[int]:
+    """Return the indices of windows alone beyond any vehicle that came back, among ``y`` (n, 2) N.
+
+    Window ``i`` jumps from window ``i - 1`` and back into window ``i + 1``, each by more than any
+    vehicle (``beyond_any_vehicle``, opposite ways), and ``i + 1`` is within a vehicle of
+    ``i - 1``: a load no vehicle adds that stood one window (a glitch, a load that stopped for a
+    minute), or a settlement undone a window later, which no support does. One window alone is
+    no state (``events.detector.SHORT_STATE_WINDOWS``): an outlier, as the detector rejects one.
+    """
+    s = np.asarray(y, float).reshape(-1, 2).sum(axis=1)
+    out = []
+    for i in range(1, len(s) - 1):
+        up, back = s[i] - s[i - 1], s[i + 1] - s[i]
+        if abs(up) > vehicle_max_n and abs(back) > vehicle_max_n and up * back < 0.0:
+            if abs(s[i + 1] - s[i - 1]) <= vehicle_max_n:
+                out.append(i)
+    return out
 
 
 def warmup_steps(

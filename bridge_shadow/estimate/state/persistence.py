@@ -174,6 +174,7 @@ def shadow_state(shadow: Shadow) -> dict[str, Any]:
             "phi": det.phi.copy(),
             "inflation": det.inflation,
             "max_jump": det.max_jump,
+            "max_jump_before": det.max_jump_before,
             "pending_index": np.array([index[id(p.payload)] for p in det.pending], np.int64),
             "pending_v": np.array([p.v for p in det.pending]).reshape(-1, 2),
             "pending_r": np.array([p.r_window for p in det.pending]).reshape(-1, 2, 2),
@@ -327,6 +328,7 @@ def restore_shadow(
     det.phi = np.asarray(d["phi"], float).reshape(2)
     det.inflation = float(d["inflation"])
     det.max_jump = float(d["max_jump"])
+    det.max_jump_before = float(d.get("max_jump_before", det.max_jump))
     det.prev = _restore_prev(d["prev"])
     det.history.clear()
     for k, v0, v1 in np.asarray(d.get("history", np.zeros((0, 3))), float).reshape(-1, 3):
