@@ -661,31 +661,20 @@ class Shadow:
         listed as an outlier (its output went out as an update). Before the young rules read
         ``w``: the fall from the load is no jump into ``w``.
         """
+        prev = self.detector.prev
         if self._young_done or self.detector.pending or self._fresh_open or not self.filter.starts:
             return
         data = self._young_data(self.filter.starts[-1], w.k)
-        if len(data) < 2:
+        if len(data) < 2 or prev is None:
             return
         q, p = data[-2], data[-1]
-        if p.action != "accept" or p.k != w.k - 1 or q.k != p.k - 1 or self.detector.prev is None:
-            return
-        if self.detector.prev.k != p.k:
+        if p.action != "accept" or prev.k != p.k or not q.k + 1 == p.k == w.k - 1:
             return
         y, _ = self._compensated([q, p, w])
         if lone_windows_beyond_vehicle(y, self.config.traffic_vehicle_max_n) != [1]:
             return
-        self._flush_rows()
-        seg = self.filter.segment
-        self.sums.remove_last(self._window_rows([p], seg), self._window_rows([q], seg))
         self.detector.take_back(p.k)
-        p.reason, p.action = "outlier", "invalid"
-        self.counts["outlier"] += 1
-        self._note_rejected(p.k, "outlier")
-        latest = [x for x in self._latest if x.k != p.k]
-        self._latest.clear()
-        self._latest.extend(latest)
-        self._last_ok = q
-        self._refit()
+        self._leave_out_moved([p], "outlier")
 
     def _young_run(self, w: Window) -> tuple[list[Window], np.ndarray, np.ndarray] | None:
         """Return the current segment's young data windows and ``w``, compensated, or None.
@@ -805,12 +794,13 @@ class Shadow:
         """Return the young windows of indices ``[lo, hi)`` that are data (taken or warm-up)."""
         return [x for x in self._young if lo <= x.k < hi and x.action in ("accept", "warm")]
 
-    def _leave_out_moved(self, moved: list[Window]) -> None:
+    def _leave_out_moved(self, moved: list[Window], reason: str = "step_window") -> None:
         """Take a young ramp's windows out of the estimate: they hold neither state (``_young_step``).
 
         They were taken as data of the current segment (its last ones) and each went out as an
         update; their rows leave the sums (``FitSums.remove_last``), they are counted and listed as
-        ``step_window``, and the curve, the noise model and the chain are refitted without them.
+        ``reason`` (``step_window``; a lone load's ``outlier``: ``_take_back_lone``), and the
+        curve, the noise model and the chain are refitted without them.
         """
         if not moved:
             return
@@ -820,16 +810,16 @@ class Shadow:
         kept = [x for x in self._young_data(self.filter.starts[-1], moved[0].k) if x.k not in gone]
         before = self._window_rows(kept[-1:], seg) if kept else None
         self.sums.remove_last(self._window_rows(moved, seg), before)
-        self._take_back(moved)
+        self._take_back(moved, reason)
         if kept:
             self._last_ok = kept[-1]
         self._refit()
 
-    def _take_back(self, windows: list[Window]) -> None:
+    def _take_back(self, windows: list[Window], reason: str = "step_window") -> None:
         """Leave out windows taken as data whose rows have left the sums: counted, listed, not latest."""
         gone = {w.k for w in windows}
         for w in windows:
-            self._leave_out(w)
+            self._leave_out(w, reason)
             self._note_rejected(w.k, w.reason)
         latest = [x for x in self._latest if x.k not in gone]
         self._latest.clear()
@@ -1051,10 +1041,10 @@ class Shadow:
         y = np.array([w.force - np.array(self._curve(w)) for w in windows]).reshape(-1, 2)
         return y, np.array([w.k for w in windows], np.int64)
 
-    def _leave_out(self, w: Window) -> None:
-        """Leave out a window that holds neither state (a step or a ramp went on in it)."""
-        w.reason, w.action = "step_window", "invalid"
-        self.counts["step_window"] += 1
+    def _leave_out(self, w: Window, reason: str = "step_window") -> None:
+        """Leave out a window that holds neither state (a step or a ramp went on in it), or ``reason``."""
+        w.reason, w.action = reason, "invalid"
+        self.counts[reason] += 1
 
     def _release_fresh(self, at_gap: bool = False) -> list[WindowOutput]:
         """Judge the windows held after a gap, in order; a step among them opens a provisional segment.
