@@ -422,3 +422,38 @@ def test_a_one_window_load_taken_as_young_data_is_taken_back(munich_data: Path, 
     assert shadow.counts["outlier"] == 1 and len(res.events) == 1
     s = score_stream(sc, res, 120.0)
     assert s.covered and s.within, 1e3 * res.mean_m
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("load", [80e3, -80e3, 60e3])
+def test_a_one_window_load_at_the_warmups_last_window_is_an_outlier(
+    munich_data: Path, surrogate, load: float
+) -> None:
+    """The reference record three times, no settlement, ``load`` over the warm-up's last window.
+
+    The warm-up's step search reads its windows at once, and a load of one window at its end was a
+    step there (80 kN: an unconfirmed raise of 11 mm and a settlement event of -11 mm when the next
+    window came back) or warm data (60 kN: the estimate +0.7 mm). That window is now judged after the
+    warm-up (``Shadow._last_warm_alone``), by the rules for a young state: an outlier that came back.
+    """
+    config = load_config()
+    sc = build(munich_data / "Settlements", surrogate.A, [Piece("ref", 0.2 * c) for c in range(3)])
+    # the data's first window is partial: whole window 8 is the tenth with data, the warm-up's last
+    k = _one_window_load(sc, load, config.warmup_windows - 2)
+    shadow = Shadow(config, surrogate)
+    res = shadow.run(sc.data)
+    w = 60 * 10**9
+    assert [o.end_ns // w for o in res.outputs[: config.warmup_windows]][-1] - 1 == k
+    assert [o.end_ns // w - 1 for o in res.outputs if o.reason == "outlier"] == [k]
+    assert not res.events and not res.changes and shadow.filter.kinds == ["start"]
+    assert score_stream(sc, res).covered, 1e3 * res.mean_m
+    # stopped just after the window (taken out of the warm-up, held) and after the next (rejected)
+    for end_k in (k + 1, k + 2):
+        stop = end_k * w + 5 * 10**9
+        first = Shadow(config, surrogate)
+        first.run(sc.data.select(lambda t, stop=stop: t < stop), flush=False)
+        resumed = Shadow.from_state_dict(first.state_dict(), config, surrogate)
+        b = resumed.run(sc.data.select(lambda t, stop=stop: t >= stop))
+        np.testing.assert_allclose(b.mean_m, res.mean_m, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(b.covariance_m2, res.covariance_m2, rtol=1e-9, atol=1e-15)
+        assert not b.events and resumed.counts["outlier"] == 1
