@@ -1582,12 +1582,15 @@ class Shadow:
         reads such a window as an odd one, not as an outlier. The detector rejects one window
         alone that came back, and so do the young rules (``_take_back_lone``); the warm-up now
         does too, with the same test (``events.warmup.lone_windows_beyond_vehicle``, per segment
-        of its windows), before its step search. The warm-up's last window has no next one yet
-        (``_last_warm_alone``).
+        of its windows, not those after a gap), before its step search. The warm-up's last window
+        has no next one yet (``_last_warm_alone``).
         """
+        # the windows after a gap inside the warm-up are the gap's (``_finish_warmup`` may hold
+        # them on for ``_release_fresh``, which decides each of them itself)
+        gap = self.filter.segment if self.filter.kinds[-1] == "gap" else None
         runs: dict[int, list[Window]] = {}
         for w in self._warm:
-            if w.action != "invalid":
+            if w.action != "invalid" and w.seg != gap:
                 runs.setdefault(w.seg, []).append(w)
         vehicle = self.config.traffic_vehicle_max_n
         for run in runs.values():
