@@ -223,7 +223,7 @@ def test_a_batch_of_alike_messages_decodes_as_one_block_as_one_by_one() -> None:
             assert list(block[1]) == list(one_by_one[1]) == [frame] * len(raws)
             np.testing.assert_array_equal(block[2], one_by_one[2])  # float64s copied, no arithmetic
             assert block[2].dtype == np.float64 and block[2].dtype.isnative
-            np.testing.assert_array_equal(decode_stamped_floats(raws, 6)[0], one_by_one[0])
+            np.testing.assert_array_equal(decode_stamped_floats(raws, 6)[0], one_by_one[0])  # integer ns
     raws = [wrench("frc_01", True) for _ in range(UNIFORM_MIN)]
     for odd in (wrench("frc_02", True), wrench("frc_01", False), wrench("frc_001", True)):
         mixed = [*raws[:-1], odd]  # another frame_id, byte order, length: not alike
@@ -435,7 +435,7 @@ def test_decode_buffer_gathers_scattered_messages() -> None:
     stamp, frames, values = decode_buffer(buf, starts, lengths, 6)
     np.testing.assert_array_equal(stamp, [5, 6, 7])  # exact: decoded bytes, no arithmetic
     assert list(frames) == ["a", "bbbbbbbbbbbb", "a"]
-    np.testing.assert_array_equal(values, np.arange(18.0).reshape(3, 6))
+    np.testing.assert_array_equal(values, np.arange(18.0).reshape(3, 6))  # float64s copied
 
 
 def test_a_uniform_frame_id_view_is_read_only_and_shared() -> None:

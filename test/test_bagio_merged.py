@@ -205,7 +205,7 @@ def test_a_sqlite3_bag_of_none_of_the_topics_adds_nothing(record: dict[str, Any]
     with MergedStream([forces, air], topics=names, required=False) as merged:
         got = _topics(list(merged))
     assert got[0]["log_ns"].size == got[1]["log_ns"].size == 0
-    np.testing.assert_array_equal(got[2]["log_ns"], data.temperature.log_ns)
+    np.testing.assert_array_equal(got[2]["log_ns"], data.temperature.log_ns)  # integer ns
 
 
 def test_equal_log_times_keep_the_bags_order(tmp_path: Path) -> None:

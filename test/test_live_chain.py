@@ -121,7 +121,7 @@ def test_the_nodes_copy_drops_the_held_air_and_the_end_writes_the_tail(tmp_path:
     chain = prepare(config, surrogate, ck, tmp_path / "node.npz")
     held = Shadow.resume(ck).held_air
     assert chain.held is not None and held is not None and len(chain.held) == len(held) > 200
-    np.testing.assert_array_equal(chain.held.stamp_ns, held.stamp_ns)
+    np.testing.assert_array_equal(chain.held.stamp_ns, held.stamp_ns)  # integer ns
     assert "held_air" not in load_state(tmp_path / "node.npz") and chain.notes == []
     state = load_state(tmp_path / "node.npz")
     tail = held.take(np.arange(len(held)) < 7)
@@ -130,7 +130,7 @@ def test_the_nodes_copy_drops_the_held_air_and_the_end_writes_the_tail(tmp_path:
     assert chain.finish(state, tail, [{"signature": "s", "bag": "x"}], forces_fed=5) is None
     assert ck.read_bytes() == before  # left untouched: compared byte for byte
     chain.finish(state, tail, [{"signature": "s", "bag": "x"}])
-    np.testing.assert_array_equal(Shadow.resume(ck).held_air.temp_c, tail.temp_c)
+    np.testing.assert_array_equal(Shadow.resume(ck).held_air.temp_c, tail.temp_c)  # held, copied
     assert [e["bag"] for e in Shadow.resume(ck).taken_bags] == [str(one), "x"]  # the first run's, this one
     chain.finish(state, None)
     assert Shadow.resume(ck).held_air is None
@@ -192,7 +192,7 @@ def test_a_live_replay_in_a_checkpoint_chain_is_one_merged_replay(
     assert [e["window"] for e in live["events"]] == [e["window"] for e in merged["events"]] != []
     # the live run's checkpoint is the offline chain's: the same held air, the same state after it
     held, held_offline = Shadow.resume(ck).held_air, Shadow.resume(offline_ck).held_air
-    np.testing.assert_array_equal(held.stamp_ns, held_offline.stamp_ns)
+    np.testing.assert_array_equal(held.stamp_ns, held_offline.stamp_ns)  # integer ns
     # and its parameters: the node's named its private copy (gone after the run) and a period of a year
     live_params = json.loads(str(load_state(ck)["config"]))
     offline_params = json.loads(str(load_state(offline_ck)["config"]))
@@ -256,14 +256,14 @@ def test_held_air_past_the_bag_follows_it_and_an_undecodable_tail_message_is_lef
     later.log_ns = later.stamp_ns = last + (1 + np.arange(5, dtype=np.int64)) * 10**9
     out = list(merge_held(raw, later))
     assert len(out) == len(raw) + 1 and np.all(out[-1][0] == AIR)
-    np.testing.assert_array_equal(out[-1][3], later.log_ns)
+    np.testing.assert_array_equal(out[-1][3], later.log_ns)  # integer ns
     assert _per_topic(_published(out[:-1])) == _per_topic(_published(raw))  # the bag's own, untouched
     topic, pos, raws, logs = out[-1]
     broken = [raws[0], raws[1], [raws[AIR][0][:10], *raws[AIR][1:]]]  # the first one cut short
     tail, bad = decode_air([(topic, pos, broken, logs)])
     assert bad == 1 and tail is not None and len(tail) == 4
-    np.testing.assert_array_equal(tail.stamp_ns, later.stamp_ns[1:])
-    np.testing.assert_array_equal(tail.temp_c, later.temp_c[1:])
+    np.testing.assert_array_equal(tail.stamp_ns, later.stamp_ns[1:])  # integer ns
+    np.testing.assert_array_equal(tail.temp_c, later.temp_c[1:])  # decoded from its bytes: a copy
 
 
 def test_a_stamp_decoded_past_the_int32_seconds_is_published_as_it_decoded(tmp_path: Path) -> None:

@@ -669,8 +669,10 @@ class Shadow:
         prev = self.detector.prev
         if self._young_done or self.detector.pending or self._fresh_open or not self.filter.starts:
             return
+        if prev is None or prev.k != w.k - 1:  # the window before ``w`` was not taken as data at once
+            return
         data = self._young_data(self.filter.starts[-1], w.k)
-        if len(data) < 2 or prev is None:
+        if len(data) < 2:
             return
         q, p = data[-2], data[-1]
         if p.action != "accept" or prev.k != p.k or not q.k + 1 == p.k == w.k - 1:
@@ -1564,6 +1566,11 @@ class Shadow:
         if not self._young_done:
             self._young = list(warm)
 
+    def _warm_run(self) -> list[Window]:
+        """Return the current segment's warm-up windows not left out, in order."""
+        seg = self.filter.segment
+        return [w for w in self._warm if w.seg == seg and w.action != "invalid"]
+
     def _warm_steps(self, run: list[Window]) -> list[tuple[int, int | None]]:
         """``events.warmup.step_windows`` of warm-up windows ``run`` (one segment's, in order)."""
         return step_windows(
@@ -1611,8 +1618,7 @@ class Shadow:
         decide: an outlier that came back, or the first window of a new state.
         True if it was taken out (the caller judges it).
         """
-        seg = self.filter.segment
-        run = [w for w in self._warm if w.seg == seg and w.action != "invalid"]
+        run = self._warm_run()
         if len(run) <= MIN_DIFFERENCES + 1:
             return False
         if not any(i == len(run) - 1 and mixed is None for i, mixed in self._warm_steps(run)):
@@ -1633,8 +1639,7 @@ class Shadow:
         the lowering went unseen and the stream ended 7.8 mm off). Also where a gap inside the
         warm-up closes the segment (``_open_gap``).
         """
-        seg = self.filter.segment
-        run = [w for w in self._warm if w.seg == seg and w.action != "invalid"]
+        run = self._warm_run()
         for i, mixed in self._warm_steps(run):
             if mixed is not None:  # each side keeps a window: its neighbours are its states'
                 self._leave_out(run[mixed])
